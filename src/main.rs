@@ -1,1 +1,28 @@
-fn main(){}
+//! The `splattrack` command line (FORMATS.md "Command line").
+
+mod cli;
+
+use clap::Parser;
+
+fn main() -> std::process::ExitCode {
+    let args = cli::Cli::parse();
+    cli::init_logging(args.verbose);
+    match cli::run(args) {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            // One line naming the file and the problem: the whole chain, joined.
+            let msg: Vec<String> = e.chain().map(|c| c.to_string()).collect();
+            let mut line = String::new();
+            for m in msg {
+                if !line.contains(&m) {
+                    if !line.is_empty() {
+                        line.push_str(": ");
+                    }
+                    line.push_str(&m);
+                }
+            }
+            eprintln!("error: {}", line.replace('\n', " "));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

@@ -1,0 +1,79 @@
+//! A tiny end-to-end check of the device: upload, compute dispatch and
+//! readback of `y = a x + y`, compared with the same sum on the host.
+
+use super::{GpuContext, GpuError, STORAGE_IN, STORAGE_OUT, workgroups};
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Params {
+    // Keep this field order in sync with `Params` in shaders/selftest.wgsl.
+    a: f32,
+    n: u32,
+    _pad: [u32; 2],
+}
+const _: () = assert!(std::mem::size_of::<Params>() == 16);
+
+/// CPU reference of the `saxpy` kernel.
+pub fn saxpy_cpu(a: f32, x: &[f32], y: &[f32]) -> Vec<f32> {
+    x.iter().zip(y).map(|(x, y)| a.mul_add(*x, *y)).collect()
+}
+
+/// Runs the `saxpy` kernel on the GPU.
+pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f32>, GpuError> {
+    assert_eq!(x.len(), y.len(), "saxpy: x and y differ in length");
+    let n = x.len() as u32;
+    let pipeline = ctx.compute_pipeline("selftest", "saxpy")?;
+    let params = ctx.buffer_init(
+        "saxpy params",
+        &[Params { a, n, _pad: [0; 2] }],
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let xb = ctx.buffer_init("saxpy x", x, STORAGE_IN);
+    let yb = ctx.buffer_init("saxpy y", y, STORAGE_OUT);
+    let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("saxpy"),
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: xb.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: yb.as_entire_binding(),
+            },
+        ],
+    });
+    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(workgroups(n, 64), 1, 1);
+    }
+    ctx.queue.submit([enc.finish()]);
+    ctx.read_buffer(&yb, x.len())
+}
+
+/// Runs the kernel on `n` pseudo-random values and returns the largest
+/// difference from the host result in units of f32 epsilon relative to
+/// `|a x| + |y|`: at most 1 on a working device (WGSL's `fma` may be
+/// evaluated unfused, which rounds the product once more).
+pub fn run(ctx: &GpuContext, n: usize) -> Result<f32, GpuError> {
+    let mut rng = crate::rng::Rng::new(n as u64);
+    let x: Vec<f32> = (0..n).map(|_| rng.uniform(-100.0, 100.0) as f32).collect();
+    let y: Vec<f32> = (0..n).map(|_| rng.uniform(-100.0, 100.0) as f32).collect();
+    let a = rng.uniform(-3.0, 3.0) as f32;
+    let gpu = saxpy_gpu(ctx, a, &x, &y)?;
+    let cpu = saxpy_cpu(a, &x, &y);
+    Ok(gpu
+        .iter()
+        .zip(&cpu)
+        .zip(x.iter().zip(&y))
+        .map(|((g, c), (x, y))| (g - c).abs() / ((a * x).abs() + y.abs()) / f32::EPSILON)
+        .fold(0.0, f32::max))
+}

@@ -1,0 +1,6 @@
+//! Files on disk (FORMATS.md): pose CSVs, raw float images (.npy).
+
+pub mod npy;
+pub mod poses;
+
+pub use poses::{PoseRow, read_poses, write_poses};

@@ -1,0 +1,269 @@
+//! Pose CSV files (FORMATS.md "Poses"): a header line, then one row per pose,
+//! `frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra columns]`,
+//! object-to-camera, R row-major.
+
+use crate::geometry::{Pose, PoseError};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The columns every pose file starts with.
+pub const POSE_COLUMNS: [&str; 13] = [
+    "frame", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", "tx", "ty", "tz",
+];
+
+#[derive(Debug, thiserror::Error)]
+pub enum PoseFileError {
+    #[error("{path}: cannot read pose file: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: {reason}")]
+    Format { path: PathBuf, reason: String },
+    #[error("{path}, line {line}: {reason}")]
+    Row {
+        path: PathBuf,
+        line: usize,
+        reason: String,
+    },
+    #[error("{path}, line {line}: {source}")]
+    BadPose {
+        path: PathBuf,
+        line: usize,
+        #[source]
+        source: PoseError,
+    },
+}
+
+/// One row of a pose file: the frame label, the pose and any extra columns
+/// (by header name) that followed `tz`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PoseRow {
+    pub frame: String,
+    pub pose: Pose,
+    pub extra: Vec<(String, String)>,
+}
+
+impl PoseRow {
+    pub fn new(frame: impl Into<String>, pose: Pose) -> Self {
+        Self {
+            frame: frame.into(),
+            pose,
+            extra: Vec::new(),
+        }
+    }
+
+    /// The frame label as an index, if it is one (`"000043"` -> 43).
+    pub fn frame_index(&self) -> Option<usize> {
+        self.frame.parse().ok()
+    }
+
+    /// The label without an image extension (`kf00.png` -> `kf00`).
+    pub fn frame_stem(&self) -> &str {
+        Path::new(&self.frame)
+            .file_stem()
+            .and_then(|s| s.to_str())
+            .unwrap_or(&self.frame)
+    }
+}
+
+/// Reads a pose CSV. Rotations must be rotation matrices to 1e-4; they are
+/// re-orthonormalised to full precision on load.
+pub fn read_poses(path: &Path) -> Result<Vec<PoseRow>, PoseFileError> {
+    let text = std::fs::read_to_string(path).map_err(|source| PoseFileError::Io {
+        path: path.to_owned(),
+        source,
+    })?;
+    parse_poses(&text, path)
+}
+
+/// [`read_poses`] on text already in memory; `path` names it in errors.
+pub fn parse_poses(text: &str, path: &Path) -> Result<Vec<PoseRow>, PoseFileError> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let fmt_err = |reason: String| PoseFileError::Format {
+        path: path.to_owned(),
+        reason,
+    };
+    let (_, header) = lines
+        .next()
+        .ok_or_else(|| fmt_err("empty file (expected a header line and pose rows)".into()))?;
+    let cols: Vec<String> = header
+        .trim_start_matches('\u{feff}')
+        .split(',')
+        .map(|c| c.trim().to_ascii_lowercase())
+        .collect();
+    if cols.len() < 13 || cols[..13] != POSE_COLUMNS {
+        return Err(fmt_err(format!(
+            "header must start with {:?}, found {:?}",
+            POSE_COLUMNS.join(","),
+            header.trim()
+        )));
+    }
+    let mut rows = Vec::new();
+    for (i, line) in lines {
+        let lineno = i + 1;
+        let row_err = |reason: String| PoseFileError::Row {
+            path: path.to_owned(),
+            line: lineno,
+            reason,
+        };
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        if fields.len() != cols.len() {
+            return Err(row_err(format!(
+                "{} fields, the header has {}",
+                fields.len(),
+                cols.len()
+            )));
+        }
+        let mut v = [0.0f64; 12];
+        for (k, f) in fields[1..13].iter().enumerate() {
+            v[k] = f
+                .parse()
+                .map_err(|_| row_err(format!("{} = {f:?} is not a number", cols[k + 1])))?;
+        }
+        let pose = Pose::from_row_major(&v).map_err(|source| PoseFileError::BadPose {
+            path: path.to_owned(),
+            line: lineno,
+            source,
+        })?;
+        if fields[0].is_empty() {
+            return Err(row_err("empty frame label".into()));
+        }
+        rows.push(PoseRow {
+            frame: fields[0].to_owned(),
+            pose: pose.orthonormalized(),
+            extra: cols[13..]
+                .iter()
+                .cloned()
+                .zip(fields[13..].iter().map(|s| s.to_string()))
+                .collect(),
+        });
+    }
+    if rows.is_empty() {
+        return Err(fmt_err("no pose rows after the header".into()));
+    }
+    Ok(rows)
+}
+
+/// Formats one row (no newline) with enough digits to round-trip poses.
+pub fn format_row(row: &PoseRow) -> String {
+    let mut s = row.frame.clone();
+    for v in row.pose.to_row_major() {
+        s.push(',');
+        s.push_str(&format!("{v:.9}"));
+    }
+    for (_, v) in &row.extra {
+        s.push(',');
+        s.push_str(v);
+    }
+    s
+}
+
+/// The header line for rows with these extra columns.
+pub fn header(extra_columns: &[&str]) -> String {
+    let mut h = POSE_COLUMNS.join(",");
+    for c in extra_columns {
+        h.push(',');
+        h.push_str(c);
+    }
+    h
+}
+
+/// Writes a pose CSV atomically: to a temporary file beside `path`, renamed
+/// over it when complete, so a crash never leaves a truncated file. Rows must
+/// all have the same extra columns.
+pub fn write_poses(path: &Path, rows: &[PoseRow]) -> Result<(), PoseFileError> {
+    let extra: Vec<&str> = rows
+        .first()
+        .map(|r| r.extra.iter().map(|(k, _)| k.as_str()).collect())
+        .unwrap_or_default();
+    let io = |source| PoseFileError::Io {
+        path: path.to_owned(),
+        source,
+    };
+    let tmp = path.with_extension("csv.partial");
+    {
+        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(io)?);
+        writeln!(f, "{}", header(&extra)).map_err(io)?;
+        for r in rows {
+            writeln!(f, "{}", format_row(r)).map_err(io)?;
+        }
+        f.flush().map_err(io)?;
+    }
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::rotation_exp;
+    use nalgebra::Vector3;
+
+    fn p() -> &'static Path {
+        Path::new("test.csv")
+    }
+
+    #[test]
+    fn roundtrip_with_extra_columns() {
+        let mut rng = crate::rng::Rng::new(11);
+        let rows: Vec<PoseRow> = (0..20)
+            .map(|i| {
+                let r = rotation_exp(&(rng.unit_vector() * rng.uniform(0.0, 3.0)));
+                let t = Vector3::new(rng.normal(), rng.normal(), rng.uniform(0.2, 2.0));
+                PoseRow {
+                    frame: format!("{i:06}"),
+                    pose: Pose::new(r, t).unwrap(),
+                    extra: vec![("inliers".into(), format!("{}", i * 3))],
+                }
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("splattrack-poses-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("poses.csv");
+        write_poses(&path, &rows).unwrap();
+        let back = read_poses(&path).unwrap();
+        assert_eq!(back.len(), rows.len());
+        for (a, b) in rows.iter().zip(&back) {
+            assert_eq!(a.frame, b.frame);
+            assert_eq!(a.extra, b.extra);
+            assert!((a.pose.to_matrix4() - b.pose.to_matrix4()).amax() < 1e-8);
+        }
+        assert!(!path.with_extension("csv.partial").exists());
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn formats_md_example_parses() {
+        let rows = parse_poses(
+            "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz\n0,1,0,0,0,1,0,0,0,1,0,0,0.5\n",
+            p(),
+        )
+        .unwrap();
+        assert_eq!(rows[0].frame_index(), Some(0));
+        assert_eq!(rows[0].pose.translation.z, 0.5);
+        let kf = PoseRow::new("kf00.png", Pose::identity());
+        assert_eq!(kf.frame_stem(), "kf00");
+    }
+
+    #[test]
+    fn bad_files_name_the_problem() {
+        let h = "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz\n";
+        let cases = [
+            ("", "empty file"),
+            ("a,b,c\n", "header must start"),
+            (h, "no pose rows"),
+            (&format!("{h}0,1,0,0,0,1,0,0,0,1,0,0\n") as &str, "line 2"),
+            (&format!("{h}0,1,0,0,0,1,0,0,0,x,0,0,1\n"), "r33"),
+            (&format!("{h}0,2,0,0,0,1,0,0,0,1,0,0,1\n"), "not a rotation"),
+            (&format!("{h}0,1,0,0,0,1,0,0,0,1,0,NaN,1\n"), "non-finite"),
+        ];
+        for (text, want) in cases {
+            let e = parse_poses(text, p()).unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("test.csv"), "{text:?}: {e}");
+        }
+    }
+}

@@ -1,0 +1,155 @@
+//! The GPU layer end to end on whatever adapter the tests run on (lavapipe
+//! in CI): dispatch, readback, texture readback, timers, adapter selection.
+
+use splattrack::gpu::{self, AdapterChoice, GpuContext, GpuError, GpuTimer};
+use splattrack::rng::Rng;
+
+fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+#[test]
+fn saxpy_matches_cpu_on_random_inputs() {
+    // Tolerance: one f32 rounding of |a x| + |y| (fma may run unfused).
+    for n in [1usize, 63, 64, 65, 10_007] {
+        let err = gpu::selftest::run(ctx(), n).unwrap();
+        assert!(err <= 1.0, "n = {n}: max |gpu - cpu| = {err} eps");
+    }
+}
+
+#[test]
+fn texture_readback_removes_row_padding() {
+    // 37 RGBA8 pixels per row = 148 bytes, padded to 256 in the copy.
+    let (w, h) = (37u32, 11u32);
+    let mut rng = Rng::new(9);
+    let data: Vec<u8> = (0..w * h * 4).map(|_| rng.below(256) as u8).collect();
+    let tex = ctx().device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("readback test"),
+        size: wgpu::Extent3d {
+            width: w,
+            height: h,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::COPY_DST | wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    ctx().queue.write_texture(
+        tex.as_image_copy(),
+        &data,
+        wgpu::TexelCopyBufferLayout {
+            offset: 0,
+            bytes_per_row: Some(w * 4),
+            rows_per_image: Some(h),
+        },
+        tex.size(),
+    );
+    let back = ctx().read_texture(&tex, 4).unwrap();
+    assert_eq!(back, data);
+}
+
+#[test]
+fn read_buffer_refuses_overreads() {
+    let b = ctx().buffer_init("small", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
+    assert_eq!(ctx().read_buffer::<u32>(&b, 4).unwrap(), vec![1, 2, 3, 4]);
+    assert!(matches!(
+        ctx().read_buffer::<u32>(&b, 1000),
+        Err(GpuError::Readback(_))
+    ));
+}
+
+#[test]
+fn device_has_the_limits_the_splatter_needs() {
+    // Four RGBA32F targets = 64 bytes per sample; wgpu's default is 32.
+    assert!(
+        ctx().limits.max_color_attachment_bytes_per_sample >= 64,
+        "{}",
+        ctx().describe()
+    );
+    assert!(ctx().features.contains(wgpu::Features::FLOAT32_BLENDABLE));
+}
+
+#[test]
+fn timer_reports_pass_durations() {
+    let c = ctx();
+    let mut timer = GpuTimer::new(c, 4);
+    let pipeline = c.compute_pipeline("selftest", "saxpy").unwrap();
+    let n = 1 << 16;
+    let params = c.buffer_init(
+        "p",
+        &[1.5f32.to_bits(), n as u32, 0, 0],
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let x = c.buffer_init("x", &vec![1.0f32; n], gpu::STORAGE_IN);
+    let y = c.buffer_init("y", &vec![2.0f32; n], gpu::STORAGE_OUT);
+    let bind = c.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: None,
+        layout: &pipeline.get_bind_group_layout(0),
+        entries: &[
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: x.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: y.as_entire_binding(),
+            },
+        ],
+    });
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    for label in ["first", "second"] {
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some(label),
+            timestamp_writes: timer.compute_pass(label),
+        });
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(gpu::workgroups(n as u32, 64), 1, 1);
+    }
+    timer.resolve(&mut enc);
+    c.queue.submit([enc.finish()]);
+    let report = timer.read(c).unwrap();
+    let y: Vec<f32> = c.read_buffer(&y, n).unwrap();
+    assert!(y.iter().all(|&v| v == 5.0), "two passes of y += 1.5 x");
+    if timer.enabled() {
+        assert_eq!(report.passes.len(), 2);
+        for (label, ms) in &report.passes {
+            assert!(ms.is_finite() && *ms >= 0.0 && *ms < 10_000.0, "{label}: {ms} ms");
+        }
+        assert!(report.get("first").is_some() && report.total_ms() >= 0.0);
+    } else {
+        assert!(report.passes.is_empty());
+    }
+}
+
+#[test]
+fn adapter_choice_parses_and_unknown_names_fail_clearly() {
+    assert_eq!("CPU".parse::<AdapterChoice>().unwrap(), AdapterChoice::Cpu);
+    assert_eq!(
+        "discrete".parse::<AdapterChoice>().unwrap(),
+        AdapterChoice::Discrete
+    );
+    assert!("".parse::<AdapterChoice>().is_err());
+    let err = GpuContext::new(&AdapterChoice::Name("no-such-gpu-xyz".into())).unwrap_err();
+    let msg = err.to_string();
+    assert!(msg.contains("no-such-gpu-xyz") && msg.contains("available"), "{msg}");
+}
+
+#[test]
+fn invalid_shader_names_are_errors_not_panics() {
+    assert!(matches!(
+        ctx().compute_pipeline("no_such_shader", "main"),
+        Err(GpuError::Shader { .. })
+    ));
+    assert!(matches!(
+        ctx().compute_pipeline("selftest", "no_such_entry"),
+        Err(GpuError::Validation { .. })
+    ));
+}
