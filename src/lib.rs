@@ -18,6 +18,7 @@ pub mod geometry;
 pub mod gpu;
 pub mod io;
 pub mod model;
+pub mod pose;
 pub mod rng;
 pub mod shaders;
 
