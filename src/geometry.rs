@@ -59,7 +59,7 @@ pub struct Intrinsics {
 }
 
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
+
 struct CameraJson {
     width: u32,
     height: u32,
@@ -908,5 +908,73 @@ mod tests {
         let p = cam.project(&x).unwrap();
         let q = half.project(&x).unwrap();
         assert!(((p.add_scalar(0.5)) * 0.5 - q.add_scalar(0.5)).norm() < 1e-12);
+    }
+
+    fn write_tmp(name: &str, text: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("splattrack-cam-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    }
+
+    #[test]
+    fn opencv_yaml_calibration_loads() {
+        // As written by OpenCV's calibration sample (data lists may wrap).
+        let yaml = "%YAML:1.0\n---\ncalibration_time: \"x\"\nimage_width: 640\nimage_height: 480\n\
+camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 5.7240e+02, 0., 3.2530e+02, 0.,\n       5.7360e+02, 2.4200e+02, 0., 0., 1. ]\n\
+distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ -0.28, 0.09, 1.0e-03, -5.0e-04, 0. ]\n";
+        let cam = Intrinsics::load(&write_tmp("cam.yaml", yaml)).unwrap();
+        assert_eq!((cam.width, cam.height), (640, 480));
+        assert_eq!(
+            (cam.fx, cam.fy, cam.cx, cam.cy),
+            (572.4, 573.6, 325.3, 242.0)
+        );
+        assert_eq!(cam.distortion, [-0.28, 0.09, 1.0e-3, -5.0e-4, 0.0]);
+    }
+
+    #[test]
+    fn camera_json_loads_and_bad_cameras_are_named() {
+        let ok = r#"{"width": 640, "height": 480, "fx": 572.4, "fy": 573.6, "cx": 325.3, "cy": 242.0,
+ "distortion": [0.1, 0.0, 0.0, 0.0, 0.0]}"#;
+        let cam = Intrinsics::load(&write_tmp("ok.json", ok)).unwrap();
+        assert!(cam.has_distortion() && cam.fx == 572.4);
+        let cases = [
+            (
+                "neg.json",
+                r#"{"width": 640, "height": 480, "fx": -1, "fy": 5, "cx": 1, "cy": 1}"#,
+                "fx",
+            ),
+            (
+                "zero.json",
+                r#"{"width": 0, "height": 480, "fx": 1, "fy": 5, "cx": 1, "cy": 1}"#,
+                "image size",
+            ),
+            (
+                "trunc.json",
+                r#"{"width": 640, "height""#,
+                "not a valid camera file",
+            ),
+            (
+                "missing.json",
+                r#"{"width": 640, "height": 480, "fx": 1}"#,
+                "fy",
+            ),
+            (
+                "dist.json",
+                r#"{"width": 6, "height": 4, "fx": 1, "fy": 5, "cx": 1, "cy": 1, "distortion": [0,0,0,0,0,0.5]}"#,
+                "beyond k3",
+            ),
+            ("bad.yaml", "%YAML:1.0\nimage_width: 640\n", "image_height"),
+        ];
+        for (name, text, want) in cases {
+            let p = write_tmp(name, text);
+            let e = Intrinsics::load(&p).unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains(name), "{name}: {e}");
+        }
+        let e = Intrinsics::load(Path::new("/no/such/camera.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("/no/such/camera.json"), "{e}");
     }
 }

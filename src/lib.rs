@@ -14,13 +14,17 @@
 //! - [`shaders`]: the WGSL sources, validated by naga;
 //! - [`io`]: pose CSVs and raw `.npy` images.
 
+pub mod draw;
+pub mod eval;
 pub mod geometry;
 pub mod gpu;
 pub mod io;
 pub mod model;
+pub mod plot;
 pub mod pose;
 pub mod rng;
 pub mod shaders;
+pub mod synth;
 
 pub use geometry::{Intrinsics, Pose};
 pub use gpu::{AdapterChoice, GpuContext};

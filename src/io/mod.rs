@@ -2,5 +2,7 @@
 
 pub mod npy;
 pub mod poses;
+pub mod sequence;
 
 pub use poses::{PoseRow, read_poses, write_poses};
+pub use sequence::Sequence;

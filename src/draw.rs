@@ -1,0 +1,152 @@
+//! Small drawing primitives on RGB images, for the pictures the tool writes
+//! (overlays, feature maps, plots): lines, circles, crosses, rectangles and
+//! 8x8 bitmap text.
+
+use image::{Rgb, RgbImage};
+
+pub type Colour = [u8; 3];
+
+pub const WHITE: Colour = [255, 255, 255];
+pub const BLACK: Colour = [0, 0, 0];
+pub const GREY: Colour = [150, 150, 150];
+pub const LIGHT_GREY: Colour = [225, 225, 225];
+
+/// A palette of distinguishable colours for series (Okabe-Ito).
+pub const PALETTE: [Colour; 7] = [
+    [0, 114, 178],
+    [213, 94, 0],
+    [0, 158, 115],
+    [204, 121, 167],
+    [230, 159, 0],
+    [86, 180, 233],
+    [120, 120, 120],
+];
+
+/// Sets pixel (x, y) if inside the image, blending with `alpha` in 0..1.
+pub fn blend(img: &mut RgbImage, x: i64, y: i64, c: Colour, alpha: f32) {
+    if x < 0 || y < 0 || x >= img.width() as i64 || y >= img.height() as i64 {
+        return;
+    }
+    let p = img.get_pixel_mut(x as u32, y as u32);
+    for (v, ck) in p.0.iter_mut().zip(c) {
+        *v = (*v as f32 * (1.0 - alpha) + ck as f32 * alpha).round() as u8;
+    }
+}
+
+pub fn put(img: &mut RgbImage, x: i64, y: i64, c: Colour) {
+    if x >= 0 && y >= 0 && x < img.width() as i64 && y < img.height() as i64 {
+        img.put_pixel(x as u32, y as u32, Rgb(c));
+    }
+}
+
+/// A line of `width` pixels between two points (pixel-centre coordinates).
+pub fn line(img: &mut RgbImage, x0: f64, y0: f64, x1: f64, y1: f64, c: Colour, width: f64) {
+    if !(x0.is_finite() && y0.is_finite() && x1.is_finite() && y1.is_finite()) {
+        return;
+    }
+    let len = ((x1 - x0).powi(2) + (y1 - y0).powi(2)).sqrt();
+    let steps = (len * 2.0).ceil().clamp(1.0, 1e5) as usize;
+    let r = (width * 0.5).max(0.5);
+    let ri = r.ceil() as i64;
+    for s in 0..=steps {
+        let t = s as f64 / steps as f64;
+        let (x, y) = (x0 + (x1 - x0) * t, y0 + (y1 - y0) * t);
+        for dy in -ri..=ri {
+            for dx in -ri..=ri {
+                if ((dx * dx + dy * dy) as f64) <= r * r {
+                    put(img, x.round() as i64 + dx, y.round() as i64 + dy, c);
+                }
+            }
+        }
+    }
+}
+
+/// A circle outline of radius `r` around (x, y).
+pub fn circle(img: &mut RgbImage, x: f64, y: f64, r: f64, c: Colour) {
+    let n = (r * 8.0).ceil().max(8.0) as usize;
+    for k in 0..n {
+        let a = k as f64 / n as f64 * std::f64::consts::TAU;
+        put(
+            img,
+            (x + r * a.cos()).round() as i64,
+            (y + r * a.sin()).round() as i64,
+            c,
+        );
+    }
+}
+
+/// A "+" of half-size `r` at (x, y).
+pub fn cross(img: &mut RgbImage, x: f64, y: f64, r: f64, c: Colour) {
+    line(img, x - r, y, x + r, y, c, 1.0);
+    line(img, x, y - r, x, y + r, c, 1.0);
+}
+
+/// A filled rectangle.
+pub fn fill_rect(img: &mut RgbImage, x0: i64, y0: i64, x1: i64, y1: i64, c: Colour) {
+    for y in y0.min(y1)..=y0.max(y1) {
+        for x in x0.min(x1)..=x0.max(x1) {
+            put(img, x, y, c);
+        }
+    }
+}
+
+/// Width in pixels of `text` at `scale`.
+pub fn text_width(text: &str, scale: u32) -> i64 {
+    (text.chars().count() as i64) * 8 * scale as i64
+}
+
+/// ASCII text with its top-left corner at (x, y), each glyph 8x8 pixels
+/// times `scale`. Non-ASCII characters show as '?'.
+pub fn text(img: &mut RgbImage, x: i64, y: i64, s: &str, c: Colour, scale: u32) {
+    let scale = scale.max(1) as i64;
+    for (i, ch) in s.chars().enumerate() {
+        let code = if ch.is_ascii() {
+            ch as usize
+        } else {
+            '?' as usize
+        };
+        let glyph = font8x8::legacy::BASIC_LEGACY[code];
+        for (row, bits) in glyph.iter().enumerate() {
+            for col in 0..8 {
+                if bits & (1 << col) != 0 {
+                    let (px, py) = (x + (i as i64 * 8 + col) * scale, y + row as i64 * scale);
+                    fill_rect(img, px, py, px + scale - 1, py + scale - 1, c);
+                }
+            }
+        }
+    }
+}
+
+/// Text on a filled background box, for labels over busy images.
+pub fn label(img: &mut RgbImage, x: i64, y: i64, s: &str, fg: Colour, bg: Colour, scale: u32) {
+    let w = text_width(s, scale);
+    fill_rect(img, x - 2, y - 2, x + w + 1, y + 8 * scale as i64 + 1, bg);
+    text(img, x, y, s, fg, scale);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_and_lines_touch_the_right_pixels() {
+        let mut img = RgbImage::new(40, 20);
+        text(&mut img, 0, 0, "1", WHITE, 1);
+        // '1' has ink in its 8x8 cell and none outside it.
+        let ink = |x0: u32, x1: u32| {
+            (x0..x1)
+                .flat_map(|x| (0..20).map(move |y| (x, y)))
+                .filter(|&(x, y)| img.get_pixel(x, y).0 != [0, 0, 0])
+                .count()
+        };
+        assert!(ink(0, 8) > 5);
+        assert_eq!(ink(8, 40), 0);
+        let mut img = RgbImage::new(20, 20);
+        line(&mut img, 2.0, 10.0, 17.0, 10.0, WHITE, 1.0);
+        assert_eq!(img.get_pixel(9, 10).0, WHITE);
+        assert_eq!(img.get_pixel(9, 5).0, BLACK);
+        // Off-image and non-finite coordinates are ignored, not panics.
+        line(&mut img, -50.0, -50.0, f64::NAN, 3.0, WHITE, 3.0);
+        circle(&mut img, 100.0, 100.0, 5.0, WHITE);
+    }
+}

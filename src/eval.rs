@@ -1,0 +1,383 @@
+//! Accuracy of tracked poses against ground truth (DESIGN.md section 7):
+//! per-frame rotation and translation errors, their summary, success rates
+//! and plots.
+
+use crate::io::PoseRow;
+use crate::plot::LineChart;
+use std::collections::{HashMap, HashSet};
+
+/// Errors of one frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameError {
+    /// The frame label as in the ground-truth file.
+    pub frame: String,
+    /// Angle of `R_gt^T R`, degrees.
+    pub rotation_deg: f64,
+    /// Distance between translations, model units.
+    pub translation: f64,
+    /// `translation` as a percentage of the model's diameter.
+    pub translation_pct: Option<f64>,
+    /// The tracker reported this frame `lost`.
+    pub lost: bool,
+    /// Left out of the statistics (e.g. unreliable ground truth).
+    pub excluded: bool,
+}
+
+/// Summary statistics over the evaluated (not excluded) frames.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Summary {
+    pub name: String,
+    /// Ground-truth frames evaluated.
+    pub frames: usize,
+    /// Ground-truth frames with no estimate at all (count as failures).
+    pub missing: usize,
+    pub excluded: usize,
+    pub lost: usize,
+    pub rotation_mean: f64,
+    pub rotation_median: f64,
+    pub rotation_max: f64,
+    pub translation_mean: f64,
+    pub translation_median: f64,
+    pub translation_max: f64,
+    /// Mean translation error as a percentage of the diameter.
+    pub translation_mean_pct: Option<f64>,
+    /// Fraction of frames within 5 degrees and 5 cm (RBOT), 0..1.
+    pub success_5deg_5cm: f64,
+    /// Fraction within 2 degrees and 2% of the diameter.
+    pub success_2deg_2pct: Option<f64>,
+}
+
+/// A whole evaluation: per-frame errors and their summary.
+#[derive(Debug, Clone)]
+pub struct Evaluation {
+    pub frames: Vec<FrameError>,
+    pub summary: Summary,
+}
+
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum EvalError {
+    #[error("no frame of the estimate matches a ground-truth frame (labels differ?)")]
+    NoCommonFrames,
+    #[error("duplicate frame {0:?} in the {1}")]
+    Duplicate(String, &'static str),
+}
+
+/// Normalises a frame label so that `000043`, `43` and `000043.png` agree.
+pub fn frame_key(label: &str) -> String {
+    let stem = std::path::Path::new(label)
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or(label);
+    match stem.parse::<u64>() {
+        Ok(n) => n.to_string(),
+        Err(_) => stem.to_owned(),
+    }
+}
+
+fn median(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+/// Settings of [`evaluate`].
+#[derive(Debug, Clone)]
+pub struct EvalOptions {
+    /// Bounding diameter of the model (model units), for the % figures.
+    pub diameter: Option<f64>,
+    /// Model units per metre (1 for metre-scale models), for the 5 cm test.
+    pub units_per_metre: f64,
+    /// Frame keys (see [`frame_key`]) left out of the statistics.
+    pub exclude: HashSet<String>,
+}
+
+impl Default for EvalOptions {
+    fn default() -> Self {
+        Self {
+            diameter: None,
+            units_per_metre: 1.0,
+            exclude: HashSet::new(),
+        }
+    }
+}
+
+/// Compares `estimate` with `gt` frame by frame. Frames of `gt` without an
+/// estimate count as failures; a row whose `status` column says `lost`
+/// counts as lost and as a failure, whatever its pose.
+pub fn evaluate(
+    name: &str,
+    estimate: &[PoseRow],
+    gt: &[PoseRow],
+    opts: &EvalOptions,
+) -> Result<Evaluation, EvalError> {
+    let mut est: HashMap<String, &PoseRow> = HashMap::new();
+    for r in estimate {
+        if est.insert(frame_key(&r.frame), r).is_some() {
+            return Err(EvalError::Duplicate(r.frame.clone(), "estimate"));
+        }
+    }
+    let mut seen = HashSet::new();
+    let mut frames = Vec::new();
+    let mut missing = 0;
+    for g in gt {
+        let key = frame_key(&g.frame);
+        if !seen.insert(key.clone()) {
+            return Err(EvalError::Duplicate(g.frame.clone(), "ground truth"));
+        }
+        let Some(e) = est.get(&key) else {
+            if !opts.exclude.contains(&key) {
+                missing += 1;
+            }
+            continue;
+        };
+        let t = e.pose.translation_error(&g.pose);
+        frames.push(FrameError {
+            frame: g.frame.clone(),
+            rotation_deg: e.pose.rotation_error_deg(&g.pose),
+            translation: t,
+            translation_pct: opts.diameter.map(|d| 100.0 * t / d),
+            lost: e
+                .extra
+                .iter()
+                .any(|(k, v)| k == "status" && v.trim() == "lost"),
+            excluded: opts.exclude.contains(&key),
+        });
+    }
+    if frames.is_empty() {
+        return Err(EvalError::NoCommonFrames);
+    }
+    let used: Vec<&FrameError> = frames.iter().filter(|f| !f.excluded).collect();
+    let n = used.len() + missing;
+    let rot: Vec<f64> = used.iter().map(|f| f.rotation_deg).collect();
+    let tr: Vec<f64> = used.iter().map(|f| f.translation).collect();
+    let mean = |v: &[f64]| {
+        if v.is_empty() {
+            f64::NAN
+        } else {
+            v.iter().sum::<f64>() / v.len() as f64
+        }
+    };
+    let max = |v: &[f64]| v.iter().copied().fold(f64::NAN, f64::max);
+    let rate = |ok: &dyn Fn(&FrameError) -> bool| {
+        if n == 0 {
+            f64::NAN
+        } else {
+            used.iter().filter(|f| !f.lost && ok(f)).count() as f64 / n as f64
+        }
+    };
+    let five_cm = 0.05 * opts.units_per_metre;
+    let summary = Summary {
+        name: name.to_owned(),
+        frames: n,
+        missing,
+        excluded: frames.iter().filter(|f| f.excluded).count(),
+        lost: used.iter().filter(|f| f.lost).count(),
+        rotation_mean: mean(&rot),
+        rotation_median: median(&rot),
+        rotation_max: max(&rot),
+        translation_mean: mean(&tr),
+        translation_median: median(&tr),
+        translation_max: max(&tr),
+        translation_mean_pct: opts.diameter.map(|d| 100.0 * mean(&tr) / d),
+        success_5deg_5cm: rate(&|f| f.rotation_deg < 5.0 && f.translation < five_cm),
+        success_2deg_2pct: opts
+            .diameter
+            .map(|d| rate(&|f| f.rotation_deg < 2.0 && f.translation < 0.02 * d)),
+    };
+    Ok(Evaluation { frames, summary })
+}
+
+/// The summary table (one row per evaluation), as printed by `eval`.
+pub fn table(summaries: &[Summary], unit: &str) -> String {
+    let mut s = format!(
+        "{:<16} {:>6} {:>5} {:>9} {:>9} {:>9} {:>11} {:>11} {:>8} {:>9} {:>9}\n",
+        "run",
+        "frames",
+        "lost",
+        "rot mean",
+        "rot med",
+        "rot max",
+        format!("tr mean {unit}"),
+        format!("tr med {unit}"),
+        "tr mean%",
+        "5deg/5cm",
+        "2deg/2%"
+    );
+    let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}%"));
+    for m in summaries {
+        s.push_str(&format!(
+            "{:<16} {:>6} {:>5} {:>9.3} {:>9.3} {:>9.3} {:>11.5} {:>11.5} {:>8} {:>8.1}% {:>9}\n",
+            m.name,
+            m.frames,
+            m.lost + m.missing,
+            m.rotation_mean,
+            m.rotation_median,
+            m.rotation_max,
+            m.translation_mean,
+            m.translation_median,
+            pct(m.translation_mean_pct),
+            100.0 * m.success_5deg_5cm,
+            pct(m.success_2deg_2pct.map(|v| 100.0 * v)),
+        ));
+    }
+    s
+}
+
+/// Rotation and translation error curves over the frames, one curve per
+/// evaluation (like the paper's Fig. 10).
+pub fn error_plot(evals: &[Evaluation], title: &str) -> image::RgbImage {
+    let mut rot = LineChart::new(
+        &format!("{title}: rotation error"),
+        "frame",
+        "rotation error (deg)",
+    );
+    let pct = evals
+        .iter()
+        .all(|e| e.summary.translation_mean_pct.is_some());
+    let mut tr = LineChart::new(
+        &format!("{title}: translation error"),
+        "frame",
+        if pct {
+            "translation error (% of diameter)"
+        } else {
+            "translation error (model units)"
+        },
+    );
+    for e in evals {
+        let x = |i: usize, f: &FrameError| {
+            f.frame
+                .parse::<f64>()
+                .or_else(|_| frame_key(&f.frame).parse::<f64>())
+                .unwrap_or(i as f64)
+        };
+        rot.add(
+            &e.summary.name,
+            e.frames
+                .iter()
+                .enumerate()
+                .map(|(i, f)| (x(i, f), f.rotation_deg))
+                .collect(),
+        );
+        tr.add(
+            &e.summary.name,
+            e.frames
+                .iter()
+                .enumerate()
+                .map(|(i, f)| {
+                    (
+                        x(i, f),
+                        if pct {
+                            f.translation_pct.unwrap_or(f64::NAN)
+                        } else {
+                            f.translation
+                        },
+                    )
+                })
+                .collect(),
+        );
+    }
+    crate::plot::stack(&[rot, tr], 900, 330)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Pose, rotation_exp};
+    use nalgebra::Vector3;
+
+    fn row(frame: &str, deg: f64, t: f64, status: Option<&str>) -> PoseRow {
+        let mut r = PoseRow::new(
+            frame,
+            Pose::new(
+                rotation_exp(&Vector3::new(0.0, deg.to_radians(), 0.0)),
+                Vector3::new(t, 0.0, 0.5),
+            )
+            .unwrap(),
+        );
+        if let Some(s) = status {
+            r.extra.push(("status".into(), s.into()));
+        }
+        r
+    }
+
+    #[test]
+    fn errors_and_rates_are_what_was_put_in() {
+        let gt: Vec<PoseRow> = (0..4)
+            .map(|i| row(&format!("{i:06}"), 0.0, 0.0, None))
+            .collect();
+        let est = vec![
+            row("0", 1.0, 0.01, Some("tracking")),
+            row("1", 3.0, 0.0, Some("tracking")),
+            row("2.png", 10.0, 0.0, Some("tracking")),
+            // frame 3 missing
+        ];
+        let opts = EvalOptions {
+            diameter: Some(0.2),
+            ..Default::default()
+        };
+        let e = evaluate("t", &est, &gt, &opts).unwrap();
+        let s = &e.summary;
+        assert_eq!((s.frames, s.missing, s.lost), (4, 1, 0));
+        assert!((e.frames[0].rotation_deg - 1.0).abs() < 1e-9);
+        assert!((e.frames[0].translation_pct.unwrap() - 5.0).abs() < 1e-9);
+        assert!((s.rotation_mean - 14.0 / 3.0).abs() < 1e-9);
+        assert!((s.rotation_median - 3.0).abs() < 1e-9);
+        // 5deg/5cm: frames 0 and 1 of 4. 2deg/2% (4 mm): none (frame 0 is 1 cm off).
+        assert!((s.success_5deg_5cm - 0.5).abs() < 1e-12);
+        assert_eq!(s.success_2deg_2pct, Some(0.0));
+        let table = table(std::slice::from_ref(s), "m");
+        assert!(table.contains("50.0%"), "{table}");
+    }
+
+    #[test]
+    fn lost_frames_fail_and_excluded_frames_are_left_out() {
+        let gt: Vec<PoseRow> = (0..3)
+            .map(|i| row(&i.to_string(), 0.0, 0.0, None))
+            .collect();
+        let est = vec![
+            row("0", 0.0, 0.0, Some("lost")),
+            row("1", 0.0, 0.0, Some("tracking")),
+            row("2", 90.0, 0.0, Some("tracking")),
+        ];
+        let opts = EvalOptions {
+            exclude: ["2".to_string()].into(),
+            ..Default::default()
+        };
+        let s = evaluate("t", &est, &gt, &opts).unwrap().summary;
+        assert_eq!((s.frames, s.lost, s.excluded), (2, 1, 1));
+        assert!((s.success_5deg_5cm - 0.5).abs() < 1e-12);
+        assert!(
+            s.rotation_max < 1e-6,
+            "excluded frame leaked: {}",
+            s.rotation_max
+        );
+    }
+
+    #[test]
+    fn mismatched_files_are_errors() {
+        let gt = vec![row("0", 0.0, 0.0, None)];
+        assert_eq!(
+            evaluate(
+                "t",
+                &[row("7", 0.0, 0.0, None)],
+                &gt,
+                &EvalOptions::default()
+            )
+            .unwrap_err(),
+            EvalError::NoCommonFrames
+        );
+        let dup = vec![row("0", 0.0, 0.0, None), row("000", 0.0, 0.0, None)];
+        assert!(matches!(
+            evaluate("t", &dup, &gt, &EvalOptions::default()),
+            Err(EvalError::Duplicate(..))
+        ));
+    }
+}
