@@ -2,10 +2,15 @@
 //! and validated by naga (a unit test checks every one without a GPU).
 
 /// Every shader under `shaders/`, by file stem. Add new files here.
-pub const ALL: &[(&str, &str)] = &[(
-    "selftest",
-    include_str!("../shaders/selftest.wgsl"),
-)];
+pub const ALL: &[(&str, &str)] = &[
+    ("selftest", include_str!("../shaders/selftest.wgsl")),
+    ("splat", include_str!("../shaders/splat.wgsl")),
+    (
+        "splat_resolve",
+        include_str!("../shaders/splat_resolve.wgsl"),
+    ),
+    ("mesh", include_str!("../shaders/mesh.wgsl")),
+];
 
 /// The source of the shader named `name` (its file stem).
 pub fn source(name: &str) -> Option<&'static str> {
@@ -45,7 +50,10 @@ mod tests {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "wgsl") {
                 let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
-                assert!(source(&stem).is_some(), "shaders/{stem}.wgsl is not in shaders::ALL");
+                assert!(
+                    source(&stem).is_some(),
+                    "shaders/{stem}.wgsl is not in shaders::ALL"
+                );
             }
         }
     }
