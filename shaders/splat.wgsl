@@ -155,7 +155,13 @@ fn intersect(in: VsOut, frag: vec4<f32>) -> Hit {
             let xi = d * s;
             let q = xi - c;
             rho_obj2 = dot(q, q) / (in.radius * in.radius);
-            if rho_obj2 <= 1.0 {
+            // Inside the disc, or within reach of the low-pass disc (3 of
+            // its radii at the centre's depth, i.e. incidence up to ~70
+            // degrees): the intersection is on the splat's plane, exact for
+            // planar surfaces. Farther (near edge-on splats) it is
+            // meaningless and the centre's depth is used instead.
+            let reach = in.radius + 3.0 * cam.params.y * c.z / min(cam.intr.x, cam.intr.y);
+            if rho_obj2 <= 1.0 || dot(q, q) <= reach * reach {
                 x = xi;
             }
         }

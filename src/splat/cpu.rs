@@ -147,7 +147,8 @@ fn intersect(v: &View, s: &Setup, uv: Vec2) -> Option<(Vec3, f32, f32)> {
             let xi = d * t;
             let q = xi - s.c;
             rho_obj2 = q.dot(q) / (s.r * s.r);
-            if rho_obj2 <= 1.0 {
+            let reach = s.r + 3.0 * v.lowpass * s.c.z / v.fx.min(v.fy);
+            if rho_obj2 <= 1.0 || q.dot(q) <= reach * reach {
                 x = xi;
             }
         }

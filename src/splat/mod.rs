@@ -19,8 +19,11 @@
 //!   screen-space low-pass filter, so splats smaller than a pixel still cover
 //!   one; it is truncated at `rho = 1` and `w = exp(-2 rho^2)` (a Gaussian of
 //!   standard deviation `r/2`).
-//! - The surface point seen through the pixel is `X` when `rho_obj <= 1`,
-//!   else (the low-pass part only) the point of the ray at the centre's depth.
+//! - The surface point seen through the pixel is `X` when `rho_obj <= 1` or
+//!   when `X` is within `r + 3 h z / f` of the centre (the low-pass part of a
+//!   splat seen at up to ~70 degrees: still on its plane, so planar surfaces
+//!   get exact depth at any density); else (low-pass part of a near edge-on
+//!   splat) the point of the ray at the centre's depth.
 //! - Back-facing splats (`n_c . c >= 0` in camera space) are culled, as are
 //!   splats whose centre is not in front of the near plane.
 //!
