@@ -55,6 +55,7 @@ pub mod cpu;
 pub mod gpu_data;
 pub mod mesh;
 pub mod shapes;
+pub mod viz;
 
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuContext, GpuError, GpuTimer, STORAGE_OUT};
