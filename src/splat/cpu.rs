@@ -98,8 +98,8 @@ fn setup(v: &View, s: &SplatGpu) -> Option<Setup> {
     let m = v
         .apply(Vec3::new(s.normal[0], s.normal[1], s.normal[2]))
         .normalize();
-    if c.z <= v.near || m.dot(c) >= 0.0 || r.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater)
-    {
+    // Same culling as vs_splat (a NaN radius is culled too).
+    if c.z <= v.near || m.dot(c) >= 0.0 || r.is_nan() || r <= 0.0 {
         return None;
     }
     let pc = v.project(c);

@@ -374,7 +374,7 @@ impl MeshRenderer {
         pose.validate()?;
         let zc = pose.transform_point(&mesh.center).z;
         let far = zc + mesh.radius * 1.01;
-        if !(far > 0.0) {
+        if far.is_nan() || far <= 0.0 {
             return Err(SplatError::BehindCamera { far });
         }
         let near = (zc - mesh.radius * 1.01).max(far * 1e-4);

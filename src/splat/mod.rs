@@ -271,7 +271,7 @@ impl ModelBounds {
         let zc = pose.transform_point(&self.center).z;
         let rr = self.radius + (2.0 + params.epsilon as f64) * self.max_splat_radius;
         let far = zc + rr;
-        if !(far > 0.0) {
+        if far.is_nan() || far <= 0.0 {
             return Err(SplatError::BehindCamera { far });
         }
         let near = (zc - rr).max(far * 1e-4);
@@ -345,8 +345,10 @@ impl GpuModel {
     ) -> Result<Self, SplatError> {
         let packed = pack_model(model, params)?;
         let bytes = (packed.len() * std::mem::size_of::<SplatGpu>()) as u64;
-        let limit =
-            (ctx.limits.max_storage_buffer_binding_size as u64).min(ctx.limits.max_buffer_size);
+        let limit = ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(ctx.limits.max_buffer_size);
         if bytes > limit || packed.len() > u32::MAX as usize {
             return Err(SplatError::TooLarge {
                 points: packed.len(),
