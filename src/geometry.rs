@@ -158,9 +158,7 @@ impl Intrinsics {
                 return Err(format!("{key} has no data"));
             };
             let rest = &rest[d + 5..];
-            let open = rest
-                .find('[')
-                .ok_or(format!("{key}: data is not a [ list ]"))?;
+            let open = rest.find('[').ok_or(format!("{key}: data is not a [ list ]"))?;
             let close = rest
                 .find(']')
                 .ok_or(format!("{key}: data list is not closed"))?;
@@ -181,9 +179,7 @@ impl Intrinsics {
         let w = scalar("image_width")?;
         let h = scalar("image_height")?;
         if !(w >= 1.0 && h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 && w < 1e6 && h < 1e6) {
-            return Err(format!(
-                "image size {w} x {h} is not a positive integer size"
-            ));
+            return Err(format!("image size {w} x {h} is not a positive integer size"));
         }
         let k = matrix("camera_matrix")?.ok_or("missing camera_matrix")?;
         if k.len() != 9 {
@@ -211,10 +207,7 @@ impl Intrinsics {
             return Err(format!("image size {} x {}", self.width, self.height));
         }
         if self.width > 1 << 15 || self.height > 1 << 15 {
-            return Err(format!(
-                "image size {} x {} is too large",
-                self.width, self.height
-            ));
+            return Err(format!("image size {} x {} is too large", self.width, self.height));
         }
         for (name, v) in [("fx", self.fx), ("fy", self.fy)] {
             if !(v.is_finite() && v > 0.0) {
@@ -268,8 +261,12 @@ impl Intrinsics {
     /// `pi(X) = (fx x/z + cx, fy y/z + cy)` for a camera-space point; `None`
     /// behind (or on) the camera plane.
     pub fn project(&self, x: &Vector3<f64>) -> Option<Vector2<f64>> {
-        (x.z > 0.0)
-            .then(|| Vector2::new(self.fx * x.x / x.z + self.cx, self.fy * x.y / x.z + self.cy))
+        (x.z > 0.0).then(|| {
+            Vector2::new(
+                self.fx * x.x / x.z + self.cx,
+                self.fy * x.y / x.z + self.cy,
+            )
+        })
     }
 
     /// The camera-space point at depth `z` seen at pixel `(u, v)`.
@@ -524,12 +521,7 @@ impl Pose {
     /// Rejects non-finite values and matrices that are not rotations (to
     /// 1e-4, loose enough for poses written with 6 decimals).
     pub fn validate(&self) -> Result<(), PoseError> {
-        if self
-            .rotation
-            .iter()
-            .chain(self.translation.iter())
-            .any(|v| !v.is_finite())
-        {
+        if self.rotation.iter().chain(self.translation.iter()).any(|v| !v.is_finite()) {
             return Err(PoseError::NonFinite);
         }
         let ortho = (self.rotation.transpose() * self.rotation - Matrix3::identity()).amax();
@@ -792,8 +784,8 @@ mod tests {
             let h = 1e-6;
             for k in 0..3 {
                 let dx = Vector3::ith(k, h);
-                let fd =
-                    (cam.project(&(x + dx)).unwrap() - cam.project(&(x - dx)).unwrap()) / (2.0 * h);
+                let fd = (cam.project(&(x + dx)).unwrap() - cam.project(&(x - dx)).unwrap())
+                    / (2.0 * h);
                 let rel = (fd - j.column(k)).norm() / (1.0 + j.column(k).norm());
                 assert!(rel < 1e-6, "column {k}: fd {fd} vs J {}", j.column(k));
             }
@@ -851,19 +843,14 @@ mod tests {
         let mut cam = Intrinsics::new(64, 48, 60.0, 60.0, 31.5, 23.5);
         cam.distortion = [-0.2, 0.05, 0.0, 0.0, 0.0];
         // A raw image whose red channel encodes x and green encodes y.
-        let raw =
-            image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8 * 3, y as u8 * 5, 0]));
+        let raw = image::RgbImage::from_fn(64, 48, |x, y| image::Rgb([x as u8 * 3, y as u8 * 5, 0]));
         let und = Undistorter::new(&cam).apply(&raw).unwrap();
         let uv = Vector2::new(10.0, 8.0);
         let src = cam.distort_pixel(uv);
         let px = und.get_pixel(10, 8).0;
         assert!((px[0] as f64 / 3.0 - src.x).abs() < 0.5, "{px:?} vs {src}");
         assert!((px[1] as f64 / 5.0 - src.y).abs() < 0.5, "{px:?} vs {src}");
-        assert!(
-            Undistorter::new(&cam)
-                .apply(&image::RgbImage::new(10, 10))
-                .is_err()
-        );
+        assert!(Undistorter::new(&cam).apply(&image::RgbImage::new(10, 10)).is_err());
     }
 
     #[test]
@@ -875,29 +862,19 @@ mod tests {
             &Vector3::new(0.0, 0.0, 1.0),
         );
         p.validate().unwrap();
-        let c = cam
-            .project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.03)))
-            .unwrap();
+        let c = cam.project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.03))).unwrap();
         assert!((c - Vector2::new(cam.cx, cam.cy)).norm() < 1e-9);
         // Object "up" (+z) appears upwards in the image (smaller v).
-        let up = cam
-            .project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.13)))
-            .unwrap();
+        let up = cam.project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.13))).unwrap();
         assert!(up.y < c.y);
     }
 
     #[test]
     fn rejects_non_rotations() {
         let bad = Matrix3::new(1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, -1.0);
-        assert!(matches!(
-            Pose::new(bad, Vector3::zeros()),
-            Err(PoseError::NotRotation(..))
-        ));
+        assert!(matches!(Pose::new(bad, Vector3::zeros()), Err(PoseError::NotRotation(..))));
         let nan = Vector3::new(f64::NAN, 0.0, 0.0);
-        assert_eq!(
-            Pose::new(Matrix3::identity(), nan),
-            Err(PoseError::NonFinite)
-        );
+        assert_eq!(Pose::new(Matrix3::identity(), nan), Err(PoseError::NonFinite));
     }
 
     #[test]

@@ -50,10 +50,7 @@ mod tests {
             let path = entry.unwrap().path();
             if path.extension().is_some_and(|e| e == "wgsl") {
                 let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
-                assert!(
-                    source(&stem).is_some(),
-                    "shaders/{stem}.wgsl is not in shaders::ALL"
-                );
+                assert!(source(&stem).is_some(), "shaders/{stem}.wgsl is not in shaders::ALL");
             }
         }
     }

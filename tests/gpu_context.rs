@@ -121,10 +121,7 @@ fn timer_reports_pass_durations() {
     if timer.enabled() {
         assert_eq!(report.passes.len(), 2);
         for (label, ms) in &report.passes {
-            assert!(
-                ms.is_finite() && *ms >= 0.0 && *ms < 10_000.0,
-                "{label}: {ms} ms"
-            );
+            assert!(ms.is_finite() && *ms >= 0.0 && *ms < 10_000.0, "{label}: {ms} ms");
         }
         assert!(report.get("first").is_some() && report.total_ms() >= 0.0);
     } else {
@@ -142,10 +139,7 @@ fn adapter_choice_parses_and_unknown_names_fail_clearly() {
     assert!("".parse::<AdapterChoice>().is_err());
     let err = GpuContext::new(&AdapterChoice::Name("no-such-gpu-xyz".into())).unwrap_err();
     let msg = err.to_string();
-    assert!(
-        msg.contains("no-such-gpu-xyz") && msg.contains("available"),
-        "{msg}"
-    );
+    assert!(msg.contains("no-such-gpu-xyz") && msg.contains("available"), "{msg}");
 }
 
 #[test]

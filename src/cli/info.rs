@@ -23,10 +23,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         if ctx.has_timestamps() { "yes" } else { "no" }
     );
     let err = splattrack::gpu::selftest::run(&ctx, 4096).context("GPU self-test")?;
-    anyhow::ensure!(
-        err <= 1.0,
-        "GPU self-test: results differ from the CPU by {err} eps"
-    );
+    anyhow::ensure!(err <= 1.0, "GPU self-test: results differ from the CPU by {err} eps");
     println!("self-test: ok (compute dispatch and readback agree with the CPU)");
     if let Some(path) = args.model {
         let _ = path;

@@ -34,9 +34,7 @@ pub enum GpuError {
         wanted: String,
         available: Vec<String>,
     },
-    #[error(
-        "invalid adapter choice {0:?}: use auto, discrete, integrated, cpu, or part of an adapter's name"
-    )]
+    #[error("invalid adapter choice {0:?}: use auto, discrete, integrated, cpu, or part of an adapter's name")]
     BadChoice(String),
     #[error("cannot create a device on {adapter}: {source}")]
     RequestDevice {
@@ -198,10 +196,7 @@ impl GpuContext {
         let Some(adapter) = pick else {
             return Err(GpuError::AdapterNotFound {
                 wanted: choice.to_string(),
-                available: usable
-                    .iter()
-                    .map(|a| describe_info(&a.get_info()))
-                    .collect(),
+                available: usable.iter().map(|a| describe_info(&a.get_info())).collect(),
             });
         };
         Self::from_adapter(adapter).await

@@ -129,19 +129,11 @@ mod tests {
         let path = std::env::temp_dir().join(format!("splattrack-npy-{}.npy", std::process::id()));
         write_npy(&path, &data, h, w, c).unwrap();
         let bytes = std::fs::read(&path).unwrap();
-        assert_eq!(
-            (10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64,
-            0
-        );
+        assert_eq!((10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize) % 64, 0);
         let (shape, back) = read_npy(&path).unwrap();
         assert_eq!(shape, vec![h, w, c]);
         assert!(back[4].is_nan());
-        assert!(
-            data.iter()
-                .zip(&back)
-                .enumerate()
-                .all(|(i, (a, b))| i == 4 || a == b)
-        );
+        assert!(data.iter().zip(&back).enumerate().all(|(i, (a, b))| i == 4 || a == b));
         assert!(write_npy(&path, &data[1..], h, w, c).is_err());
         std::fs::remove_file(path).unwrap();
     }
