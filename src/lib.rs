@@ -12,7 +12,9 @@
 //!   the motion predictors: the host reference for every GPU kernel;
 //! - [`gpu`]: the headless wgpu context, readback helpers, GPU timers;
 //! - [`shaders`]: the WGSL sources, validated by naga;
-//! - [`io`]: pose CSVs and raw `.npy` images.
+//! - [`io`]: pose CSVs and raw `.npy` images;
+//! - [`splat`]: GPU EWA surface splatting (novel views, depth, motion
+//!   predictors), its CPU reference, and a triangle-mesh rasteriser.
 
 pub mod draw;
 pub mod eval;
@@ -24,6 +26,7 @@ pub mod plot;
 pub mod pose;
 pub mod rng;
 pub mod shaders;
+pub mod splat;
 pub mod synth;
 
 pub use geometry::{Intrinsics, Pose};

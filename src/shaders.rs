@@ -2,7 +2,15 @@
 //! and validated by naga (a unit test checks every one without a GPU).
 
 /// Every shader under `shaders/`, by file stem. Add new files here.
-pub const ALL: &[(&str, &str)] = &[("selftest", include_str!("../shaders/selftest.wgsl"))];
+pub const ALL: &[(&str, &str)] = &[
+    ("selftest", include_str!("../shaders/selftest.wgsl")),
+    ("splat", include_str!("../shaders/splat.wgsl")),
+    (
+        "splat_resolve",
+        include_str!("../shaders/splat_resolve.wgsl"),
+    ),
+    ("mesh", include_str!("../shaders/mesh.wgsl")),
+];
 
 /// The source of the shader named `name` (its file stem).
 pub fn source(name: &str) -> Option<&'static str> {

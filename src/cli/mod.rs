@@ -2,6 +2,7 @@
 //! dispatch.
 
 mod info;
+mod render;
 
 use clap::{Parser, Subcommand};
 use splattrack::gpu::{AdapterChoice, GpuContext};
@@ -29,6 +30,9 @@ pub enum Command {
     /// The adapter in use; with a model: point count, bounds, diameter, and
     /// which attributes were present or estimated.
     Info(info::Args),
+    /// One splatted view of a point model: a picture (.png; motion: a
+    /// motion-field visualisation) or a raw float image (.npy).
+    Render(render::Args),
 }
 
 /// A minimal stderr logger: warnings always, more with -v.
@@ -66,5 +70,6 @@ pub fn gpu(adapter: &Option<String>) -> anyhow::Result<GpuContext> {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(a) => info::run(a, &cli.adapter),
+        Command::Render(a) => render::run(a, &cli.adapter),
     }
 }

@@ -1,0 +1,255 @@
+//! The GPU splatter against its CPU reference (src/splat/cpu.rs), which
+//! implements the same maths in f32 from the same uniform: random splat
+//! clouds (random centres, normals, radii, colours), random poses, random
+//! intrinsics and image sizes, plus a dense sphere.
+//!
+//! Tolerances: the two differ only by f32 rounding (fma, exp, division), so
+//! where both cover a pixel colour agrees to 1e-4, depth to 1e-5 relative and
+//! predictors to 1e-4 relative (to the pixel's largest predictor). Rounding
+//! can flip a depth test or a truncation test (`rho <= 1`) that sits exactly
+//! on its threshold, which changes which splats a pixel blends: at most 0.5%
+//! of the covered pixels may disagree (coverage or value).
+
+use glam::Vec3;
+use nalgebra::Vector3;
+use splattrack::geometry::{Intrinsics, Pose, look_at};
+use splattrack::gpu::{self, GpuContext};
+use splattrack::model::PointModel;
+use splattrack::rng::Rng;
+use splattrack::splat::{
+    Attribute, Attributes, GatherMode, GpuModel, SplatImage, SplatParams, SplatTargets, Splatter,
+    cpu, shapes,
+};
+
+fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsics, Pose) {
+    let w = 80 + rng.below(120) as u32;
+    let h = 60 + rng.below(100) as u32;
+    let f = rng.uniform(0.8, 1.6) * w as f64;
+    let cam = Intrinsics::new(
+        w,
+        h,
+        f,
+        f * rng.uniform(0.9, 1.1),
+        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+    );
+    let eye = target + rng.unit_vector() * dist;
+    let pose = look_at(&eye, &target, &rng.unit_vector());
+    (cam, pose)
+}
+
+#[derive(Debug, Default)]
+struct Agreement {
+    covered: usize,
+    coverage_mismatch: usize,
+    value_mismatch: usize,
+    max_color: f32,
+    max_depth_rel: f32,
+    max_motion_rel: f32,
+}
+
+impl Agreement {
+    fn bad_fraction(&self) -> f64 {
+        (self.coverage_mismatch + self.value_mismatch) as f64 / self.covered.max(1) as f64
+    }
+}
+
+fn compare(gpu: [&SplatImage; 3], cpu: [&SplatImage; 3]) -> Agreement {
+    let [gc, gd, gm] = gpu;
+    let [cc, cd, cm] = cpu;
+    let mut a = Agreement::default();
+    let mut diffs = (Vec::new(), Vec::new(), Vec::new());
+    for y in 0..gc.height {
+        for x in 0..gc.width {
+            let (vg, vc) = (gd.is_valid(x, y), cd.is_valid(x, y));
+            if vg || vc {
+                a.covered += 1;
+            }
+            if vg != vc {
+                a.coverage_mismatch += 1;
+                continue;
+            }
+            if !vg {
+                continue;
+            }
+            let dc = gc
+                .pixel(x, y)
+                .iter()
+                .zip(cc.pixel(x, y))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f32::max);
+            let z = cd.pixel(x, y)[0];
+            let dd = (gd.pixel(x, y)[0] - z).abs() / z;
+            let scale = cm.pixel(x, y).iter().map(|v| v.abs()).fold(1e-6, f32::max);
+            let dm = gm
+                .pixel(x, y)
+                .iter()
+                .zip(cm.pixel(x, y))
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f32::max)
+                / scale;
+            if dc > 1e-4 || dd > 1e-5 || dm > 1e-4 {
+                a.value_mismatch += 1;
+            } else {
+                diffs.0.push(dc);
+                diffs.1.push(dd);
+                diffs.2.push(dm);
+            }
+        }
+    }
+    a.max_color = diffs.0.iter().copied().fold(0.0, f32::max);
+    a.max_depth_rel = diffs.1.iter().copied().fold(0.0, f32::max);
+    a.max_motion_rel = diffs.2.iter().copied().fold(0.0, f32::max);
+    a
+}
+
+fn gpu_images(
+    splatter: &Splatter,
+    model: &PointModel,
+    cam: &Intrinsics,
+    pose: &Pose,
+) -> [SplatImage; 3] {
+    let gm = GpuModel::new(ctx(), model).unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    splatter
+        .render(ctx(), &gm, cam, pose, Attributes::ALL, &mut t)
+        .unwrap();
+    [Attribute::Color, Attribute::Depth, Attribute::Motion]
+        .map(|a| splatter.read(ctx(), &t, a).unwrap())
+}
+
+fn check_model(model: &PointModel, cam: &Intrinsics, pose: &Pose, label: &str) -> Agreement {
+    let splatter = Splatter::new(ctx()).unwrap();
+    let g = gpu_images(&splatter, model, cam, pose);
+    let acc = cpu::splat(model, cam, pose, &SplatParams::default()).unwrap();
+    let c = [Attribute::Color, Attribute::Depth, Attribute::Motion].map(|a| acc.resolve(a));
+    let a = compare([&g[0], &g[1], &g[2]], [&c[0], &c[1], &c[2]]);
+    eprintln!("{label}: {cam:?}\n  {a:?}");
+    assert!(
+        a.covered > 100,
+        "{label}: only {} pixels covered",
+        a.covered
+    );
+    assert!(
+        a.bad_fraction() <= 0.005,
+        "{label}: {:.3}% of covered pixels disagree: {a:?}",
+        100.0 * a.bad_fraction()
+    );
+    a
+}
+
+#[test]
+fn gpu_matches_cpu_on_random_clouds_and_poses() {
+    let mut rng = Rng::new(2024);
+    for trial in 0..6 {
+        let n = 300 + rng.below(3000) as usize;
+        let extent = 1.0;
+        // Radii from sub-pixel to tens of pixels.
+        let model = shapes::random_cloud(&mut rng, Vec3::ZERO, extent, n, 0.005, 0.25);
+        let dist = rng.uniform(2.5, 6.0);
+        let (cam, pose) = random_view(&mut rng, Vector3::zeros(), dist);
+        check_model(&model, &cam, &pose, &format!("cloud {trial} ({n} splats)"));
+    }
+}
+
+#[test]
+fn gpu_matches_cpu_on_a_dense_sphere() {
+    let mut rng = Rng::new(7);
+    let model = shapes::sphere(Vec3::new(0.1, -0.2, 0.3), 1.0, 8000, 1.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::new(0.1, -0.2, 0.3), 3.5);
+    check_model(&model, &cam, &pose, "sphere");
+}
+
+#[test]
+fn gpu_resolve_matches_cpu_for_normals_and_weights() {
+    let mut rng = Rng::new(11);
+    let model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.02, 0.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 4.0);
+    let splatter = Splatter::new(ctx()).unwrap();
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    splatter
+        .render(ctx(), &gm, &cam, &pose, Attributes::GEOMETRY, &mut t)
+        .unwrap();
+    let acc = cpu::splat(&model, &cam, &pose, &SplatParams::default()).unwrap();
+    for a in [Attribute::Normal, Attribute::Weight] {
+        let g = splatter.read(ctx(), &t, a).unwrap();
+        let c = acc.resolve(a);
+        let bad = g
+            .data
+            .iter()
+            .zip(&c.data)
+            .filter(|(g, c)| !((g.is_nan() && c.is_nan()) || (*g - *c).abs() <= 1e-4))
+            .count();
+        assert!(
+            bad as f64 <= 0.005 * g.data.len() as f64,
+            "{a:?}: {bad} of {} values differ",
+            g.data.len()
+        );
+    }
+    // Motion was not rendered into these targets: a typed error, not garbage.
+    assert!(splatter.read(ctx(), &t, Attribute::Motion).is_err());
+}
+
+#[test]
+fn gather_matches_cpu_sampling_of_full_images() {
+    // Tolerance: f32 rounding of the bilinear weights, 1e-4 relative.
+    let mut rng = Rng::new(5);
+    let model = shapes::sphere(Vec3::ZERO, 1.0, 6000, 1.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
+    let splatter = Splatter::new(ctx()).unwrap();
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    splatter
+        .render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut t)
+        .unwrap();
+    let motion = splatter.read(ctx(), &t, Attribute::Motion).unwrap();
+    let depth = splatter.read(ctx(), &t, Attribute::Depth).unwrap();
+    let mut points: Vec<[f32; 2]> = (0..500)
+        .map(|_| {
+            [
+                rng.uniform(-2.0, cam.width as f64 + 1.0) as f32,
+                rng.uniform(-2.0, cam.height as f64 + 1.0) as f32,
+            ]
+        })
+        .collect();
+    // Exact pixel centres, image corners and a NaN.
+    points.extend([
+        [0.0, 0.0],
+        [cam.width as f32 - 1.0, cam.height as f32 - 1.0],
+        [f32::NAN, 3.0],
+    ]);
+    points.push([cam.cx as f32, cam.cy as f32]);
+    for mode in [GatherMode::Nearest, GatherMode::Bilinear] {
+        let g = splatter.gather(ctx(), &t, &points, mode).unwrap();
+        let c = cpu::sample_at(&motion, &depth, &points, mode);
+        assert_eq!(g.len(), points.len());
+        let mut valid = 0;
+        for (i, (g, c)) in g.iter().zip(&c).enumerate() {
+            assert_eq!(g.valid, c.valid, "{mode:?} point {i} {:?}", points[i]);
+            if !g.valid {
+                assert!(g.depth.is_nan() && g.motion.iter().all(|v| v.is_nan()));
+                continue;
+            }
+            valid += 1;
+            let scale = c.motion.iter().map(|v| v.abs()).fold(1e-6, f32::max);
+            for k in 0..12 {
+                assert!(
+                    (g.motion[k] - c.motion[k]).abs() <= 1e-4 * scale,
+                    "{mode:?} point {i}"
+                );
+            }
+            assert!(
+                (g.depth - c.depth).abs() <= 1e-5 * c.depth,
+                "{mode:?} point {i}"
+            );
+        }
+        assert!(valid > 50, "{mode:?}: only {valid} valid samples");
+        // The centre of the image shows the sphere.
+        assert!(g.last().unwrap().valid);
+    }
+}
