@@ -34,8 +34,6 @@ use super::error::ModelError;
 use glam::{DVec3, Vec3};
 use indicatif::ProgressBar;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
-use std::cmp::Reverse;
-use std::collections::BinaryHeap;
 use std::num::NonZeroUsize;
 use std::path::Path;
 
@@ -321,22 +319,17 @@ fn orient(
         .iter()
         .map(|&e| if e { UNSEEN } else { DONE })
         .collect();
-    // Min-heap on the weight's bits: non-negative f32 bit patterns sort like
-    // the floats themselves.
-    let mut heap: BinaryHeap<Reverse<(u32, u32, u32)>> = BinaryHeap::new();
-    let push_edges = |i: usize, state: &[u8], normals: &[Vec3], heap: &mut BinaryHeap<_>| {
+    let mut queue = BucketQueue::new();
+    let push_edges = |i: usize, state: &[u8], normals: &[Vec3], queue: &mut BucketQueue| {
         for j in neighbours(i) {
             if state[j] != DONE {
-                let w = (1.0 - normals[i].dot(normals[j]).abs()).max(0.0);
-                heap.push(Reverse((w.to_bits(), j as u32, i as u32)));
+                queue.push(normals[i].dot(normals[j]), j as u32, i as u32);
             }
         }
     };
     let mut done = 0usize;
-    let mut grow = |heap: &mut BinaryHeap<Reverse<(u32, u32, u32)>>,
-                    state: &mut [u8],
-                    normals: &mut [Vec3]| {
-        while let Some(Reverse((_, to, from))) = heap.pop() {
+    let mut grow = |queue: &mut BucketQueue, state: &mut [u8], normals: &mut [Vec3]| {
+        while let Some((to, from)) = queue.pop() {
             let (to, from) = (to as usize, from as usize);
             if state[to] == DONE {
                 continue;
@@ -345,7 +338,7 @@ fn orient(
                 normals[to] = -normals[to];
             }
             state[to] = DONE;
-            push_edges(to, state, normals, heap);
+            push_edges(to, state, normals, queue);
             done += 1;
             if done.is_multiple_of(PROGRESS_STEP) {
                 bar.inc(PROGRESS_STEP as u64);
@@ -357,10 +350,10 @@ fn orient(
     bar.set_length(n as u64);
     for i in 0..n {
         if state[i] == DONE {
-            push_edges(i, &state, normals, &mut heap);
+            push_edges(i, &state, normals, &mut queue);
         }
     }
-    grow(&mut heap, &mut state, normals);
+    grow(&mut queue, &mut state, normals);
 
     // What remains are components without a trusted normal: seed each.
     let mut members: Vec<usize> = Vec::new();
@@ -383,10 +376,60 @@ fn orient(
         }
         let seed = choose_seed(pts, normals, &members);
         state[seed] = DONE;
-        push_edges(seed, &state, normals, &mut heap);
-        grow(&mut heap, &mut state, normals);
+        push_edges(seed, &state, normals, &mut queue);
+        grow(&mut queue, &mut state, normals);
     }
     bar.finish_and_clear();
+}
+
+/// Buckets for the edge weights of the orientation tree. Prim's algorithm
+/// only needs the cheapest edge next, and an exact order among nearly equal
+/// weights does not matter, so weights are quantised: the bucket is linear in
+/// `sqrt(1 - |cos|)`, about the angle between the normals (0.35 degree per
+/// bucket near parallel). Pushes are O(1) and pops scan up from the lowest
+/// non-empty bucket; on smooth surfaces nearly every edge lands in the first
+/// few buckets. Several times faster than a binary heap here.
+struct BucketQueue {
+    buckets: Vec<Vec<(u32, u32)>>,
+    lowest: usize,
+    len: usize,
+}
+
+impl BucketQueue {
+    const BUCKETS: usize = 256;
+
+    fn new() -> Self {
+        Self {
+            buckets: vec![Vec::new(); Self::BUCKETS],
+            lowest: Self::BUCKETS,
+            len: 0,
+        }
+    }
+
+    /// Queues the edge `from -> to` whose normals have cosine `cos`.
+    #[inline]
+    fn push(&mut self, cos: f32, to: u32, from: u32) {
+        let w = (1.0 - cos.abs()).max(0.0).sqrt();
+        // NaN and values >= 1 both land in the last bucket.
+        let b = ((w * Self::BUCKETS as f32) as usize).min(Self::BUCKETS - 1);
+        self.buckets[b].push((to, from));
+        self.lowest = self.lowest.min(b);
+        self.len += 1;
+    }
+
+    /// The queued edge of (about) the lowest weight, as `(to, from)`.
+    #[inline]
+    fn pop(&mut self) -> Option<(u32, u32)> {
+        if self.len == 0 {
+            self.lowest = Self::BUCKETS;
+            return None;
+        }
+        while self.buckets[self.lowest].is_empty() {
+            self.lowest += 1;
+        }
+        self.len -= 1;
+        self.buckets[self.lowest].pop()
+    }
 }
 
 /// Among the six extreme points of a component, the one whose normal is most
