@@ -179,7 +179,13 @@ pub(crate) fn estimate(
         orient(&pts, normals, mask, &graph, kg, &bars.orient);
     }
     if task.radii {
-        fix_radii(radii).ok_or_else(|| err(path, "radii", "all points coincide"))?;
+        fix_radii(radii).ok_or_else(|| {
+            err(
+                path,
+                "radii",
+                format!("no point has {k} neighbours at a positive distance (the points coincide)"),
+            )
+        })?;
     }
     Ok(())
 }

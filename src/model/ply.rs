@@ -5,7 +5,9 @@
 //! garbage file cannot make us buffer gigabytes looking for a newline), then
 //! every element count is checked against the bytes the body can possibly
 //! hold *before* anything is allocated (at least one byte per binary value of
-//! a fixed-size property, two per ASCII token). The body is then streamed:
+//! a fixed-size property, two per ASCII token): a count more than twice that
+//! is refused as a lying header, and no array is ever reserved beyond what
+//! the file can fill. The body is then streamed:
 //! each value goes straight into the model's arrays, so a million points cost
 //! one pass and no per-point allocation.
 //!
@@ -364,24 +366,31 @@ pub(crate) fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, 
     })
 }
 
-/// Refuses headers whose element counts cannot fit in the body, before any
-/// allocation sized by a count. `upto` is the number of leading elements read.
+/// Refuses headers whose element counts the body cannot hold, before any
+/// allocation sized by a count, and returns for each of the first `upto`
+/// elements the number of rows it is safe to reserve. A count more than twice
+/// what the body can hold is a lying or corrupted header and is refused here;
+/// a smaller excess is a cut file, read until the data runs out so that the
+/// error says where (`Truncated`).
 fn check_counts(
     header: &Header,
     upto: usize,
     body_len: u64,
     path: &Path,
-) -> Result<(), ModelError> {
+) -> Result<Vec<usize>, ModelError> {
     let mut budget = body_len;
+    let mut reserve = Vec::with_capacity(upto);
     for e in header.elements.iter().take(upto) {
         let per = e.min_bytes(header.encoding);
         if per == 0 {
+            reserve.push(0);
             continue;
         }
         // The last ASCII element may lack its final newline.
         let slack = u64::from(header.encoding == Encoding::Ascii);
         let max_possible = (budget + slack) / per;
-        if e.count as u64 > max_possible {
+        let count = e.count as u64;
+        if count > max_possible.saturating_mul(2) {
             return Err(ModelError::CountExceedsFile {
                 path: path.to_path_buf(),
                 element: e.name.clone(),
@@ -389,9 +398,11 @@ fn check_counts(
                 max_possible: usize::try_from(max_possible).unwrap_or(usize::MAX),
             });
         }
-        budget = budget.saturating_sub(per * e.count as u64);
+        let fits = count.min(max_possible);
+        reserve.push(usize::try_from(fits).unwrap_or(usize::MAX));
+        budget = budget.saturating_sub(per * fits);
     }
-    Ok(())
+    Ok(reserve)
 }
 
 /// Why reading a value failed, before the element context is added.
@@ -545,7 +556,12 @@ impl<R: BufRead> Values for Ascii<R> {
 
     fn scalar(&mut self, _t: Scalar) -> Result<f64, Fault> {
         let line_no = self.line_no;
+        // A short last line without its newline is where the file was cut.
+        let cut = !self.line.ends_with(b"\n");
         let Some(tok) = self.token() else {
+            if cut {
+                return Err(Fault::Eof);
+            }
             return Err(Fault::Parse {
                 line: line_no,
                 reason: "too few values on the line".into(),
@@ -852,12 +868,12 @@ fn read_body<V: Values>(
         None
     };
     let last = vertex_at.max(face_at.unwrap_or(0));
-    check_counts(header, last + 1, body_len, path)?;
+    let reserve = check_counts(header, last + 1, body_len, path)?;
 
     let vertex = &header.elements[vertex_at];
     let plan = vertex_plan(vertex, path)?;
-    let n = vertex.count;
-    // Safe to size by the count now: check_counts bounded it by the file size.
+    // Bounded by the file size, whatever the header says.
+    let n = reserve[vertex_at];
     let mut out = PlyContents {
         positions: Vec::with_capacity(n),
         normals: plan.has_normals.then(|| Vec::with_capacity(n)),
@@ -909,7 +925,7 @@ fn read_body<V: Values>(
                     }
                 })
                 .collect();
-            let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(element.count);
+            let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(reserve[at]);
             let mut degenerate = 0usize;
             read_rows(src, element, &slots, path, bar, |i, _, list| {
                 if list.len() < 3 {
@@ -1084,9 +1100,15 @@ mod tests {
     #[test]
     fn count_guard_uses_minimum_sizes() {
         let h = header("ply\nformat binary_little_endian 1.0\nelement vertex 10\nproperty float x\nproperty float y\nproperty float z\nend_header\n").expect("header");
-        assert!(check_counts(&h, 1, 120, Path::new("t")).is_ok());
-        match check_counts(&h, 1, 119, Path::new("t")) {
-            Err(ModelError::CountExceedsFile { max_possible, .. }) => assert_eq!(max_possible, 9),
+        assert_eq!(
+            check_counts(&h, 1, 120, Path::new("t")).ok(),
+            Some(vec![10])
+        );
+        // A cut file is read (and reported truncated where the data ends)...
+        assert_eq!(check_counts(&h, 1, 119, Path::new("t")).ok(), Some(vec![9]));
+        // ...a count far beyond the file is refused up front.
+        match check_counts(&h, 1, 59, Path::new("t")) {
+            Err(ModelError::CountExceedsFile { max_possible, .. }) => assert_eq!(max_possible, 4),
             other => panic!("{other:?}"),
         }
     }
