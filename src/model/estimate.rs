@@ -3,8 +3,9 @@
 //! How it works:
 //! 1. A k-d tree (kiddo's `ImmutableKdTree`) over the points, centred on their
 //!    centroid so that f32 keeps its precision far from the origin. The points
-//!    are queried in the tree's own leaf order, which keeps consecutive queries
-//!    in cache (twice as fast as file order on a million points).
+//!    are first reordered in the leaf order of a k-d tree, so that neighbours
+//!    in space are neighbours in memory for the queries, the PCA and the
+//!    orientation (twice as fast as file order on a million points).
 //! 2. Normals: principal component analysis of each point's k nearest
 //!    neighbours (Hoppe, DeRose, Duchamp, McDonald & Stuetzle, "Surface
 //!    reconstruction from unorganized points", SIGGRAPH 1992): the normal is the
@@ -98,6 +99,16 @@ pub(crate) fn estimate(
         return Err(err(path, what, format!("{n} points is too many")));
     }
     let k = task.k.clamp(2, n - 1);
+    if task.radii && !(task.radius_factor.is_finite() && task.radius_factor > 0.0) {
+        return Err(err(
+            path,
+            "radii",
+            format!(
+                "the radius factor is {}; it must be > 0",
+                task.radius_factor
+            ),
+        ));
+    }
 
     let centroid = positions
         .iter()
@@ -117,12 +128,30 @@ pub(crate) fn estimate(
         }
         pts.push(q.to_array());
     }
-    let tree: ImmutableKdTree<f32, 3> = ImmutableKdTree::new_from_slice(&pts)
-        .map_err(|e| err(path, what, format!("k-d tree: {e}")))?;
+    // Work in the leaf order of a first tree: neighbours in space are then
+    // neighbours in memory, for the queries, the PCA and the orientation
+    // alike (about twice as fast on a million points as file order).
+    let build = |pts: &[[f32; 3]]| {
+        ImmutableKdTree::<f32, 3>::new_from_slice(pts)
+            .map_err(|e| err(path, what, format!("k-d tree: {e}")))
+    };
+    let order: Vec<u32> = build(&pts)?.iter().map(|(item, _)| item).collect();
+    if order.len() != n {
+        return Err(err(path, what, "the k-d tree lost points"));
+    }
+    let pts: Vec<[f32; 3]> = order.iter().map(|&i| pts[i as usize]).collect();
+    let tree = build(&pts)?;
+    let mut sorted_normals: Vec<Vec3> = Vec::new();
+    let mut sorted_mask: Vec<bool> = Vec::new();
+    if let Some(mask) = task.normals {
+        sorted_normals = order.iter().map(|&i| normals[i as usize]).collect();
+        sorted_mask = order.iter().map(|&i| mask[i as usize]).collect();
+    }
+    let mut sorted_radii: Vec<f32> = if task.radii { vec![0.0; n] } else { Vec::new() };
 
-    let estimate_mask = task.normals;
+    let orient_too = task.normals.is_some();
     let kg = GRAPH_K.min(k);
-    let mut graph: Vec<u32> = if estimate_mask.is_some() {
+    let mut graph: Vec<u32> = if orient_too {
         vec![0; n * kg]
     } else {
         Vec::new()
@@ -130,19 +159,18 @@ pub(crate) fn estimate(
     let qty = NonZeroUsize::new(k + 1).unwrap_or(NonZeroUsize::MIN);
     let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
     let mut nbrs: Vec<u32> = Vec::with_capacity(k + 1);
-    let mut last_dist2: f32;
     bars.neighbours.set_length(n as u64);
-    for (count, (item, point)) in tree.iter().enumerate() {
-        let i = item as usize;
+    for (i, point) in pts.iter().enumerate() {
+        let item = i as u32;
         let found = tree
-            .query(&point)
+            .query(point)
             .nearest_n::<SquaredEuclidean<f32>>(qty)
             .with_scratch(&mut scratch)
             .execute();
         // The point itself is among the results unless more than k points
         // share its position; either way keep k others.
         nbrs.clear();
-        last_dist2 = 0.0;
+        let mut last_dist2 = 0.0f32;
         let mut skipped_self = false;
         for r in &found {
             if !skipped_self && r.item == item {
@@ -154,29 +182,50 @@ pub(crate) fn estimate(
                 last_dist2 = r.distance;
             }
         }
-        if let Some(mask) = estimate_mask {
+        if orient_too {
+            // Coincident points say nothing about orientation and would use
+            // up the row (a cloud of duplicated points would fall apart into
+            // tiny components), so the graph links distinct positions only;
+            // unused slots point to the point itself and are never followed.
             let row = &mut graph[i * kg..(i + 1) * kg];
-            for (slot, &j) in row
-                .iter_mut()
-                .zip(nbrs.iter().chain(std::iter::repeat(&item)))
-            {
+            row.fill(item);
+            let distinct = found
+                .iter()
+                .filter(|r| r.item != item && r.distance > 0.0)
+                .map(|r| r.item);
+            for (slot, j) in row.iter_mut().zip(distinct) {
                 *slot = j;
             }
-            if mask[i] {
-                normals[i] = pca_normal(&pts, i, &nbrs);
+            if sorted_mask[i] {
+                sorted_normals[i] = pca_normal(&pts, i, &nbrs);
             }
         }
         if task.radii {
-            radii[i] = task.radius_factor * last_dist2.max(0.0).sqrt() / (k as f32).sqrt();
+            sorted_radii[i] = task.radius_factor * last_dist2.max(0.0).sqrt() / (k as f32).sqrt();
         }
-        if count % PROGRESS_STEP == PROGRESS_STEP - 1 {
+        if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
             bars.neighbours.inc(PROGRESS_STEP as u64);
         }
     }
     bars.neighbours.finish_and_clear();
 
-    if let Some(mask) = estimate_mask {
-        orient(&pts, normals, mask, &graph, kg, &bars.orient);
+    if orient_too {
+        orient(
+            &pts,
+            &mut sorted_normals,
+            &sorted_mask,
+            &graph,
+            kg,
+            &bars.orient,
+        );
+        for (s, &i) in order.iter().enumerate() {
+            normals[i as usize] = sorted_normals[s];
+        }
+    }
+    if task.radii {
+        for (s, &i) in order.iter().enumerate() {
+            radii[i as usize] = sorted_radii[s];
+        }
     }
     if task.radii {
         fix_radii(radii).ok_or_else(|| {
@@ -296,7 +345,7 @@ fn orient(
     let n = pts.len();
     // Reverse edges, so that the graph is symmetric: j may be i's neighbour
     // without i being j's.
-    let mut rev_start = vec![0u32; n + 1];
+    let mut rev_start = vec![0usize; n + 1];
     for &j in graph {
         rev_start[j as usize + 1] += 1;
     }
@@ -307,14 +356,14 @@ fn orient(
     let mut rev = vec![0u32; graph.len()];
     for (e, &j) in graph.iter().enumerate() {
         let slot = &mut fill[j as usize];
-        rev[*slot as usize] = (e / kg) as u32;
+        rev[*slot] = (e / kg) as u32;
         *slot += 1;
     }
     drop(fill);
     let neighbours = |i: usize| {
         graph[i * kg..(i + 1) * kg]
             .iter()
-            .chain(&rev[rev_start[i] as usize..rev_start[i + 1] as usize])
+            .chain(&rev[rev_start[i]..rev_start[i + 1]])
             .map(|&j| j as usize)
     };
 

@@ -139,6 +139,13 @@ impl PointModel {
     pub fn load_with(path: impl AsRef<Path>, opts: &LoadOptions) -> Result<Self, ModelError> {
         let path = path.as_ref();
         let contents = ply::read(path, false, opts.progress)?;
+        if contents.has_faces {
+            log::info!(
+                "{}: a mesh; its {} vertices are loaded as points (load_mesh_ply or load_auto sample its surface instead)",
+                path.display(),
+                contents.positions.len()
+            );
+        }
         Self::from_contents(contents, path, opts)
     }
 

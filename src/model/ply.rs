@@ -689,6 +689,8 @@ pub(crate) struct PlyContents {
     pub triangles: Option<Vec<[u32; 3]>>,
     /// Faces with fewer than three vertices, skipped.
     pub degenerate_faces: usize,
+    /// The file has a face element (whether or not it was read).
+    pub has_faces: bool,
 }
 
 /// How the vertex element maps onto value slots, and how colours scale to 0..1.
@@ -881,6 +883,7 @@ fn read_body<V: Values>(
         radii: plan.has_radius.then(|| Vec::with_capacity(n)),
         triangles: None,
         degenerate_faces: 0,
+        has_faces: header.has_faces(),
     };
     let rows: usize = header.elements[..=last].iter().map(|e| e.count).sum();
     let bar = &super::progress_bar(progress, rows, "reading");
