@@ -226,8 +226,6 @@ pub(crate) fn estimate(
         for (s, &i) in order.iter().enumerate() {
             radii[i as usize] = sorted_radii[s];
         }
-    }
-    if task.radii {
         fix_radii(radii).ok_or_else(|| {
             err(
                 path,

@@ -5,8 +5,9 @@
 //! own (the PLY's; metres for most scanners).
 //!
 //! How loading works ([`PointModel::load_with`]):
-//! 1. the PLY is read by [`ply`](self) (ascii, binary little- or big-endian;
-//!    counts checked against the file size before any allocation);
+//! 1. the PLY is read by the `ply` submodule (ascii, binary little- or
+//!    big-endian; counts checked against the file size before any
+//!    allocation);
 //! 2. points with a NaN or infinite coordinate are dropped (counted in
 //!    [`Provenance::dropped_non_finite`], with a warning);
 //! 3. loaded radii must be finite and > 0, or the file is refused; loaded
@@ -16,7 +17,8 @@
 //!    loaded neighbours;
 //! 4. missing normals and radii are estimated from the k nearest neighbours
 //!    (PCA normals oriented after Hoppe et al. 1992, radii from the local
-//!    spacing): see [`estimate`](self) for the method and the radius factor.
+//!    spacing): the `estimate` submodule's docs give the method and the
+//!    choice of the radius factor.
 //!
 //! A PLY with faces loads as its vertices under [`PointModel::load`]; to sample
 //! the surface instead, use [`load_mesh_ply`] and [`TriangleMesh::sample`], or

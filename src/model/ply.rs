@@ -7,15 +7,17 @@
 //! hold *before* anything is allocated (at least one byte per binary value of
 //! a fixed-size property, two per ASCII token): a count more than twice that
 //! is refused as a lying header, and no array is ever reserved beyond what
-//! the file can fill. The body is then streamed:
-//! each value goes straight into the model's arrays, so a million points cost
-//! one pass and no per-point allocation.
+//! the file can fill. The body is then streamed: each value goes straight
+//! into the model's arrays, so a million points cost one pass and no
+//! per-point allocation.
 //!
-//! Why not ply-rs-bw for the body: its ASCII grammar rejects `nan` / `inf`
-//! (which we must read, count and drop), its per-element property callbacks
-//! are keyed by strings, and its errors span several lines. Its header parser
-//! merges elements of the same name. So this module reads PLY itself and the
-//! tests use ply-rs-bw as an independent check of the writer.
+//! Why not ply-rs-bw (4.0): its ASCII grammar rejects `nan` and `inf` (which
+//! we must read, count and drop), its per-element property callbacks are
+//! keyed by strings, its errors span several lines, and its header parser
+//! silently merges two elements of the same name. (It does cap its own
+//! pre-allocation at 65,536 elements, so it is not the gigabyte risk it could
+//! be.) So this module reads PLY itself, and the tests use ply-rs-bw as an
+//! independent check of the writer.
 
 use super::error::ModelError;
 use glam::Vec3;
