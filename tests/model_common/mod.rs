@@ -1,0 +1,206 @@
+//! Helpers shared by the `model_*` integration tests: a PLY writer that can
+//! produce any encoding and property type (independent of the crate's own
+//! writer), temporary files, and synthetic surfaces.
+#![allow(dead_code)]
+
+use glam::Vec3;
+use splattrack::model::rng::SplitMix64;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+/// A file under the temp dir with a unique name, removed on drop.
+pub struct TempFile(pub PathBuf);
+
+impl TempFile {
+    pub fn new(tag: &str, ext: &str) -> Self {
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let name = format!("splattrack-{}-{}-{n}.{ext}", std::process::id(), tag);
+        Self(std::env::temp_dir().join(name))
+    }
+
+    pub fn with_bytes(tag: &str, ext: &str, bytes: &[u8]) -> Self {
+        let f = Self::new(tag, ext);
+        std::fs::write(&f.0, bytes).expect("write temp file");
+        f
+    }
+
+    pub fn path(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempFile {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_file(&self.0);
+    }
+}
+
+/// One value of a PLY row: a scalar or a list.
+#[derive(Debug, Clone)]
+pub enum Val {
+    S(f64),
+    L(Vec<f64>),
+}
+
+/// One element: `props` are `(type, name)` with type e.g. `"float"` or
+/// `"list uchar int"`.
+#[derive(Debug, Clone)]
+pub struct El {
+    pub name: String,
+    pub props: Vec<(String, String)>,
+    pub rows: Vec<Vec<Val>>,
+}
+
+impl El {
+    pub fn new(name: &str, props: &[(&str, &str)]) -> Self {
+        Self {
+            name: name.into(),
+            props: props
+                .iter()
+                .map(|(t, n)| (t.to_string(), n.to_string()))
+                .collect(),
+            rows: Vec::new(),
+        }
+    }
+
+    pub fn row(mut self, values: Vec<Val>) -> Self {
+        self.rows.push(values);
+        self
+    }
+}
+
+fn put(out: &mut Vec<u8>, ty: &str, v: f64, big: bool) {
+    macro_rules! b {
+        ($x:expr) => {{
+            let x = $x;
+            if big {
+                out.extend_from_slice(&x.to_be_bytes())
+            } else {
+                out.extend_from_slice(&x.to_le_bytes())
+            }
+        }};
+    }
+    match ty {
+        "char" | "int8" => b!(v as i8),
+        "uchar" | "uint8" => b!(v as u8),
+        "short" | "int16" => b!(v as i16),
+        "ushort" | "uint16" => b!(v as u16),
+        "int" | "int32" => b!(v as i32),
+        "uint" | "uint32" => b!(v as u32),
+        "float" | "float32" => b!(v as f32),
+        "double" | "float64" => b!(v),
+        other => panic!("bad type {other}"),
+    }
+}
+
+/// A whole PLY file; `format` is `ascii`, `binary_little_endian` or
+/// `binary_big_endian`.
+pub fn ply_bytes(format: &str, elements: &[El]) -> Vec<u8> {
+    let mut out = format!("ply\nformat {format} 1.0\ncomment test file\n").into_bytes();
+    for e in elements {
+        out.extend_from_slice(format!("element {} {}\n", e.name, e.rows.len()).as_bytes());
+        for (t, n) in &e.props {
+            out.extend_from_slice(format!("property {t} {n}\n").as_bytes());
+        }
+    }
+    out.extend_from_slice(b"end_header\n");
+    let big = format == "binary_big_endian";
+    for e in elements {
+        for row in &e.rows {
+            assert_eq!(row.len(), e.props.len());
+            if format == "ascii" {
+                let mut words = Vec::new();
+                for v in row {
+                    match v {
+                        Val::S(x) => words.push(format!("{x}")),
+                        Val::L(xs) => {
+                            words.push(xs.len().to_string());
+                            words.extend(xs.iter().map(|x| format!("{x}")));
+                        }
+                    }
+                }
+                out.extend_from_slice(words.join(" ").as_bytes());
+                out.push(b'\n');
+            } else {
+                for ((ty, _), v) in e.props.iter().zip(row) {
+                    match v {
+                        Val::S(x) => put(&mut out, ty, *x, big),
+                        Val::L(xs) => {
+                            let mut parts = ty.split_whitespace().skip(1);
+                            let count_ty = parts.next().expect("list count type");
+                            let item_ty = parts.next().expect("list item type");
+                            put(&mut out, count_ty, xs.len() as f64, big);
+                            for x in xs {
+                                put(&mut out, item_ty, *x, big);
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Points on a sphere (centre `c`, radius `r`), stratified in
+/// (cos theta, phi) cells then jittered, with outward normals.
+pub fn sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = SplitMix64::new(seed);
+    let mut pos = Vec::with_capacity(n);
+    let mut nrm = Vec::with_capacity(n);
+    for i in 0..n {
+        // Fibonacci lattice plus a small jitter: even but not regular.
+        let z = 1.0 - 2.0 * (i as f64 + 0.2 + 0.6 * rng.next_f64()) / n as f64;
+        let phi = i as f64 * 2.399_963_229_728_653 + 0.3 * rng.next_f64();
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        let d = Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32);
+        pos.push(c + r * d);
+        nrm.push(d);
+    }
+    (pos, nrm)
+}
+
+/// Points on a torus around the z axis (radii `big`, `small`), with outward
+/// normals, uniformly random over the surface.
+pub fn torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = SplitMix64::new(seed);
+    let mut pos = Vec::with_capacity(n);
+    let mut nrm = Vec::with_capacity(n);
+    while pos.len() < n {
+        let u = std::f32::consts::TAU * rng.next_f64() as f32;
+        let v = std::f32::consts::TAU * rng.next_f64() as f32;
+        // Rejection sampling for uniform area density.
+        if rng.next_f64() as f32 > (big + small * v.cos()) / (big + small) {
+            continue;
+        }
+        let d = Vec3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
+        let centre = Vec3::new(big * u.cos(), big * u.sin(), 0.0);
+        pos.push(centre + small * d);
+        nrm.push(d);
+    }
+    (pos, nrm)
+}
+
+/// Vertex rows `x y z` (float) plus optional `nx ny nz` and `radius`.
+pub fn vertex_element(pos: &[Vec3], normals: Option<&[Vec3]>, radius: Option<f32>) -> El {
+    let mut props = vec![("float", "x"), ("float", "y"), ("float", "z")];
+    if normals.is_some() {
+        props.extend([("float", "nx"), ("float", "ny"), ("float", "nz")]);
+    }
+    if radius.is_some() {
+        props.push(("float", "radius"));
+    }
+    let mut el = El::new("vertex", &props);
+    for (i, p) in pos.iter().enumerate() {
+        let mut row: Vec<Val> = p.to_array().iter().map(|&v| Val::S(f64::from(v))).collect();
+        if let Some(ns) = normals {
+            row.extend(ns[i].to_array().iter().map(|&v| Val::S(f64::from(v))));
+        }
+        if let Some(r) = radius {
+            row.push(Val::S(f64::from(r)));
+        }
+        el.rows.push(row);
+    }
+    el
+}
