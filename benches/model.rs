@@ -8,7 +8,7 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use splattrack::model::rng::SplitMix64;
+use splattrack::rng::Rng;
 use splattrack::model::{LoadOptions, PointModel, TriangleMesh};
 use std::hint::black_box;
 use std::io::Write;
@@ -19,7 +19,7 @@ const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
 
 fn torus(n: usize, seed: u64) -> Vec<Vec3> {
     let (big, small) = (1.0f32, 0.3f32);
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = Rng::new(seed);
     let mut pos = Vec::with_capacity(n);
     while pos.len() < n {
         let u = std::f32::consts::TAU * rng.next_f64() as f32;

@@ -2,10 +2,6 @@
 //! .npy depth and motion images have FORMATS.md's layout and agree with the
 //! host geometry (analytic sphere depth; `Intrinsics::motion_predictors` at
 //! the rendered depth); real models of ../shared/data.
-//!
-//! The tests that load a PLY need the PLY loader (model branch): they are
-//! ignored until it is merged (then `load_model` in src/cli/render.rs
-//! switches to `PointModel::load`).
 
 use nalgebra::{Vector2, Vector3};
 use splattrack::geometry::{Intrinsics, Pose};
@@ -234,7 +230,6 @@ fn check_motion_against_host(cam: &Intrinsics, depth: &[f32], motion: &[f32]) ->
 }
 
 #[test]
-#[ignore = "needs the PLY loader (merge)"]
 fn npy_depth_and_motion_match_the_host_geometry() {
     // Tolerances: depth within 0.2% of the analytic sphere where the
     // surface faces the camera (incidence < 70 degrees); predictors within
@@ -337,7 +332,6 @@ fn pose_string(p: &Pose) -> String {
 }
 
 #[test]
-#[ignore = "needs the PLY loader (merge) and ../shared/data"]
 fn real_models_render_depth_and_motion_consistent_with_the_host() {
     // At the init.csv pose of each ViSP sequence: depth within the model's
     // extent at the pose, predictors equal to the host's at the rendered

@@ -5,7 +5,7 @@ mod model_common;
 
 use glam::Vec3;
 use model_common::{El, TempFile, Val, ply_bytes, sphere, vertex_element};
-use splattrack::model::rng::SplitMix64;
+use splattrack::rng::Rng;
 use splattrack::model::{LoadOptions, ModelError, PointModel, load_mesh_ply, load_obj};
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -416,7 +416,7 @@ fn corrupted_files_never_panic() {
     ];
     let obj =
         b"v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1 0.5 0.5 0.5\nf 1 2 3\nf 1/1/1 3//2 4\nf -1 -2 -3 -4\n";
-    let mut rng = SplitMix64::new(2024);
+    let mut rng = Rng::new(2024);
     let mut outcomes = [0usize; 2];
     for case in 0..400 {
         let base: &[u8] = if case % 10 == 9 {

@@ -6,7 +6,7 @@ mod model_common;
 
 use glam::{Vec2, Vec3};
 use model_common::{TempFile, ply_bytes, sphere, torus, vertex_element};
-use splattrack::model::rng::SplitMix64;
+use splattrack::rng::Rng;
 use splattrack::model::{AttributeSource, LoadOptions, PointModel};
 
 fn quiet() -> LoadOptions {
@@ -110,7 +110,7 @@ fn zero_normals_are_reestimated_to_agree_with_loaded_neighbours() {
         // The file's convention (here possibly inward) is kept: re-estimated
         // normals follow their loaded neighbours, not a rule of their own.
         let mut normals: Vec<Vec3> = truth.iter().map(|n| *n * flip).collect();
-        let mut rng = SplitMix64::new(7);
+        let mut rng = Rng::new(7);
         let mut zeroed = Vec::new();
         for (i, n) in normals.iter_mut().enumerate() {
             if rng.below(10) == 0 {
@@ -189,7 +189,7 @@ fn coverage(centres: &[Vec3], radii: &[f32], tests: &[Vec2]) -> f64 {
 
 #[test]
 fn estimated_radii_close_the_surface() {
-    let mut rng = SplitMix64::new(8);
+    let mut rng = Rng::new(8);
     let side = 70usize;
     // Jittered grid (stratified) and purely random samples of the unit square.
     let jittered: Vec<Vec3> = (0..side * side)

@@ -44,7 +44,7 @@ fn compare(
     poses: &[Pose],
     label: &str,
 ) {
-    let model = mesh.sample_points(n, 2.0, 17);
+    let model = mesh.sample_points(n, 2.0, 17).unwrap();
     let splatter = Splatter::new(ctx()).unwrap();
     let gm = GpuModel::new(ctx(), &model).unwrap();
     let renderer = MeshRenderer::new(ctx()).unwrap();

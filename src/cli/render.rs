@@ -42,15 +42,6 @@ pub struct Args {
     pub attribute: AttributeArg,
 }
 
-/// Loads the point model. Placeholder until the PLY loader (model branch)
-/// is merged: switch to `PointModel::load(path)` then.
-fn load_model(path: &Path) -> anyhow::Result<PointModel> {
-    bail!(
-        "{}: cannot load point models yet: the PLY loader is not merged into this build",
-        path.display()
-    )
-}
-
 /// Parses "r11,r12,...,r33,tx,ty,tz".
 pub fn parse_pose(s: &str) -> anyhow::Result<Pose> {
     let v: Vec<f64> = s
@@ -130,7 +121,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     let pose = pick_pose(&args)?;
-    let model = load_model(&args.model)?;
+    let model = PointModel::load(&args.model)?;
     let ctx = super::gpu(adapter)?;
     let splatter = Splatter::new(&ctx)?;
     let gm = GpuModel::new(&ctx, &model).with_context(|| args.model.display().to_string())?;

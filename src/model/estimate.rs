@@ -515,11 +515,11 @@ fn choose_seed(pts: &[[f32; 3]], normals: &mut [Vec3], members: &[usize]) -> usi
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::rng::SplitMix64;
+    use crate::rng::Rng;
 
     #[test]
     fn eigenvector_matches_nalgebra() {
-        let mut rng = SplitMix64::new(3);
+        let mut rng = Rng::new(3);
         for _ in 0..500 {
             let mut m = [[0.0f64; 3]; 3];
             for (r, c) in [(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)] {
@@ -563,7 +563,7 @@ mod tests {
             .expect("sphere");
         assert!((s.length() - 1.0).abs() < 1e-12);
         // Nearly flat, tilted plane z = 0.5 x.
-        let mut rng = SplitMix64::new(9);
+        let mut rng = Rng::new(9);
         let pts: Vec<DVec3> = (0..50)
             .map(|_| {
                 let (x, y) = (rng.next_f64(), rng.next_f64());

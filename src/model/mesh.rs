@@ -22,7 +22,7 @@
 
 use super::error::{ModelError, memory_path};
 use super::ply::{self, read_line_capped};
-use super::rng::SplitMix64;
+use crate::rng::Rng;
 use super::{AttributeSource, PointModel, Provenance};
 use glam::{DVec3, Vec3};
 use std::fs::File;
@@ -297,7 +297,7 @@ impl TriangleMesh {
             return Err(invalid("the mesh's area is not finite".into()));
         }
 
-        let mut rng = SplitMix64::new(seed);
+        let mut rng = Rng::new(seed);
         let u0 = rng.next_f64();
         let (s1, s2) = (rng.next_f64(), rng.next_f64());
         // R2 sequence: the generalised golden ratio in two dimensions.

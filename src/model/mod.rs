@@ -28,7 +28,6 @@ mod error;
 mod estimate;
 mod mesh;
 mod ply;
-pub mod rng;
 
 pub use error::ModelError;
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};

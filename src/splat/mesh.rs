@@ -12,8 +12,7 @@ use super::SplatError;
 use super::gpu_data::CameraUniform;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
-use crate::model::{AttributeSource, PointModel, Provenance};
-use crate::rng::Rng;
+use crate::model::{AttributeSource, ModelError, PointModel};
 use glam::Vec3;
 use nalgebra::Vector3;
 
@@ -170,61 +169,27 @@ impl TriangleMesh {
             .sum()
     }
 
-    /// Samples `n` points uniformly over the surface (area-weighted random
-    /// triangles, uniform barycentrics), as a scanner would: positions on the
-    /// triangles, the triangles' geometric normals, interpolated colours, and
-    /// splat radius `radius_factor * sqrt(area / n)` (about 2 covers random
-    /// samples without holes).
-    pub fn sample_points(&self, n: usize, radius_factor: f32, seed: u64) -> PointModel {
-        let areas: Vec<f64> = self
-            .triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = self.corners(t);
-                0.5 * (b - a).cross(c - a).length() as f64
-            })
-            .collect();
-        let mut cdf = Vec::with_capacity(areas.len());
-        let mut acc = 0.0;
-        for a in &areas {
-            acc += a;
-            cdf.push(acc);
-        }
-        let mut rng = Rng::new(seed);
-        let mut positions = Vec::with_capacity(n);
-        let mut normals = Vec::with_capacity(n);
-        let mut colors = Vec::with_capacity(n);
-        for _ in 0..n {
-            let x = rng.next_f64() * acc;
-            let k = cdf.partition_point(|&c| c < x).min(cdf.len() - 1);
-            let t = &self.triangles[k];
-            let [a, b, c] = self.corners(t);
-            let (mut s, mut u) = (rng.next_f64() as f32, rng.next_f64() as f32);
-            if s + u > 1.0 {
-                s = 1.0 - s;
-                u = 1.0 - u;
-            }
-            positions.push(a + (b - a) * s + (c - a) * u);
-            normals.push((b - a).cross(c - a).normalize());
-            let col = t.map(|i| self.vertices[i as usize].color);
-            colors.push(std::array::from_fn(|ch| {
-                col[0][ch] * (1.0 - s - u) + col[1][ch] * s + col[2][ch] * u
-            }));
-        }
-        let r = radius_factor * (acc as f32 / n as f32).sqrt();
-        PointModel {
-            radii: vec![r; n],
-            positions,
-            normals,
-            colors: Some(colors),
-            provenance: Provenance {
-                path: None,
-                normals: AttributeSource::FromMesh,
-                radii: AttributeSource::Estimated,
-                colors: AttributeSource::FromMesh,
-                dropped_non_finite: 0,
-            },
-        }
+    /// Samples `n` points evenly over the surface with the model crate's
+    /// mesh sampler (as a scanner would: positions on the triangles, their
+    /// geometric normals, interpolated colours), with splat radius
+    /// `radius_factor * sqrt(area / n)` (about 2 covers the surface).
+    pub fn sample_points(
+        &self,
+        n: usize,
+        radius_factor: f32,
+        seed: u64,
+    ) -> Result<PointModel, ModelError> {
+        let mesh = crate::model::TriangleMesh {
+            vertices: self.vertices.iter().map(|v| Vec3::from(v.position)).collect(),
+            triangles: self.triangles.clone(),
+            colors: Some(self.vertices.iter().map(|v| v.color).collect()),
+            path: None,
+        };
+        let mut model = mesh.sample(n, seed)?;
+        let r = radius_factor * (self.area() / model.len() as f32).sqrt();
+        model.radii.fill(r);
+        model.provenance.radii = AttributeSource::Estimated;
+        Ok(model)
     }
 
     /// Bounding sphere (box centre, farthest vertex).

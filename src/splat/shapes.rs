@@ -14,6 +14,7 @@ fn provenance() -> Provenance {
         radii: AttributeSource::FromMesh,
         colors: AttributeSource::FromMesh,
         dropped_non_finite: 0,
+        normals_reestimated: 0,
     }
 }
 

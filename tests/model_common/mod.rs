@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use glam::Vec3;
-use splattrack::model::rng::SplitMix64;
+use splattrack::rng::Rng;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -146,7 +146,7 @@ pub fn ply_bytes(format: &str, elements: &[El]) -> Vec<u8> {
 /// Points on a sphere (centre `c`, radius `r`), stratified in
 /// (cos theta, phi) cells then jittered, with outward normals.
 pub fn sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = Rng::new(seed);
     let mut pos = Vec::with_capacity(n);
     let mut nrm = Vec::with_capacity(n);
     for i in 0..n {
@@ -164,7 +164,7 @@ pub fn sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
 /// Points on a torus around the z axis (radii `big`, `small`), with outward
 /// normals, uniformly random over the surface.
 pub fn torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = SplitMix64::new(seed);
+    let mut rng = Rng::new(seed);
     let mut pos = Vec::with_capacity(n);
     let mut nrm = Vec::with_capacity(n);
     while pos.len() < n {
