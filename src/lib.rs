@@ -12,8 +12,10 @@
 //!   the motion predictors: the host reference for every GPU kernel;
 //! - [`gpu`]: the headless wgpu context, readback helpers, GPU timers;
 //! - [`shaders`]: the WGSL sources, validated by naga;
-//! - [`io`]: pose CSVs and raw `.npy` images.
+//! - [`io`]: pose CSVs and raw `.npy` images;
+//! - [`features`]: Harris corners and NCC matching (GPU, with CPU references).
 
+pub mod features;
 pub mod geometry;
 pub mod gpu;
 pub mod io;

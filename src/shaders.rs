@@ -2,10 +2,11 @@
 //! and validated by naga (a unit test checks every one without a GPU).
 
 /// Every shader under `shaders/`, by file stem. Add new files here.
-pub const ALL: &[(&str, &str)] = &[(
-    "selftest",
-    include_str!("../shaders/selftest.wgsl"),
-)];
+pub const ALL: &[(&str, &str)] = &[
+    ("selftest", include_str!("../shaders/selftest.wgsl")),
+    ("harris", include_str!("../shaders/harris.wgsl")),
+    ("ncc", include_str!("../shaders/ncc.wgsl")),
+];
 
 /// The source of the shader named `name` (its file stem).
 pub fn source(name: &str) -> Option<&'static str> {
