@@ -1,6 +1,7 @@
 //! Subcommands, one file each; this file holds the shared flags and the
 //! dispatch.
 
+mod features;
 mod info;
 
 use clap::{Parser, Subcommand};
@@ -29,6 +30,8 @@ pub enum Command {
     /// The adapter in use; with a model: point count, bounds, diameter, and
     /// which attributes were present or estimated.
     Info(info::Args),
+    /// Harris corners of one image, or mutual NCC matches between two.
+    Features(features::Args),
 }
 
 /// A minimal stderr logger: warnings always, more with -v.
@@ -66,5 +69,6 @@ pub fn gpu(adapter: &Option<String>) -> anyhow::Result<GpuContext> {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Info(a) => info::run(a, &cli.adapter),
+        Command::Features(a) => features::run(a, &cli.adapter),
     }
 }
