@@ -58,7 +58,14 @@ fn gpu_matches_equal_cpu_on_random_images_and_features() {
     ];
     for (ci, cfg) in configs.iter().enumerate() {
         let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
-        for (name, ia, ib) in [("noise/warped", &a, &b), ("noise/polygons", &a, &c)] {
+        // Both score kernels, whatever the adapter's default.
+        for ((name, ia, ib), tiled) in [("noise/warped", &a, &b), ("noise/polygons", &a, &c)]
+            .into_iter()
+            .flat_map(|case| [(case, true), (case, false)])
+        {
+            m.set_tiled(tiled);
+            let name = format!("{name}, tiled {tiled}");
+            let name = name.as_str();
             // Random positions, with some features of B placed at the
             // images of features of A so that true matches exist.
             let fa = random_points(&mut rng, 150, ia.width, ia.height);
@@ -73,7 +80,7 @@ fn gpu_matches_equal_cpu_on_random_images_and_features() {
             }
             let gpu = m.match_features(ia, &fa, ib, &fb).unwrap();
             let cpu = ncc_match_cpu(ia, &fa, ib, &fb, cfg).unwrap();
-            if name == "noise/warped" {
+            if name.starts_with("noise/warped") {
                 assert!(cpu.len() >= 10, "config {ci}: {} matches", cpu.len());
             }
             assert_same_matches(&format!("config {ci}, {name}"), &gpu, &cpu);

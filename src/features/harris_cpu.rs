@@ -380,7 +380,9 @@ fn refine(
         }
         let det = a11 * a22 - a12 * a12;
         let tr = a11 + a22;
-        if !(tr > 0.0) || !(det > 1.0e-4 * tr * tr) {
+        // Written so that NaN fails the test, as in the shader.
+        let well_posed = tr > 0.0 && det > 1.0e-4 * tr * tr;
+        if !well_posed {
             return start;
         }
         let qn = (
@@ -388,7 +390,8 @@ fn refine(
             cy as f32 + (a11 * b2 - a12 * b1) / det,
         );
         let moved = (qn.0 - start.0, qn.1 - start.1);
-        if !(moved.0 * moved.0 + moved.1 * moved.1 <= max_shift * max_shift) {
+        let near_start = moved.0 * moved.0 + moved.1 * moved.1 <= max_shift * max_shift;
+        if !near_start {
             return start;
         }
         let step = (qn.0 - q.0, qn.1 - q.1);

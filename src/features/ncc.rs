@@ -58,7 +58,7 @@ impl NccConfig {
 
     pub fn validate(&self) -> Result<(), FeatureError> {
         let bad = |m: String| Err(FeatureError::Config(m));
-        if self.window % 2 == 0 || self.window > 63 {
+        if self.window.is_multiple_of(2) || self.window > 63 {
             return bad(format!(
                 "window = {} is not odd and at most 63",
                 self.window
@@ -119,6 +119,8 @@ pub struct NccMatcher<'a> {
     config: NccConfig,
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
+    score_direct: wgpu::ComputePipeline,
+    tiled: bool,
     params: wgpu::Buffer,
     pixels: GrowBuffer,
     positions: GrowBuffer,
@@ -132,6 +134,13 @@ pub struct NccMatcher<'a> {
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
+const ENTRIES: [&str; 5] = [
+    "vectorize",
+    "score_tiled",
+    "row_best",
+    "col_best",
+    "score_direct",
+];
 
 impl<'a> NccMatcher<'a> {
     pub fn new(ctx: &'a GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
@@ -146,12 +155,15 @@ impl<'a> NccMatcher<'a> {
                 label: Some("ncc"),
                 entries: &entries,
             });
-        let passes = pipelines(ctx, "ncc", &layout, &PASSES)?;
+        let mut passes = pipelines(ctx, "ncc", &layout, &ENTRIES)?;
+        let score_direct = passes.pop().expect("five pipelines");
         Ok(Self {
             ctx,
             config,
             layout,
             passes,
+            score_direct,
+            tiled: !ctx.is_cpu(),
             params: ctx.buffer(
                 "ncc params",
                 std::mem::size_of::<NccParams>() as u64,
@@ -171,6 +183,13 @@ impl<'a> NccMatcher<'a> {
 
     pub fn config(&self) -> &NccConfig {
         &self.config
+    }
+
+    /// Chooses the score kernel: tiled in workgroup memory (the default on
+    /// GPUs) or one thread per score (the default on CPU adapters, where
+    /// workgroup barriers are slow). Both give the same scores.
+    pub fn set_tiled(&mut self, tiled: bool) {
+        self.tiled = tiled;
     }
 
     /// Times every pass with GPU timestamp queries from now on (where
@@ -316,9 +335,15 @@ impl<'a> NccMatcher<'a> {
                 label: Some(label),
                 timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass(label)),
             });
-            pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+            if label == "score" && !self.tiled {
+                pass.set_pipeline(&self.score_direct);
+                // Four columns per thread.
+                pass.dispatch_workgroups(workgroups(nb as u32, 4 * NCC_TILE), gy, 1);
+            } else {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
         }
         if let Some(t) = &self.timer {
             t.resolve(&mut enc);

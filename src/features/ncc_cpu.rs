@@ -29,7 +29,9 @@ fn vectorize(img: &GreyImage, p: [f32; 2], cfg: &NccConfig, stride: usize) -> Op
         let c = v - mean;
         ss += c * c;
     }
-    if !((ss / d as f32).sqrt() >= cfg.min_std) {
+    // Flat windows correlate noise with noise; NaN fails too.
+    let textured = (ss / d as f32).sqrt() >= cfg.min_std;
+    if !textured {
         return None;
     }
     let inv = 1.0 / ss.sqrt();
