@@ -337,3 +337,30 @@ fn selection_is_spread_over_the_image() {
     );
     assert!(right(&plain) < right(&spread));
 }
+
+#[test]
+fn pass_timings_are_reported_when_enabled() {
+    let img = patterns::polygons(64, 48, 5, 12);
+    let mut harris = Harris::new(ctx(), HarrisConfig::default()).unwrap();
+    harris.enable_timing();
+    for _ in 0..3 {
+        // Repeated calls (and response maps) must not fill the timer up.
+        harris.response(&img).unwrap();
+        let corners = harris.detect(&img, None).unwrap();
+        let t = harris.last_timings();
+        if ctx().has_timestamps() {
+            let labels: Vec<&str> = t.passes.iter().map(|(l, _)| l.as_str()).collect();
+            assert!(labels.starts_with(&[
+                "deriv_h",
+                "deriv_v",
+                "integrate_h",
+                "integrate_v",
+                "nms"
+            ]));
+            assert_eq!(labels.contains(&"refine"), !corners.is_empty());
+            assert!(t.passes.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0));
+        } else {
+            assert!(t.passes.is_empty());
+        }
+    }
+}

@@ -320,7 +320,9 @@ impl<'a> Harris<'a> {
             return Ok(Vec::new());
         }
         self.run_maps(img, None)?;
-        Ok(self.ctx.read_buffer(self.response.get(), img.data.len())?)
+        let response = self.ctx.read_buffer(self.response.get(), img.data.len())?;
+        self.finish_timing()?;
+        Ok(response)
     }
 
     /// Harris corners of `img`, strongest first. `mask` (row-major, one
@@ -353,13 +355,20 @@ impl<'a> Harris<'a> {
         if self.config.refine && !corners.is_empty() {
             corners = self.refine(w, h, &corners)?;
         }
+        self.finish_timing()?;
+        Ok(merge(corners, self.config.merge_radius))
+    }
+
+    /// Resolves and reads the timestamps of the passes just run.
+    fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
+            let ctx = self.ctx;
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             t.resolve(&mut enc);
             ctx.queue.submit([enc.finish()]);
             self.last_timings = t.read(ctx)?;
         }
-        Ok(merge(corners, self.config.merge_radius))
+        Ok(())
     }
 
     fn refine(
