@@ -3,7 +3,8 @@
 // operation: src/features/harris.rs and src/features/harris_cpu.rs.
 //
 // Passes (one dispatch each, 16x16 threads per workgroup, one thread per
-// pixel): deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
+// pixel): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
+// alpha byte carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
 // -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
 // compaction into `candidates`), and refine (one thread per selected
@@ -59,7 +60,8 @@ struct Counters {
 }
 
 @group(0) @binding(0) var<uniform> params: Params;
-@group(0) @binding(1) var<storage, read> pixels: array<Pixel>;
+// Written by the host, or by the grey pass from `rgba`.
+@group(0) @binding(1) var<storage, read_write> pixels: array<Pixel>;
 // deriv_h writes (I*g'_x, I*g_x, valid, 0); integrate_h writes (Sxx, Syy, Sxy, valid).
 @group(0) @binding(2) var<storage, read_write> tmp: array<vec4<f32>>;
 // (Ix, Iy, valid, 0): kept for the refinement.
@@ -69,9 +71,28 @@ struct Counters {
 @group(0) @binding(6) var<storage, read_write> candidates: array<Candidate>;
 // (x, y, score, status) per selected corner.
 @group(0) @binding(7) var<storage, read_write> corners: array<vec4<f32>>;
+// RGB input packed as RGBA8 (alpha 0: outside the mask).
+@group(0) @binding(8) var<storage, read> rgba: array<u32>;
 
 fn weight(i: u32) -> f32 {
     return params.weights[i / 4u][i % 4u];
+}
+
+// Rec. 601 luma, the same weights and order as GreyImage::from_rgb8.
+@compute @workgroup_size(16, 16)
+fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    if (id.x >= w || id.y >= params.height) {
+        return;
+    }
+    let i = id.y * w + id.x;
+    let c = unpack4x8unorm(rgba[i]);
+    let luma = 0.299 * c.x + 0.587 * c.y + 0.114 * c.z;
+    var flags = PIXEL_VALID;
+    if (c.w > 0.5) {
+        flags = flags | PIXEL_ALLOWED;
+    }
+    pixels[i] = Pixel(luma, flags);
 }
 
 @compute @workgroup_size(16, 16)

@@ -364,3 +364,43 @@ fn pass_timings_are_reported_when_enabled() {
         }
     }
 }
+
+#[test]
+fn gpu_grey_conversion_of_rgb_frames_matches_cpu() {
+    // Each channel an independent random polygon picture.
+    let (w, h) = (120, 90);
+    let ch: Vec<GreyImage> = (0..3)
+        .map(|s| patterns::polygons(w, h, 10, 80 + s))
+        .collect();
+    let rgb = image::RgbImage::from_fn(w as u32, h as u32, |x, y| {
+        image::Rgb(std::array::from_fn(|c| {
+            (ch[c].get(x as usize, y as usize) * 255.0).round() as u8
+        }))
+    });
+    let grey = GreyImage::from_rgb8(&rgb);
+    let mask: Vec<bool> = (0..w * h).map(|i| (i / w) < 60).collect();
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    for m in [None, Some(&mask[..])] {
+        let gpu = harris.detect_rgb8(&rgb, m).unwrap();
+        let cpu = harris_cpu(&grey, &cfg, m).unwrap();
+        assert!(!cpu.is_empty());
+        assert_same_corners("rgb8", &gpu, &cpu);
+        if m.is_some() {
+            assert!(
+                gpu.iter()
+                    .all(|c| c.y < 60.0 + 0.5 + cfg.refine_radius as f32)
+            );
+        }
+    }
+    assert!(matches!(
+        harris.detect_rgb8(&rgb, Some(&mask[..10])),
+        Err(FeatureError::MaskSize { .. })
+    ));
+    assert!(
+        harris
+            .detect_rgb8(&image::RgbImage::new(0, 0), None)
+            .unwrap()
+            .is_empty()
+    );
+}

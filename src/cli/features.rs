@@ -53,7 +53,8 @@ fn load(path: &Path) -> anyhow::Result<(GreyImage, RgbImage)> {
         .with_context(|| format!("cannot read {}", path.display()))?
         .decode()
         .with_context(|| format!("cannot decode image {}", path.display()))?;
-    Ok((GreyImage::from_dynamic(&img), img.to_rgb8()))
+    let rgb = img.to_rgb8();
+    Ok((GreyImage::from_rgb8(&rgb), rgb))
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
@@ -99,10 +100,12 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     match &ctx {
         Some(ctx) => {
             let mut harris = Harris::new(ctx, hcfg.clone())?;
-            for ((grey, _), path) in loaded.iter().zip(&args.images) {
+            // Grey conversion on the GPU too; the host's grey image (same
+            // formula) serves the NCC windows.
+            for ((_, rgb), path) in loaded.iter().zip(&args.images) {
                 corners.push(
                     harris
-                        .detect(grey, None)
+                        .detect_rgb8(rgb, None)
                         .with_context(|| format!("Harris corners of {}", path.display()))?,
                 );
             }

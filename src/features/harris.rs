@@ -104,6 +104,8 @@ pub struct Harris<'a> {
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
     refine: wgpu::ComputePipeline,
+    grey: wgpu::ComputePipeline,
+    rgba: GrowBuffer,
     params: wgpu::Buffer,
     pixels: GrowBuffer,
     tmp: GrowBuffer,
@@ -123,8 +125,8 @@ impl<'a> Harris<'a> {
     pub fn new(ctx: &'a GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
         config.validate()?;
         let mut entries = vec![layout_entry(0, wgpu::BufferBindingType::Uniform)];
-        entries.push(layout_entry(1, storage(true)));
-        entries.extend((2..8).map(|b| layout_entry(b, storage(false))));
+        entries.extend((1..8).map(|b| layout_entry(b, storage(false))));
+        entries.push(layout_entry(8, storage(true)));
         let layout = ctx
             .device
             .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
@@ -136,16 +138,19 @@ impl<'a> Harris<'a> {
             "harris",
             &layout,
             &[
-                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine",
+                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
             ],
         )?;
-        let refine = all.pop().expect("six pipelines");
+        let grey = all.pop().expect("seven pipelines");
+        let refine = all.pop().expect("seven pipelines");
         Ok(Self {
             ctx,
             config,
             layout,
             passes: all,
             refine,
+            grey,
+            rgba: GrowBuffer::new("harris rgba", STORAGE_IN),
             params: ctx.buffer(
                 "harris params",
                 std::mem::size_of::<HarrisParams>() as u64,
@@ -171,7 +176,7 @@ impl<'a> Harris<'a> {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32 + 1));
+        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32 + 2));
     }
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
@@ -212,8 +217,7 @@ impl<'a> Harris<'a> {
     }
 
     /// Checks sizes against the device's limits and (re)allocates buffers.
-    fn prepare(&mut self, img: &GreyImage) -> Result<(), FeatureError> {
-        let (w, h) = (img.width, img.height);
+    fn prepare(&mut self, w: usize, h: usize) -> Result<(), FeatureError> {
         let limit = self
             .ctx
             .limits
@@ -237,6 +241,7 @@ impl<'a> Harris<'a> {
         let ctx = self.ctx;
         let mut changed = false;
         changed |= self.pixels.ensure(ctx, (w * h * 8) as u64);
+        changed |= self.rgba.ensure(ctx, (w * h * 4) as u64);
         changed |= self.tmp.ensure(ctx, big);
         changed |= self.grad.ensure(ctx, big);
         changed |= self.response.ensure(ctx, (w * h * 4) as u64);
@@ -255,6 +260,7 @@ impl<'a> Harris<'a> {
                 self.counters.get(),
                 self.candidates.get(),
                 self.corners.get(),
+                self.rgba.get(),
             ];
             let entries: Vec<wgpu::BindGroupEntry> = bufs
                 .iter()
@@ -276,17 +282,33 @@ impl<'a> Harris<'a> {
     }
 
     /// Runs the map passes and NMS (not the refinement).
-    fn run_maps(&mut self, img: &GreyImage, mask: Option<&[bool]>) -> Result<(), FeatureError> {
-        let (w, h) = (img.width, img.height);
-        self.prepare(img)?;
+    fn run_maps(&mut self, input: Input, mask: Option<&[bool]>) -> Result<(), FeatureError> {
+        let (w, h) = input.size();
+        self.prepare(w, h)?;
         let ctx = self.ctx;
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
-        ctx.queue.write_buffer(
-            self.pixels.get(),
-            0,
-            bytemuck::cast_slice(&pack_pixels(img, mask)),
-        );
+        match input {
+            Input::Grey(img) => ctx.queue.write_buffer(
+                self.pixels.get(),
+                0,
+                bytemuck::cast_slice(&pack_pixels(img, mask)),
+            ),
+            Input::Rgb(img) => {
+                // RGBA8 with the mask in the alpha byte; little-endian, so
+                // unpack4x8unorm reads red first.
+                let packed: Vec<u32> = img
+                    .pixels()
+                    .enumerate()
+                    .map(|(i, p)| {
+                        let alpha = if mask.is_none_or(|m| m[i]) { 255 } else { 0 };
+                        u32::from_le_bytes([p[0], p[1], p[2], alpha])
+                    })
+                    .collect();
+                ctx.queue
+                    .write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
+            }
+        }
         ctx.queue.write_buffer(
             self.counters.get(),
             0,
@@ -298,6 +320,15 @@ impl<'a> Harris<'a> {
         );
         let bind = self.bind.as_ref().expect("prepared");
         let mut enc = ctx.device.create_command_encoder(&Default::default());
+        if let Input::Rgb(_) = input {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("grey"),
+                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass("grey")),
+            });
+            pass.set_pipeline(&self.grey);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(workgroups(w as u32, 16), workgroups(h as u32, 16), 1);
+        }
         for (pipeline, label) in self.passes.iter().zip(PASSES) {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(label),
@@ -311,15 +342,15 @@ impl<'a> Harris<'a> {
         Ok(())
     }
 
-    /// The response map (row-major, [`super::gpu_data`]'s invalid sentinel
-    /// `-3e38` where the support leaves the image or touches an invalid
-    /// pixel), for tests and visualisation.
+    /// The response map (row-major, [`super::INVALID_RESPONSE`] where the
+    /// support leaves the image or touches an invalid pixel), for tests and
+    /// visualisation.
     pub fn response(&mut self, img: &GreyImage) -> Result<Vec<f32>, FeatureError> {
         check_mask(img, None)?;
         if img.is_empty() {
             return Ok(Vec::new());
         }
-        self.run_maps(img, None)?;
+        self.run_maps(Input::Grey(img), None)?;
         let response = self.ctx.read_buffer(self.response.get(), img.data.len())?;
         self.finish_timing()?;
         Ok(response)
@@ -334,11 +365,37 @@ impl<'a> Harris<'a> {
         mask: Option<&[bool]>,
     ) -> Result<Vec<Corner>, FeatureError> {
         check_mask(img, mask)?;
-        if img.is_empty() {
+        self.detect_input(Input::Grey(img), mask)
+    }
+
+    /// Harris corners of an 8-bit RGB frame, converted to grey on the GPU
+    /// (Rec. 601 luma, as [`GreyImage::from_rgb8`] on the CPU): uploads 4
+    /// bytes a pixel instead of 8.
+    pub fn detect_rgb8(
+        &mut self,
+        img: &image::RgbImage,
+        mask: Option<&[bool]>,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let n = img.width() as usize * img.height() as usize;
+        if let Some(m) = mask.filter(|m| m.len() != n) {
+            return Err(FeatureError::MaskSize {
+                expected: n,
+                got: m.len(),
+            });
+        }
+        self.detect_input(Input::Rgb(img), mask)
+    }
+
+    fn detect_input(
+        &mut self,
+        input: Input,
+        mask: Option<&[bool]>,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let (w, h) = input.size();
+        if w == 0 || h == 0 {
             return Ok(Vec::new());
         }
-        let (w, h) = (img.width, img.height);
-        self.run_maps(img, mask)?;
+        self.run_maps(input, mask)?;
         let ctx = self.ctx;
         let counters: Vec<Counters> = ctx.read_buffer(self.counters.get(), 1)?;
         let count = (counters[0].count as usize).min(capacity(w, h));
@@ -415,6 +472,22 @@ impl<'a> Harris<'a> {
                 score: c.score,
             })
             .collect())
+    }
+}
+
+/// What [`Harris`] detects corners in.
+#[derive(Clone, Copy)]
+enum Input<'i> {
+    Grey(&'i GreyImage),
+    Rgb(&'i image::RgbImage),
+}
+
+impl Input<'_> {
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Input::Grey(g) => (g.width, g.height),
+            Input::Rgb(c) => (c.width() as usize, c.height() as usize),
+        }
     }
 }
 

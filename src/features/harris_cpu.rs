@@ -83,9 +83,10 @@ impl HarrisConfig {
         Ok(())
     }
 
-    /// Rejects nothing: the support radius (derivative + integration) within
-    /// which a corner's response depends on the image; corners are at least
-    /// this far from the border and from invalid pixels.
+    /// The support radius (derivative + integration kernel radii, pixels)
+    /// over which a corner's response depends on the image: corners lie at
+    /// least this far from the border and from invalid pixels (Chebyshev
+    /// distance, before refinement).
     pub fn support_radius(&self) -> usize {
         radius(self.sigma_d) + radius(self.sigma_i)
     }

@@ -74,6 +74,24 @@ impl GreyImage {
         }
     }
 
+    /// Grey (Rec. 601 luma) of an 8-bit RGB image, scaled to 0..1: the CPU
+    /// twin of the GPU's `grey` pass ([`super::Harris::detect_rgb8`]).
+    pub fn from_rgb8(img: &image::RgbImage) -> Self {
+        let (w, h) = img.dimensions();
+        let data = img
+            .pixels()
+            .map(|p| {
+                let [r, g, b] = p.0.map(|v| v as f32 / 255.0);
+                LUMA[0] * r + LUMA[1] * g + LUMA[2] * b
+            })
+            .collect();
+        Self {
+            width: w as usize,
+            height: h as usize,
+            data,
+        }
+    }
+
     /// Grey of interleaved RGB floats (e.g. a rendered colour `.npy`, 0..1);
     /// a pixel with any NaN channel becomes NaN (invalid).
     pub fn from_rgb_f32(width: usize, height: usize, rgb: &[f32]) -> Result<Self, FeatureError> {

@@ -55,6 +55,7 @@ pub mod ncc;
 mod ncc_cpu;
 pub mod patterns;
 
+pub use gpu_data::INVALID_RESPONSE;
 pub use harris::{Corner, Harris, HarrisConfig};
 pub use harris_cpu::{harris_cpu, harris_response_cpu};
 pub use image::GreyImage;
