@@ -232,6 +232,10 @@ impl<'a> Harris<'a> {
         if w > max_dim || h > max_dim {
             return Err(too_large(format!("a side exceeds {max_dim} pixels")));
         }
+        // Shader indices are u32.
+        if w * h >= 1 << 28 {
+            return Err(too_large("more than 2^28 pixels".into()));
+        }
         let big = (w * h * 16) as u64;
         if big > limit {
             return Err(too_large(format!(

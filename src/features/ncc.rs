@@ -237,7 +237,8 @@ impl<'a> NccMatcher<'a> {
             });
         }
         let n_pix = img_a.data.len() + img_b.data.len();
-        if (n_pix * 8) as u64 > limit {
+        // Shader indices are u32.
+        if (n_pix * 8) as u64 > limit || n_pix >= 1 << 28 {
             return Err(FeatureError::TooLarge {
                 width: img_a.width.max(img_b.width),
                 height: img_a.height + img_b.height,
