@@ -12,15 +12,23 @@
 //!   the motion predictors: the host reference for every GPU kernel;
 //! - [`gpu`]: the headless wgpu context, readback helpers, GPU timers;
 //! - [`shaders`]: the WGSL sources, validated by naga;
-//! - [`io`]: pose CSVs and raw `.npy` images;
 //! - [`splat`]: GPU EWA surface splatting (novel views, depth, motion
-//!   predictors), its CPU reference, and a triangle-mesh rasteriser.
+//!   predictors), its CPU reference, and a triangle-mesh rasteriser;
+//! - [`features`]: Harris corners and NCC matching (GPU, with CPU references);
+//! - [`pose`]: the robust (IRLS) pose update from matches;
+//! - [`keyframes`]: the keyframe store (per-point colours from keyframes);
+//! - [`tracker`]: the IT, KF and KF+IT trackers;
+//! - [`synth`]: synthetic sequences with exact ground truth;
+//! - [`eval`], [`plot`], [`draw`]: errors against ground truth and pictures;
+//! - [`io`]: pose CSVs, sequence directories and raw `.npy` images.
 
 pub mod draw;
 pub mod eval;
+pub mod features;
 pub mod geometry;
 pub mod gpu;
 pub mod io;
+pub mod keyframes;
 pub mod model;
 pub mod plot;
 pub mod pose;
@@ -28,6 +36,7 @@ pub mod rng;
 pub mod shaders;
 pub mod splat;
 pub mod synth;
+pub mod tracker;
 
 pub use geometry::{Intrinsics, Pose};
 pub use gpu::{AdapterChoice, GpuContext};

@@ -10,6 +10,8 @@ pub const ALL: &[(&str, &str)] = &[
         include_str!("../shaders/splat_resolve.wgsl"),
     ),
     ("mesh", include_str!("../shaders/mesh.wgsl")),
+    ("harris", include_str!("../shaders/harris.wgsl")),
+    ("ncc", include_str!("../shaders/ncc.wgsl")),
 ];
 
 /// The source of the shader named `name` (its file stem).

@@ -29,7 +29,32 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     );
     println!("self-test: ok (compute dispatch and readback agree with the CPU)");
     if let Some(path) = args.model {
-        let _ = path;
+        let m = splattrack::PointModel::load(&path)?;
+        let (lo, hi) = m.bounds();
+        let src = |s: splattrack::model::AttributeSource| match s {
+            splattrack::model::AttributeSource::Loaded => "from the file",
+            splattrack::model::AttributeSource::Estimated => "estimated from neighbours",
+            splattrack::model::AttributeSource::FromMesh => "from the mesh",
+            splattrack::model::AttributeSource::Absent => "absent",
+        };
+        let p = &m.provenance;
+        println!("model:     {}", path.display());
+        println!("points:    {}", m.len());
+        println!(
+            "bounds:    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+            lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
+        );
+        println!("diameter:  {:.4} (bounding-box diagonal, model units)", m.diameter());
+        println!("normals:   {}", src(p.normals));
+        if p.normals_reestimated > 0 {
+            println!("           ({} zero or invalid normals re-estimated)", p.normals_reestimated);
+        }
+        let mean_r = m.radii.iter().map(|&r| r as f64).sum::<f64>() / m.len() as f64;
+        println!("radii:     {} (mean {mean_r:.5})", src(p.radii));
+        println!("colours:   {}", src(p.colors));
+        if p.dropped_non_finite > 0 {
+            println!("dropped:   {} points with NaN or infinite coordinates", p.dropped_non_finite);
+        }
     }
     Ok(())
 }

@@ -1,8 +1,14 @@
 //! Subcommands, one file each; this file holds the shared flags and the
 //! dispatch.
 
+mod demo;
+mod eval;
+mod features;
 mod info;
+mod keyframes;
 mod render;
+mod synth;
+mod track;
 
 use clap::{Parser, Subcommand};
 use splattrack::gpu::{AdapterChoice, GpuContext};
@@ -27,12 +33,26 @@ pub struct Cli {
 
 #[derive(Subcommand, Debug)]
 pub enum Command {
+    /// The main job on a built-in default: synthesise a sequence, track it in
+    /// each mode, evaluate, and write the plot and overlays.
+    Demo(demo::Args),
     /// The adapter in use; with a model: point count, bounds, diameter, and
     /// which attributes were present or estimated.
     Info(info::Args),
     /// One splatted view of a point model: a picture (.png; motion: a
     /// motion-field visualisation) or a raw float image (.npy).
     Render(render::Args),
+    /// Harris corners of one image, or mutual NCC matches between two.
+    Features(features::Args),
+    /// Build a keyframe store (per-point colours from keyframe images) once
+    /// per object.
+    Keyframes(keyframes::Args),
+    /// Track an object through a sequence; writes one pose per frame.
+    Track(track::Args),
+    /// Errors of tracked poses against ground truth: table, success rates, plot.
+    Eval(eval::Args),
+    /// Write a synthetic sequence with exact ground truth.
+    Synth(synth::Args),
 }
 
 /// A minimal stderr logger: warnings always, more with -v.
@@ -69,7 +89,13 @@ pub fn gpu(adapter: &Option<String>) -> anyhow::Result<GpuContext> {
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
+        Command::Demo(a) => demo::run(a, &cli.adapter),
         Command::Info(a) => info::run(a, &cli.adapter),
         Command::Render(a) => render::run(a, &cli.adapter),
+        Command::Features(a) => features::run(a, &cli.adapter),
+        Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
+        Command::Track(a) => track::run(a, &cli.adapter),
+        Command::Eval(a) => eval::run(a),
+        Command::Synth(a) => synth::run(a),
     }
 }

@@ -10,6 +10,7 @@
 
 pub mod objects;
 pub mod raster;
+pub mod sequence;
 
 pub use objects::{Light, SynthObject, Texture, TriMesh};
 

@@ -1,0 +1,126 @@
+//! Harris and NCC matching, GPU against the CPU reference (the paper's
+//! Fig. 7 comparison): Harris at 640x480 and 1280x720, matching 900 x 900
+//! features with 9x9 windows. Run with
+//! `cargo bench --bench features` (adapter: `SPLATTRACK_ADAPTER`, default
+//! auto). Besides criterion's report it prints a summary of medians and
+//! the CPU/GPU ratio of each.
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use splattrack::features::patterns::{self, Warp};
+use splattrack::features::{
+    Corner, GreyImage, Harris, HarrisConfig, NccConfig, NccMatcher, harris_cpu, ncc_match_cpu,
+};
+use splattrack::gpu::GpuContext;
+use splattrack::rng::Rng;
+use std::hint::black_box;
+use std::time::{Duration, Instant};
+
+fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..runs)
+        .map(|_| {
+            let s = Instant::now();
+            f();
+            s.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn points(rng: &mut Rng, n: usize, img: &GreyImage) -> Vec<Corner> {
+    (0..n)
+        .map(|_| Corner {
+            x: rng.uniform(5.0, img.width as f64 - 6.0) as f32,
+            y: rng.uniform(5.0, img.height as f64 - 6.0) as f32,
+            score: 1.0,
+        })
+        .collect()
+}
+
+fn bench(c: &mut Criterion) {
+    let ctx = GpuContext::from_env().expect("the benchmarks need a GPU adapter (or lavapipe)");
+    eprintln!("adapter: {}", ctx.describe());
+    let mut summary = Vec::new();
+    let mut g = c.benchmark_group("features");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_secs(1))
+        .measurement_time(Duration::from_secs(3));
+
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(&ctx, cfg.clone()).unwrap();
+    for (w, h) in [(640usize, 480usize), (1280, 720)] {
+        let img = patterns::smooth_noise(w, h, 1.5, w as u64);
+        g.bench_function(format!("harris_gpu_{w}x{h}"), |b| {
+            b.iter(|| black_box(harris.detect(&img, None).unwrap()))
+        });
+        g.bench_function(format!("harris_cpu_{w}x{h}"), |b| {
+            b.iter(|| black_box(harris_cpu(&img, &cfg, None).unwrap()))
+        });
+        let n = harris.detect(&img, None).unwrap().len();
+        let gpu = median_ms(10, || {
+            black_box(harris.detect(&img, None).unwrap());
+        });
+        let cpu = median_ms(5, || {
+            black_box(harris_cpu(&img, &cfg, None).unwrap());
+        });
+        summary.push((format!("Harris {w}x{h} ({n} corners)"), gpu, cpu));
+    }
+    harris.enable_timing();
+    let img = patterns::smooth_noise(640, 480, 1.5, 640);
+    harris.detect(&img, None).unwrap();
+    let passes = harris.last_timings().clone();
+
+    let a = patterns::smooth_noise(640, 480, 2.0, 7);
+    let warp = Warp {
+        shift: [3.4, -2.7],
+        angle: 0.05,
+        centre: [320.0, 240.0],
+        gain: 0.9,
+        bias: 0.05,
+    };
+    let b = warp.image(&a);
+    let mut rng = Rng::new(3);
+    let (pa, pb) = (points(&mut rng, 900, &a), points(&mut rng, 900, &b));
+    let ncfg = NccConfig::default();
+    let mut matcher = NccMatcher::new(&ctx, ncfg.clone()).unwrap();
+    g.bench_function("ncc_gpu_900x900_9x9", |bn| {
+        bn.iter(|| black_box(matcher.match_features(&a, &pa, &b, &pb).unwrap()))
+    });
+    g.bench_function("ncc_cpu_900x900_9x9", |bn| {
+        bn.iter(|| black_box(ncc_match_cpu(&a, &pa, &b, &pb, &ncfg).unwrap()))
+    });
+    g.finish();
+    let gpu = median_ms(10, || {
+        black_box(matcher.match_features(&a, &pa, &b, &pb).unwrap());
+    });
+    let cpu = median_ms(5, || {
+        black_box(ncc_match_cpu(&a, &pa, &b, &pb, &ncfg).unwrap());
+    });
+    summary.push(("NCC 900 x 900, 9x9, all pairs".into(), gpu, cpu));
+    matcher.enable_timing();
+    matcher.match_features(&a, &pa, &b, &pb).unwrap();
+    let ncc_passes = matcher.last_timings().clone();
+    let rcfg = ncfg.clone().with_search_radius(Some(30.0));
+    let cpu30 = median_ms(5, || {
+        black_box(ncc_match_cpu(&a, &pa, &b, &pb, &rcfg).unwrap());
+    });
+    summary.push(("NCC 900 x 900, 9x9, CPU within 30 px".into(), gpu, cpu30));
+
+    println!("\nadapter: {}", ctx.describe());
+    println!("| step | GPU median (ms) | CPU median (ms) | CPU / GPU |");
+    println!("|---|---|---|---|");
+    for (name, gpu, cpu) in &summary {
+        println!("| {name} | {gpu:.2} | {cpu:.2} | {:.2} |", cpu / gpu);
+    }
+    for (name, report) in [("Harris 640x480", &passes), ("NCC 900 x 900", &ncc_passes)] {
+        if !report.passes.is_empty() {
+            println!("\n{name} GPU passes (timestamp queries):");
+            for (label, ms) in &report.passes {
+                println!("  {label}: {ms:.3} ms");
+            }
+        }
+    }
+}
+
+criterion_group!(benches, bench);
+criterion_main!(benches);

@@ -1,0 +1,336 @@
+// Harris corners (Harris & Stephens 1988; Dehais et al. 2010, section 4.2).
+// Host code and the CPU reference that mirrors every pass, operation for
+// operation: src/features/harris.rs and src/features/harris_cpu.rs.
+//
+// Passes (one dispatch each, 16x16 threads per workgroup, one thread per
+// pixel): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
+// alpha byte carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
+// -> integrate_v (structure tensor smoothed by a Gaussian, then the
+// response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
+// compaction into `candidates`), and refine (one thread per selected
+// corner: gradient-orthogonality sub-pixel refinement).
+//
+// Every convolution pass carries a validity flag: the minimum over its
+// support, with pixels outside the image counting as invalid. So a response
+// is valid only if its whole support lies on valid pixels inside the image.
+
+const INVALID: f32 = -3.0e38;
+const PIXEL_VALID: u32 = 1u;
+const PIXEL_ALLOWED: u32 = 2u;
+
+// Keep in sync with HarrisParams in src/features/gpu_data.rs.
+struct Params {
+    width: u32,
+    height: u32,
+    rd: u32,
+    ri: u32,
+    k: f32,
+    rel_threshold: f32,
+    min_response: f32,
+    capacity: u32,
+    refine_radius: u32,
+    refine_iterations: u32,
+    refine_inv_2s2: f32,
+    n_corners: u32,
+    max_shift: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+    // g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
+    weights: array<vec4<f32>, 16>,
+}
+
+struct Pixel {
+    value: f32,
+    flags: u32,
+}
+
+struct Candidate {
+    x: u32,
+    y: u32,
+    score: f32,
+    pad: u32,
+}
+
+struct Counters {
+    max_bits: atomic<u32>,
+    count: atomic<u32>,
+    pad0: u32,
+    pad1: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: Params;
+// Written by the host, or by the grey pass from `rgba`.
+@group(0) @binding(1) var<storage, read_write> pixels: array<Pixel>;
+// deriv_h writes (I*g'_x, I*g_x, valid, 0); integrate_h writes (Sxx, Syy, Sxy, valid).
+@group(0) @binding(2) var<storage, read_write> tmp: array<vec4<f32>>;
+// (Ix, Iy, valid, 0): kept for the refinement.
+@group(0) @binding(3) var<storage, read_write> grad: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read_write> response: array<f32>;
+@group(0) @binding(5) var<storage, read_write> counters: Counters;
+@group(0) @binding(6) var<storage, read_write> candidates: array<Candidate>;
+// (x, y, score, status) per selected corner.
+@group(0) @binding(7) var<storage, read_write> corners: array<vec4<f32>>;
+// RGB input packed as RGBA8 (alpha 0: outside the mask).
+@group(0) @binding(8) var<storage, read> rgba: array<u32>;
+
+fn weight(i: u32) -> f32 {
+    return params.weights[i / 4u][i % 4u];
+}
+
+// Rec. 601 luma, the same weights and order as GreyImage::from_rgb8.
+@compute @workgroup_size(16, 16)
+fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    if (id.x >= w || id.y >= params.height) {
+        return;
+    }
+    let i = id.y * w + id.x;
+    let c = unpack4x8unorm(rgba[i]);
+    let luma = 0.299 * c.x + 0.587 * c.y + 0.114 * c.z;
+    var flags = PIXEL_VALID;
+    if (c.w > 0.5) {
+        flags = flags | PIXEL_ALLOWED;
+    }
+    pixels[i] = Pixel(luma, flags);
+}
+
+@compute @workgroup_size(16, 16)
+fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    if (id.x >= w || id.y >= params.height) {
+        return;
+    }
+    let rd = i32(params.rd);
+    let nd = 2u * params.rd + 1u;
+    var a = 0.0;
+    var b = 0.0;
+    var ok = 1.0;
+    for (var t = -rd; t <= rd; t++) {
+        let x = i32(id.x) + t;
+        if (x < 0 || x >= i32(w)) {
+            ok = 0.0;
+            continue;
+        }
+        let p = pixels[id.y * w + u32(x)];
+        if ((p.flags & PIXEL_VALID) == 0u) {
+            ok = 0.0;
+        }
+        let k = u32(t + rd);
+        a = a + p.value * weight(nd + k);
+        b = b + p.value * weight(k);
+    }
+    tmp[id.y * w + id.x] = vec4<f32>(a, b, ok, 0.0);
+}
+
+@compute @workgroup_size(16, 16)
+fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    let h = params.height;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let rd = i32(params.rd);
+    let nd = 2u * params.rd + 1u;
+    var ix = 0.0;
+    var iy = 0.0;
+    var ok = 1.0;
+    for (var t = -rd; t <= rd; t++) {
+        let y = i32(id.y) + t;
+        if (y < 0 || y >= i32(h)) {
+            ok = 0.0;
+            continue;
+        }
+        let s = tmp[u32(y) * w + id.x];
+        ok = min(ok, s.z);
+        let k = u32(t + rd);
+        ix = ix + s.x * weight(k);
+        iy = iy + s.y * weight(nd + k);
+    }
+    grad[id.y * w + id.x] = vec4<f32>(ix, iy, ok, 0.0);
+}
+
+@compute @workgroup_size(16, 16)
+fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    if (id.x >= w || id.y >= params.height) {
+        return;
+    }
+    let ri = i32(params.ri);
+    let base = 2u * (2u * params.rd + 1u);
+    var sxx = 0.0;
+    var syy = 0.0;
+    var sxy = 0.0;
+    var ok = 1.0;
+    for (var t = -ri; t <= ri; t++) {
+        let x = i32(id.x) + t;
+        if (x < 0 || x >= i32(w)) {
+            ok = 0.0;
+            continue;
+        }
+        let g = grad[id.y * w + u32(x)];
+        ok = min(ok, g.z);
+        let c = weight(base + u32(t + ri));
+        sxx = sxx + g.x * g.x * c;
+        syy = syy + g.y * g.y * c;
+        sxy = sxy + g.x * g.y * c;
+    }
+    tmp[id.y * w + id.x] = vec4<f32>(sxx, syy, sxy, ok);
+}
+
+@compute @workgroup_size(16, 16)
+fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    let h = params.height;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let ri = i32(params.ri);
+    let base = 2u * (2u * params.rd + 1u);
+    var sxx = 0.0;
+    var syy = 0.0;
+    var sxy = 0.0;
+    var ok = 1.0;
+    for (var t = -ri; t <= ri; t++) {
+        let y = i32(id.y) + t;
+        if (y < 0 || y >= i32(h)) {
+            ok = 0.0;
+            continue;
+        }
+        let s = tmp[u32(y) * w + id.x];
+        ok = min(ok, s.w);
+        let c = weight(base + u32(t + ri));
+        sxx = sxx + s.x * c;
+        syy = syy + s.y * c;
+        sxy = sxy + s.z * c;
+    }
+    let i = id.y * w + id.x;
+    if (ok < 0.5) {
+        response[i] = INVALID;
+        return;
+    }
+    let tr = sxx + syy;
+    let r = (sxx * syy - sxy * sxy) - params.k * (tr * tr);
+    response[i] = r;
+    // Positive floats order like their bit patterns: an integer atomicMax
+    // finds the largest response for the relative threshold.
+    if (r > 0.0 && (pixels[i].flags & PIXEL_ALLOWED) != 0u) {
+        atomicMax(&counters.max_bits, bitcast<u32>(r));
+    }
+}
+
+@compute @workgroup_size(16, 16)
+fn nms(@builtin(global_invocation_id) id: vec3<u32>) {
+    let w = params.width;
+    let h = params.height;
+    if (id.x >= w || id.y >= h) {
+        return;
+    }
+    let i = id.y * w + id.x;
+    let r = response[i];
+    if (r <= INVALID || (pixels[i].flags & PIXEL_ALLOWED) == 0u) {
+        return;
+    }
+    let max_r = bitcast<f32>(atomicLoad(&counters.max_bits));
+    let threshold = max(params.rel_threshold * max_r, params.min_response);
+    if (!(r > 0.0 && r >= threshold)) {
+        return;
+    }
+    for (var dy = -1; dy <= 1; dy++) {
+        for (var dx = -1; dx <= 1; dx++) {
+            let x = i32(id.x) + dx;
+            let y = i32(id.y) + dy;
+            if ((dx == 0 && dy == 0) || x < 0 || y < 0 || x >= i32(w) || y >= i32(h)) {
+                continue;
+            }
+            let j = u32(y) * w + u32(x);
+            let rn = response[j];
+            // Strict maximum; equal neighbours: the lower raster index wins,
+            // so a plateau yields one maximum, never two adjacent ones.
+            if (rn > r || (rn == r && j < i)) {
+                return;
+            }
+        }
+    }
+    let slot = atomicAdd(&counters.count, 1u);
+    if (slot < params.capacity) {
+        candidates[slot] = Candidate(id.x, id.y, r, 0u);
+    }
+}
+
+// Gradient-orthogonality refinement (the principle of OpenCV's
+// cornerSubPix): at the true corner q, every gradient g(p) of the window is
+// orthogonal to p - q, so q solves sum w g g^T (p - q) = 0 in least squares.
+// The window is re-centred on the estimate and the solve repeated.
+@compute @workgroup_size(64)
+fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = id.x;
+    if (n >= params.n_corners) {
+        return;
+    }
+    let c = corners[n];
+    let start = c.xy;
+    var q = start;
+    var status = 0.0;
+    let rw = i32(params.refine_radius);
+    let w = i32(params.width);
+    let h = i32(params.height);
+    for (var it = 0u; it < params.refine_iterations; it++) {
+        let cx = i32(floor(q.x + 0.5));
+        let cy = i32(floor(q.y + 0.5));
+        var a11 = 0.0;
+        var a12 = 0.0;
+        var a22 = 0.0;
+        var b1 = 0.0;
+        var b2 = 0.0;
+        for (var dy = -rw; dy <= rw; dy++) {
+            for (var dx = -rw; dx <= rw; dx++) {
+                let px = cx + dx;
+                let py = cy + dy;
+                if (px < 0 || py < 0 || px >= w || py >= h) {
+                    continue;
+                }
+                let g = grad[u32(py) * u32(w) + u32(px)];
+                if (g.z < 0.5) {
+                    continue;
+                }
+                let ox = f32(px) - q.x;
+                let oy = f32(py) - q.y;
+                let wt = exp(-(ox * ox + oy * oy) * params.refine_inv_2s2);
+                let gxx = wt * g.x * g.x;
+                let gxy = wt * g.x * g.y;
+                let gyy = wt * g.y * g.y;
+                a11 = a11 + gxx;
+                a12 = a12 + gxy;
+                a22 = a22 + gyy;
+                b1 = b1 + (gxx * f32(dx) + gxy * f32(dy));
+                b2 = b2 + (gxy * f32(dx) + gyy * f32(dy));
+            }
+        }
+        let det = a11 * a22 - a12 * a12;
+        let tr = a11 + a22;
+        // An edge or flat window constrains q along one direction only.
+        if (!(tr > 0.0) || !(det > 1.0e-4 * tr * tr)) {
+            q = start;
+            status = 0.0;
+            break;
+        }
+        let qn = vec2<f32>(
+            f32(cx) + (a22 * b1 - a12 * b2) / det,
+            f32(cy) + (a11 * b2 - a12 * b1) / det,
+        );
+        let moved = qn - start;
+        if (!(dot(moved, moved) <= params.max_shift * params.max_shift)) {
+            q = start;
+            status = 0.0;
+            break;
+        }
+        let step = qn - q;
+        q = qn;
+        status = 1.0;
+        if (dot(step, step) < 1.0e-4) {
+            break;
+        }
+    }
+    corners[n] = vec4<f32>(q, c.z, status);
+}

@@ -1,0 +1,40 @@
+//! `splattrack keyframes --model M.ply --keyframes DIR --camera camera.json --out store.stkf`.
+
+use anyhow::Context;
+use splattrack::{Intrinsics, PointModel};
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// The object's point model (PLY).
+    #[arg(long)]
+    pub model: PathBuf,
+    /// A directory with keyframe images and poses.csv.
+    #[arg(long)]
+    pub keyframes: PathBuf,
+    /// The camera of the keyframe images (camera.json or OpenCV YAML).
+    #[arg(long)]
+    pub camera: PathBuf,
+    /// The store to write (load it with `track --keyframes FILE`).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+    let ctx = super::gpu(adapter)?;
+    let model = PointModel::load(&args.model)?;
+    let cam = Intrinsics::load(&args.camera)?;
+    let store = super::track::keyframe_store(&ctx, &model, &cam, Some(&args.keyframes))?
+        .context("no keyframes")?;
+    store.save(&args.out)?;
+    for k in &store.keyframes {
+        println!(
+            "{:<16} {:>7} of {} points visible",
+            k.name,
+            k.visible_count(),
+            store.points
+        );
+    }
+    println!("wrote {} ({} keyframes)", args.out.display(), store.keyframes.len());
+    Ok(())
+}

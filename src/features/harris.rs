@@ -1,0 +1,501 @@
+//! Harris corners on the GPU (`shaders/harris.wgsl`); the CPU reference is
+//! [`super::harris_cpu`]. See the module docs of [`super`] for how it works.
+
+use super::gpu_data::{Candidate, Counters, HarrisParams, MAX_TAPS, RefineCorner};
+use super::harris_cpu::{gaussian_taps, merge, pack_pixels, radius, select_spread};
+use super::image::{GreyImage, check_mask};
+use super::{FeatureError, GrowBuffer, layout_entry, pipelines, storage};
+use crate::gpu::{GpuContext, GpuTimer, STORAGE_IN, STORAGE_OUT, TimerReport, workgroups};
+
+/// A corner: sub-pixel position (OpenCV convention: pixel (0, 0) is the
+/// centre of the top-left pixel) and its Harris response.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Corner {
+    pub x: f32,
+    pub y: f32,
+    pub score: f32,
+}
+
+/// Harris detector parameters. The defaults follow the paper where it says
+/// something (about 900 corners, section 5.2) and common practice elsewhere.
+#[derive(Debug, Clone, PartialEq)]
+pub struct HarrisConfig {
+    /// Standard deviation of the Gaussian-derivative filter (pixels),
+    /// at most 7/3. Default 1.
+    pub sigma_d: f32,
+    /// Standard deviation of the Gaussian smoothing the structure tensor
+    /// (pixels), at most 14/3. Default 1.5.
+    pub sigma_i: f32,
+    /// `k` in `det - k trace²`. Default 0.04.
+    pub k: f32,
+    /// At most this many corners (the paper uses about 900). Default 900.
+    pub max_corners: usize,
+    /// Keep maxima whose response is at least this fraction of the image's
+    /// largest response (inside the mask). Default 0.01.
+    pub relative_threshold: f32,
+    /// And at least this absolute response (grey values in 0..1), which only
+    /// matters on nearly flat images. Default 1e-10.
+    pub min_response: f32,
+    /// Cell size (pixels) of the grid that spreads the selection; 0: plain
+    /// best-N by response. Default 32.
+    pub grid_cell: u32,
+    /// Sub-pixel refinement by gradient orthogonality. Default on.
+    pub refine: bool,
+    /// Half-size of the refinement window (pixels). Default 4 (9x9).
+    pub refine_radius: u32,
+    /// Maximum refinement iterations. Default 10.
+    pub refine_iterations: u32,
+    /// Refined corners closer than this (pixels) are one corner. Default 1.5.
+    pub merge_radius: f32,
+}
+
+impl Default for HarrisConfig {
+    fn default() -> Self {
+        Self {
+            sigma_d: 1.0,
+            sigma_i: 1.5,
+            k: 0.04,
+            max_corners: 900,
+            relative_threshold: 0.01,
+            min_response: 1e-10,
+            grid_cell: 32,
+            refine: true,
+            refine_radius: 4,
+            refine_iterations: 10,
+            merge_radius: 1.5,
+        }
+    }
+}
+
+impl HarrisConfig {
+    pub fn with_max_corners(mut self, n: usize) -> Self {
+        self.max_corners = n;
+        self
+    }
+    pub fn with_sigmas(mut self, sigma_d: f32, sigma_i: f32) -> Self {
+        self.sigma_d = sigma_d;
+        self.sigma_i = sigma_i;
+        self
+    }
+    pub fn with_k(mut self, k: f32) -> Self {
+        self.k = k;
+        self
+    }
+    pub fn with_relative_threshold(mut self, t: f32) -> Self {
+        self.relative_threshold = t;
+        self
+    }
+    pub fn with_grid_cell(mut self, cell: u32) -> Self {
+        self.grid_cell = cell;
+        self
+    }
+    pub fn with_refine(mut self, on: bool) -> Self {
+        self.refine = on;
+        self
+    }
+}
+
+/// Harris corners on the GPU. Pipelines are built once; buffers grow to the
+/// largest image seen and are reused, so calling [`Harris::detect`] on
+/// every frame allocates nothing in the steady state.
+pub struct Harris<'a> {
+    ctx: &'a GpuContext,
+    config: HarrisConfig,
+    layout: wgpu::BindGroupLayout,
+    passes: Vec<wgpu::ComputePipeline>,
+    refine: wgpu::ComputePipeline,
+    grey: wgpu::ComputePipeline,
+    rgba: GrowBuffer,
+    params: wgpu::Buffer,
+    pixels: GrowBuffer,
+    tmp: GrowBuffer,
+    grad: GrowBuffer,
+    response: GrowBuffer,
+    counters: GrowBuffer,
+    candidates: GrowBuffer,
+    corners: GrowBuffer,
+    bind: Option<wgpu::BindGroup>,
+    timer: Option<GpuTimer>,
+    last_timings: TimerReport,
+}
+
+const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
+
+impl<'a> Harris<'a> {
+    pub fn new(ctx: &'a GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
+        config.validate()?;
+        let mut entries = vec![layout_entry(0, wgpu::BufferBindingType::Uniform)];
+        entries.extend((1..8).map(|b| layout_entry(b, storage(false))));
+        entries.push(layout_entry(8, storage(true)));
+        let layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("harris"),
+                entries: &entries,
+            });
+        let mut all = pipelines(
+            ctx,
+            "harris",
+            &layout,
+            &[
+                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
+            ],
+        )?;
+        let grey = all.pop().expect("seven pipelines");
+        let refine = all.pop().expect("seven pipelines");
+        Ok(Self {
+            ctx,
+            config,
+            layout,
+            passes: all,
+            refine,
+            grey,
+            rgba: GrowBuffer::new("harris rgba", STORAGE_IN),
+            params: ctx.buffer(
+                "harris params",
+                std::mem::size_of::<HarrisParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            pixels: GrowBuffer::new("harris pixels", STORAGE_IN),
+            tmp: GrowBuffer::new("harris tmp", STORAGE_OUT),
+            grad: GrowBuffer::new("harris grad", STORAGE_OUT),
+            response: GrowBuffer::new("harris response", STORAGE_OUT),
+            counters: GrowBuffer::new("harris counters", STORAGE_OUT),
+            candidates: GrowBuffer::new("harris candidates", STORAGE_OUT),
+            corners: GrowBuffer::new("harris corners", STORAGE_OUT),
+            bind: None,
+            timer: None,
+            last_timings: TimerReport::default(),
+        })
+    }
+
+    pub fn config(&self) -> &HarrisConfig {
+        &self.config
+    }
+
+    /// Times every pass with GPU timestamp queries from now on (where the
+    /// adapter supports them); see [`Harris::last_timings`].
+    pub fn enable_timing(&mut self) {
+        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32 + 2));
+    }
+
+    /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
+    /// timing is enabled and supported).
+    pub fn last_timings(&self) -> &TimerReport {
+        &self.last_timings
+    }
+
+    fn params(&self, w: usize, h: usize, n_corners: u32) -> HarrisParams {
+        let c = &self.config;
+        let (gd, dd) = gaussian_taps(c.sigma_d);
+        let (gi, _) = gaussian_taps(c.sigma_i);
+        let mut flat = [0f32; MAX_TAPS];
+        for (slot, v) in flat.iter_mut().zip(gd.iter().chain(&dd).chain(&gi)) {
+            *slot = *v;
+        }
+        let mut weights = [[0f32; 4]; MAX_TAPS / 4];
+        for (i, v) in flat.iter().enumerate() {
+            weights[i / 4][i % 4] = *v;
+        }
+        HarrisParams {
+            width: w as u32,
+            height: h as u32,
+            rd: radius(c.sigma_d) as u32,
+            ri: radius(c.sigma_i) as u32,
+            k: c.k,
+            rel_threshold: c.relative_threshold,
+            min_response: c.min_response,
+            capacity: capacity(w, h) as u32,
+            refine_radius: c.refine_radius,
+            refine_iterations: c.refine_iterations,
+            refine_inv_2s2: c.refine_inv_2s2(),
+            n_corners,
+            max_shift: c.max_shift(),
+            _pad: [0; 3],
+            weights,
+        }
+    }
+
+    /// Checks sizes against the device's limits and (re)allocates buffers.
+    fn prepare(&mut self, w: usize, h: usize) -> Result<(), FeatureError> {
+        let limit = self
+            .ctx
+            .limits
+            .max_storage_buffer_binding_size
+            .min(self.ctx.limits.max_buffer_size);
+        let too_large = |reason: String| FeatureError::TooLarge {
+            width: w,
+            height: h,
+            reason,
+        };
+        let max_dim = self.ctx.limits.max_compute_workgroups_per_dimension as usize * 16;
+        if w > max_dim || h > max_dim {
+            return Err(too_large(format!("a side exceeds {max_dim} pixels")));
+        }
+        // Shader indices are u32.
+        if w * h >= 1 << 28 {
+            return Err(too_large("more than 2^28 pixels".into()));
+        }
+        let big = (w * h * 16) as u64;
+        if big > limit {
+            return Err(too_large(format!(
+                "needs {big}-byte buffers, limit {limit}"
+            )));
+        }
+        let ctx = self.ctx;
+        let mut changed = false;
+        changed |= self.pixels.ensure(ctx, (w * h * 8) as u64);
+        changed |= self.rgba.ensure(ctx, (w * h * 4) as u64);
+        changed |= self.tmp.ensure(ctx, big);
+        changed |= self.grad.ensure(ctx, big);
+        changed |= self.response.ensure(ctx, (w * h * 4) as u64);
+        changed |= self.counters.ensure(ctx, 16);
+        changed |= self.candidates.ensure(ctx, (capacity(w, h) * 16) as u64);
+        changed |= self
+            .corners
+            .ensure(ctx, (self.config.max_corners * 16) as u64);
+        if changed || self.bind.is_none() {
+            let bufs = [
+                &self.params,
+                self.pixels.get(),
+                self.tmp.get(),
+                self.grad.get(),
+                self.response.get(),
+                self.counters.get(),
+                self.candidates.get(),
+                self.corners.get(),
+                self.rgba.get(),
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = bufs
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.bind = Some(ctx.catch("harris bind group", || {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("harris"),
+                    layout: &self.layout,
+                    entries: &entries,
+                })
+            })?);
+        }
+        Ok(())
+    }
+
+    /// Runs the map passes and NMS (not the refinement).
+    fn run_maps(&mut self, input: Input, mask: Option<&[bool]>) -> Result<(), FeatureError> {
+        let (w, h) = input.size();
+        self.prepare(w, h)?;
+        let ctx = self.ctx;
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
+        match input {
+            Input::Grey(img) => ctx.queue.write_buffer(
+                self.pixels.get(),
+                0,
+                bytemuck::cast_slice(&pack_pixels(img, mask)),
+            ),
+            Input::Rgb(img) => {
+                // RGBA8 with the mask in the alpha byte; little-endian, so
+                // unpack4x8unorm reads red first.
+                let packed: Vec<u32> = img
+                    .pixels()
+                    .enumerate()
+                    .map(|(i, p)| {
+                        let alpha = if mask.is_none_or(|m| m[i]) { 255 } else { 0 };
+                        u32::from_le_bytes([p[0], p[1], p[2], alpha])
+                    })
+                    .collect();
+                ctx.queue
+                    .write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
+            }
+        }
+        ctx.queue.write_buffer(
+            self.counters.get(),
+            0,
+            bytemuck::bytes_of(&Counters {
+                max_bits: 0,
+                count: 0,
+                _pad: [0; 2],
+            }),
+        );
+        let bind = self.bind.as_ref().expect("prepared");
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        if let Input::Rgb(_) = input {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("grey"),
+                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass("grey")),
+            });
+            pass.set_pipeline(&self.grey);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(workgroups(w as u32, 16), workgroups(h as u32, 16), 1);
+        }
+        for (pipeline, label) in self.passes.iter().zip(PASSES) {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass(label)),
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(workgroups(w as u32, 16), workgroups(h as u32, 16), 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// The response map (row-major, [`super::INVALID_RESPONSE`] where the
+    /// support leaves the image or touches an invalid pixel), for tests and
+    /// visualisation.
+    pub fn response(&mut self, img: &GreyImage) -> Result<Vec<f32>, FeatureError> {
+        check_mask(img, None)?;
+        if img.is_empty() {
+            return Ok(Vec::new());
+        }
+        self.run_maps(Input::Grey(img), None)?;
+        let response = self.ctx.read_buffer(self.response.get(), img.data.len())?;
+        self.finish_timing()?;
+        Ok(response)
+    }
+
+    /// Harris corners of `img`, strongest first. `mask` (row-major, one
+    /// flag per pixel) restricts where corners may be reported; NaN pixels
+    /// are invalid and no corner's support touches one.
+    pub fn detect(
+        &mut self,
+        img: &GreyImage,
+        mask: Option<&[bool]>,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        check_mask(img, mask)?;
+        self.detect_input(Input::Grey(img), mask)
+    }
+
+    /// Harris corners of an 8-bit RGB frame, converted to grey on the GPU
+    /// (Rec. 601 luma, as [`GreyImage::from_rgb8`] on the CPU): uploads 4
+    /// bytes a pixel instead of 8.
+    pub fn detect_rgb8(
+        &mut self,
+        img: &image::RgbImage,
+        mask: Option<&[bool]>,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let n = img.width() as usize * img.height() as usize;
+        if let Some(m) = mask.filter(|m| m.len() != n) {
+            return Err(FeatureError::MaskSize {
+                expected: n,
+                got: m.len(),
+            });
+        }
+        self.detect_input(Input::Rgb(img), mask)
+    }
+
+    fn detect_input(
+        &mut self,
+        input: Input,
+        mask: Option<&[bool]>,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let (w, h) = input.size();
+        if w == 0 || h == 0 {
+            return Ok(Vec::new());
+        }
+        self.run_maps(input, mask)?;
+        let ctx = self.ctx;
+        let counters: Vec<Counters> = ctx.read_buffer(self.counters.get(), 1)?;
+        let count = (counters[0].count as usize).min(capacity(w, h));
+        let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
+        let selected = select_spread(cands, &self.config);
+        let mut corners: Vec<Corner> = selected
+            .iter()
+            .map(|c| Corner {
+                x: c.x as f32,
+                y: c.y as f32,
+                score: c.score,
+            })
+            .collect();
+        if self.config.refine && !corners.is_empty() {
+            corners = self.refine(w, h, &corners)?;
+        }
+        self.finish_timing()?;
+        Ok(merge(corners, self.config.merge_radius))
+    }
+
+    /// Resolves and reads the timestamps of the passes just run.
+    fn finish_timing(&mut self) -> Result<(), FeatureError> {
+        if let Some(t) = self.timer.as_mut() {
+            let ctx = self.ctx;
+            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            t.resolve(&mut enc);
+            ctx.queue.submit([enc.finish()]);
+            self.last_timings = t.read(ctx)?;
+        }
+        Ok(())
+    }
+
+    fn refine(
+        &mut self,
+        w: usize,
+        h: usize,
+        corners: &[Corner],
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let ctx = self.ctx;
+        let n = corners.len();
+        ctx.queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&self.params(w, h, n as u32)),
+        );
+        let input: Vec<RefineCorner> = corners
+            .iter()
+            .map(|c| RefineCorner {
+                x: c.x,
+                y: c.y,
+                score: c.score,
+                status: 0.0,
+            })
+            .collect();
+        ctx.queue
+            .write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("refine"),
+                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass("refine")),
+            });
+            pass.set_pipeline(&self.refine);
+            pass.set_bind_group(0, self.bind.as_ref().expect("prepared"), &[]);
+            pass.dispatch_workgroups(workgroups(n as u32, 64), 1, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let out: Vec<RefineCorner> = ctx.read_buffer(self.corners.get(), n)?;
+        Ok(out
+            .iter()
+            .map(|c| Corner {
+                x: c.x,
+                y: c.y,
+                score: c.score,
+            })
+            .collect())
+    }
+}
+
+/// What [`Harris`] detects corners in.
+#[derive(Clone, Copy)]
+enum Input<'i> {
+    Grey(&'i GreyImage),
+    Rgb(&'i image::RgbImage),
+}
+
+impl Input<'_> {
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Input::Grey(g) => (g.width, g.height),
+            Input::Rgb(c) => (c.width() as usize, c.height() as usize),
+        }
+    }
+}
+
+/// Most strict 3x3 maxima an image can hold: no two are 8-neighbours.
+fn capacity(w: usize, h: usize) -> usize {
+    w.div_ceil(2) * h.div_ceil(2)
+}

@@ -1,0 +1,175 @@
+//! Feature points: Harris corners and NCC matching with a mutual
+//! cross-check, on the GPU (WGSL compute shaders) with CPU references.
+//!
+//! This is the low-level vision of Dehais, Morin & Charvillat (2010),
+//! section 4.2: corners by the Harris criterion (Harris & Stephens, "A
+//! combined corner and edge detector", Alvey Vision Conference 1988),
+//! matched by normalised cross-correlation of 9x9 windows, best match per
+//! row and per column of the score matrix, mutual best matches only.
+//!
+//! # How it works
+//!
+//! **Harris** ([`Harris`], GPU; [`harris_cpu`], its reference):
+//! 1. Gaussian-derivative gradients (`sigma_d`), as two separable passes.
+//! 2. The structure tensor `[Ix², IxIy; IxIy, Iy²]` smoothed by a Gaussian
+//!    (`sigma_i`), two more separable passes, then the response
+//!    `det - k trace²`. Every pass also carries a validity flag: a pixel is
+//!    valid only if its whole support (derivative plus integration radius)
+//!    lies inside the image on valid (finite) pixels, so NaN pixels of a
+//!    rendered novel view and the image border never produce corners.
+//! 3. Non-maximum suppression (strict 3x3 maximum, ties broken by raster
+//!    index) above `relative_threshold x max response` inside the optional
+//!    mask; survivors are compacted with an atomic counter into a list.
+//! 4. On the host (the list is small): the best `max_corners`, spread over
+//!    the image by a grid: candidates are ranked inside their grid cell and
+//!    taken rank by rank (all cells' best, then all cells' second best, ...;
+//!    by score within a rank), so textured regions cannot starve the rest.
+//! 5. Sub-pixel refinement on the GPU by gradient orthogonality (as OpenCV's
+//!    `cornerSubPix`): the corner `q` is where `g(p) . (p - q) = 0` for the
+//!    gradients `g(p)` of a window around it, solved in least squares,
+//!    re-centred and iterated. Plain Harris maxima sit about one smoothing
+//!    scale inside an L-corner and split around an X-junction; refinement
+//!    moves them onto the true corner, and detections that converge to
+//!    the same point (closer than `merge_radius`) are merged, keeping the
+//!    strongest.
+//!
+//! **NCC** ([`NccMatcher`], GPU; [`ncc_match_cpu`], its reference):
+//! 1. Each feature's `w x w` window is sampled bilinearly at its sub-pixel
+//!    position and vectorised into one row of an `n x w²` buffer (the
+//!    paper's layout), made zero-mean and unit-norm once. Windows that
+//!    leave the image, touch an invalid pixel, or are flat get no match.
+//! 2. All scores at once as the matrix product `A Bᵀ` (a tiled kernel),
+//!    optionally only within a search radius.
+//! 3. Best per row and per column (workgroup reductions); the host keeps
+//!    pairs that are each other's best with a score above the threshold.
+//!
+//! Coordinates follow OpenCV: pixel (0, 0) is the centre of the top-left
+//! pixel. Grey values are `f32` in 0..1 ([`GreyImage`]); NaN marks an
+//! invalid (empty) pixel.
+
+mod gpu_data;
+pub mod harris;
+mod harris_cpu;
+pub mod image;
+pub mod ncc;
+mod ncc_cpu;
+pub mod patterns;
+
+pub use gpu_data::INVALID_RESPONSE;
+pub use harris::{Corner, Harris, HarrisConfig};
+pub use harris_cpu::{harris_cpu, harris_response_cpu};
+pub use image::GreyImage;
+pub use ncc::{Match, NccConfig, NccMatcher};
+pub use ncc_cpu::ncc_match_cpu;
+
+use crate::gpu::GpuError;
+
+/// Errors of feature detection and matching.
+#[derive(Debug, thiserror::Error)]
+pub enum FeatureError {
+    #[error("image data has {len} values for {width}x{height} pixels")]
+    ImageSize {
+        width: usize,
+        height: usize,
+        len: usize,
+    },
+    #[error("mask has {got} values for an image of {expected} pixels")]
+    MaskSize { expected: usize, got: usize },
+    #[error("image of {width}x{height} pixels is too large for the GPU ({reason})")]
+    TooLarge {
+        width: usize,
+        height: usize,
+        reason: String,
+    },
+    #[error("{n} features is more than the matcher supports ({max})")]
+    TooManyFeatures { n: usize, max: usize },
+    #[error("invalid configuration: {0}")]
+    Config(String),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+}
+
+/// Explicit bind group layout entry for a compute-visible buffer.
+fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility: wgpu::ShaderStages::COMPUTE,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn storage(read_only: bool) -> wgpu::BufferBindingType {
+    wgpu::BufferBindingType::Storage { read_only }
+}
+
+/// Compute pipelines of one shader sharing one explicit bind group layout,
+/// so that a single bind group serves every pass.
+fn pipelines(
+    ctx: &crate::gpu::GpuContext,
+    shader: &str,
+    layout: &wgpu::BindGroupLayout,
+    entries: &[&str],
+) -> Result<Vec<wgpu::ComputePipeline>, GpuError> {
+    let module = ctx.shader(shader)?;
+    let pl = ctx.catch(shader, || {
+        ctx.device
+            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(shader),
+                bind_group_layouts: &[Some(layout)],
+                immediate_size: 0,
+            })
+    })?;
+    entries
+        .iter()
+        .map(|entry| {
+            ctx.catch(&format!("{shader}::{entry}"), || {
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&pl),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            })
+        })
+        .collect()
+}
+
+/// A storage buffer that grows (never shrinks) to fit what it must hold.
+struct GrowBuffer {
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    buffer: Option<wgpu::Buffer>,
+}
+
+impl GrowBuffer {
+    fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Self {
+            label,
+            usage,
+            buffer: None,
+        }
+    }
+
+    /// Ensures at least `size` bytes; true when the buffer was (re)created,
+    /// so bind groups referencing it must be rebuilt.
+    fn ensure(&mut self, ctx: &crate::gpu::GpuContext, size: u64) -> bool {
+        let size = size.max(16).next_multiple_of(16);
+        if self.buffer.as_ref().is_some_and(|b| b.size() >= size) {
+            return false;
+        }
+        self.buffer = Some(ctx.buffer(self.label, size, self.usage));
+        true
+    }
+
+    fn get(&self) -> &wgpu::Buffer {
+        self.buffer.as_ref().expect("GrowBuffer used before ensure")
+    }
+}

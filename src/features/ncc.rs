@@ -1,0 +1,359 @@
+//! NCC matching on the GPU (`shaders/ncc.wgsl`); the CPU reference is
+//! [`super::ncc_match_cpu`]. See the module docs of [`super`].
+
+use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, PIXEL_VALID, Pixel};
+use super::harris::Corner;
+use super::image::{GreyImage, check_mask};
+use super::{FeatureError, GrowBuffer, layout_entry, pipelines, storage};
+use crate::gpu::{GpuContext, GpuTimer, STORAGE_IN, STORAGE_OUT, TimerReport, workgroups};
+
+/// A mutual best match: feature `a` of the first image and feature `b` of
+/// the second, with their NCC score in [-1, 1].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Match {
+    pub a: usize,
+    pub b: usize,
+    pub score: f32,
+}
+
+/// NCC matching parameters.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NccConfig {
+    /// Window side in pixels, odd (the paper: 9).
+    pub window: u32,
+    /// Keep mutual best matches scoring at least this. Default 0.8.
+    pub min_score: f32,
+    /// Only pairs at most this far apart (pixels) may match; `None`: all
+    /// pairs (the paper's GPU version). Default `None`.
+    pub search_radius: Option<f32>,
+    /// Windows whose standard deviation (grey 0..1) is below this are flat
+    /// and get no match. Default 0.005 (about 1.3 grey levels of 255).
+    pub min_std: f32,
+}
+
+impl Default for NccConfig {
+    fn default() -> Self {
+        Self {
+            window: 9,
+            min_score: 0.8,
+            search_radius: None,
+            min_std: 0.005,
+        }
+    }
+}
+
+impl NccConfig {
+    pub fn with_window(mut self, w: u32) -> Self {
+        self.window = w;
+        self
+    }
+    pub fn with_min_score(mut self, s: f32) -> Self {
+        self.min_score = s;
+        self
+    }
+    pub fn with_search_radius(mut self, r: Option<f32>) -> Self {
+        self.search_radius = r;
+        self
+    }
+
+    pub fn validate(&self) -> Result<(), FeatureError> {
+        let bad = |m: String| Err(FeatureError::Config(m));
+        if self.window.is_multiple_of(2) || self.window > 63 {
+            return bad(format!(
+                "window = {} is not odd and at most 63",
+                self.window
+            ));
+        }
+        if !(-1.0..=1.0).contains(&self.min_score) {
+            return bad(format!("min_score = {} is not in [-1, 1]", self.min_score));
+        }
+        if let Some(r) = self.search_radius.filter(|r| !(*r >= 0.0 && r.is_finite())) {
+            return bad(format!("search_radius = {r} is not a finite value >= 0"));
+        }
+        if !(self.min_std >= 0.0 && self.min_std.is_finite()) {
+            return bad(format!("min_std = {} is not >= 0", self.min_std));
+        }
+        Ok(())
+    }
+
+    /// Descriptor row stride: w² padded with zeros to the score tile.
+    pub(crate) fn stride(&self) -> u32 {
+        (self.window * self.window).next_multiple_of(NCC_TILE)
+    }
+}
+
+/// Positions as uploaded: non-finite or absurd coordinates become a point
+/// far outside any image, whose window is then invalid.
+pub(crate) fn sanitize(c: &Corner) -> [f32; 2] {
+    let ok = |v: f32| v.is_finite() && v.abs() < 1.0e7;
+    if ok(c.x) && ok(c.y) {
+        [c.x, c.y]
+    } else {
+        [-1.0e9, -1.0e9]
+    }
+}
+
+/// Mutual best matches from the best entry per row and per column.
+pub(crate) fn mutual(rows: &[Best], cols: &[Best], min_score: f32) -> Vec<Match> {
+    rows.iter()
+        .enumerate()
+        .filter_map(|(a, r)| {
+            let b = r.index as usize;
+            (r.index != NO_INDEX
+                && r.score >= min_score
+                && cols.get(b).is_some_and(|c| c.index as usize == a))
+            .then_some(Match {
+                a,
+                b,
+                score: r.score,
+            })
+        })
+        .collect()
+}
+
+/// NCC matching on the GPU. Pipelines are built once and buffers grow to
+/// the largest problem seen, so per-frame calls allocate nothing in the
+/// steady state.
+pub struct NccMatcher<'a> {
+    ctx: &'a GpuContext,
+    config: NccConfig,
+    layout: wgpu::BindGroupLayout,
+    passes: Vec<wgpu::ComputePipeline>,
+    score_direct: wgpu::ComputePipeline,
+    tiled: bool,
+    params: wgpu::Buffer,
+    pixels: GrowBuffer,
+    positions: GrowBuffer,
+    desc: GrowBuffer,
+    ok: GrowBuffer,
+    scores: GrowBuffer,
+    best: GrowBuffer,
+    bind: Option<wgpu::BindGroup>,
+    timer: Option<GpuTimer>,
+    last_timings: TimerReport,
+}
+
+const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
+const ENTRIES: [&str; 5] = [
+    "vectorize",
+    "score_tiled",
+    "row_best",
+    "col_best",
+    "score_direct",
+];
+
+impl<'a> NccMatcher<'a> {
+    pub fn new(ctx: &'a GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
+        config.validate()?;
+        let mut entries = vec![layout_entry(0, wgpu::BufferBindingType::Uniform)];
+        entries.push(layout_entry(1, storage(true)));
+        entries.push(layout_entry(2, storage(true)));
+        entries.extend((3..7).map(|b| layout_entry(b, storage(false))));
+        let layout = ctx
+            .device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some("ncc"),
+                entries: &entries,
+            });
+        let mut passes = pipelines(ctx, "ncc", &layout, &ENTRIES)?;
+        let score_direct = passes.pop().expect("five pipelines");
+        Ok(Self {
+            ctx,
+            config,
+            layout,
+            passes,
+            score_direct,
+            tiled: !ctx.is_cpu(),
+            params: ctx.buffer(
+                "ncc params",
+                std::mem::size_of::<NccParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            pixels: GrowBuffer::new("ncc pixels", STORAGE_IN),
+            positions: GrowBuffer::new("ncc positions", STORAGE_IN),
+            desc: GrowBuffer::new("ncc descriptors", STORAGE_OUT),
+            ok: GrowBuffer::new("ncc ok", STORAGE_OUT),
+            scores: GrowBuffer::new("ncc scores", STORAGE_OUT),
+            best: GrowBuffer::new("ncc best", STORAGE_OUT),
+            bind: None,
+            timer: None,
+            last_timings: TimerReport::default(),
+        })
+    }
+
+    pub fn config(&self) -> &NccConfig {
+        &self.config
+    }
+
+    /// Chooses the score kernel: tiled in workgroup memory (the default on
+    /// GPUs) or one thread per score (the default on CPU adapters, where
+    /// workgroup barriers are slow). Both give the same scores.
+    pub fn set_tiled(&mut self, tiled: bool) {
+        self.tiled = tiled;
+    }
+
+    /// Times every pass with GPU timestamp queries from now on (where
+    /// supported); see [`NccMatcher::last_timings`].
+    pub fn enable_timing(&mut self) {
+        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32));
+    }
+
+    /// Per-pass GPU durations of the last match (empty unless enabled).
+    pub fn last_timings(&self) -> &TimerReport {
+        &self.last_timings
+    }
+
+    /// Mutual best NCC matches between the features `a` of `img_a` and `b`
+    /// of `img_b` (images may differ in size), sorted by `a`. A feature
+    /// whose window leaves its image, touches an invalid (NaN) pixel, or is
+    /// flat gets no match.
+    pub fn match_features(
+        &mut self,
+        img_a: &GreyImage,
+        a: &[Corner],
+        img_b: &GreyImage,
+        b: &[Corner],
+    ) -> Result<Vec<Match>, FeatureError> {
+        check_mask(img_a, None)?;
+        check_mask(img_b, None)?;
+        let (na, nb) = (a.len(), b.len());
+        if na == 0 || nb == 0 || img_a.is_empty() || img_b.is_empty() {
+            return Ok(Vec::new());
+        }
+        let ctx = self.ctx;
+        let lim = &ctx.limits;
+        let max_groups = lim.max_compute_workgroups_per_dimension as usize;
+        if na.max(nb) > max_groups {
+            return Err(FeatureError::TooManyFeatures {
+                n: na.max(nb),
+                max: max_groups,
+            });
+        }
+        let limit = lim.max_storage_buffer_binding_size.min(lim.max_buffer_size);
+        if (na * nb * 4) as u64 > limit {
+            return Err(FeatureError::TooManyFeatures {
+                n: na.max(nb),
+                max: ((limit / 4) as f64).sqrt() as usize,
+            });
+        }
+        let n_pix = img_a.data.len() + img_b.data.len();
+        // Shader indices are u32.
+        if (n_pix * 8) as u64 > limit || n_pix >= 1 << 28 {
+            return Err(FeatureError::TooLarge {
+                width: img_a.width.max(img_b.width),
+                height: img_a.height + img_b.height,
+                reason: format!("two images need {} bytes, limit {limit}", n_pix * 8),
+            });
+        }
+        let stride = self.config.stride() as usize;
+        let mut changed = self.pixels.ensure(ctx, (n_pix * 8) as u64);
+        changed |= self.positions.ensure(ctx, ((na + nb) * 8) as u64);
+        changed |= self.desc.ensure(ctx, ((na + nb) * stride * 4) as u64);
+        changed |= self.ok.ensure(ctx, ((na + nb) * 4) as u64);
+        changed |= self.scores.ensure(ctx, (na * nb * 4) as u64);
+        changed |= self.best.ensure(ctx, ((na + nb) * 8) as u64);
+        if changed || self.bind.is_none() {
+            let bufs = [
+                &self.params,
+                self.pixels.get(),
+                self.positions.get(),
+                self.desc.get(),
+                self.ok.get(),
+                self.scores.get(),
+                self.best.get(),
+            ];
+            let entries: Vec<wgpu::BindGroupEntry> = bufs
+                .iter()
+                .enumerate()
+                .map(|(i, b)| wgpu::BindGroupEntry {
+                    binding: i as u32,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.bind = Some(ctx.catch("ncc bind group", || {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("ncc"),
+                    layout: &self.layout,
+                    entries: &entries,
+                })
+            })?);
+        }
+
+        let c = &self.config;
+        let params = NccParams {
+            na: na as u32,
+            nb: nb as u32,
+            stride: stride as u32,
+            window: c.window,
+            wa: img_a.width as u32,
+            ha: img_a.height as u32,
+            wb: img_b.width as u32,
+            hb: img_b.height as u32,
+            offset_b: img_a.data.len() as u32,
+            radius2: c.search_radius.map_or(-1.0, |r| r * r),
+            min_std: c.min_std,
+            _pad: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let pixels: Vec<Pixel> = img_a
+            .data
+            .iter()
+            .chain(&img_b.data)
+            .map(|&v| {
+                if v.is_finite() {
+                    Pixel {
+                        value: v,
+                        flags: PIXEL_VALID,
+                    }
+                } else {
+                    Pixel {
+                        value: 0.0,
+                        flags: 0,
+                    }
+                }
+            })
+            .collect();
+        ctx.queue
+            .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
+        let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
+        ctx.queue
+            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+
+        let groups = [
+            (workgroups((na + nb) as u32, 64), 1),
+            (
+                workgroups(nb as u32, NCC_TILE),
+                workgroups(na as u32, NCC_TILE),
+            ),
+            (na as u32, 1),
+            (nb as u32, 1),
+        ];
+        let bind = self.bind.as_ref().expect("bind group built above");
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass(label)),
+            });
+            pass.set_bind_group(0, bind, &[]);
+            if label == "score" && !self.tiled {
+                pass.set_pipeline(&self.score_direct);
+                // Four columns per thread.
+                pass.dispatch_workgroups(workgroups(nb as u32, 4 * NCC_TILE), gy, 1);
+            } else {
+                pass.set_pipeline(pipeline);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+        }
+        if let Some(t) = &self.timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let best: Vec<Best> = ctx.read_buffer(self.best.get(), na + nb)?;
+        if let Some(t) = self.timer.as_mut() {
+            self.last_timings = t.read(ctx)?;
+        }
+        Ok(mutual(&best[..na], &best[na..], c.min_score))
+    }
+}

@@ -1,0 +1,475 @@
+//! The keyframe store (Dehais et al. 2010, sections 3.3 and 5.1): images of
+//! the object with accurately known poses, turned into per-point colours so
+//! that a novel view of the object can be rendered at any pose from the
+//! keyframe closest to it.
+//!
+//! How it works: for each keyframe the model's depth is splatted at the
+//! keyframe pose; a model point is *visible* in the keyframe when it faces
+//! the camera, projects inside the image and lies on the splatted surface
+//! there (within a tolerance of a few splat radii), i.e. visibility comes
+//! from the rendered depth, not from normals alone. Visible points take the
+//! keyframe image's colour at their projection (bilinear). Points hidden in
+//! a keyframe take the colour of the nearest keyframe (by viewing direction)
+//! that sees them, else the model's own colour; they are flagged so that a
+//! consumer can tell. The store is saved to a small binary file, so it is
+//! built once per object.
+
+use crate::geometry::{Intrinsics, Pose, PoseError, sample_bilinear_rgb};
+use crate::gpu::GpuContext;
+use crate::io::PoseRow;
+use crate::model::PointModel;
+use crate::splat::{Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter};
+use nalgebra::Vector3;
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Errors of building, loading and saving keyframe stores.
+#[derive(Debug, thiserror::Error)]
+pub enum KeyframeError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot read keyframe image: {source}")]
+    Image {
+        path: PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error("{path}: keyframe image is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
+    ImageSize {
+        path: PathBuf,
+        got_w: u32,
+        got_h: u32,
+        want_w: u32,
+        want_h: u32,
+    },
+    #[error("{path}: not a keyframe store: {reason}")]
+    Format { path: PathBuf, reason: String },
+    #[error(
+        "{path}: the keyframe store was built for another model ({stored} points, fingerprint {stored_fp:016x}; this model: {points} points, {fp:016x})"
+    )]
+    WrongModel {
+        path: PathBuf,
+        stored: u64,
+        stored_fp: u64,
+        points: u64,
+        fp: u64,
+    },
+    #[error("{0}: no keyframe image found for pose row {1:?}")]
+    MissingImage(PathBuf, String),
+    #[error("keyframe {name}: the object is not visible (no model point seen)")]
+    NothingVisible { name: String },
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PoseFileError),
+    #[error(transparent)]
+    Splat(#[from] SplatError),
+    #[error(transparent)]
+    Pose(#[from] PoseError),
+}
+
+/// One keyframe: its pose and the colour it gives every model point.
+#[derive(Debug, Clone)]
+pub struct Keyframe {
+    pub name: String,
+    pub pose: Pose,
+    /// One colour per model point (linear 0..1 values as in the image).
+    pub colors: Vec<[f32; 3]>,
+    /// Whether the keyframe itself sees the point (else the colour is
+    /// borrowed from another keyframe or the model).
+    pub visible: Vec<bool>,
+}
+
+impl Keyframe {
+    pub fn visible_count(&self) -> usize {
+        self.visible.iter().filter(|&&v| v).count()
+    }
+}
+
+/// Keyframes of one model.
+#[derive(Debug, Clone)]
+pub struct KeyframeStore {
+    pub keyframes: Vec<Keyframe>,
+    /// Number of points and a fingerprint of their positions, to refuse a
+    /// store built for another model.
+    pub points: u64,
+    pub fingerprint: u64,
+    /// The centre of the model's bounding box, the pivot for viewpoints.
+    pub center: Vector3<f64>,
+}
+
+/// A fingerprint of a model's point positions (FNV-1a over their bits).
+pub fn model_fingerprint(model: &PointModel) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for p in &model.positions {
+        for v in [p.x, p.y, p.z] {
+            for b in v.to_bits().to_le_bytes() {
+                h ^= b as u64;
+                h = h.wrapping_mul(0x0100_0000_01b3);
+            }
+        }
+    }
+    h
+}
+
+fn model_center(model: &PointModel) -> Vector3<f64> {
+    let (lo, hi) = model.bounds();
+    let c = (lo + hi) * 0.5;
+    Vector3::new(c.x as f64, c.y as f64, c.z as f64)
+}
+
+/// Unit viewing direction (object frame, from the object's centre towards
+/// the camera) and camera distance of a pose.
+pub fn viewpoint(pose: &Pose, center: &Vector3<f64>) -> (Vector3<f64>, f64) {
+    let eye = -(pose.rotation.transpose() * pose.translation);
+    let d = eye - center;
+    let dist = d.norm();
+    (d / dist.max(1e-12), dist)
+}
+
+/// Settings of keyframe extraction.
+#[derive(Debug, Clone, Copy)]
+pub struct KeyframeConfig {
+    /// A point is on the splatted surface when its depth is within this
+    /// many splat radii of the rendered depth...
+    pub depth_tolerance_radii: f32,
+    /// ...plus this fraction of its depth.
+    pub depth_tolerance_rel: f32,
+    /// Points seen at a grazing angle (|cos| below this) get no colour.
+    pub min_cos: f32,
+}
+
+impl Default for KeyframeConfig {
+    fn default() -> Self {
+        Self {
+            depth_tolerance_radii: 3.0,
+            depth_tolerance_rel: 0.004,
+            min_cos: 0.15,
+        }
+    }
+}
+
+/// Converts an 8-bit RGB image to the 0..1 floats the splatter carries.
+fn rgb_to_f32(p: image::Rgb<u8>) -> [f32; 3] {
+    p.0.map(|v| v as f32 / 255.0)
+}
+
+impl KeyframeStore {
+    /// Builds the store from keyframe images and their poses.
+    pub fn build(
+        ctx: &GpuContext,
+        splatter: &Splatter,
+        model: &PointModel,
+        cam: &Intrinsics,
+        frames: &[(String, image::RgbImage, Pose)],
+        cfg: &KeyframeConfig,
+    ) -> Result<Self, KeyframeError> {
+        let gpu_model = GpuModel::new(ctx, model)?;
+        let mut targets = SplatTargets::new(ctx, cam.width, cam.height);
+        let center = model_center(model);
+        let mut keyframes = Vec::with_capacity(frames.len());
+        for (name, img, pose) in frames {
+            pose.validate()?;
+            splatter.render(ctx, &gpu_model, cam, pose, Attributes::GEOMETRY, &mut targets)?;
+            let depth = splatter.read(ctx, &targets, Attribute::Depth)?;
+            let mut colors = vec![[0.0f32; 3]; model.len()];
+            let mut visible = vec![false; model.len()];
+            for i in 0..model.len() {
+                let p = model.positions[i];
+                let n = model.normals[i];
+                let x = pose.transform_point(&Vector3::new(p.x as f64, p.y as f64, p.z as f64));
+                let nc = pose.rotation * Vector3::new(n.x as f64, n.y as f64, n.z as f64);
+                // Facing the camera, not at a grazing angle.
+                if -(nc.dot(&x)) / x.norm() < cfg.min_cos as f64 {
+                    continue;
+                }
+                let Some(uv) = cam.project(&x) else { continue };
+                let (u, v) = (uv.x.round(), uv.y.round());
+                if u < 0.0 || v < 0.0 || u >= cam.width as f64 || v >= cam.height as f64 {
+                    continue;
+                }
+                let z = depth.pixel(u as u32, v as u32)[0];
+                let tol = cfg.depth_tolerance_radii * model.radii[i]
+                    + cfg.depth_tolerance_rel * x.z as f32;
+                if z.is_nan() || (x.z as f32 - z) > tol {
+                    continue;
+                }
+                if let Some(c) = sample_bilinear_rgb(img, uv.x as f32, uv.y as f32) {
+                    colors[i] = rgb_to_f32(c);
+                    visible[i] = true;
+                }
+            }
+            let kf = Keyframe {
+                name: name.clone(),
+                pose: *pose,
+                colors,
+                visible,
+            };
+            if kf.visible_count() == 0 {
+                return Err(KeyframeError::NothingVisible { name: name.clone() });
+            }
+            log::info!("keyframe {name}: {} of {} points visible", kf.visible_count(), model.len());
+            keyframes.push(kf);
+        }
+        let mut store = Self {
+            keyframes,
+            points: model.len() as u64,
+            fingerprint: model_fingerprint(model),
+            center,
+        };
+        store.fill_hidden(model);
+        Ok(store)
+    }
+
+    /// Gives points hidden in a keyframe the colour of the keyframe with the
+    /// closest viewpoint that sees them (else the model's colour, else grey).
+    fn fill_hidden(&mut self, model: &PointModel) {
+        let dirs: Vec<Vector3<f64>> = self
+            .keyframes
+            .iter()
+            .map(|k| viewpoint(&k.pose, &self.center).0)
+            .collect();
+        let n = self.keyframes.len();
+        for k in 0..n {
+            let mut order: Vec<usize> = (0..n).filter(|&j| j != k).collect();
+            order.sort_by(|&a, &b| dirs[k].dot(&dirs[b]).total_cmp(&dirs[k].dot(&dirs[a])));
+            for i in 0..model.len() {
+                if self.keyframes[k].visible[i] {
+                    continue;
+                }
+                let borrowed = order
+                    .iter()
+                    .find(|&&j| self.keyframes[j].visible[i])
+                    .map(|&j| self.keyframes[j].colors[i]);
+                self.keyframes[k].colors[i] = borrowed
+                    .or_else(|| model.colors.as_ref().map(|c| c[i]))
+                    .unwrap_or([0.5; 3]);
+            }
+        }
+    }
+
+    /// A single texture from the model's own colours (when there are no
+    /// keyframes): every point counts as visible from `pose`.
+    pub fn from_model_colors(model: &PointModel, pose: &Pose) -> Option<Self> {
+        let colors = model.colors.clone()?;
+        Some(Self {
+            keyframes: vec![Keyframe {
+                name: "model colours".into(),
+                pose: *pose,
+                colors,
+                visible: vec![true; model.len()],
+            }],
+            points: model.len() as u64,
+            fingerprint: model_fingerprint(model),
+            center: model_center(model),
+        })
+    }
+
+    /// Loads keyframe images and poses from a directory (FORMATS.md:
+    /// `keyframes/poses.csv`, images named by its frame column, extension
+    /// optional) and builds the store.
+    pub fn build_from_dir(
+        ctx: &GpuContext,
+        splatter: &Splatter,
+        model: &PointModel,
+        cam: &Intrinsics,
+        dir: &Path,
+        cfg: &KeyframeConfig,
+    ) -> Result<Self, KeyframeError> {
+        let rows = crate::io::read_poses(&dir.join("poses.csv"))?;
+        let frames = load_keyframe_images(dir, &rows, cam)?;
+        Self::build(ctx, splatter, model, cam, &frames, cfg)
+    }
+
+    /// The index of the keyframe whose viewpoint is closest to `pose`: the
+    /// smallest angle between viewing directions, plus a penalty of 10
+    /// degrees per factor e of distance ratio.
+    pub fn closest(&self, pose: &Pose) -> usize {
+        let (d, r) = viewpoint(pose, &self.center);
+        let score = |k: &Keyframe| {
+            let (dk, rk) = viewpoint(&k.pose, &self.center);
+            d.dot(&dk).clamp(-1.0, 1.0).acos().to_degrees() + 10.0 * (r / rk).ln().abs()
+        };
+        (0..self.keyframes.len())
+            .min_by(|&a, &b| score(&self.keyframes[a]).total_cmp(&score(&self.keyframes[b])))
+            .unwrap_or(0)
+    }
+
+    /// The model with keyframe `k`'s colours.
+    pub fn textured(&self, model: &PointModel, k: usize) -> PointModel {
+        let mut m = model.clone();
+        m.colors = Some(self.keyframes[k].colors.clone());
+        m
+    }
+
+    /// Refuses a store built for another model.
+    pub fn check_model(&self, model: &PointModel, path: &Path) -> Result<(), KeyframeError> {
+        let fp = model_fingerprint(model);
+        if self.points != model.len() as u64 || self.fingerprint != fp {
+            return Err(KeyframeError::WrongModel {
+                path: path.to_owned(),
+                stored: self.points,
+                stored_fp: self.fingerprint,
+                points: model.len() as u64,
+                fp,
+            });
+        }
+        Ok(())
+    }
+
+    /// Saves to `path` (format: see [`KeyframeStore::load`]), atomically.
+    pub fn save(&self, path: &Path) -> Result<(), KeyframeError> {
+        let io = |source| KeyframeError::Io {
+            path: path.to_owned(),
+            source,
+        };
+        let tmp = path.with_extension("partial");
+        {
+            let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(io)?);
+            f.write_all(MAGIC).map_err(io)?;
+            for v in [self.points, self.fingerprint, self.keyframes.len() as u64] {
+                f.write_all(&v.to_le_bytes()).map_err(io)?;
+            }
+            for v in self.center.iter() {
+                f.write_all(&v.to_le_bytes()).map_err(io)?;
+            }
+            for k in &self.keyframes {
+                let name = k.name.as_bytes();
+                f.write_all(&(name.len() as u32).to_le_bytes()).map_err(io)?;
+                f.write_all(name).map_err(io)?;
+                for v in k.pose.to_row_major() {
+                    f.write_all(&v.to_le_bytes()).map_err(io)?;
+                }
+                for (c, &vis) in k.colors.iter().zip(&k.visible) {
+                    let q = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+                    f.write_all(&[q[0], q[1], q[2], vis as u8]).map_err(io)?;
+                }
+            }
+            f.flush().map_err(io)?;
+        }
+        std::fs::rename(&tmp, path).map_err(io)
+    }
+
+    /// Loads a store saved by [`KeyframeStore::save`]: the magic
+    /// `SPLATKF1`, u64 point count, u64 fingerprint, u64 keyframe count,
+    /// 3 f64 centre; per keyframe a u32-prefixed UTF-8 name, 12 f64 pose
+    /// values (R row-major, t) and per point 4 bytes (r, g, b, visible).
+    pub fn load(path: &Path) -> Result<Self, KeyframeError> {
+        let bytes = std::fs::read(path).map_err(|source| KeyframeError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        let bad = |reason: &str| KeyframeError::Format {
+            path: path.to_owned(),
+            reason: reason.to_owned(),
+        };
+        let mut r = &bytes[..];
+        let mut magic = [0u8; 8];
+        r.read_exact(&mut magic).map_err(|_| bad("file too short"))?;
+        if &magic != MAGIC {
+            return Err(bad("wrong magic (expected SPLATKF1)"));
+        }
+        let mut u64s = [0u64; 3];
+        for v in &mut u64s {
+            let mut b = [0u8; 8];
+            r.read_exact(&mut b).map_err(|_| bad("truncated header"))?;
+            *v = u64::from_le_bytes(b);
+        }
+        let [points, fingerprint, count] = u64s;
+        let per_kf = points.checked_mul(4).and_then(|v| v.checked_add(4 + 96));
+        match per_kf.and_then(|p| p.checked_mul(count)) {
+            Some(need) if need <= bytes.len() as u64 => {}
+            _ => return Err(bad("header counts exceed the file size")),
+        }
+        let read_f64 = |r: &mut &[u8]| -> Result<f64, KeyframeError> {
+            let mut b = [0u8; 8];
+            r.read_exact(&mut b).map_err(|_| bad("truncated"))?;
+            Ok(f64::from_le_bytes(b))
+        };
+        let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
+        let mut keyframes = Vec::with_capacity(count as usize);
+        for _ in 0..count {
+            let mut b = [0u8; 4];
+            r.read_exact(&mut b).map_err(|_| bad("truncated"))?;
+            let len = u32::from_le_bytes(b) as usize;
+            if len > r.len() {
+                return Err(bad("truncated name"));
+            }
+            let name = String::from_utf8(r[..len].to_vec()).map_err(|_| bad("name is not UTF-8"))?;
+            r = &r[len..];
+            let mut v = [0.0; 12];
+            for x in &mut v {
+                *x = read_f64(&mut r)?;
+            }
+            let pose = Pose::from_row_major(&v)?;
+            let n = points as usize;
+            if r.len() < 4 * n {
+                return Err(bad("truncated colours"));
+            }
+            let (colors, visible) = r[..4 * n]
+                .chunks_exact(4)
+                .map(|c| ([c[0], c[1], c[2]].map(|v| v as f32 / 255.0), c[3] != 0))
+                .unzip();
+            r = &r[4 * n..];
+            keyframes.push(Keyframe {
+                name,
+                pose,
+                colors,
+                visible,
+            });
+        }
+        if !r.is_empty() {
+            return Err(bad("trailing bytes"));
+        }
+        Ok(Self {
+            keyframes,
+            points,
+            fingerprint,
+            center,
+        })
+    }
+}
+
+const MAGIC: &[u8; 8] = b"SPLATKF1";
+
+/// Reads the images named by `rows` from `dir` (the label with or without
+/// its extension; .png, .jpg or .jpeg) and checks their size.
+pub fn load_keyframe_images(
+    dir: &Path,
+    rows: &[PoseRow],
+    cam: &Intrinsics,
+) -> Result<Vec<(String, image::RgbImage, Pose)>, KeyframeError> {
+    let mut out = Vec::with_capacity(rows.len());
+    for row in rows {
+        let direct = dir.join(&row.frame);
+        let candidates = [
+            direct.clone(),
+            dir.join(format!("{}.png", row.frame_stem())),
+            dir.join(format!("{}.jpg", row.frame_stem())),
+            dir.join(format!("{}.jpeg", row.frame_stem())),
+        ];
+        let path = candidates
+            .iter()
+            .find(|p| p.is_file())
+            .ok_or_else(|| KeyframeError::MissingImage(dir.to_owned(), row.frame.clone()))?;
+        let img = image::open(path)
+            .map_err(|source| KeyframeError::Image {
+                path: path.clone(),
+                source,
+            })?
+            .to_rgb8();
+        if img.width() != cam.width || img.height() != cam.height {
+            return Err(KeyframeError::ImageSize {
+                path: path.clone(),
+                got_w: img.width(),
+                got_h: img.height(),
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        out.push((row.frame_stem().to_owned(), img, row.pose));
+    }
+    Ok(out)
+}

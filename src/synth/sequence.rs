@@ -1,0 +1,161 @@
+//! Writing a synthetic sequence directory in the layout of FORMATS.md
+//! ("Sequence directory"), so that `splattrack track` reads it like any
+//! recorded sequence.
+
+use super::{SynthConfig, SynthObject, background, keyframe_poses, render_frame};
+use crate::geometry::Pose;
+use crate::io::{PoseRow, write_poses};
+use crate::model::{AttributeSource, PointModel};
+use crate::rng::Rng;
+use glam::Vec3;
+use std::path::{Path, PathBuf};
+
+/// Errors of [`write_sequence`].
+#[derive(Debug, thiserror::Error)]
+pub enum SynthError {
+    #[error("unknown object {0:?} (built-in objects: {list})", list = super::objects::OBJECT_NAMES.join(", "))]
+    UnknownObject(String),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write image: {source}")]
+    Image {
+        path: PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error(transparent)]
+    Model(#[from] crate::model::ModelError),
+    #[error(transparent)]
+    Poses(#[from] crate::io::poses::PoseFileError),
+    #[error("a sequence needs at least 2 frames, got {0}")]
+    TooFewFrames(usize),
+}
+
+/// Points sampled from a built-in object's mesh, coloured with its texture.
+pub fn sample_model(object: &SynthObject, n_points: usize, seed: u64) -> Result<PointModel, SynthError> {
+    let verts: Vec<Vec3> = object
+        .mesh
+        .vertices
+        .iter()
+        .map(|v| Vec3::new(v.x as f32, v.y as f32, v.z as f32))
+        .collect();
+    let mut model = PointModel::from_mesh(&verts, &object.mesh.triangles, n_points, seed)?;
+    let colors = model
+        .positions
+        .iter()
+        .zip(&model.normals)
+        .map(|(p, n)| {
+            let p = nalgebra::Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+            let n = nalgebra::Vector3::new(n.x as f64, n.y as f64, n.z as f64);
+            object.texture.albedo(&p, &n)
+        })
+        .collect();
+    model.colors = Some(colors);
+    model.provenance.colors = AttributeSource::FromMesh;
+    Ok(model)
+}
+
+/// What [`write_sequence`] wrote.
+#[derive(Debug, Clone)]
+pub struct SequenceSummary {
+    pub dir: PathBuf,
+    pub frames: usize,
+    pub keyframes: usize,
+    pub model_points: usize,
+    pub diameter: f64,
+    pub poses: Vec<Pose>,
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> SynthError + '_ {
+    move |source| SynthError::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+fn save_png(img: &image::RgbImage, path: &Path) -> Result<(), SynthError> {
+    img.save(path).map_err(|source| SynthError::Image {
+        path: path.to_owned(),
+        source,
+    })
+}
+
+/// Writes the sequence `cfg` describes into `dir`: camera.json, frames/,
+/// init.csv, poses.csv (ground truth), keyframes/ (images and poses.csv),
+/// model.ply (`model_points` points sampled from the mesh) and mesh.obj.
+/// `progress` is called after each frame with (done, total).
+pub fn write_sequence(
+    cfg: &SynthConfig,
+    dir: &Path,
+    model_points: usize,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<SequenceSummary, SynthError> {
+    let object =
+        SynthObject::by_name(&cfg.object).ok_or_else(|| SynthError::UnknownObject(cfg.object.clone()))?;
+    if cfg.frames < 2 {
+        return Err(SynthError::TooFewFrames(cfg.frames));
+    }
+    let frames_dir = dir.join("frames");
+    let kf_dir = dir.join("keyframes");
+    for d in [dir, &frames_dir, &kf_dir] {
+        std::fs::create_dir_all(d).map_err(io_err(d))?;
+    }
+    let cam = &cfg.camera;
+    let cam_path = dir.join("camera.json");
+    let cam_json = format!(
+        "{{\"width\": {}, \"height\": {}, \"fx\": {}, \"fy\": {}, \"cx\": {}, \"cy\": {}, \"distortion\": [0.0, 0.0, 0.0, 0.0, 0.0]}}\n",
+        cam.width, cam.height, cam.fx, cam.fy, cam.cx, cam.cy
+    );
+    std::fs::write(&cam_path, cam_json).map_err(io_err(&cam_path))?;
+    let obj_path = dir.join("mesh.obj");
+    std::fs::write(&obj_path, object.mesh.to_obj()).map_err(io_err(&obj_path))?;
+    let model = sample_model(&object, model_points, cfg.seed)?;
+    model.save_ply(dir.join("model.ply"))?;
+
+    let bg = background(cam, cfg.seed);
+    let n_kf = keyframe_poses(cfg.distance).len();
+    let total = cfg.frames + n_kf;
+    let mut rows = Vec::with_capacity(cfg.frames);
+    let mut poses = Vec::with_capacity(cfg.frames);
+    for i in 0..cfg.frames {
+        let f = render_frame(cfg, &object, &bg, i);
+        save_png(&f.image, &frames_dir.join(format!("{i:06}.png")))?;
+        rows.push(PoseRow::new(format!("{i:06}"), f.pose));
+        poses.push(f.pose);
+        progress(i + 1, total);
+    }
+    write_poses(&dir.join("poses.csv"), &rows)?;
+    write_poses(&dir.join("init.csv"), &rows[..1])?;
+
+    // Keyframes: same renderer, same light model, their own noise.
+    let mut kf_rows = Vec::new();
+    for (k, pose) in keyframe_poses(cfg.distance).into_iter().enumerate() {
+        let r = super::raster::render(
+            &object,
+            &pose,
+            cam,
+            &super::Light::moving(0.3 * k as f64),
+            &bg,
+            cfg.samples,
+        );
+        let mut rng = Rng::new(cfg.seed ^ (0xCAFE + k as u64));
+        let img = super::to_image(&r.rgb, cam, cfg.noise, &mut rng);
+        let name = format!("kf{k:02}.png");
+        save_png(&img, &kf_dir.join(&name))?;
+        kf_rows.push(PoseRow::new(name, pose));
+        progress(cfg.frames + k + 1, total);
+    }
+    write_poses(&kf_dir.join("poses.csv"), &kf_rows)?;
+    Ok(SequenceSummary {
+        dir: dir.to_owned(),
+        frames: cfg.frames,
+        keyframes: kf_rows.len(),
+        model_points: model.len(),
+        diameter: object.mesh.diameter(),
+        poses,
+    })
+}

@@ -1,0 +1,600 @@
+//! The tracker (Dehais et al. 2010, sections 4 and 5): iterative
+//! frame-to-frame tracking (IT), tracking against keyframe-textured novel
+//! views (KF), and both in turn (KF+IT).
+//!
+//! How it works, per frame `t` (DESIGN.md section 4):
+//! 1. Harris corners of the frame, inside the object's projected bounding
+//!    circle (plus a margin) at the previous pose.
+//! 2. IT: the motion predictors are splatted at the previous pose `E_{t-1}`;
+//!    the previous frame's corners that land on the object (the splat covers
+//!    them) are matched to the new corners by NCC (mutual best within a
+//!    search radius); the predictors gathered at the old positions and the
+//!    displacements give a robust update `a` (IRLS):
+//!    `E_t' = exp(a^) E_{t-1}`.
+//! 3. KF: the keyframe whose viewpoint is closest to `E_t'` textures the model;
+//!    a novel view and its predictors are splatted at `E_t'` in one pass;
+//!    corners of the novel view (never on its empty pixels) are matched to the
+//!    frame's corners, and IRLS gives the correction: `E_t = exp(a'^) E_t'`.
+//! 4. Each step is refined beyond the paper's single linear solve by a few
+//!    Gauss-Newton iterations: the matched points are lifted to 3-D with the
+//!    splatted depth, re-projected at the updated pose, and the residuals
+//!    solved again with the same robust loss (measured: it removes the
+//!    first-order error of large motions).
+//! 5. The frame is `lost` when too few inliers survive or their residual is
+//!    too large; the pose then stays at the last good one, and the next
+//!    frames try to recover against the keyframes with a wide search.
+
+use crate::features::{Corner, GreyImage, Harris, HarrisConfig, NccConfig, NccMatcher};
+use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::GpuContext;
+use crate::keyframes::KeyframeStore;
+use crate::model::PointModel;
+use crate::pose::{IrlsConfig, IrlsResult, Observation, SolveError, irls};
+use crate::splat::{Attribute, Attributes, GatherMode, GpuModel, SplatTargets, Splatter};
+use nalgebra::{Vector2, Vector3};
+use std::time::{Duration, Instant};
+
+/// Which of the paper's trackers runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Mode {
+    /// Frame to frame only: smooth, but drifts.
+    It,
+    /// Against keyframe-textured novel views only: no drift, but jitter.
+    Kf,
+    /// IT, then KF from the IT estimate (the paper's hybrid).
+    #[default]
+    KfIt,
+}
+
+impl Mode {
+    pub const ALL: [Mode; 3] = [Mode::It, Mode::Kf, Mode::KfIt];
+
+    pub fn name(&self) -> &'static str {
+        match self {
+            Mode::It => "it",
+            Mode::Kf => "kf",
+            Mode::KfIt => "kf+it",
+        }
+    }
+}
+
+impl std::str::FromStr for Mode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s.to_ascii_lowercase().as_str() {
+            "it" => Ok(Mode::It),
+            "kf" => Ok(Mode::Kf),
+            "kf+it" | "kfit" | "it+kf" | "hybrid" => Ok(Mode::KfIt),
+            _ => Err(format!("unknown mode {s:?} (use kf+it, it or kf)")),
+        }
+    }
+}
+
+/// Tracker settings. Defaults follow the paper (900 corners, 9x9 NCC
+/// windows) and were tuned on the synthetic sequences.
+#[derive(Debug, Clone)]
+pub struct TrackerConfig {
+    pub mode: Mode,
+    pub harris: HarrisConfig,
+    pub ncc: NccConfig,
+    pub irls: IrlsConfig,
+    /// NCC search radius of frame-to-frame matching, pixels.
+    pub it_search_px: f32,
+    /// NCC search radius against the novel view, pixels.
+    pub kf_search_px: f32,
+    /// Search radius when recovering a lost track, pixels.
+    pub recover_search_px: f32,
+    /// Gauss-Newton refinements after each linear solve.
+    pub refine_iterations: usize,
+    /// KF steps per frame (each re-renders the novel view at the newest
+    /// estimate).
+    pub kf_iterations: usize,
+    /// Margin around the object's projected bounding circle where corners
+    /// are detected, pixels.
+    pub roi_margin_px: f64,
+    /// Fewer inliers than this in the last step: `lost`.
+    pub min_inliers: usize,
+    /// Inlier RMS residual above this: `lost`.
+    pub max_residual_px: f64,
+}
+
+impl Default for TrackerConfig {
+    fn default() -> Self {
+        Self {
+            mode: Mode::KfIt,
+            harris: HarrisConfig::default(),
+            ncc: NccConfig::default(),
+            irls: IrlsConfig::default(),
+            it_search_px: 40.0,
+            kf_search_px: 24.0,
+            recover_search_px: 80.0,
+            refine_iterations: 2,
+            kf_iterations: 1,
+            roi_margin_px: 24.0,
+            min_inliers: 12,
+            max_residual_px: 3.0,
+        }
+    }
+}
+
+/// Whether the track holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Status {
+    Tracking,
+    Lost,
+}
+
+impl Status {
+    pub fn name(&self) -> &'static str {
+        match self {
+            Status::Tracking => "tracking",
+            Status::Lost => "lost",
+        }
+    }
+}
+
+/// Wall-clock time of each stage of one frame (GPU work included, since
+/// every stage waits for its results).
+#[derive(Debug, Clone, Default)]
+pub struct StageTimes {
+    pub features: Duration,
+    pub it: Duration,
+    pub kf: Duration,
+    pub total: Duration,
+}
+
+/// What [`Tracker::track`] says about a frame.
+#[derive(Debug, Clone)]
+pub struct TrackResult {
+    pub pose: Pose,
+    /// Inliers of the last robust solve of this frame.
+    pub inliers: usize,
+    /// Their RMS reprojection residual, pixels.
+    pub residual_px: f64,
+    pub status: Status,
+    /// Why the frame is lost (when it is).
+    pub reason: Option<String>,
+    /// The keyframe used by the KF step, if any.
+    pub keyframe: Option<usize>,
+    pub times: StageTimes,
+}
+
+/// Errors that stop tracking (bad input, GPU failure), as opposed to a
+/// frame that is merely lost.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackError {
+    #[error("frame is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
+    FrameSize {
+        got_w: u32,
+        got_h: u32,
+        want_w: u32,
+        want_h: u32,
+    },
+    #[error("mode {0} needs keyframes or a model with colours")]
+    NeedsKeyframes(&'static str),
+    #[error("the initial pose puts the object behind the camera or outside the image")]
+    ObjectNotInView,
+    #[error(transparent)]
+    Camera(#[from] CameraInvalid),
+    #[error(transparent)]
+    Splat(#[from] crate::splat::SplatError),
+    #[error(transparent)]
+    Features(#[from] crate::features::FeatureError),
+    #[error(transparent)]
+    Pose(#[from] crate::geometry::PoseError),
+    #[error(transparent)]
+    Keyframes(#[from] crate::keyframes::KeyframeError),
+}
+
+/// An impossible camera.
+#[derive(Debug, thiserror::Error)]
+#[error("impossible camera: {0}")]
+pub struct CameraInvalid(pub String);
+
+struct PrevFrame {
+    grey: GreyImage,
+    corners: Vec<Corner>,
+}
+
+/// The outcome of one robust step.
+struct Step {
+    pose: Pose,
+    solve: IrlsResult,
+}
+
+/// The tracker: create once per sequence, then call [`Tracker::track`] on
+/// each frame in order.
+pub struct Tracker<'a> {
+    ctx: &'a GpuContext,
+    cam: Intrinsics,
+    config: TrackerConfig,
+    model: PointModel,
+    store: Option<KeyframeStore>,
+    splatter: Splatter,
+    geometry: GpuModel,
+    textured: Vec<Option<GpuModel>>,
+    targets: SplatTargets,
+    harris: Harris<'a>,
+    it_matcher: NccMatcher<'a>,
+    kf_matcher: NccMatcher<'a>,
+    recover_matcher: NccMatcher<'a>,
+    center: Vector3<f64>,
+    radius: f64,
+    pose: Pose,
+    prev: Option<PrevFrame>,
+    lost_streak: usize,
+}
+
+impl<'a> Tracker<'a> {
+    /// A tracker for `model` seen by `cam` (undistorted frames), starting at
+    /// `initial` (the pose of the first frame given to [`Tracker::track`]).
+    /// `keyframes` may be `None` for the IT mode, or when the model has
+    /// colours (they then serve as the single texture).
+    pub fn new(
+        ctx: &'a GpuContext,
+        model: PointModel,
+        cam: Intrinsics,
+        keyframes: Option<KeyframeStore>,
+        config: TrackerConfig,
+        initial: Pose,
+    ) -> Result<Self, TrackError> {
+        cam.validate().map_err(CameraInvalid)?;
+        initial.validate()?;
+        let store = keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial));
+        if store.is_none() && config.mode != Mode::It {
+            return Err(TrackError::NeedsKeyframes(config.mode.name()));
+        }
+        let splatter = Splatter::new(ctx)?;
+        let geometry = GpuModel::new(ctx, &model)?;
+        let targets = SplatTargets::new(ctx, cam.width, cam.height);
+        let harris = Harris::new(ctx, config.harris.clone())?;
+        let matcher = |r: f32| {
+            NccMatcher::new(ctx, config.ncc.clone().with_search_radius(Some(r)))
+        };
+        let (lo, hi) = model.bounds();
+        let c = (lo + hi) * 0.5;
+        let center = Vector3::new(c.x as f64, c.y as f64, c.z as f64);
+        let radius = model
+            .positions
+            .iter()
+            .map(|p| (Vector3::new(p.x as f64, p.y as f64, p.z as f64) - center).norm())
+            .fold(0.0, f64::max);
+        let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
+        let tracker = Self {
+            ctx,
+            it_matcher: matcher(config.it_search_px)?,
+            kf_matcher: matcher(config.kf_search_px)?,
+            recover_matcher: matcher(config.recover_search_px)?,
+            cam,
+            config,
+            model,
+            store,
+            splatter,
+            geometry,
+            textured: (0..n_kf).map(|_| None).collect(),
+            targets,
+            harris,
+            center,
+            radius,
+            pose: initial,
+            prev: None,
+            lost_streak: 0,
+        };
+        if tracker.roi(&initial).is_none() {
+            return Err(TrackError::ObjectNotInView);
+        }
+        Ok(tracker)
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    pub fn keyframes(&self) -> Option<&KeyframeStore> {
+        self.store.as_ref()
+    }
+
+    /// The object's projected bounding circle plus the margin, as a pixel
+    /// rectangle (x0, y0, x1, y1) clipped to the image; `None` when the
+    /// object is behind the camera or wholly outside the image.
+    fn roi(&self, pose: &Pose) -> Option<(usize, usize, usize, usize)> {
+        let c = pose.transform_point(&self.center);
+        if c.z <= self.radius * 0.1 {
+            return None;
+        }
+        let uv = self.cam.project(&c)?;
+        let r = self.cam.fx.max(self.cam.fy) * self.radius / (c.z - self.radius).max(c.z * 0.1)
+            + self.config.roi_margin_px;
+        let (w, h) = (self.cam.width as f64, self.cam.height as f64);
+        let x0 = (uv.x - r).floor().max(0.0);
+        let y0 = (uv.y - r).floor().max(0.0);
+        let x1 = (uv.x + r).ceil().min(w - 1.0);
+        let y1 = (uv.y + r).ceil().min(h - 1.0);
+        (x0 <= x1 && y0 <= y1).then_some((x0 as usize, y0 as usize, x1 as usize, y1 as usize))
+    }
+
+    fn roi_mask(&self, pose: &Pose) -> Vec<bool> {
+        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
+        let mut mask = vec![false; w * h];
+        if let Some((x0, y0, x1, y1)) = self.roi(pose) {
+            for y in y0..=y1 {
+                mask[y * w + x0..=y * w + x1].fill(true);
+            }
+        }
+        mask
+    }
+
+    /// Tracks one frame (RGB, undistorted, the camera's size).
+    pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
+        if frame.width() != self.cam.width || frame.height() != self.cam.height {
+            return Err(TrackError::FrameSize {
+                got_w: frame.width(),
+                got_h: frame.height(),
+                want_w: self.cam.width,
+                want_h: self.cam.height,
+            });
+        }
+        let t0 = Instant::now();
+        let mut times = StageTimes::default();
+        let grey = GreyImage::from_dynamic(&image::DynamicImage::ImageRgb8(frame.clone()));
+        let start_pose = self.pose;
+        let mask = self.roi_mask(&start_pose);
+        let corners = self.harris.detect(&grey, Some(&mask))?;
+        times.features = t0.elapsed();
+
+        let mut pose = start_pose;
+        let mut last: Option<IrlsResult> = None;
+        let mut reason: Option<String> = None;
+        let mut keyframe = None;
+        let recovering = self.lost_streak > 0;
+
+        // IT: needs a previous frame; skipped while recovering.
+        let t_it = Instant::now();
+        if matches!(self.config.mode, Mode::It | Mode::KfIt) && !recovering {
+            if let Some(prev) = self.prev.take() {
+                match self.it_step(&prev, &grey, &corners, &pose) {
+                    Ok(step) => {
+                        pose = step.pose;
+                        last = Some(step.solve);
+                    }
+                    Err(e) => reason = Some(format!("IT: {e}")),
+                }
+            }
+        }
+        times.it = t_it.elapsed();
+
+        let t_kf = Instant::now();
+        let use_kf = matches!(self.config.mode, Mode::Kf | Mode::KfIt)
+            || (recovering && self.store.is_some());
+        if use_kf && self.store.is_some() {
+            for it in 0..self.config.kf_iterations.max(1) {
+                let wide = recovering && it == 0;
+                match self.kf_step(&grey, &corners, &pose, wide) {
+                    Ok((step, k)) => {
+                        pose = step.pose;
+                        last = Some(step.solve);
+                        keyframe = Some(k);
+                        reason = None;
+                    }
+                    Err(e) => {
+                        reason = Some(format!("KF: {e}"));
+                        break;
+                    }
+                }
+            }
+        }
+        times.kf = t_kf.elapsed();
+
+        // The first frame of a sequence has nothing to track against in IT
+        // mode: it is the initial pose, by definition tracking.
+        let first_it_frame = self.config.mode == Mode::It && last.is_none() && reason.is_none();
+        let (status, inliers, residual) = match &last {
+            Some(s) if s.inlier_count >= self.config.min_inliers
+                && s.residual_rms_px <= self.config.max_residual_px
+                && reason.is_none() =>
+            {
+                (Status::Tracking, s.inlier_count, s.residual_rms_px)
+            }
+            Some(s) => {
+                reason.get_or_insert_with(|| {
+                    format!(
+                        "{} inliers, residual {:.2} px (need >= {} and <= {:.1} px)",
+                        s.inlier_count,
+                        s.residual_rms_px,
+                        self.config.min_inliers,
+                        self.config.max_residual_px
+                    )
+                });
+                (Status::Lost, s.inlier_count, s.residual_rms_px)
+            }
+            None if first_it_frame => (Status::Tracking, 0, 0.0),
+            None => (Status::Lost, 0, f64::NAN),
+        };
+        if status == Status::Tracking {
+            self.pose = pose;
+            self.lost_streak = 0;
+        } else {
+            // Keep the last good pose: never report a pose that failed.
+            self.lost_streak += 1;
+        }
+        self.prev = Some(PrevFrame { grey, corners });
+        times.total = t0.elapsed();
+        Ok(TrackResult {
+            pose: self.pose,
+            inliers,
+            residual_px: residual,
+            status,
+            reason: if status == Status::Lost { reason } else { None },
+            keyframe,
+            times,
+        })
+    }
+
+    /// Frame-to-frame step from the previous frame's corners.
+    fn it_step(
+        &mut self,
+        prev: &PrevFrame,
+        grey: &GreyImage,
+        corners: &[Corner],
+        pose: &Pose,
+    ) -> Result<Step, String> {
+        self.splatter
+            .render(self.ctx, &self.geometry, &self.cam, pose, Attributes::ALL, &mut self.targets)
+            .map_err(|e| e.to_string())?;
+        let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
+        let samples = self
+            .splatter
+            .gather(self.ctx, &self.targets, &pts, GatherMode::Bilinear)
+            .map_err(|e| e.to_string())?;
+        // Only corners on the object take part.
+        let on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
+        let src: Vec<Corner> = on_object.iter().map(|&i| prev.corners[i]).collect();
+        let matches = self
+            .it_matcher
+            .match_features(&prev.grey, &src, grey, corners)
+            .map_err(|e| e.to_string())?;
+        let obs: Vec<(Observation, Vector3<f64>, Vector2<f64>)> = matches
+            .iter()
+            .map(|m| {
+                let s = &samples[on_object[m.a]];
+                let a = &src[m.a];
+                let b = &corners[m.b];
+                let from = Vector2::new(a.x as f64, a.y as f64);
+                let to = Vector2::new(b.x as f64, b.y as f64);
+                (
+                    Observation {
+                        predictors: s.matrix(),
+                        displacement: to - from,
+                    },
+                    self.lift(&from, s.depth as f64, pose),
+                    to,
+                )
+            })
+            .collect();
+        self.solve_and_refine(&obs, pose)
+    }
+
+    /// One step against the novel view of the closest keyframe.
+    fn kf_step(
+        &mut self,
+        grey: &GreyImage,
+        corners: &[Corner],
+        pose: &Pose,
+        wide: bool,
+    ) -> Result<(Step, usize), String> {
+        let store = self.store.as_ref().ok_or("no keyframes")?;
+        let k = store.closest(pose);
+        if self.textured[k].is_none() {
+            let m = store.textured(&self.model, k);
+            self.textured[k] = Some(GpuModel::new(self.ctx, &m).map_err(|e| e.to_string())?);
+        }
+        let gm = self.textured[k].as_ref().ok_or("keyframe model missing")?;
+        self.splatter
+            .render(self.ctx, gm, &self.cam, pose, Attributes::ALL, &mut self.targets)
+            .map_err(|e| e.to_string())?;
+        let colour = self
+            .splatter
+            .read(self.ctx, &self.targets, Attribute::Color)
+            .map_err(|e| e.to_string())?;
+        let view = GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)
+            .map_err(|e| e.to_string())?;
+        let view_corners = self.harris.detect(&view, None).map_err(|e| e.to_string())?;
+        let matcher = if wide {
+            &mut self.recover_matcher
+        } else {
+            &mut self.kf_matcher
+        };
+        let matches = matcher
+            .match_features(&view, &view_corners, grey, corners)
+            .map_err(|e| e.to_string())?;
+        let pts: Vec<[f32; 2]> = matches
+            .iter()
+            .map(|m| [view_corners[m.a].x, view_corners[m.a].y])
+            .collect();
+        let samples = self
+            .splatter
+            .gather(self.ctx, &self.targets, &pts, GatherMode::Bilinear)
+            .map_err(|e| e.to_string())?;
+        let obs: Vec<(Observation, Vector3<f64>, Vector2<f64>)> = matches
+            .iter()
+            .zip(&samples)
+            .filter(|(_, s)| s.valid)
+            .map(|(m, s)| {
+                let a = &view_corners[m.a];
+                let b = &corners[m.b];
+                let from = Vector2::new(a.x as f64, a.y as f64);
+                let to = Vector2::new(b.x as f64, b.y as f64);
+                (
+                    Observation {
+                        predictors: s.matrix(),
+                        displacement: to - from,
+                    },
+                    self.lift(&from, s.depth as f64, pose),
+                    to,
+                )
+            })
+            .collect();
+        self.solve_and_refine(&obs, pose).map(|s| (s, k))
+    }
+
+    /// The object-frame point seen at pixel `uv` with camera depth `z` at
+    /// `pose`.
+    fn lift(&self, uv: &Vector2<f64>, z: f64, pose: &Pose) -> Vector3<f64> {
+        pose.inverse().transform_point(&self.cam.unproject(uv, z))
+    }
+
+    /// The paper's linear solve, then Gauss-Newton refinements that
+    /// re-project the lifted points at the updated pose.
+    fn solve_and_refine(
+        &self,
+        obs: &[(Observation, Vector3<f64>, Vector2<f64>)],
+        pose: &Pose,
+    ) -> Result<Step, String> {
+        let linear: Vec<Observation> = obs.iter().map(|o| o.0).collect();
+        let first = irls(&linear, &self.config.irls).map_err(|e: SolveError| e.to_string())?;
+        let mut current = pose.apply_twist(&first.twist);
+        let mut solve = first;
+        for _ in 0..self.config.refine_iterations {
+            let refined: Vec<Observation> = obs
+                .iter()
+                .filter_map(|(_, x, to)| {
+                    let xc = current.transform_point(x);
+                    let uv = self.cam.project(&xc)?;
+                    Some(Observation {
+                        predictors: self.cam.motion_predictors(&xc),
+                        displacement: to - uv,
+                    })
+                })
+                .collect();
+            match irls(&refined, &self.config.irls) {
+                Ok(s) => {
+                    current = current.apply_twist(&s.twist);
+                    let small = s.twist.norm() < 1e-9;
+                    solve = s;
+                    if small {
+                        break;
+                    }
+                }
+                Err(_) => break,
+            }
+        }
+        Ok(Step {
+            pose: current.orthonormalized(),
+            solve,
+        })
+    }
+
+    /// Renders the model at `pose` and returns its coverage mask (for
+    /// overlays): one flag per pixel.
+    pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
+        self.splatter
+            .render(self.ctx, &self.geometry, &self.cam, pose, Attributes::COLOR, &mut self.targets)?;
+        let w = self.splatter.read(self.ctx, &self.targets, Attribute::Weight)?;
+        Ok(w.data.iter().map(|v| *v > 0.0 && !v.is_nan()).collect())
+    }
+}

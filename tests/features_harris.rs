@@ -1,0 +1,406 @@
+//! Harris corners: GPU against the CPU reference on random images, known
+//! answers (rotated squares, a checkerboard), masks, invalid pixels and
+//! degenerate inputs. Runs on lavapipe in CI.
+
+use splattrack::features::patterns::{self, Square};
+use splattrack::features::{
+    Corner, FeatureError, GreyImage, Harris, HarrisConfig, harris_cpu, harris_response_cpu,
+};
+use splattrack::gpu::{self, GpuContext};
+
+fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+fn random_images() -> Vec<(&'static str, GreyImage)> {
+    vec![
+        ("smooth noise 97x73", patterns::smooth_noise(97, 73, 1.5, 1)),
+        (
+            "smooth noise 160x120",
+            patterns::smooth_noise(160, 120, 2.5, 2),
+        ),
+        ("polygons 131x89", patterns::polygons(131, 89, 12, 3)),
+        ("polygons 64x64", patterns::polygons(64, 64, 6, 4)),
+    ]
+}
+
+/// Tolerance on the response map: 1e-5 of the image's largest response
+/// (f32 sums in the same order; the GPU may fuse multiply-adds).
+#[test]
+fn gpu_response_matches_cpu_on_random_images() {
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    for (name, img) in random_images() {
+        let gpu = harris.response(&img).unwrap();
+        let cpu = harris_response_cpu(&img, &cfg).unwrap();
+        let max = cpu.iter().fold(0f32, |m, v| m.max(v.abs().min(1e30)));
+        assert!(max > 0.0, "{name}: flat response");
+        let mut worst = 0f32;
+        for (i, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+            let invalid = *c <= -1e38;
+            assert_eq!(*g <= -1e38, invalid, "{name}: validity differs at {i}");
+            if !invalid {
+                worst = worst.max((g - c).abs() / max);
+            }
+        }
+        assert!(
+            worst <= 1e-5,
+            "{name}: max |gpu - cpu| = {worst} of max response"
+        );
+    }
+}
+
+/// Same corners, positions within 1e-3 px, scores within 1e-4 relative.
+fn assert_same_corners(name: &str, gpu: &[Corner], cpu: &[Corner]) {
+    assert_eq!(gpu.len(), cpu.len(), "{name}: corner counts differ");
+    for c in cpu {
+        let g = gpu
+            .iter()
+            .min_by(|a, b| {
+                let da = (a.x - c.x).powi(2) + (a.y - c.y).powi(2);
+                let db = (b.x - c.x).powi(2) + (b.y - c.y).powi(2);
+                da.total_cmp(&db)
+            })
+            .unwrap();
+        let d = ((g.x - c.x).powi(2) + (g.y - c.y).powi(2)).sqrt();
+        assert!(d <= 1e-3, "{name}: cpu corner {c:?} vs gpu {g:?}: {d} px");
+        assert!(
+            (g.score - c.score).abs() <= 1e-4 * c.score.abs(),
+            "{name}: scores {} vs {}",
+            g.score,
+            c.score
+        );
+    }
+}
+
+#[test]
+fn gpu_corners_match_cpu_on_random_images() {
+    let configs = [
+        HarrisConfig::default(),
+        HarrisConfig::default()
+            .with_max_corners(25)
+            .with_grid_cell(20),
+        HarrisConfig::default().with_refine(false).with_k(0.06),
+        HarrisConfig::default()
+            .with_sigmas(1.4, 2.0)
+            .with_grid_cell(0)
+            .with_max_corners(40),
+    ];
+    for (ci, cfg) in configs.iter().enumerate() {
+        let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+        for (name, img) in random_images() {
+            let gpu = harris.detect(&img, None).unwrap();
+            let cpu = harris_cpu(&img, cfg, None).unwrap();
+            assert!(!cpu.is_empty(), "{name}: no corners");
+            assert!(cpu.len() <= cfg.max_corners);
+            assert_same_corners(&format!("config {ci}, {name}"), &gpu, &cpu);
+        }
+    }
+}
+
+/// Detections within `radius` of `p`.
+fn near(corners: &[Corner], p: [f32; 2], radius: f32) -> Vec<Corner> {
+    corners
+        .iter()
+        .filter(|c| (c.x - p[0]).hypot(c.y - p[1]) <= radius)
+        .copied()
+        .collect()
+}
+
+/// Every true corner: exactly one detection within 3 px, and it is within
+/// 1 px of the truth. Returns the worst error.
+fn assert_known_corners(name: &str, corners: &[Corner], truth: &[[f32; 2]]) -> f32 {
+    let mut worst = 0f32;
+    for t in truth {
+        let close = near(corners, *t, 3.0);
+        assert_eq!(close.len(), 1, "{name}: detections near {t:?}: {close:?}");
+        let d = (close[0].x - t[0]).hypot(close[0].y - t[1]);
+        assert!(
+            d <= 1.0,
+            "{name}: corner {t:?} found at {:?} ({d} px)",
+            close[0]
+        );
+        worst = worst.max(d);
+    }
+    worst
+}
+
+#[test]
+fn refined_corners_of_rotated_squares_are_within_one_pixel() {
+    let sq = [
+        Square {
+            cx: 40.3,
+            cy: 38.7,
+            half: 16.0,
+            angle: 0.0,
+        },
+        Square {
+            cx: 112.6,
+            cy: 41.2,
+            half: 18.5,
+            angle: 0.35,
+        },
+        Square {
+            cx: 45.1,
+            cy: 112.4,
+            half: 20.0,
+            angle: 0.785,
+        },
+        Square {
+            cx: 118.8,
+            cy: 116.9,
+            half: 15.0,
+            angle: -0.2,
+        },
+    ];
+    let (img, truth) = patterns::squares(160, 160, &sq, 0.15, 0.85);
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    let gpu = harris.detect(&img, None).unwrap();
+    let cpu = harris_cpu(&img, &cfg, None).unwrap();
+    let worst_gpu = assert_known_corners("squares (gpu)", &gpu, &truth);
+    let worst_cpu = assert_known_corners("squares (cpu)", &cpu, &truth);
+    // Without refinement the maxima sit inside the corners: the test is
+    // only meaningful if refinement is what brings them within 1 px.
+    let plain = harris_cpu(&img, &cfg.clone().with_refine(false), None).unwrap();
+    let plain_worst = truth
+        .iter()
+        .map(|t| {
+            near(&plain, *t, 4.0)
+                .iter()
+                .map(|c| (c.x - t[0]).hypot(c.y - t[1]))
+                .fold(f32::MAX, f32::min)
+        })
+        .fold(0f32, f32::max);
+    eprintln!(
+        "squares: worst error refined gpu {worst_gpu:.3} px, cpu {worst_cpu:.3} px; unrefined {plain_worst:.3} px"
+    );
+    // No detection away from the 16 true corners.
+    for c in &gpu {
+        assert!(
+            truth.iter().any(|t| (c.x - t[0]).hypot(c.y - t[1]) <= 1.0),
+            "spurious corner {c:?}"
+        );
+    }
+}
+
+#[test]
+fn refined_checkerboard_corners_are_within_one_pixel_once_each() {
+    let (img, truth) = patterns::checkerboard(200, 170, [45.3, 20.6], 14.0, 0.3, 8, 7);
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    let gpu = harris.detect(&img, None).unwrap();
+    let cpu = harris_cpu(&img, &cfg, None).unwrap();
+    let worst_gpu = assert_known_corners("checkerboard (gpu)", &gpu, &truth);
+    let worst_cpu = assert_known_corners("checkerboard (cpu)", &cpu, &truth);
+    eprintln!(
+        "checkerboard: {} X-junctions, worst error gpu {worst_gpu:.3} px, cpu {worst_cpu:.3} px",
+        truth.len()
+    );
+}
+
+#[test]
+fn mask_and_invalid_pixels_keep_corners_out() {
+    let img = patterns::polygons(120, 90, 14, 7);
+    let cfg = HarrisConfig::default().with_refine(false);
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    // Mask: left half only.
+    let mask: Vec<bool> = (0..img.data.len()).map(|i| i % 120 < 60).collect();
+    let gpu = harris.detect(&img, Some(&mask)).unwrap();
+    let cpu = harris_cpu(&img, &cfg, Some(&mask)).unwrap();
+    assert!(!gpu.is_empty());
+    assert!(gpu.iter().all(|c| c.x < 60.0), "{gpu:?}");
+    assert_same_corners("mask", &gpu, &cpu);
+
+    // NaN disc (an empty region of a rendered view): no corner's support
+    // may touch it, so every corner is farther than the support radius.
+    let mut holed = img.clone();
+    for y in 0..90 {
+        for x in 0..120 {
+            if (x as f32 - 60.0).hypot(y as f32 - 45.0) < 20.0 {
+                holed.data[y * 120 + x] = f32::NAN;
+            }
+        }
+    }
+    let r = cfg.support_radius() as f32;
+    let gpu = harris.detect(&holed, None).unwrap();
+    let cpu = harris_cpu(&holed, &cfg, None).unwrap();
+    assert!(!gpu.is_empty());
+    for c in &gpu {
+        // The nearest NaN pixel is at distance >= hypot - 20 (Chebyshev
+        // support is larger than the Euclidean one, so be generous).
+        assert!((c.x - 60.0).hypot(c.y - 45.0) >= 20.0 + r - 1.0, "{c:?}");
+        assert!(
+            c.x >= r && c.y >= r && c.x <= 119.0 - r && c.y <= 89.0 - r,
+            "{c:?}"
+        );
+    }
+    assert_same_corners("NaN hole", &gpu, &cpu);
+}
+
+#[test]
+fn degenerate_images_give_no_corners_and_no_panic() {
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    let cases = [
+        GreyImage::filled(0, 0, 0.0),
+        GreyImage::filled(1, 1, 0.5),
+        GreyImage::filled(5, 3, 0.5),
+        GreyImage::filled(17, 17, 0.5),
+        GreyImage::filled(40, 30, f32::NAN),
+        GreyImage::filled(0, 7, 0.0),
+        GreyImage::from_fn(12, 9, |x, y| ((x * 7 + y * 3) % 5) as f32),
+    ];
+    for img in &cases {
+        let g = harris.detect(img, None).unwrap();
+        let c = harris_cpu(img, &cfg, None).unwrap();
+        assert_eq!(g.len(), c.len(), "{}x{}", img.width, img.height);
+        if img.width <= 17 {
+            // Support radius 8: a 17-pixel side has one interior pixel at
+            // most, so no local maximum can be a corner.
+            assert!(g.len() <= 1);
+        }
+    }
+    // Constant images have no corners at all.
+    assert!(harris.detect(&cases[3], None).unwrap().is_empty());
+    // Growing then shrinking reuses buffers correctly.
+    let big = patterns::polygons(150, 100, 10, 9);
+    let small = patterns::polygons(50, 40, 4, 10);
+    for img in [&big, &small, &big] {
+        assert_same_corners(
+            "resize",
+            &harris.detect(img, None).unwrap(),
+            &harris_cpu(img, &cfg, None).unwrap(),
+        );
+    }
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let img = GreyImage::filled(10, 10, 0.5);
+    let mut harris = Harris::new(ctx(), HarrisConfig::default()).unwrap();
+    assert!(matches!(
+        harris.detect(&img, Some(&[true; 3])),
+        Err(FeatureError::MaskSize { .. })
+    ));
+    let broken = GreyImage {
+        width: 10,
+        height: 10,
+        data: vec![0.0; 7],
+    };
+    assert!(matches!(
+        harris.detect(&broken, None),
+        Err(FeatureError::ImageSize { .. })
+    ));
+    for cfg in [
+        HarrisConfig::default().with_max_corners(0),
+        HarrisConfig::default().with_sigmas(0.0, 1.5),
+        HarrisConfig::default().with_sigmas(1.0, 50.0),
+        HarrisConfig::default().with_k(f32::NAN),
+        HarrisConfig::default().with_relative_threshold(2.0),
+    ] {
+        assert!(matches!(
+            Harris::new(ctx(), cfg.clone()),
+            Err(FeatureError::Config(_))
+        ));
+        assert!(matches!(
+            harris_cpu(&img, &cfg, None),
+            Err(FeatureError::Config(_))
+        ));
+    }
+}
+
+#[test]
+fn selection_is_spread_over_the_image() {
+    // Strong texture on the left, weak on the right: a plain best-N takes
+    // everything from the left, the grid keeps the right alive.
+    let strong = patterns::smooth_noise(200, 100, 1.5, 11);
+    let img = GreyImage::from_fn(200, 100, |x, y| {
+        let v = strong.get(x, y);
+        if x < 100 { v } else { 0.5 + 0.5 * (v - 0.5) }
+    });
+    let n = 60;
+    let spread = harris_cpu(&img, &HarrisConfig::default().with_max_corners(n), None).unwrap();
+    let plain = harris_cpu(
+        &img,
+        &HarrisConfig::default()
+            .with_max_corners(n)
+            .with_grid_cell(0),
+        None,
+    )
+    .unwrap();
+    let right = |cs: &[Corner]| cs.iter().filter(|c| c.x >= 100.0).count();
+    assert!(
+        right(&spread) >= n / 4,
+        "grid: {} of {n} on the right",
+        right(&spread)
+    );
+    assert!(right(&plain) < right(&spread));
+}
+
+#[test]
+fn pass_timings_are_reported_when_enabled() {
+    let img = patterns::polygons(64, 48, 5, 12);
+    let mut harris = Harris::new(ctx(), HarrisConfig::default()).unwrap();
+    harris.enable_timing();
+    for _ in 0..3 {
+        // Repeated calls (and response maps) must not fill the timer up.
+        harris.response(&img).unwrap();
+        let corners = harris.detect(&img, None).unwrap();
+        let t = harris.last_timings();
+        if ctx().has_timestamps() {
+            let labels: Vec<&str> = t.passes.iter().map(|(l, _)| l.as_str()).collect();
+            assert!(labels.starts_with(&[
+                "deriv_h",
+                "deriv_v",
+                "integrate_h",
+                "integrate_v",
+                "nms"
+            ]));
+            assert_eq!(labels.contains(&"refine"), !corners.is_empty());
+            assert!(t.passes.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0));
+        } else {
+            assert!(t.passes.is_empty());
+        }
+    }
+}
+
+#[test]
+fn gpu_grey_conversion_of_rgb_frames_matches_cpu() {
+    // Each channel an independent random polygon picture.
+    let (w, h) = (120, 90);
+    let ch: Vec<GreyImage> = (0..3)
+        .map(|s| patterns::polygons(w, h, 10, 80 + s))
+        .collect();
+    let rgb = image::RgbImage::from_fn(w as u32, h as u32, |x, y| {
+        image::Rgb(std::array::from_fn(|c| {
+            (ch[c].get(x as usize, y as usize) * 255.0).round() as u8
+        }))
+    });
+    let grey = GreyImage::from_rgb8(&rgb);
+    let mask: Vec<bool> = (0..w * h).map(|i| (i / w) < 60).collect();
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    for m in [None, Some(&mask[..])] {
+        let gpu = harris.detect_rgb8(&rgb, m).unwrap();
+        let cpu = harris_cpu(&grey, &cfg, m).unwrap();
+        assert!(!cpu.is_empty());
+        assert_same_corners("rgb8", &gpu, &cpu);
+        if m.is_some() {
+            assert!(
+                gpu.iter()
+                    .all(|c| c.y < 60.0 + 0.5 + cfg.refine_radius as f32)
+            );
+        }
+    }
+    assert!(matches!(
+        harris.detect_rgb8(&rgb, Some(&mask[..10])),
+        Err(FeatureError::MaskSize { .. })
+    ));
+    assert!(
+        harris
+            .detect_rgb8(&image::RgbImage::new(0, 0), None)
+            .unwrap()
+            .is_empty()
+    );
+}
