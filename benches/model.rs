@@ -8,8 +8,8 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use splattrack::rng::Rng;
 use splattrack::model::{LoadOptions, PointModel, TriangleMesh};
+use splattrack::rng::Rng;
 use std::hint::black_box;
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -172,7 +172,14 @@ impl KeyframeStore {
         let mut keyframes = Vec::with_capacity(frames.len());
         for (name, img, pose) in frames {
             pose.validate()?;
-            splatter.render(ctx, &gpu_model, cam, pose, Attributes::GEOMETRY, &mut targets)?;
+            splatter.render(
+                ctx,
+                &gpu_model,
+                cam,
+                pose,
+                Attributes::GEOMETRY,
+                &mut targets,
+            )?;
             let depth = splatter.read(ctx, &targets, Attribute::Depth)?;
             let mut colors = vec![[0.0f32; 3]; model.len()];
             let mut visible = vec![false; model.len()];
@@ -210,7 +217,11 @@ impl KeyframeStore {
             if kf.visible_count() == 0 {
                 return Err(KeyframeError::NothingVisible { name: name.clone() });
             }
-            log::info!("keyframe {name}: {} of {} points visible", kf.visible_count(), model.len());
+            log::info!(
+                "keyframe {name}: {} of {} points visible",
+                kf.visible_count(),
+                model.len()
+            );
             keyframes.push(kf);
         }
         let mut store = Self {
@@ -337,7 +348,8 @@ impl KeyframeStore {
             }
             for k in &self.keyframes {
                 let name = k.name.as_bytes();
-                f.write_all(&(name.len() as u32).to_le_bytes()).map_err(io)?;
+                f.write_all(&(name.len() as u32).to_le_bytes())
+                    .map_err(io)?;
                 f.write_all(name).map_err(io)?;
                 for v in k.pose.to_row_major() {
                     f.write_all(&v.to_le_bytes()).map_err(io)?;
@@ -367,7 +379,8 @@ impl KeyframeStore {
         };
         let mut r = &bytes[..];
         let mut magic = [0u8; 8];
-        r.read_exact(&mut magic).map_err(|_| bad("file too short"))?;
+        r.read_exact(&mut magic)
+            .map_err(|_| bad("file too short"))?;
         if &magic != MAGIC {
             return Err(bad("wrong magic (expected SPLATKF1)"));
         }
@@ -397,7 +410,8 @@ impl KeyframeStore {
             if len > r.len() {
                 return Err(bad("truncated name"));
             }
-            let name = String::from_utf8(r[..len].to_vec()).map_err(|_| bad("name is not UTF-8"))?;
+            let name =
+                String::from_utf8(r[..len].to_vec()).map_err(|_| bad("name is not UTF-8"))?;
             r = &r[len..];
             let mut v = [0.0; 12];
             for x in &mut v {

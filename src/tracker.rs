@@ -248,9 +248,7 @@ impl<'a> Tracker<'a> {
         let geometry = GpuModel::new(ctx, &model)?;
         let targets = SplatTargets::new(ctx, cam.width, cam.height);
         let harris = Harris::new(ctx, config.harris.clone())?;
-        let matcher = |r: f32| {
-            NccMatcher::new(ctx, config.ncc.clone().with_search_radius(Some(r)))
-        };
+        let matcher = |r: f32| NccMatcher::new(ctx, config.ncc.clone().with_search_radius(Some(r)));
         let (lo, hi) = model.bounds();
         let c = (lo + hi) * 0.5;
         let center = Vector3::new(c.x as f64, c.y as f64, c.z as f64);
@@ -394,9 +392,10 @@ impl<'a> Tracker<'a> {
         // mode: it is the initial pose, by definition tracking.
         let first_it_frame = self.config.mode == Mode::It && last.is_none() && reason.is_none();
         let (status, inliers, residual) = match &last {
-            Some(s) if s.inlier_count >= self.config.min_inliers
-                && s.residual_rms_px <= self.config.max_residual_px
-                && reason.is_none() =>
+            Some(s)
+                if s.inlier_count >= self.config.min_inliers
+                    && s.residual_rms_px <= self.config.max_residual_px
+                    && reason.is_none() =>
             {
                 (Status::Tracking, s.inlier_count, s.residual_rms_px)
             }
@@ -444,7 +443,14 @@ impl<'a> Tracker<'a> {
         pose: &Pose,
     ) -> Result<Step, String> {
         self.splatter
-            .render(self.ctx, &self.geometry, &self.cam, pose, Attributes::ALL, &mut self.targets)
+            .render(
+                self.ctx,
+                &self.geometry,
+                &self.cam,
+                pose,
+                Attributes::ALL,
+                &mut self.targets,
+            )
             .map_err(|e| e.to_string())?;
         let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
         let samples = self
@@ -495,14 +501,22 @@ impl<'a> Tracker<'a> {
         }
         let gm = self.textured[k].as_ref().ok_or("keyframe model missing")?;
         self.splatter
-            .render(self.ctx, gm, &self.cam, pose, Attributes::ALL, &mut self.targets)
+            .render(
+                self.ctx,
+                gm,
+                &self.cam,
+                pose,
+                Attributes::ALL,
+                &mut self.targets,
+            )
             .map_err(|e| e.to_string())?;
         let colour = self
             .splatter
             .read(self.ctx, &self.targets, Attribute::Color)
             .map_err(|e| e.to_string())?;
-        let view = GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)
-            .map_err(|e| e.to_string())?;
+        let view =
+            GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)
+                .map_err(|e| e.to_string())?;
         let view_corners = self.harris.detect(&view, None).map_err(|e| e.to_string())?;
         let matcher = if wide {
             &mut self.recover_matcher
@@ -592,9 +606,17 @@ impl<'a> Tracker<'a> {
     /// Renders the model at `pose` and returns its coverage mask (for
     /// overlays): one flag per pixel.
     pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
-        self.splatter
-            .render(self.ctx, &self.geometry, &self.cam, pose, Attributes::COLOR, &mut self.targets)?;
-        let w = self.splatter.read(self.ctx, &self.targets, Attribute::Weight)?;
+        self.splatter.render(
+            self.ctx,
+            &self.geometry,
+            &self.cam,
+            pose,
+            Attributes::COLOR,
+            &mut self.targets,
+        )?;
+        let w = self
+            .splatter
+            .read(self.ctx, &self.targets, Attribute::Weight)?;
         Ok(w.data.iter().map(|v| *v > 0.0 && !v.is_nan()).collect())
     }
 }

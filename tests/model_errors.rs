@@ -5,8 +5,8 @@ mod model_common;
 
 use glam::Vec3;
 use model_common::{El, TempFile, Val, ply_bytes, sphere, vertex_element};
-use splattrack::rng::Rng;
 use splattrack::model::{LoadOptions, ModelError, PointModel, load_mesh_ply, load_obj};
+use splattrack::rng::Rng;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::path::Path;

@@ -6,8 +6,8 @@ mod model_common;
 
 use glam::{Vec2, Vec3};
 use model_common::{TempFile, ply_bytes, sphere, torus, vertex_element};
-use splattrack::rng::Rng;
 use splattrack::model::{AttributeSource, LoadOptions, PointModel};
+use splattrack::rng::Rng;
 
 fn quiet() -> LoadOptions {
     LoadOptions {

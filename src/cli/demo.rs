@@ -104,9 +104,12 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     let plot = args.out.join("errors.png");
-    eval::error_plot(&evals, &format!("{} / {}", cfg.object, cfg.trajectory.name()))
-        .save(&plot)
-        .with_context(|| format!("{}: cannot write", plot.display()))?;
+    eval::error_plot(
+        &evals,
+        &format!("{} / {}", cfg.object, cfg.trajectory.name()),
+    )
+    .save(&plot)
+    .with_context(|| format!("{}: cannot write", plot.display()))?;
     println!(
         "5. wrote the error plot {} and overlays in {}",
         plot.display(),

@@ -78,7 +78,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, None) => None,
     };
     if !(args.units_per_metre.is_finite() && args.units_per_metre > 0.0) {
-        bail!("--units-per-metre {}: must be a positive number", args.units_per_metre);
+        bail!(
+            "--units-per-metre {}: must be a positive number",
+            args.units_per_metre
+        );
     }
     if !args.names.is_empty() && args.names.len() != args.poses.len() {
         bail!(
@@ -128,7 +131,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("plot: {}", path.display());
     }
     if let Some(path) = &args.csv {
-        let mut s = String::from("run,frame,rotation_deg,translation,translation_pct,lost,excluded\n");
+        let mut s =
+            String::from("run,frame,rotation_deg,translation,translation_pct,lost,excluded\n");
         for e in &evals {
             for f in &e.frames {
                 s.push_str(&format!(
@@ -137,7 +141,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     f.frame,
                     f.rotation_deg,
                     f.translation,
-                    f.translation_pct.map_or(String::new(), |v| format!("{v:.4}")),
+                    f.translation_pct
+                        .map_or(String::new(), |v| format!("{v:.4}")),
                     f.lost as u8,
                     f.excluded as u8
                 ));

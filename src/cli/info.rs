@@ -44,16 +44,25 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             "bounds:    [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
             lo.x, lo.y, lo.z, hi.x, hi.y, hi.z
         );
-        println!("diameter:  {:.4} (bounding-box diagonal, model units)", m.diameter());
+        println!(
+            "diameter:  {:.4} (bounding-box diagonal, model units)",
+            m.diameter()
+        );
         println!("normals:   {}", src(p.normals));
         if p.normals_reestimated > 0 {
-            println!("           ({} zero or invalid normals re-estimated)", p.normals_reestimated);
+            println!(
+                "           ({} zero or invalid normals re-estimated)",
+                p.normals_reestimated
+            );
         }
         let mean_r = m.radii.iter().map(|&r| r as f64).sum::<f64>() / m.len() as f64;
         println!("radii:     {} (mean {mean_r:.5})", src(p.radii));
         println!("colours:   {}", src(p.colors));
         if p.dropped_non_finite > 0 {
-            println!("dropped:   {} points with NaN or infinite coordinates", p.dropped_non_finite);
+            println!(
+                "dropped:   {} points with NaN or infinite coordinates",
+                p.dropped_non_finite
+            );
         }
     }
     Ok(())

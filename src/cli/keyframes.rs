@@ -35,6 +35,10 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             store.points
         );
     }
-    println!("wrote {} ({} keyframes)", args.out.display(), store.keyframes.len());
+    println!(
+        "wrote {} ({} keyframes)",
+        args.out.display(),
+        store.keyframes.len()
+    );
     Ok(())
 }

@@ -53,16 +53,26 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
         );
     };
     if args.frames < 2 {
-        bail!("--frames {}: a sequence needs at least 2 frames", args.frames);
+        bail!(
+            "--frames {}: a sequence needs at least 2 frames",
+            args.frames
+        );
     }
     if !(16..=4096).contains(&args.width) || !(16..=4096).contains(&args.height) {
-        bail!("image size {}x{}: each side must be 16..4096", args.width, args.height);
+        bail!(
+            "image size {}x{}: each side must be 16..4096",
+            args.width,
+            args.height
+        );
     }
     if !(args.noise.is_finite() && (0.0..=0.5).contains(&args.noise)) {
         bail!("--noise {}: must be in 0..0.5", args.noise);
     }
     if args.points < 100 {
-        bail!("--points {}: too few to model the surface (at least 100)", args.points);
+        bail!(
+            "--points {}: too few to model the surface (at least 100)",
+            args.points
+        );
     }
     // Focal length scaled with the width: the same field of view (56 deg).
     let f = 600.0 * args.width as f64 / 640.0;
@@ -85,7 +95,11 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
 }
 
 /// Writes the sequence with a progress bar.
-pub fn write(cfg: &SynthConfig, dir: &Path, points: usize) -> anyhow::Result<sequence::SequenceSummary> {
+pub fn write(
+    cfg: &SynthConfig,
+    dir: &Path,
+    points: usize,
+) -> anyhow::Result<sequence::SequenceSummary> {
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("synth {bar:40} {pos}/{len} images [{elapsed} < {eta}]")

@@ -180,7 +180,9 @@ impl Setup {
             .map(Path::to_owned)
             .unwrap_or_else(|| sequence.init_path());
         let init = read_init(&init_path)?;
-        let kf_dir = keyframes.map(Path::to_owned).or_else(|| sequence.keyframes_dir());
+        let kf_dir = keyframes
+            .map(Path::to_owned)
+            .or_else(|| sequence.keyframes_dir());
         let keyframes = keyframe_store(ctx, &model, &raw_cam, kf_dir.as_deref())?;
         Ok(Self {
             model,
@@ -218,7 +220,12 @@ impl Setup {
 
 /// Draws the tracked silhouette's outline (green when tracking, red when
 /// lost) and a light tint over the object.
-pub fn overlay(frame: &image::RgbImage, mask: &[bool], status: Status, label: &str) -> image::RgbImage {
+pub fn overlay(
+    frame: &image::RgbImage,
+    mask: &[bool],
+    status: Status,
+    label: &str,
+) -> image::RgbImage {
     let mut img = frame.clone();
     let (w, h) = (img.width() as usize, img.height() as usize);
     let colour = match status {
@@ -230,10 +237,16 @@ pub fn overlay(frame: &image::RgbImage, mask: &[bool], status: Status, label: &s
             if !mask[y * w + x] {
                 continue;
             }
-            let edge = [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)].iter().any(|(dx, dy)| {
-                let (nx, ny) = (x as i64 + dx, y as i64 + dy);
-                nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 || !mask[ny as usize * w + nx as usize]
-            });
+            let edge = [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                .iter()
+                .any(|(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    nx < 0
+                        || ny < 0
+                        || nx >= w as i64
+                        || ny >= h as i64
+                        || !mask[ny as usize * w + nx as usize]
+                });
             if edge {
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1)] {
                     splattrack::draw::put(&mut img, x as i64 + dx, y as i64 + dy, colour);
@@ -277,7 +290,11 @@ pub struct RunStats {
 
 /// Tracks the sequence of `setup`, writing the pose CSV (and overlays, BOP
 /// results) as it goes, with a progress bar.
-pub fn track_sequence(ctx: &GpuContext, setup: &Setup, opts: &RunOptions) -> anyhow::Result<RunStats> {
+pub fn track_sequence(
+    ctx: &GpuContext,
+    setup: &Setup,
+    opts: &RunOptions,
+) -> anyhow::Result<RunStats> {
     let n = opts
         .frames
         .unwrap_or(setup.sequence.frames.len())
@@ -286,7 +303,8 @@ pub fn track_sequence(ctx: &GpuContext, setup: &Setup, opts: &RunOptions) -> any
         bail!("--frames 0: nothing to track");
     }
     if let Some(dir) = opts.overlay {
-        std::fs::create_dir_all(dir).with_context(|| format!("{}: cannot create", dir.display()))?;
+        std::fs::create_dir_all(dir)
+            .with_context(|| format!("{}: cannot create", dir.display()))?;
     }
     let config = TrackerConfig {
         mode: opts.mode,
@@ -305,8 +323,10 @@ pub fn track_sequence(ctx: &GpuContext, setup: &Setup, opts: &RunOptions) -> any
     let mut bop = String::from("scene_id,im_id,obj_id,score,R,t,time\n");
     let bar = ProgressBar::new(n as u64);
     bar.set_style(
-        ProgressStyle::with_template("{prefix} {bar:40} {pos}/{len} frames {msg} [{elapsed} < {eta}]")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        ProgressStyle::with_template(
+            "{prefix} {bar:40} {pos}/{len} frames {msg} [{elapsed} < {eta}]",
+        )
+        .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.set_prefix(opts.label.clone());
     let mut stats = RunStats {
@@ -328,18 +348,29 @@ pub fn track_sequence(ctx: &GpuContext, setup: &Setup, opts: &RunOptions) -> any
         }
         out.row(&result_row(i, &r))?;
         let t = &r.times;
-        for (acc, d) in stats.mean_ms.iter_mut().zip([t.features, t.it, t.kf, t.total]) {
+        for (acc, d) in stats
+            .mean_ms
+            .iter_mut()
+            .zip([t.features, t.it, t.kf, t.total])
+        {
             *acc += ms(d) / n as f64;
         }
         totals.push(ms(t.total));
         if opts.bop.is_some() {
             let p = r.pose.to_row_major();
             let rot: Vec<String> = p[..9].iter().map(|v| format!("{v:.9}")).collect();
-            let tr: Vec<String> = p[9..].iter().map(|v| format!("{:.6}", v * 1000.0)).collect();
+            let tr: Vec<String> = p[9..]
+                .iter()
+                .map(|v| format!("{:.6}", v * 1000.0))
+                .collect();
             bop.push_str(&format!(
                 "0,{i},{},{:.4},{},{},{:.4}\n",
                 opts.obj_id,
-                if r.status == Status::Tracking { 1.0 } else { 0.0 },
+                if r.status == Status::Tracking {
+                    1.0
+                } else {
+                    0.0
+                },
                 rot.join(" "),
                 tr.join(" "),
                 t.total.as_secs_f64()
@@ -359,7 +390,10 @@ pub fn track_sequence(ctx: &GpuContext, setup: &Setup, opts: &RunOptions) -> any
                 .save(&path)
                 .with_context(|| format!("{}: cannot write", path.display()))?;
         }
-        bar.set_message(format!("{:.0} ms/frame", totals.iter().sum::<f64>() / totals.len() as f64));
+        bar.set_message(format!(
+            "{:.0} ms/frame",
+            totals.iter().sum::<f64>() / totals.len() as f64
+        ));
         bar.inc(1);
     }
     bar.finish_and_clear();

@@ -22,8 +22,8 @@
 
 use super::error::{ModelError, memory_path};
 use super::ply::{self, read_line_capped};
-use crate::rng::Rng;
 use super::{AttributeSource, PointModel, Provenance};
+use crate::rng::Rng;
 use glam::{DVec3, Vec3};
 use std::fs::File;
 use std::io::BufReader;

@@ -180,7 +180,11 @@ impl TriangleMesh {
         seed: u64,
     ) -> Result<PointModel, ModelError> {
         let mesh = crate::model::TriangleMesh {
-            vertices: self.vertices.iter().map(|v| Vec3::from(v.position)).collect(),
+            vertices: self
+                .vertices
+                .iter()
+                .map(|v| Vec3::from(v.position))
+                .collect(),
             triangles: self.triangles.clone(),
             colors: Some(self.vertices.iter().map(|v| v.color).collect()),
             path: None,

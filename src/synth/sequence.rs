@@ -36,7 +36,11 @@ pub enum SynthError {
 }
 
 /// Points sampled from a built-in object's mesh, coloured with its texture.
-pub fn sample_model(object: &SynthObject, n_points: usize, seed: u64) -> Result<PointModel, SynthError> {
+pub fn sample_model(
+    object: &SynthObject,
+    n_points: usize,
+    seed: u64,
+) -> Result<PointModel, SynthError> {
     let verts: Vec<Vec3> = object
         .mesh
         .vertices
@@ -94,8 +98,8 @@ pub fn write_sequence(
     model_points: usize,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<SequenceSummary, SynthError> {
-    let object =
-        SynthObject::by_name(&cfg.object).ok_or_else(|| SynthError::UnknownObject(cfg.object.clone()))?;
+    let object = SynthObject::by_name(&cfg.object)
+        .ok_or_else(|| SynthError::UnknownObject(cfg.object.clone()))?;
     if cfg.frames < 2 {
         return Err(SynthError::TooFewFrames(cfg.frames));
     }
