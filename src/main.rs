@@ -5,6 +5,13 @@ mod cli;
 use clap::Parser;
 
 fn main() -> std::process::ExitCode {
+    // Mesa's Vulkan drivers probe for a Wayland display and print an error
+    // line when XDG_RUNTIME_DIR is unset, as on headless machines; give them
+    // a directory so that stderr carries only our own messages. Safe: no
+    // other thread exists yet.
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
+    }
     let args = cli::Cli::parse();
     cli::init_logging(args.verbose);
     match cli::run(args) {

@@ -115,10 +115,10 @@ impl LineChart {
         ymax = (ymax / ystep).ceil() * ystep;
         let xstep = tick_step(xmax - xmin, 8.0);
         // Plot area, leaving room for labels.
-        let (left, right, top, bottom) = (x0 + 70, x0 + w - 16, y0 + 34, y0 + h - 44);
+        let (left, right, top, bottom) = (x0 + 70, x0 + w - 16, y0 + 44, y0 + h - 44);
         let sx = |x: f64| left as f64 + (x - xmin) / (xmax - xmin) * (right - left) as f64;
         let sy = |y: f64| bottom as f64 - (y - ymin) / (ymax - ymin) * (bottom - top) as f64;
-        draw::text(img, left, y0 + 10, &self.title, draw::BLACK, 2);
+        draw::text(img, left, y0 + 6, &self.title, draw::BLACK, 2);
         // Grid and ticks.
         let mut y = (ymin / ystep).ceil() * ystep;
         while y <= ymax + ystep * 1e-6 {
@@ -208,7 +208,7 @@ impl LineChart {
             draw::BLACK,
             1,
         );
-        draw::text(img, x0 + 4, top - 14, &self.y_label, draw::BLACK, 1);
+        draw::text(img, x0 + 4, y0 + 28, &self.y_label, draw::BLACK, 1);
         // Curves, clipped to the plot area.
         for s in &self.series {
             let mut prev: Option<(f64, f64)> = None;
@@ -286,10 +286,10 @@ mod tests {
         c.y_max = Some(2.0);
         let img = c.render(400, 200);
         // The curve at y = 1 of 0..2 sits halfway up the plot area
-        // (top 34, bottom 156): row 95; its colour must be there.
+        // (top 44, bottom 156): row 100; its colour must be there.
         let col = draw::PALETTE[0];
         let hits = (80..380)
-            .filter(|&x| (93..=97).any(|y| img.get_pixel(x, y).0 == col))
+            .filter(|&x| (98..=102).any(|y| img.get_pixel(x, y).0 == col))
             .count();
         assert!(hits > 200, "{hits}");
         // Empty and non-finite inputs draw without panicking.

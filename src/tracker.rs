@@ -191,6 +191,17 @@ pub enum TrackError {
 #[error("impossible camera: {0}")]
 pub struct CameraInvalid(pub String);
 
+/// How far the KF step searches for matches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Search {
+    /// From an IT estimate: the object is nearly where predicted.
+    Refine,
+    /// From the previous pose: as far as the object moves between frames.
+    Motion,
+    /// After a loss.
+    Recover,
+}
+
 struct PrevFrame {
     grey: GreyImage,
     corners: Vec<Corner>,
@@ -370,9 +381,18 @@ impl<'a> Tracker<'a> {
         let use_kf = matches!(self.config.mode, Mode::Kf | Mode::KfIt)
             || (recovering && self.store.is_some());
         if use_kf && self.store.is_some() {
+            // Without an IT estimate the first KF step must search as far
+            // as frame-to-frame matching does; after a loss, farther.
+            let first = if recovering {
+                Search::Recover
+            } else if last.is_none() {
+                Search::Motion
+            } else {
+                Search::Refine
+            };
             for it in 0..self.config.kf_iterations.max(1) {
-                let wide = recovering && it == 0;
-                match self.kf_step(&grey, &corners, &pose, wide) {
+                let search = if it == 0 { first } else { Search::Refine };
+                match self.kf_step(&grey, &corners, &pose, search) {
                     Ok((step, k)) => {
                         pose = step.pose;
                         last = Some(step.solve);
@@ -491,7 +511,7 @@ impl<'a> Tracker<'a> {
         grey: &GreyImage,
         corners: &[Corner],
         pose: &Pose,
-        wide: bool,
+        search: Search,
     ) -> Result<(Step, usize), String> {
         let store = self.store.as_ref().ok_or("no keyframes")?;
         let k = store.closest(pose);
@@ -518,10 +538,10 @@ impl<'a> Tracker<'a> {
             GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)
                 .map_err(|e| e.to_string())?;
         let view_corners = self.harris.detect(&view, None).map_err(|e| e.to_string())?;
-        let matcher = if wide {
-            &mut self.recover_matcher
-        } else {
-            &mut self.kf_matcher
+        let matcher = match search {
+            Search::Recover => &mut self.recover_matcher,
+            Search::Motion => &mut self.it_matcher,
+            Search::Refine => &mut self.kf_matcher,
         };
         let matches = matcher
             .match_features(&view, &view_corners, grey, corners)
