@@ -24,7 +24,9 @@
 //!    too large; the pose then stays at the last good one, and the next
 //!    frames try to recover against the keyframes with a wide search.
 
-use crate::features::{Corner, GreyImage, Harris, HarrisConfig, NccConfig, NccMatcher};
+use crate::features::{
+    Corner, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher, refine_match,
+};
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
 use crate::keyframes::KeyframeStore;
@@ -96,6 +98,17 @@ pub struct TrackerConfig {
     pub min_inliers: usize,
     /// Inlier RMS residual above this: `lost`.
     pub max_residual_px: f64,
+    /// In KF+IT, refine the KF correction jointly with the IT step's inlier
+    /// matches (frame-to-frame constraints damp the KF jitter, the keyframe
+    /// matches bound the drift) instead of the paper's plain sequence.
+    pub fuse: bool,
+    /// Weight of the IT matches relative to the KF matches when fusing.
+    pub fuse_weight: f64,
+    /// Refine each KF match to the sub-pixel NCC peak (window of this many
+    /// pixels) rather than trusting the two detected corners; 0: off. The
+    /// novel view is blurrier than the frame, which biases independently
+    /// detected corners (see `features::refine`).
+    pub refine_window: u32,
 }
 
 impl Default for TrackerConfig {
@@ -113,6 +126,9 @@ impl Default for TrackerConfig {
             roi_margin_px: 24.0,
             min_inliers: 12,
             max_residual_px: 3.0,
+            fuse: false,
+            fuse_weight: 0.5,
+            refine_window: 15,
         }
     }
 }
@@ -211,6 +227,9 @@ struct PrevFrame {
 struct Step {
     pose: Pose,
     solve: IrlsResult,
+    /// The step's inlier correspondences: object-frame point, position in
+    /// the live frame.
+    anchors: Vec<(Vector3<f64>, Vector2<f64>)>,
 }
 
 /// The tracker: create once per sequence, then call [`Tracker::track`] on
@@ -361,6 +380,7 @@ impl<'a> Tracker<'a> {
         let mut reason: Option<String> = None;
         let mut keyframe = None;
         let recovering = self.lost_streak > 0;
+        let mut it_anchors = Vec::new();
 
         // IT: needs a previous frame; skipped while recovering.
         let t_it = Instant::now();
@@ -370,6 +390,9 @@ impl<'a> Tracker<'a> {
                     Ok(step) => {
                         pose = step.pose;
                         last = Some(step.solve);
+                        if self.config.fuse {
+                            it_anchors = step.anchors;
+                        }
                     }
                     Err(e) => reason = Some(format!("IT: {e}")),
                 }
@@ -392,7 +415,7 @@ impl<'a> Tracker<'a> {
             };
             for it in 0..self.config.kf_iterations.max(1) {
                 let search = if it == 0 { first } else { Search::Refine };
-                match self.kf_step(&grey, &corners, &pose, search) {
+                match self.kf_step(&grey, &corners, &pose, search, &it_anchors) {
                     Ok((step, k)) => {
                         pose = step.pose;
                         last = Some(step.solve);
@@ -486,23 +509,25 @@ impl<'a> Tracker<'a> {
             .map_err(|e| e.to_string())?;
         let obs: Vec<(Observation, Vector3<f64>, Vector2<f64>)> = matches
             .iter()
-            .map(|m| {
+            .filter_map(|m| {
                 let s = &samples[on_object[m.a]];
                 let a = &src[m.a];
-                let b = &corners[m.b];
                 let from = Vector2::new(a.x as f64, a.y as f64);
+                // Frame-to-frame, both images are equally sharp: the
+                // detected corners are unbiased against each other.
+                let b = &corners[m.b];
                 let to = Vector2::new(b.x as f64, b.y as f64);
-                (
+                Some((
                     Observation {
                         predictors: s.matrix(),
                         displacement: to - from,
                     },
                     self.lift(&from, s.depth as f64, pose),
                     to,
-                )
+                ))
             })
             .collect();
-        self.solve_and_refine(&obs, pose)
+        self.solve_and_refine(&obs, pose, &[])
     }
 
     /// One step against the novel view of the closest keyframe.
@@ -512,6 +537,7 @@ impl<'a> Tracker<'a> {
         corners: &[Corner],
         pose: &Pose,
         search: Search,
+        anchors: &[(Vector3<f64>, Vector2<f64>)],
     ) -> Result<(Step, usize), String> {
         let store = self.store.as_ref().ok_or("no keyframes")?;
         let k = store.closest(pose);
@@ -558,22 +584,46 @@ impl<'a> Tracker<'a> {
             .iter()
             .zip(&samples)
             .filter(|(_, s)| s.valid)
-            .map(|(m, s)| {
+            .filter_map(|(m, s): (&Match, _)| {
                 let a = &view_corners[m.a];
-                let b = &corners[m.b];
                 let from = Vector2::new(a.x as f64, a.y as f64);
-                let to = Vector2::new(b.x as f64, b.y as f64);
-                (
+                let to = self.match_target(&view, a, grey, &corners[m.b])?;
+                Some((
                     Observation {
                         predictors: s.matrix(),
                         displacement: to - from,
                     },
                     self.lift(&from, s.depth as f64, pose),
                     to,
-                )
+                ))
             })
             .collect();
-        self.solve_and_refine(&obs, pose).map(|s| (s, k))
+        self.solve_and_refine(&obs, pose, anchors).map(|s| (s, k))
+    }
+
+    /// Where the corner `a` of image `src` lies in the live frame: the
+    /// matched corner `b`, moved to the NCC peak when refinement is on;
+    /// `None` drops a match whose refinement fails.
+    fn match_target(
+        &self,
+        src: &GreyImage,
+        a: &Corner,
+        live: &GreyImage,
+        b: &Corner,
+    ) -> Option<Vector2<f64>> {
+        if self.config.refine_window == 0 {
+            return Some(Vector2::new(b.x as f64, b.y as f64));
+        }
+        let (p, _) = refine_match(
+            src,
+            [a.x, a.y],
+            live,
+            [b.x, b.y],
+            self.config.refine_window,
+            2,
+            self.config.ncc.min_score * 0.8,
+        )?;
+        Some(Vector2::new(p[0] as f64, p[1] as f64))
     }
 
     /// The object-frame point seen at pixel `uv` with camera depth `z` at
@@ -583,33 +633,69 @@ impl<'a> Tracker<'a> {
     }
 
     /// The paper's linear solve, then Gauss-Newton refinements that
-    /// re-project the lifted points at the updated pose.
+    /// re-project the lifted points at the updated pose. `extra` are
+    /// correspondences from another step (the IT inliers, when fusing) that
+    /// join the refinement with the same robust loss.
     fn solve_and_refine(
         &self,
         obs: &[(Observation, Vector3<f64>, Vector2<f64>)],
         pose: &Pose,
+        extra: &[(Vector3<f64>, Vector2<f64>)],
     ) -> Result<Step, String> {
         let linear: Vec<Observation> = obs.iter().map(|o| o.0).collect();
         let first = irls(&linear, &self.config.irls).map_err(|e: SolveError| e.to_string())?;
         let mut current = pose.apply_twist(&first.twist);
         let mut solve = first;
-        for _ in 0..self.config.refine_iterations {
-            let refined: Vec<Observation> = obs
+        let own: Vec<(Vector3<f64>, Vector2<f64>)> = obs.iter().map(|o| (o.1, o.2)).collect();
+        let mut points: Vec<(Vector3<f64>, Vector2<f64>)> = own.clone();
+        points.extend_from_slice(extra);
+        // Borrowed matches count with `fuse_weight`: scaling a row of the
+        // linearised system by sqrt(w) weights its squared residual by w.
+        let row_scale = |i: usize| {
+            if i < own.len() {
+                1.0
+            } else {
+                self.config.fuse_weight.sqrt()
+            }
+        };
+        // Which of `points` the last refinement kept, in its order.
+        let mut last_kept: Option<Vec<usize>> = None;
+        for _ in 0..self
+            .config
+            .refine_iterations
+            .max(usize::from(!extra.is_empty()))
+        {
+            let (refined, kept): (Vec<Observation>, Vec<usize>) = points
                 .iter()
-                .filter_map(|(_, x, to)| {
+                .enumerate()
+                .filter_map(|(i, (x, to))| {
                     let xc = current.transform_point(x);
                     let uv = self.cam.project(&xc)?;
-                    Some(Observation {
-                        predictors: self.cam.motion_predictors(&xc),
-                        displacement: to - uv,
-                    })
+                    let k = row_scale(i);
+                    Some((
+                        Observation {
+                            predictors: self.cam.motion_predictors(&xc) * k,
+                            displacement: (to - uv) * k,
+                        },
+                        i,
+                    ))
                 })
-                .collect();
+                .unzip();
             match irls(&refined, &self.config.irls) {
                 Ok(s) => {
                     current = current.apply_twist(&s.twist);
                     let small = s.twist.norm() < 1e-9;
-                    solve = s;
+                    // Report this step's own matches, not the borrowed ones.
+                    let own_inliers = kept
+                        .iter()
+                        .zip(&s.inliers)
+                        .filter(|(i, inl)| **i < own.len() && **inl)
+                        .count();
+                    solve = IrlsResult {
+                        inlier_count: own_inliers,
+                        ..s
+                    };
+                    last_kept = Some(kept);
                     if small {
                         break;
                     }
@@ -617,9 +703,26 @@ impl<'a> Tracker<'a> {
                 Err(_) => break,
             }
         }
+        let mut inliers = vec![false; points.len()];
+        match &last_kept {
+            Some(kept) => {
+                for (&i, &inl) in kept.iter().zip(&solve.inliers) {
+                    inliers[i] = inl;
+                }
+            }
+            // The linear solve's inliers are over `obs`, i.e. `own`.
+            None => inliers[..solve.inliers.len()].copy_from_slice(&solve.inliers),
+        }
+        let anchors = own
+            .iter()
+            .zip(&inliers)
+            .filter(|(_, i)| **i)
+            .map(|(a, _)| *a)
+            .collect();
         Ok(Step {
             pose: current.orthonormalized(),
             solve,
+            anchors,
         })
     }
 

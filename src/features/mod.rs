@@ -54,6 +54,7 @@ pub mod image;
 pub mod ncc;
 mod ncc_cpu;
 pub mod patterns;
+pub mod refine;
 
 pub use gpu_data::INVALID_RESPONSE;
 pub use harris::{Corner, Harris, HarrisConfig};
@@ -61,6 +62,7 @@ pub use harris_cpu::{harris_cpu, harris_response_cpu};
 pub use image::GreyImage;
 pub use ncc::{Match, NccConfig, NccMatcher};
 pub use ncc_cpu::ncc_match_cpu;
+pub use refine::refine_match;
 
 use crate::gpu::GpuError;
 
