@@ -402,8 +402,11 @@ impl KeyframeStore {
             Ok(f64::from_le_bytes(b))
         };
         let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
+        if !center.iter().all(|v| v.is_finite()) {
+            return Err(bad("the model centre is not finite"));
+        }
         let mut keyframes = Vec::with_capacity(count as usize);
-        for _ in 0..count {
+        for k in 0..count {
             let mut b = [0u8; 4];
             r.read_exact(&mut b).map_err(|_| bad("truncated"))?;
             let len = u32::from_le_bytes(b) as usize;
@@ -417,7 +420,9 @@ impl KeyframeStore {
             for x in &mut v {
                 *x = read_f64(&mut r)?;
             }
-            let pose = Pose::from_row_major(&v)?;
+            // A corrupt pose is a corrupt file: name the file, not just the pose.
+            let pose = Pose::from_row_major(&v)
+                .map_err(|e| bad(&format!("keyframe {k} ({name}): {e}")))?;
             let n = points as usize;
             if r.len() < 4 * n {
                 return Err(bad("truncated colours"));
