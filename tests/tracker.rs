@@ -7,8 +7,10 @@
 //! demo's speed (100 frames for the whole trajectory), 320x240, a 60k-point
 //! model sampled from the mesh, the 12 synth keyframes. The window tracked is
 //! frames 50..70, the rotation about the camera's x axis out to 20 degrees
-//! and half way back: measured on lavapipe it is the hardest 20-frame window
-//! of the trajectory at this size (a 20k-point model lost a frame there).
+//! and half way back. Measured on lavapipe with a 20k-point model, KF+IT
+//! failed the 2-degree bound there (3.1 degrees, one frame lost); with 60k
+//! points the largest error over the windows 0..20, 50..70 and 84..100 was
+//! 1.3 degrees (84..100, the rotation about z), 0.87 degrees here.
 
 mod tracking_common;
 
@@ -70,12 +72,12 @@ fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker<'
     .expect("tracker")
 }
 
-/// Tracks the whole window; returns per-frame (rotation deg, translation %
-/// of the diameter, status).
-fn run(mode: Mode) -> Vec<(f64, f64, Status)> {
+/// Tracks the first `n` frames of the window; returns per-frame (rotation
+/// deg, translation % of the diameter, status).
+fn run(mode: Mode, n: usize) -> Vec<(f64, f64, Status)> {
     let f = fixture();
     let mut t = tracker(mode, Some(f.store.clone()), f.frames[0].pose);
-    f.frames
+    f.frames[..n]
         .iter()
         .map(|fr| {
             let r = t.track(&fr.image).expect("track");
@@ -101,7 +103,8 @@ fn report(mode: Mode, errs: &[(f64, f64, Status)]) -> (f64, f64) {
 
 #[test]
 fn kf_it_stays_within_2_degrees_and_2_percent_at_every_frame() {
-    let errs = run(Mode::KfIt);
+    // The criterion (measured: up to 0.87 deg and 0.56%).
+    let errs = run(Mode::KfIt, COUNT);
     report(Mode::KfIt, &errs);
     for (i, (rot, tr, status)) in errs.iter().enumerate() {
         let frame = FIRST + i;
@@ -115,18 +118,21 @@ fn kf_it_stays_within_2_degrees_and_2_percent_at_every_frame() {
 
 #[test]
 fn it_mode_tracks_with_bounded_drift() {
-    // Frame to frame only: no keyframe ever corrects it, so it drifts
-    // (measured: up to ~3.1 deg and ~1.4% on this window).
-    let errs = run(Mode::It);
+    // Frame to frame only: no keyframe ever corrects it, so it drifts.
+    // The first 12 frames: out to the 20-degree turn and back a little
+    // (measured on lavapipe: up to 1.45 deg and 0.73%; over all 20 frames
+    // it reaches 3.1 deg).
+    let errs = run(Mode::It, 12);
     let (rot, tr) = report(Mode::It, &errs);
     assert!(errs.iter().all(|e| e.2 == Status::Tracking));
-    assert!(rot < 6.0 && tr < 3.0, "{rot:.3} deg, {tr:.3}%");
+    assert!(rot < 4.0 && tr < 2.5, "{rot:.3} deg, {tr:.3}%");
 }
 
 #[test]
 fn kf_mode_tracks_without_drift() {
-    // Keyframes only (measured: up to ~0.9 deg and ~0.45%).
-    let errs = run(Mode::Kf);
+    // Keyframes only, the first 12 frames (measured: up to 0.91 deg and
+    // 0.43%).
+    let errs = run(Mode::Kf, 12);
     let (rot, tr) = report(Mode::Kf, &errs);
     assert!(errs.iter().all(|e| e.2 == Status::Tracking));
     assert!(rot < 3.0 && tr < 2.0, "{rot:.3} deg, {tr:.3}%");
