@@ -16,7 +16,7 @@ use std::path::PathBuf;
 
 /// 320x240 with the synth command's 56-degree field of view.
 pub fn camera_320() -> Intrinsics {
-    Intrinsics::new(320, 240, 150.0 * 2.0, 150.0 * 2.0, 159.5, 119.5)
+    Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5)
 }
 
 /// A synthetic scene: object, camera, background and the point model
