@@ -2,6 +2,8 @@
 //! per-frame rotation and translation errors, their summary, success rates
 //! and plots.
 
+#![warn(missing_docs)]
+
 use crate::io::PoseRow;
 use crate::plot::LineChart;
 use std::collections::{HashMap, HashSet};
@@ -26,18 +28,28 @@ pub struct FrameError {
 /// Summary statistics over the evaluated (not excluded) frames.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Summary {
+    /// The run's name (the file stem by default).
     pub name: String,
     /// Ground-truth frames evaluated.
     pub frames: usize,
     /// Ground-truth frames with no estimate at all (count as failures).
     pub missing: usize,
+    /// Frames left out of the statistics ([`EvalOptions::exclude`]).
     pub excluded: usize,
+    /// Evaluated frames the tracker reported `lost` (they count as
+    /// failures).
     pub lost: usize,
+    /// Mean rotation error, degrees.
     pub rotation_mean: f64,
+    /// Median rotation error, degrees.
     pub rotation_median: f64,
+    /// Largest rotation error, degrees.
     pub rotation_max: f64,
+    /// Mean translation error, model units.
     pub translation_mean: f64,
+    /// Median translation error, model units.
     pub translation_median: f64,
+    /// Largest translation error, model units.
     pub translation_max: f64,
     /// Mean translation error as a percentage of the diameter.
     pub translation_mean_pct: Option<f64>,
@@ -50,14 +62,21 @@ pub struct Summary {
 /// A whole evaluation: per-frame errors and their summary.
 #[derive(Debug, Clone)]
 pub struct Evaluation {
+    /// One entry per ground-truth frame that has an estimate, in
+    /// ground-truth order.
     pub frames: Vec<FrameError>,
+    /// The statistics over them.
     pub summary: Summary,
 }
 
+/// Why an evaluation is impossible.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum EvalError {
+    /// The estimate and the ground truth share no frame label (after
+    /// [`frame_key`] normalisation).
     #[error("no frame of the estimate matches a ground-truth frame (labels differ?)")]
     NoCommonFrames,
+    /// A frame label occurs twice in one file (`estimate` or `ground truth`).
     #[error("duplicate frame {0:?} in the {1}")]
     Duplicate(String, &'static str),
 }

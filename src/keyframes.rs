@@ -14,6 +14,8 @@
 //! consumer can tell. The store is saved to a small binary file, so it is
 //! built once per object.
 
+#![warn(missing_docs)]
+
 use crate::geometry::{Intrinsics, Pose, PoseError, sample_bilinear_rgb};
 use crate::gpu::GpuContext;
 use crate::io::PoseRow;
@@ -26,46 +28,81 @@ use std::path::{Path, PathBuf};
 /// Errors of building, loading and saving keyframe stores.
 #[derive(Debug, thiserror::Error)]
 pub enum KeyframeError {
+    /// A store file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The file.
         path: PathBuf,
+        /// Why.
         #[source]
         source: std::io::Error,
     },
+    /// A keyframe image could not be decoded.
     #[error("{path}: cannot read keyframe image: {source}")]
     Image {
+        /// The image file.
         path: PathBuf,
+        /// Why.
         #[source]
         source: image::ImageError,
     },
+    /// A keyframe image is not the camera's size.
     #[error("{path}: keyframe image is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
     ImageSize {
+        /// The image file.
         path: PathBuf,
+        /// The image's width, pixels.
         got_w: u32,
+        /// The image's height, pixels.
         got_h: u32,
+        /// The camera's width, pixels.
         want_w: u32,
+        /// The camera's height, pixels.
         want_h: u32,
     },
+    /// The file is not a keyframe store (wrong magic, truncated,
+    /// inconsistent sizes, corrupt poses).
     #[error("{path}: not a keyframe store: {reason}")]
-    Format { path: PathBuf, reason: String },
+    Format {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The store was built for another model (see
+    /// [`KeyframeStore::check_model`]).
     #[error(
         "{path}: the keyframe store was built for another model ({stored} points, fingerprint {stored_fp:016x}; this model: {points} points, {fp:016x})"
     )]
     WrongModel {
+        /// The store's file.
         path: PathBuf,
+        /// The store's point count.
         stored: u64,
+        /// The store's model fingerprint.
         stored_fp: u64,
+        /// The model's point count.
         points: u64,
+        /// The model's fingerprint ([`model_fingerprint`]).
         fp: u64,
     },
+    /// A row of the keyframe poses (its frame label) has no image in the
+    /// directory.
     #[error("{0}: no keyframe image found for pose row {1:?}")]
     MissingImage(PathBuf, String),
+    /// The model is not seen at all from a keyframe's pose.
     #[error("keyframe {name}: the object is not visible (no model point seen)")]
-    NothingVisible { name: String },
+    NothingVisible {
+        /// The keyframe's name.
+        name: String,
+    },
+    /// The keyframe poses file is unreadable.
     #[error(transparent)]
     Poses(#[from] crate::io::poses::PoseFileError),
+    /// Splatting the model's depth failed.
     #[error(transparent)]
     Splat(#[from] SplatError),
+    /// A keyframe pose is not a rigid transform.
     #[error(transparent)]
     Pose(#[from] PoseError),
 }
@@ -73,7 +110,9 @@ pub enum KeyframeError {
 /// One keyframe: its pose and the colour it gives every model point.
 #[derive(Debug, Clone)]
 pub struct Keyframe {
+    /// The image's file stem (or a label such as `model colours`).
     pub name: String,
+    /// The object-to-camera pose the image was taken at.
     pub pose: Pose,
     /// One colour per model point (linear 0..1 values as in the image).
     pub colors: Vec<[f32; 3]>,
@@ -83,6 +122,7 @@ pub struct Keyframe {
 }
 
 impl Keyframe {
+    /// How many model points this keyframe sees itself.
     pub fn visible_count(&self) -> usize {
         self.visible.iter().filter(|&&v| v).count()
     }
@@ -91,10 +131,12 @@ impl Keyframe {
 /// Keyframes of one model.
 #[derive(Debug, Clone)]
 pub struct KeyframeStore {
+    /// The keyframes, in the order they were given.
     pub keyframes: Vec<Keyframe>,
     /// Number of points and a fingerprint of their positions, to refuse a
     /// store built for another model.
     pub points: u64,
+    /// See [`model_fingerprint`].
     pub fingerprint: u64,
     /// The centre of the model's bounding box, the pivot for viewpoints.
     pub center: Vector3<f64>,
@@ -157,7 +199,10 @@ fn rgb_to_f32(p: image::Rgb<u8>) -> [f32; 3] {
 }
 
 impl KeyframeStore {
-    /// Builds the store from keyframe images and their poses.
+    /// Builds the store from keyframe images and their poses: `frames`
+    /// holds (name, image, object-to-camera pose), each image undistorted
+    /// and of `cam`'s size. Every keyframe must see some of the model
+    /// ([`KeyframeError::NothingVisible`] otherwise).
     pub fn build(
         ctx: &GpuContext,
         splatter: &Splatter,
@@ -402,8 +447,11 @@ impl KeyframeStore {
             Ok(f64::from_le_bytes(b))
         };
         let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
+        if !center.iter().all(|v| v.is_finite()) {
+            return Err(bad("the model centre is not finite"));
+        }
         let mut keyframes = Vec::with_capacity(count as usize);
-        for _ in 0..count {
+        for k in 0..count {
             let mut b = [0u8; 4];
             r.read_exact(&mut b).map_err(|_| bad("truncated"))?;
             let len = u32::from_le_bytes(b) as usize;
@@ -417,7 +465,9 @@ impl KeyframeStore {
             for x in &mut v {
                 *x = read_f64(&mut r)?;
             }
-            let pose = Pose::from_row_major(&v)?;
+            // A corrupt pose is a corrupt file: name the file, not just the pose.
+            let pose = Pose::from_row_major(&v)
+                .map_err(|e| bad(&format!("keyframe {k} ({name}): {e}")))?;
             let n = points as usize;
             if r.len() < 4 * n {
                 return Err(bad("truncated colours"));

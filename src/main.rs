@@ -3,6 +3,7 @@
 mod cli;
 
 use clap::Parser;
+use clap::error::ErrorKind;
 
 fn main() -> std::process::ExitCode {
     // Mesa's Vulkan drivers probe for a Wayland display and print an error
@@ -12,7 +13,10 @@ fn main() -> std::process::ExitCode {
     if std::env::var_os("XDG_RUNTIME_DIR").is_none() {
         unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir()) };
     }
-    let args = cli::Cli::parse();
+    let args = match cli::Cli::try_parse() {
+        Ok(a) => a,
+        Err(e) => return usage_error(e),
+    };
     cli::init_logging(args.verbose);
     match cli::run(args) {
         Ok(()) => std::process::ExitCode::SUCCESS,
@@ -32,4 +36,27 @@ fn main() -> std::process::ExitCode {
             std::process::ExitCode::FAILURE
         }
     }
+}
+
+/// A command-line error in one line (FORMATS.md: "non-zero with a one-line
+/// reason on stderr"): clap's message up to its usage text, its lines
+/// joined. Help and version requests print as clap prints them.
+fn usage_error(e: clap::Error) -> std::process::ExitCode {
+    if matches!(
+        e.kind(),
+        ErrorKind::DisplayHelp
+            | ErrorKind::DisplayVersion
+            | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
+    ) {
+        e.exit();
+    }
+    let text = e.to_string();
+    let line: Vec<&str> = text
+        .lines()
+        .map(str::trim)
+        .take_while(|l| !l.starts_with("Usage:") && !l.starts_with("For more information"))
+        .filter(|l| !l.is_empty())
+        .collect();
+    eprintln!("{}", line.join(" "));
+    std::process::ExitCode::from(2)
 }

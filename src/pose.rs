@@ -15,6 +15,8 @@
 //! to unit diagonal, so that model units and radians compare) is refused with
 //! the reason, never inverted into a garbage update.
 
+#![warn(missing_docs)]
+
 use nalgebra::{Matrix2x6, Matrix6, SymmetricEigen, Vector2, Vector6};
 
 /// One match seen through the motion predictors.
@@ -34,14 +36,22 @@ pub enum Loss {
     LeastSquares,
     /// Huber: quadratic within `k` scales, linear beyond (k = 1.345 gives
     /// 95% efficiency on Gaussian noise).
-    Huber { k: f64 },
+    Huber {
+        /// The threshold, in scales.
+        k: f64,
+    },
     /// Tukey's biweight: zero weight beyond `c` scales (c = 4.685 gives 95%
     /// efficiency on Gaussian noise).
-    Tukey { c: f64 },
+    Tukey {
+        /// The cutoff, in scales.
+        c: f64,
+    },
 }
 
 impl Loss {
+    /// Huber with the usual k = 1.345.
     pub const HUBER: Loss = Loss::Huber { k: 1.345 };
+    /// Tukey with the usual c = 4.685.
     pub const TUKEY: Loss = Loss::Tukey { c: 4.685 };
 
     /// IRLS weight of a residual `r` for scale `s`.
@@ -72,6 +82,7 @@ pub struct IrlsConfig {
     pub loss: Loss,
     /// Huber iterations before switching to `loss`.
     pub warmup_iterations: usize,
+    /// Most IRLS iterations in all (warm-up included).
     pub max_iterations: usize,
     /// Stop when the update of the twist changes less than this (max norm).
     pub tolerance: f64,
@@ -114,11 +125,13 @@ pub struct IrlsResult {
     pub weights: Vec<f64>,
     /// Which matches are within `inlier_scales` scales of the fit.
     pub inliers: Vec<bool>,
+    /// How many `inliers` are true.
     pub inlier_count: usize,
     /// RMS residual of the inliers, pixels.
     pub residual_rms_px: f64,
     /// Robust scale of the residuals, pixels.
     pub scale_px: f64,
+    /// IRLS iterations run.
     pub iterations: usize,
     /// Condition number of the last (unit-diagonal) normal matrix.
     pub condition: f64,
@@ -130,18 +143,38 @@ pub struct IrlsResult {
 /// Why an update was refused.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SolveError {
+    /// Fewer matches than [`IrlsConfig::min_matches`].
     #[error("too few matches for a pose update: {got} (need at least {need})")]
-    TooFewMatches { got: usize, need: usize },
-    #[error("too few inliers: {got} of {total} matches (need at least {need})")]
-    TooFewInliers {
+    TooFewMatches {
+        /// Matches given.
         got: usize,
-        total: usize,
+        /// The minimum.
         need: usize,
     },
+    /// Fewer inliers than [`IrlsConfig::min_inliers`] after the last
+    /// iteration.
+    #[error("too few inliers: {got} of {total} matches (need at least {need})")]
+    TooFewInliers {
+        /// Inliers found.
+        got: usize,
+        /// Matches given.
+        total: usize,
+        /// The minimum.
+        need: usize,
+    },
+    /// The normal matrix is rank-deficient or too badly conditioned: the
+    /// matches do not constrain every degree of freedom.
     #[error("degenerate configuration: {reason}")]
-    Degenerate { reason: String },
+    Degenerate {
+        /// Which motions are unconstrained, or the condition number.
+        reason: String,
+    },
+    /// An observation holds a NaN or an infinity.
     #[error("non-finite input: match {index} has a NaN or infinite value")]
-    NonFinite { index: usize },
+    NonFinite {
+        /// The observation's index.
+        index: usize,
+    },
 }
 
 const GENERATOR_NAMES: [&str; 6] = ["tx", "ty", "tz", "rx", "ry", "rz"];

@@ -24,6 +24,8 @@
 //!    too large; the pose then stays at the last good one, and the next
 //!    frames try to recover against the keyframes with a wide search.
 
+#![warn(missing_docs)]
+
 use crate::features::{
     Corner, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher, refine_match,
 };
@@ -49,8 +51,11 @@ pub enum Mode {
 }
 
 impl Mode {
+    /// The three modes, in the order the demo and the tables list them.
     pub const ALL: [Mode; 3] = [Mode::It, Mode::Kf, Mode::KfIt];
 
+    /// The name used on the command line and in tables (`it`, `kf`,
+    /// `kf+it`); [`str::parse`] accepts it back.
     pub fn name(&self) -> &'static str {
         match self {
             Mode::It => "it",
@@ -76,9 +81,14 @@ impl std::str::FromStr for Mode {
 /// windows) and were tuned on the synthetic sequences.
 #[derive(Debug, Clone)]
 pub struct TrackerConfig {
+    /// Which tracker runs (default: KF+IT).
     pub mode: Mode,
+    /// Harris corner detection on every frame and novel view.
     pub harris: HarrisConfig,
+    /// NCC matching (window, minimum score); the search radius is set per
+    /// step from the fields below.
     pub ncc: NccConfig,
+    /// The robust solver of every pose update.
     pub irls: IrlsConfig,
     /// NCC search radius of frame-to-frame matching, pixels.
     pub it_search_px: f32,
@@ -136,11 +146,14 @@ impl Default for TrackerConfig {
 /// Whether the track holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Status {
+    /// The frame's pose passed the inlier and residual checks.
     Tracking,
+    /// It did not: the reported pose is the last good one.
     Lost,
 }
 
 impl Status {
+    /// `tracking` or `lost`, as in the tracker output's `status` column.
     pub fn name(&self) -> &'static str {
         match self {
             Status::Tracking => "tracking",
@@ -153,25 +166,33 @@ impl Status {
 /// every stage waits for its results).
 #[derive(Debug, Clone, Default)]
 pub struct StageTimes {
+    /// Harris corners of the frame.
     pub features: Duration,
+    /// The frame-to-frame step.
     pub it: Duration,
+    /// The keyframe step(s).
     pub kf: Duration,
+    /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
 
 /// What [`Tracker::track`] says about a frame.
 #[derive(Debug, Clone)]
 pub struct TrackResult {
+    /// The object-to-camera pose of the frame; on a lost frame, the last
+    /// good pose (a pose that failed is never reported).
     pub pose: Pose,
     /// Inliers of the last robust solve of this frame.
     pub inliers: usize,
     /// Their RMS reprojection residual, pixels.
     pub residual_px: f64,
+    /// Whether the track holds at this frame.
     pub status: Status,
     /// Why the frame is lost (when it is).
     pub reason: Option<String>,
     /// The keyframe used by the KF step, if any.
     pub keyframe: Option<usize>,
+    /// Where the time went.
     pub times: StageTimes,
 }
 
@@ -179,25 +200,39 @@ pub struct TrackResult {
 /// frame that is merely lost.
 #[derive(Debug, thiserror::Error)]
 pub enum TrackError {
+    /// [`Tracker::track`] got a frame whose size is not the camera's.
     #[error("frame is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
     FrameSize {
+        /// The frame's width, pixels.
         got_w: u32,
+        /// The frame's height, pixels.
         got_h: u32,
+        /// The camera's width, pixels.
         want_w: u32,
+        /// The camera's height, pixels.
         want_h: u32,
     },
+    /// The KF and KF+IT modes (named) need a texture for the novel views:
+    /// a keyframe store, or colours in the model.
     #[error("mode {0} needs keyframes or a model with colours")]
     NeedsKeyframes(&'static str),
+    /// The initial pose puts the object behind the camera or wholly
+    /// outside the image.
     #[error("the initial pose puts the object behind the camera or outside the image")]
     ObjectNotInView,
+    /// The camera's intrinsics are impossible.
     #[error(transparent)]
     Camera(#[from] CameraInvalid),
+    /// The splatter failed (GPU error, unusable model).
     #[error(transparent)]
     Splat(#[from] crate::splat::SplatError),
+    /// Feature detection or matching failed on the GPU.
     #[error(transparent)]
     Features(#[from] crate::features::FeatureError),
+    /// The initial pose is not a rigid transform.
     #[error(transparent)]
     Pose(#[from] crate::geometry::PoseError),
+    /// The keyframe store is unusable.
     #[error(transparent)]
     Keyframes(#[from] crate::keyframes::KeyframeError),
 }
@@ -234,6 +269,34 @@ struct Step {
 
 /// The tracker: create once per sequence, then call [`Tracker::track`] on
 /// each frame in order.
+///
+/// ```no_run
+/// use splattrack::gpu::{AdapterChoice, GpuContext};
+/// use splattrack::io::{Sequence, read_poses};
+/// use splattrack::keyframes::KeyframeStore;
+/// use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
+/// use splattrack::PointModel;
+/// use std::path::Path;
+///
+/// let ctx = GpuContext::new(&AdapterChoice::from_env()?)?;
+/// let model = PointModel::load("object.ply")?;
+/// let seq = Sequence::open(Path::new("sequence"))?; // camera.json, frames/, init.csv
+/// let init = read_poses(&seq.init_path())?[0].pose;
+/// // A store built once by `splattrack keyframes` (or KeyframeStore::build).
+/// let store = KeyframeStore::load(Path::new("object.stkf"))?;
+/// store.check_model(&model, Path::new("object.stkf"))?;
+/// let config = TrackerConfig { mode: Mode::KfIt, ..Default::default() };
+/// let mut tracker = Tracker::new(&ctx, model, seq.camera, Some(store), config, init)?;
+/// for path in &seq.frames {
+///     let frame = image::open(path)?.to_rgb8(); // undistorted, the camera's size
+///     let r = tracker.track(&frame)?;
+///     println!("{} {:?} {} inliers", r.status.name(), r.pose.translation, r.inliers);
+///     if r.status == Status::Lost {
+///         // r.pose is the last good pose; later frames try to recover.
+///     }
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub struct Tracker<'a> {
     ctx: &'a GpuContext,
     cam: Intrinsics,
@@ -319,10 +382,13 @@ impl<'a> Tracker<'a> {
         self.pose
     }
 
+    /// The settings the tracker runs with.
     pub fn config(&self) -> &TrackerConfig {
         &self.config
     }
 
+    /// The keyframe store in use: the one given to [`Tracker::new`], or
+    /// the single texture made from the model's colours, or none (IT mode).
     pub fn keyframes(&self) -> Option<&KeyframeStore> {
         self.store.as_ref()
     }
@@ -509,7 +575,7 @@ impl<'a> Tracker<'a> {
             .map_err(|e| e.to_string())?;
         let obs: Vec<(Observation, Vector3<f64>, Vector2<f64>)> = matches
             .iter()
-            .filter_map(|m| {
+            .map(|m| {
                 let s = &samples[on_object[m.a]];
                 let a = &src[m.a];
                 let from = Vector2::new(a.x as f64, a.y as f64);
@@ -517,14 +583,14 @@ impl<'a> Tracker<'a> {
                 // detected corners are unbiased against each other.
                 let b = &corners[m.b];
                 let to = Vector2::new(b.x as f64, b.y as f64);
-                Some((
+                (
                     Observation {
                         predictors: s.matrix(),
                         displacement: to - from,
                     },
                     self.lift(&from, s.depth as f64, pose),
                     to,
-                ))
+                )
             })
             .collect();
         self.solve_and_refine(&obs, pose, &[])

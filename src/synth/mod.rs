@@ -8,6 +8,8 @@
 //! it, with the texture's colours. Keyframes are rendered the same way from
 //! viewpoints spread over the viewing sphere.
 
+#![warn(missing_docs)]
+
 pub mod objects;
 pub mod raster;
 pub mod sequence;
@@ -33,8 +35,10 @@ pub enum Trajectory {
 }
 
 impl Trajectory {
+    /// The names [`Trajectory::by_name`] accepts.
     pub const NAMES: [&'static str; 3] = ["fig10", "fast", "turn"];
 
+    /// The trajectory called `name` (one of [`Trajectory::NAMES`]).
     pub fn by_name(name: &str) -> Option<Self> {
         match name {
             "fig10" => Some(Self::Fig10),
@@ -44,6 +48,7 @@ impl Trajectory {
         }
     }
 
+    /// Its name, as [`Trajectory::by_name`] takes it.
     pub fn name(&self) -> &'static str {
         match self {
             Self::Fig10 => "fig10",
@@ -81,9 +86,14 @@ impl Trajectory {
 /// Settings of a synthetic sequence.
 #[derive(Debug, Clone)]
 pub struct SynthConfig {
+    /// A built-in object ([`objects::OBJECT_NAMES`]).
     pub object: String,
+    /// How the object moves.
     pub trajectory: Trajectory,
+    /// Number of frames; the whole trajectory spans them, so fewer frames
+    /// mean faster motion.
     pub frames: usize,
+    /// The camera (no distortion).
     pub camera: Intrinsics,
     /// Object distance from the camera, metres.
     pub distance: f64,
@@ -91,6 +101,7 @@ pub struct SynthConfig {
     pub noise: f64,
     /// Supersampling per axis (odd, so depth is taken at the pixel centre).
     pub samples: usize,
+    /// Seed of the background, the model sampling and the noise.
     pub seed: u64,
 }
 
@@ -209,10 +220,13 @@ pub fn to_image(rgb: &[[f32; 3]], cam: &Intrinsics, noise: f64, rng: &mut Rng) -
 
 /// One rendered frame of a sequence: the image and the object's mask.
 pub struct SynthFrame {
+    /// The 8-bit frame, noise included.
     pub image: image::RgbImage,
+    /// The ground-truth object-to-camera pose.
     pub pose: Pose,
     /// Object coverage per pixel (0..1).
     pub coverage: Vec<f32>,
+    /// Camera-space depth at each pixel centre (NaN off the object).
     pub depth: Vec<f32>,
 }
 

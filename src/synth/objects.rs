@@ -10,7 +10,9 @@ use nalgebra::Vector3;
 /// An indexed triangle mesh with per-vertex normals (object frame, metres).
 #[derive(Debug, Clone)]
 pub struct TriMesh {
+    /// Vertex positions.
     pub vertices: Vec<Vector3<f64>>,
+    /// Unit normals, one per vertex (the smooth surface's).
     pub normals: Vec<Vector3<f64>>,
     /// Counter-clockwise seen from outside.
     pub triangles: Vec<[u32; 3]>,
@@ -61,9 +63,19 @@ impl TriMesh {
 pub enum Texture {
     /// A 3-D grid of cells of random colour and brightness: every junction
     /// of cell boundaries on the surface is a corner.
-    Cells { cell: f64, seed: u64 },
+    Cells {
+        /// Cell size, metres.
+        cell: f64,
+        /// Seed of the cell colours.
+        seed: u64,
+    },
     /// "Printed" faces of a box: random rectangles and discs on white.
-    Printed { seed: u64, shapes_per_face: usize },
+    Printed {
+        /// Seed of the shapes.
+        seed: u64,
+        /// Shapes drawn per face.
+        shapes_per_face: usize,
+    },
 }
 
 fn hash(mut x: u64) -> u64 {
@@ -157,7 +169,9 @@ impl Texture {
 pub struct Light {
     /// Unit vector from the surface towards the light, camera frame.
     pub direction: Vector3<f64>,
+    /// Ambient intensity (0..1).
     pub ambient: f64,
+    /// Diffuse (Lambertian) intensity at normal incidence.
     pub diffuse: f64,
 }
 
@@ -173,6 +187,8 @@ impl Light {
         }
     }
 
+    /// The intensity on a surface of camera-frame unit normal `n_cam`:
+    /// ambient plus Lambertian diffuse (the albedo multiplies it).
     pub fn shade(&self, n_cam: &Vector3<f64>) -> f64 {
         self.ambient + self.diffuse * n_cam.dot(&self.direction).max(0.0)
     }
@@ -181,9 +197,13 @@ impl Light {
 /// A built-in object: mesh, texture, name.
 #[derive(Debug, Clone)]
 pub struct SynthObject {
+    /// One of [`OBJECT_NAMES`].
     pub name: &'static str,
+    /// A line for help texts.
     pub description: &'static str,
+    /// The geometry (object frame, metres, centred on the origin).
     pub mesh: TriMesh,
+    /// The surface colour.
     pub texture: Texture,
 }
 

@@ -16,10 +16,15 @@ use nalgebra::{Vector2, Vector3};
 /// (camera z at the pixel centre; NaN off the object) and the object's
 /// coverage of the pixel (0..1).
 pub struct Rendering {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Linear RGB in 0..1, row-major.
     pub rgb: Vec<[f32; 3]>,
+    /// Camera-space z at each pixel centre; NaN off the object.
     pub depth: Vec<f32>,
+    /// Fraction of the pixel's samples on the object (0..1).
     pub coverage: Vec<f32>,
 }
 

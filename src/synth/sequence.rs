@@ -13,24 +13,34 @@ use std::path::{Path, PathBuf};
 /// Errors of [`write_sequence`].
 #[derive(Debug, thiserror::Error)]
 pub enum SynthError {
+    /// No built-in object has this name.
     #[error("unknown object {0:?} (built-in objects: {list})", list = super::objects::OBJECT_NAMES.join(", "))]
     UnknownObject(String),
+    /// A directory or file could not be written.
     #[error("{path}: {source}")]
     Io {
+        /// The path.
         path: PathBuf,
+        /// Why.
         #[source]
         source: std::io::Error,
     },
+    /// An image could not be encoded or written.
     #[error("{path}: cannot write image: {source}")]
     Image {
+        /// The image file.
         path: PathBuf,
+        /// Why.
         #[source]
         source: image::ImageError,
     },
+    /// Sampling or saving the point model failed.
     #[error(transparent)]
     Model(#[from] crate::model::ModelError),
+    /// Writing a pose file failed.
     #[error(transparent)]
     Poses(#[from] crate::io::poses::PoseFileError),
+    /// A sequence needs at least two frames (the trajectory's start and end).
     #[error("a sequence needs at least 2 frames, got {0}")]
     TooFewFrames(usize),
 }
@@ -66,11 +76,17 @@ pub fn sample_model(
 /// What [`write_sequence`] wrote.
 #[derive(Debug, Clone)]
 pub struct SequenceSummary {
+    /// The sequence directory.
     pub dir: PathBuf,
+    /// Frames written to `frames/`.
     pub frames: usize,
+    /// Keyframes written to `keyframes/`.
     pub keyframes: usize,
+    /// Points in `model.ply`.
     pub model_points: usize,
+    /// The mesh's bounding-box diagonal, metres.
     pub diameter: f64,
+    /// The ground-truth pose of every frame (as in `poses.csv`).
     pub poses: Vec<Pose>,
 }
 

@@ -1,0 +1,287 @@
+//! The tracker on a synthetic sequence rendered by the synth CPU triangle
+//! rasteriser (never by the splatter under test): accuracy of the three
+//! modes against the exact ground truth, loss detection, and the typed
+//! errors of bad input.
+//!
+//! The sequence: the `blob` object along the `fig10` trajectory at the
+//! demo's speed (100 frames for the whole trajectory), 320x240, a 60k-point
+//! model sampled from the mesh, the 12 synth keyframes. The window tracked is
+//! frames 50..70, the rotation about the camera's x axis out to 20 degrees
+//! and half way back. Measured on lavapipe with a 20k-point model, KF+IT
+//! failed the 2-degree bound there (3.1 degrees, one frame lost); with 60k
+//! points the largest error over the windows 0..20, 50..70 and 84..100 was
+//! 1.3 degrees (84..100, the rotation about z), 0.87 degrees here.
+
+mod tracking_common;
+
+use splattrack::geometry::Pose;
+use splattrack::gpu::shared_test_context;
+use splattrack::keyframes::KeyframeStore;
+use splattrack::rng::Rng;
+use splattrack::synth::{SynthConfig, SynthFrame, Trajectory, render_frame};
+use splattrack::tracker::{Mode, Status, TrackError, Tracker, TrackerConfig};
+use std::sync::OnceLock;
+use tracking_common::{Scene, camera_320};
+
+const FIRST: usize = 50;
+const COUNT: usize = 20;
+
+struct Fixture {
+    scene: Scene,
+    store: KeyframeStore,
+    frames: Vec<SynthFrame>,
+}
+
+/// The sequence, rendered once per test binary.
+fn fixture() -> &'static Fixture {
+    static F: OnceLock<Fixture> = OnceLock::new();
+    F.get_or_init(|| {
+        let cam = camera_320();
+        let scene = Scene::new("blob", cam, 60_000);
+        let cfg = SynthConfig {
+            camera: cam,
+            frames: 100,
+            trajectory: Trajectory::Fig10,
+            ..Default::default()
+        };
+        let store = scene.keyframe_store(cfg.distance);
+        let frames = (FIRST..FIRST + COUNT)
+            .map(|i| render_frame(&cfg, &scene.object, &scene.bg, i))
+            .collect();
+        Fixture {
+            scene,
+            store,
+            frames,
+        }
+    })
+}
+
+fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker<'static> {
+    let f = fixture();
+    Tracker::new(
+        shared_test_context(),
+        f.scene.model.clone(),
+        f.scene.cam,
+        store,
+        TrackerConfig {
+            mode,
+            ..Default::default()
+        },
+        initial,
+    )
+    .expect("tracker")
+}
+
+/// Tracks the first `n` frames of the window; returns per-frame (rotation
+/// deg, translation % of the diameter, status).
+fn run(mode: Mode, n: usize) -> Vec<(f64, f64, Status)> {
+    let f = fixture();
+    let mut t = tracker(mode, Some(f.store.clone()), f.frames[0].pose);
+    f.frames[..n]
+        .iter()
+        .map(|fr| {
+            let r = t.track(&fr.image).expect("track");
+            assert_eq!(r.pose.rotation, t.pose().rotation);
+            (
+                r.pose.rotation_error_deg(&fr.pose),
+                100.0 * r.pose.translation_error(&fr.pose) / f.scene.diameter,
+                r.status,
+            )
+        })
+        .collect()
+}
+
+fn report(mode: Mode, errs: &[(f64, f64, Status)]) -> (f64, f64) {
+    let rot = errs.iter().map(|e| e.0).fold(0.0, f64::max);
+    let tr = errs.iter().map(|e| e.1).fold(0.0, f64::max);
+    eprintln!(
+        "{}: max rotation error {rot:.3} deg, max translation error {tr:.3}% of the diameter",
+        mode.name()
+    );
+    (rot, tr)
+}
+
+#[test]
+fn kf_it_stays_within_2_degrees_and_2_percent_at_every_frame() {
+    // The criterion (measured: up to 0.87 deg and 0.56%).
+    let errs = run(Mode::KfIt, COUNT);
+    report(Mode::KfIt, &errs);
+    for (i, (rot, tr, status)) in errs.iter().enumerate() {
+        let frame = FIRST + i;
+        assert_eq!(*status, Status::Tracking, "frame {frame}");
+        assert!(
+            *rot < 2.0 && *tr < 2.0,
+            "frame {frame}: {rot:.3} deg, {tr:.3}% of the diameter"
+        );
+    }
+}
+
+#[test]
+fn it_mode_tracks_with_bounded_drift() {
+    // Frame to frame only: no keyframe ever corrects it, so it drifts.
+    // The first 12 frames: out to the 20-degree turn and back a little
+    // (measured on lavapipe: up to 1.45 deg and 0.73%; over all 20 frames
+    // it reaches 3.1 deg).
+    let errs = run(Mode::It, 12);
+    let (rot, tr) = report(Mode::It, &errs);
+    assert!(errs.iter().all(|e| e.2 == Status::Tracking));
+    assert!(rot < 4.0 && tr < 2.5, "{rot:.3} deg, {tr:.3}%");
+}
+
+#[test]
+fn kf_mode_tracks_without_drift() {
+    // Keyframes only, the first 12 frames (measured: up to 0.91 deg and
+    // 0.43%).
+    let errs = run(Mode::Kf, 12);
+    let (rot, tr) = report(Mode::Kf, &errs);
+    assert!(errs.iter().all(|e| e.2 == Status::Tracking));
+    assert!(rot < 3.0 && tr < 2.0, "{rot:.3} deg, {tr:.3}%");
+}
+
+/// Pure noise: the object is gone.
+fn noise_frame(seed: u64) -> image::RgbImage {
+    let cam = fixture().scene.cam;
+    let mut rng = Rng::new(seed);
+    image::RgbImage::from_fn(cam.width, cam.height, |_, _| {
+        image::Rgb([0, 0, 0].map(|_: u8| rng.below(256) as u8))
+    })
+}
+
+#[test]
+fn noise_frames_are_lost_keep_the_last_good_pose_then_recover() {
+    let f = fixture();
+    let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
+    let mut last_good = None;
+    for fr in &f.frames[..4] {
+        let r = t.track(&fr.image).unwrap();
+        assert_eq!(r.status, Status::Tracking);
+        last_good = Some(r.pose);
+    }
+    let last_good = last_good.unwrap();
+    let mut first_lost = None;
+    for k in 0..4 {
+        let r = t.track(&noise_frame(100 + k as u64)).unwrap();
+        if r.status == Status::Lost {
+            first_lost.get_or_insert(k);
+            assert!(r.reason.is_some(), "a lost frame says why");
+        }
+        if first_lost.is_some() {
+            assert_eq!(r.status, Status::Lost, "noise frame {k} after a loss");
+            // Lost frames report the last good pose, unchanged.
+            assert_eq!(r.pose.rotation, last_good.rotation, "noise frame {k}");
+            assert_eq!(r.pose.translation, last_good.translation, "noise frame {k}");
+        } else {
+            // Not yet flagged: the pose must not have jumped.
+            assert!(r.pose.rotation_error_deg(&last_good) < 2.0);
+        }
+    }
+    let first_lost = first_lost.expect("noise frames never flagged lost");
+    assert!(first_lost <= 1, "lost only at noise frame {first_lost}");
+    assert_eq!(t.pose().rotation, last_good.rotation);
+    // The object comes back where it was: the tracker recovers against the
+    // keyframes (measured: at once, within 0.72 deg and 0.29%).
+    let mut recovered = None;
+    for (k, fr) in f.frames[4..8].iter().enumerate() {
+        let r = t.track(&fr.image).unwrap();
+        if r.status == Status::Tracking {
+            recovered.get_or_insert(k);
+            let rot = r.pose.rotation_error_deg(&fr.pose);
+            let tr = 100.0 * r.pose.translation_error(&fr.pose) / f.scene.diameter;
+            assert!(
+                rot < 2.0 && tr < 2.0,
+                "frame {k} after the noise: {rot:.3} deg, {tr:.3}%"
+            );
+        }
+    }
+    assert!(
+        recovered.is_some_and(|k| k <= 1),
+        "recovered at {recovered:?}"
+    );
+}
+
+#[test]
+fn wrong_frame_size_is_a_typed_error() {
+    let f = fixture();
+    let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
+    let small = image::RgbImage::new(160, 120);
+    match t.track(&small) {
+        Err(TrackError::FrameSize {
+            got_w: 160,
+            got_h: 120,
+            want_w: 320,
+            want_h: 240,
+        }) => {}
+        other => panic!("expected FrameSize, got {:?}", other.map(|r| r.status)),
+    }
+    // The tracker is still usable on a proper frame.
+    let r = t.track(&f.frames[0].image).unwrap();
+    assert_eq!(r.status, Status::Tracking);
+}
+
+#[test]
+fn object_behind_the_camera_is_refused() {
+    let f = fixture();
+    let mut behind = f.frames[0].pose;
+    behind.translation.z = -behind.translation.z;
+    let e = Tracker::new(
+        shared_test_context(),
+        f.scene.model.clone(),
+        f.scene.cam,
+        Some(f.store.clone()),
+        TrackerConfig::default(),
+        behind,
+    );
+    assert!(
+        matches!(e, Err(TrackError::ObjectNotInView)),
+        "{:?}",
+        e.err()
+    );
+    // Far off to the side (the whole object outside the image) too.
+    let mut aside = f.frames[0].pose;
+    aside.translation.x += 5.0;
+    let e = Tracker::new(
+        shared_test_context(),
+        f.scene.model.clone(),
+        f.scene.cam,
+        None,
+        TrackerConfig::default(),
+        aside,
+    );
+    assert!(
+        matches!(e, Err(TrackError::ObjectNotInView)),
+        "{:?}",
+        e.err()
+    );
+}
+
+#[test]
+fn kf_mode_needs_keyframes_or_model_colours() {
+    let f = fixture();
+    let mut bare = f.scene.model.clone();
+    bare.colors = None;
+    for mode in [Mode::Kf, Mode::KfIt] {
+        let e = Tracker::new(
+            shared_test_context(),
+            bare.clone(),
+            f.scene.cam,
+            None,
+            TrackerConfig {
+                mode,
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        );
+        match e {
+            Err(TrackError::NeedsKeyframes(name)) => assert_eq!(name, mode.name()),
+            other => panic!(
+                "{}: expected NeedsKeyframes, got {:?}",
+                mode.name(),
+                other.err()
+            ),
+        }
+    }
+    // IT needs neither; a coloured model serves as the single texture.
+    tracker(Mode::It, None, f.frames[0].pose);
+    let t = tracker(Mode::Kf, None, f.frames[0].pose);
+    assert_eq!(t.keyframes().map(|s| s.keyframes.len()), Some(1));
+}

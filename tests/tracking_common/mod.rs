@@ -1,0 +1,117 @@
+//! Helpers shared by the keyframe and tracker integration tests: small
+//! synthetic scenes rendered by the synth CPU triangle rasteriser (never by
+//! the splatter under test), their point models and keyframe stores.
+#![allow(dead_code)]
+
+use splattrack::geometry::{Intrinsics, Pose};
+use splattrack::gpu::shared_test_context;
+use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
+use splattrack::model::PointModel;
+use splattrack::rng::Rng;
+use splattrack::splat::Splatter;
+use splattrack::synth::raster::{self, Rendering};
+use splattrack::synth::sequence::sample_model;
+use splattrack::synth::{Light, SynthObject, background, keyframe_poses, to_image};
+use std::path::PathBuf;
+
+/// 320x240 with the synth command's 56-degree field of view.
+pub fn camera_320() -> Intrinsics {
+    Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5)
+}
+
+/// A synthetic scene: object, camera, background and the point model
+/// sampled from the object's mesh.
+pub struct Scene {
+    pub object: SynthObject,
+    pub cam: Intrinsics,
+    pub bg: Vec<[f32; 3]>,
+    pub model: PointModel,
+    /// Bounding-sphere diameter of the mesh (model units).
+    pub diameter: f64,
+}
+
+impl Scene {
+    pub fn new(object: &str, cam: Intrinsics, points: usize) -> Self {
+        let object = SynthObject::by_name(object).expect("built-in object");
+        let bg = background(&cam, 7);
+        let model = sample_model(&object, points, 3).expect("sample model");
+        let diameter = object.mesh.diameter();
+        Self {
+            object,
+            cam,
+            bg,
+            model,
+            diameter,
+        }
+    }
+
+    /// The rasterised rendering at `pose` (3x3 supersampling).
+    pub fn render(&self, pose: &Pose, light_phase: f64) -> Rendering {
+        raster::render(
+            &self.object,
+            pose,
+            &self.cam,
+            &Light::moving(light_phase),
+            &self.bg,
+            3,
+        )
+    }
+
+    /// The rendering as an 8-bit frame with sensor noise.
+    pub fn image(&self, r: &Rendering, noise: f64, seed: u64) -> image::RgbImage {
+        to_image(&r.rgb, &self.cam, noise, &mut Rng::new(seed))
+    }
+
+    /// Keyframe images at the synth viewpoints (as `splattrack synth`
+    /// writes them: light phase 0.3 k, noise 0.01).
+    pub fn keyframe_images(&self, distance: f64) -> Vec<(String, image::RgbImage, Pose)> {
+        keyframe_poses(distance)
+            .into_iter()
+            .enumerate()
+            .map(|(k, pose)| {
+                let r = self.render(&pose, 0.3 * k as f64);
+                (
+                    format!("kf{k:02}"),
+                    self.image(&r, 0.01, 0xCAFE + k as u64),
+                    pose,
+                )
+            })
+            .collect()
+    }
+
+    /// The keyframe store built from [`Scene::keyframe_images`].
+    pub fn keyframe_store(&self, distance: f64) -> KeyframeStore {
+        let ctx = shared_test_context();
+        let splatter = Splatter::new(ctx).expect("splatter");
+        KeyframeStore::build(
+            ctx,
+            &splatter,
+            &self.model,
+            &self.cam,
+            &self.keyframe_images(distance),
+            &KeyframeConfig::default(),
+        )
+        .expect("build keyframe store")
+    }
+}
+
+/// A fresh directory under the temp dir, removed on drop.
+pub struct TempDir(pub PathBuf);
+
+impl TempDir {
+    pub fn new(tag: &str) -> Self {
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        static COUNTER: AtomicUsize = AtomicUsize::new(0);
+        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+        let p = std::env::temp_dir().join(format!("splattrack-{tag}-{}-{n}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&p);
+        std::fs::create_dir_all(&p).expect("create temp dir");
+        Self(p)
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
