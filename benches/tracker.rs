@@ -11,8 +11,7 @@ use splattrack::gpu::GpuContext;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::synth::{
-    Light, SynthConfig, SynthObject, background, keyframe_poses, raster, render_frame,
-    sequence::sample_model, to_image,
+    SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Tracker, TrackerConfig};
 use std::time::Duration;
@@ -30,19 +29,7 @@ fn bench(c: &mut Criterion) {
     let frames: Vec<_> = (0..30)
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
-    let kfs: Vec<_> = keyframe_poses(cfg.distance)
-        .into_iter()
-        .enumerate()
-        .map(|(k, pose)| {
-            let r = raster::render(&object, &pose, &cfg.camera, &Light::moving(0.0), &bg, 1);
-            let mut rng = splattrack::rng::Rng::new(k as u64);
-            (
-                format!("kf{k}"),
-                to_image(&r.rgb, &cfg.camera, 0.0, &mut rng),
-                pose,
-            )
-        })
-        .collect();
+    let kfs = keyframe_images(&cfg, &object, &bg);
     let splatter = Splatter::new(&ctx).unwrap();
     let store = KeyframeStore::build(
         &ctx,

@@ -13,8 +13,8 @@ use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::synth::{
-    Light, SynthConfig, SynthObject, Trajectory, background, keyframe_poses, raster, render_frame,
-    sequence::sample_model, to_image,
+    SynthConfig, SynthObject, Trajectory, background, keyframe_images, render_frame,
+    sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
 
@@ -45,26 +45,7 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
     let frames: Vec<_> = (0..cfg.frames)
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
-    let kf_images: Vec<_> = keyframe_poses(cfg.distance)
-        .into_iter()
-        .enumerate()
-        .map(|(k, pose)| {
-            let r = raster::render(
-                &object,
-                &pose,
-                &cfg.camera,
-                &Light::moving(0.3 * k as f64),
-                &bg,
-                cfg.samples,
-            );
-            let mut rng = splattrack::rng::Rng::new(100 + k as u64);
-            (
-                format!("kf{k:02}"),
-                to_image(&r.rgb, &cfg.camera, cfg.noise, &mut rng),
-                pose,
-            )
-        })
-        .collect();
+    let kf_images = keyframe_images(&cfg, &object, &bg);
     let splatter = Splatter::new(ctx).unwrap();
     let store = KeyframeStore::build(
         ctx,

@@ -218,6 +218,27 @@ pub fn to_image(rgb: &[[f32; 3]], cam: &Intrinsics, noise: f64, rng: &mut Rng) -
     })
 }
 
+/// The keyframe images of a sequence, named `kf00.png`, `kf01.png`, ...:
+/// rendered at [`keyframe_poses`] by the same rasteriser, each under its
+/// own light direction and with its own noise.
+pub fn keyframe_images(
+    cfg: &SynthConfig,
+    object: &SynthObject,
+    bg: &[[f32; 3]],
+) -> Vec<(String, image::RgbImage, Pose)> {
+    keyframe_poses(cfg.distance)
+        .into_iter()
+        .enumerate()
+        .map(|(k, pose)| {
+            let light = Light::moving(0.3 * k as f64);
+            let r = raster::render(object, &pose, &cfg.camera, &light, bg, cfg.samples);
+            let mut rng = Rng::new(cfg.seed ^ (0xCAFE + k as u64));
+            let img = to_image(&r.rgb, &cfg.camera, cfg.noise, &mut rng);
+            (format!("kf{k:02}.png"), img, pose)
+        })
+        .collect()
+}
+
 /// One rendered frame of a sequence: the image and the object's mask.
 pub struct SynthFrame {
     /// The 8-bit frame, noise included.

@@ -6,7 +6,6 @@ use super::{SynthConfig, SynthObject, background, keyframe_poses, render_frame};
 use crate::geometry::Pose;
 use crate::io::{PoseRow, write_poses};
 use crate::model::{AttributeSource, PointModel};
-use crate::rng::Rng;
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -151,20 +150,11 @@ pub fn write_sequence(
     write_poses(&dir.join("poses.csv"), &rows)?;
     write_poses(&dir.join("init.csv"), &rows[..1])?;
 
-    // Keyframes: same renderer, same light model, their own noise.
     let mut kf_rows = Vec::new();
-    for (k, pose) in keyframe_poses(cfg.distance).into_iter().enumerate() {
-        let r = super::raster::render(
-            &object,
-            &pose,
-            cam,
-            &super::Light::moving(0.3 * k as f64),
-            &bg,
-            cfg.samples,
-        );
-        let mut rng = Rng::new(cfg.seed ^ (0xCAFE + k as u64));
-        let img = super::to_image(&r.rgb, cam, cfg.noise, &mut rng);
-        let name = format!("kf{k:02}.png");
+    for (k, (name, img, pose)) in super::keyframe_images(cfg, &object, &bg)
+        .into_iter()
+        .enumerate()
+    {
         save_png(&img, &kf_dir.join(&name))?;
         kf_rows.push(PoseRow::new(name, pose));
         progress(cfg.frames + k + 1, total);
