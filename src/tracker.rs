@@ -20,8 +20,10 @@
 //!    splatted depth, re-projected at the updated pose, and the residuals
 //!    solved again with the same robust loss (measured: it removes the
 //!    first-order error of large motions).
-//! 5. The frame is `lost` when too few inliers survive or their residual is
-//!    too large; the pose then stays at the last good one, and the next
+//! 5. The KF result is used when enough inliers survive with a small
+//!    residual, else the IT result (KF+IT keeps tracking frame to frame
+//!    through a frame the keyframes cannot explain); when neither holds the
+//!    frame is `lost`: the pose stays at the last good one, and the next
 //!    frames try to recover against the keyframes with a wide search.
 
 #![warn(missing_docs)]
@@ -104,7 +106,9 @@ pub struct TrackerConfig {
     /// Margin around the object's projected bounding circle where corners
     /// are detected, pixels.
     pub roi_margin_px: f64,
-    /// Fewer inliers than this in the last step: `lost`.
+    /// A step with fewer inliers than this is not trusted; when neither
+    /// the KF nor the IT step of a frame is, the frame is `lost` (8: the box
+    /// on the fast trajectory has frames with 8-11 good KF matches).
     pub min_inliers: usize,
     /// Inlier RMS residual above this: `lost`.
     pub max_residual_px: f64,
@@ -134,7 +138,7 @@ impl Default for TrackerConfig {
             refine_iterations: 2,
             kf_iterations: 1,
             roi_margin_px: 24.0,
-            min_inliers: 12,
+            min_inliers: 8,
             max_residual_px: 3.0,
             fuse: false,
             fuse_weight: 0.5,
@@ -441,55 +445,59 @@ impl<'a> Tracker<'a> {
         let corners = self.harris.detect(&grey, Some(&mask))?;
         times.features = t0.elapsed();
 
-        let mut pose = start_pose;
-        let mut last: Option<IrlsResult> = None;
-        let mut reason: Option<String> = None;
-        let mut keyframe = None;
         let recovering = self.lost_streak > 0;
+        let (min_inliers, max_residual) = (self.config.min_inliers, self.config.max_residual_px);
+        let good = move |s: &IrlsResult| {
+            s.inlier_count >= min_inliers && s.residual_rms_px <= max_residual
+        };
         let mut it_anchors = Vec::new();
+        let mut it_result: Option<(Pose, IrlsResult)> = None;
+        let mut it_error: Option<String> = None;
+        let had_prev = self.prev.is_some();
 
         // IT: needs a previous frame; skipped while recovering.
         let t_it = Instant::now();
         if matches!(self.config.mode, Mode::It | Mode::KfIt) && !recovering {
             if let Some(prev) = self.prev.take() {
-                match self.it_step(&prev, &grey, &corners, &pose) {
+                match self.it_step(&prev, &grey, &corners, &start_pose) {
                     Ok(step) => {
-                        pose = step.pose;
-                        last = Some(step.solve);
                         if self.config.fuse {
                             it_anchors = step.anchors;
                         }
+                        it_result = Some((step.pose, step.solve));
                     }
-                    Err(e) => reason = Some(format!("IT: {e}")),
+                    Err(e) => it_error = Some(format!("IT: {e}")),
                 }
             }
         }
         times.it = t_it.elapsed();
 
         let t_kf = Instant::now();
+        let mut kf_result: Option<(Pose, IrlsResult)> = None;
+        let mut kf_error: Option<String> = None;
+        let mut keyframe = None;
         let use_kf = matches!(self.config.mode, Mode::Kf | Mode::KfIt)
             || (recovering && self.store.is_some());
         if use_kf && self.store.is_some() {
-            // Without an IT estimate the first KF step must search as far
-            // as frame-to-frame matching does; after a loss, farther.
-            let first = if recovering {
-                Search::Recover
-            } else if last.is_none() {
-                Search::Motion
-            } else {
-                Search::Refine
+            // Start from a sound IT estimate when there is one; without it
+            // the first KF step must search as far as frame-to-frame
+            // matching does, and after a loss farther.
+            let it_ok = it_result.as_ref().filter(|(_, s)| good(s));
+            let (mut pose, first) = match (recovering, it_ok) {
+                (true, _) => (start_pose, Search::Recover),
+                (false, Some((p, _))) => (*p, Search::Refine),
+                (false, None) => (start_pose, Search::Motion),
             };
             for it in 0..self.config.kf_iterations.max(1) {
                 let search = if it == 0 { first } else { Search::Refine };
                 match self.kf_step(&grey, &corners, &pose, search, &it_anchors) {
                     Ok((step, k)) => {
                         pose = step.pose;
-                        last = Some(step.solve);
+                        kf_result = Some((step.pose, step.solve));
                         keyframe = Some(k);
-                        reason = None;
                     }
                     Err(e) => {
-                        reason = Some(format!("KF: {e}"));
+                        kf_error = Some(format!("KF: {e}"));
                         break;
                     }
                 }
@@ -497,32 +505,66 @@ impl<'a> Tracker<'a> {
         }
         times.kf = t_kf.elapsed();
 
+        // The KF result when it is sound; else the IT result (KF+IT keeps
+        // tracking frame to frame through a frame the keyframes cannot
+        // explain); else the frame is lost.
+        let describe = |s: &IrlsResult| {
+            format!(
+                "{} inliers, residual {:.2} px (need >= {} and <= {:.1} px)",
+                s.inlier_count,
+                s.residual_rms_px,
+                self.config.min_inliers,
+                self.config.max_residual_px
+            )
+        };
+        let mut reason = None;
+        let chosen = match (&kf_result, &it_result) {
+            (Some((p, s)), _) if good(s) => Some((*p, s.clone())),
+            (_, Some((p, s))) if good(s) => {
+                let why = kf_error.clone().or_else(|| {
+                    kf_result
+                        .as_ref()
+                        .map(|(_, s)| format!("KF: {}", describe(s)))
+                });
+                if let Some(why) = why {
+                    log::debug!("KF step not used ({why}); keeping the IT estimate");
+                }
+                Some((*p, s.clone()))
+            }
+            _ => {
+                reason = kf_error
+                    .clone()
+                    .or_else(|| {
+                        kf_result
+                            .as_ref()
+                            .map(|(_, s)| format!("KF: {}", describe(s)))
+                    })
+                    .or_else(|| it_error.clone())
+                    .or_else(|| {
+                        it_result
+                            .as_ref()
+                            .map(|(_, s)| format!("IT: {}", describe(s)))
+                    });
+                None
+            }
+        };
         // The first frame of a sequence has nothing to track against in IT
         // mode: it is the initial pose, by definition tracking.
-        let first_it_frame = self.config.mode == Mode::It && last.is_none() && reason.is_none();
-        let (status, inliers, residual) = match &last {
-            Some(s)
-                if s.inlier_count >= self.config.min_inliers
-                    && s.residual_rms_px <= self.config.max_residual_px
-                    && reason.is_none() =>
-            {
-                (Status::Tracking, s.inlier_count, s.residual_rms_px)
-            }
-            Some(s) => {
-                reason.get_or_insert_with(|| {
-                    format!(
-                        "{} inliers, residual {:.2} px (need >= {} and <= {:.1} px)",
-                        s.inlier_count,
-                        s.residual_rms_px,
-                        self.config.min_inliers,
-                        self.config.max_residual_px
-                    )
-                });
-                (Status::Lost, s.inlier_count, s.residual_rms_px)
-            }
-            None if first_it_frame => (Status::Tracking, 0, 0.0),
-            None => (Status::Lost, 0, f64::NAN),
+        let first_it_frame = self.config.mode == Mode::It
+            && it_result.is_none()
+            && it_error.is_none()
+            && !had_prev
+            && !recovering;
+        let last = kf_result.as_ref().or(it_result.as_ref()).map(|(_, s)| s);
+        let (status, pose, inliers, residual) = match (&chosen, last) {
+            (Some((p, s)), _) => (Status::Tracking, *p, s.inlier_count, s.residual_rms_px),
+            (None, _) if first_it_frame => (Status::Tracking, start_pose, 0, 0.0),
+            (None, Some(s)) => (Status::Lost, start_pose, s.inlier_count, s.residual_rms_px),
+            (None, None) => (Status::Lost, start_pose, 0, f64::NAN),
         };
+        if status == Status::Lost && reason.is_none() {
+            reason = Some("nothing to track against".into());
+        }
         if status == Status::Tracking {
             self.pose = pose;
             self.lost_streak = 0;
