@@ -439,7 +439,7 @@ impl<'a> Tracker<'a> {
         }
         let t0 = Instant::now();
         let mut times = StageTimes::default();
-        let grey = GreyImage::from_dynamic(&image::DynamicImage::ImageRgb8(frame.clone()));
+        let grey = GreyImage::from_rgb8(frame);
         let start_pose = self.pose;
         let mask = self.roi_mask(&start_pose);
         let corners = self.harris.detect(&grey, Some(&mask))?;
