@@ -92,6 +92,10 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
         timings.push(stats);
     }
+    println!(
+        "3. tracked the sequence in the three modes: {}",
+        args.out.join("poses_{it,kf,kfit}.csv").display()
+    );
     println!("4. errors against the ground truth:");
     let summaries: Vec<_> = evals.iter().map(|e| e.summary.clone()).collect();
     print!("{}", eval::table(&summaries, "m"));
