@@ -123,13 +123,26 @@ pub struct TrackerConfig {
     /// novel view is blurrier than the frame, which biases independently
     /// detected corners (see `features::refine`).
     pub refine_window: u32,
+    /// Splat radii are raised to at least this many pixels (at the initial
+    /// pose's distance). Models sampled at about one point per pixel leave
+    /// scattered empty pixels in the splatted views, and each one voids every
+    /// Harris corner and NCC window that touches it. 0: the radii as given.
+    pub min_splat_radius_px: f32,
+    /// KF+IT: consecutive frames whose KF step may fail while a sound IT
+    /// estimate stands in for it (IT alone drifts); beyond that the frame
+    /// is `lost`.
+    pub max_it_only_frames: usize,
 }
 
 impl Default for TrackerConfig {
     fn default() -> Self {
         Self {
             mode: Mode::KfIt,
-            harris: HarrisConfig::default(),
+            // 0.003 rather than the detector's 0.01: the threshold is
+            // relative to the strongest corner in the region of interest,
+            // often in the background on real frames (on the ViSP cube the
+            // object kept too few corners at 0.01).
+            harris: HarrisConfig::default().with_relative_threshold(0.003),
             ncc: NccConfig::default(),
             irls: IrlsConfig::default(),
             it_search_px: 40.0,
@@ -143,6 +156,8 @@ impl Default for TrackerConfig {
             fuse: false,
             fuse_weight: 0.5,
             refine_window: 15,
+            min_splat_radius_px: 1.0,
+            max_it_only_frames: 5,
         }
     }
 }
@@ -320,6 +335,8 @@ pub struct Tracker<'a> {
     pose: Pose,
     prev: Option<PrevFrame>,
     lost_streak: usize,
+    /// KF+IT: consecutive frames tracked by IT alone.
+    it_only_streak: usize,
 }
 
 impl<'a> Tracker<'a> {
@@ -341,14 +358,20 @@ impl<'a> Tracker<'a> {
         if store.is_none() && config.mode != Mode::It {
             return Err(TrackError::NeedsKeyframes(config.mode.name()));
         }
+        let mut model = model;
+        let (lo, hi) = model.bounds();
+        let c = (lo + hi) * 0.5;
+        let center = Vector3::new(c.x as f64, c.y as f64, c.z as f64);
+        let z0 = initial.transform_point(&center).z;
+        let floor = (config.min_splat_radius_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
+        if floor > 0.0 && floor.is_finite() {
+            model.radii.iter_mut().for_each(|r| *r = r.max(floor));
+        }
         let splatter = Splatter::new(ctx)?;
         let geometry = GpuModel::new(ctx, &model)?;
         let targets = SplatTargets::new(ctx, cam.width, cam.height);
         let harris = Harris::new(ctx, config.harris.clone())?;
         let matcher = |r: f32| NccMatcher::new(ctx, config.ncc.clone().with_search_radius(Some(r)));
-        let (lo, hi) = model.bounds();
-        let c = (lo + hi) * 0.5;
-        let center = Vector3::new(c.x as f64, c.y as f64, c.z as f64);
         let radius = model
             .positions
             .iter()
@@ -374,6 +397,7 @@ impl<'a> Tracker<'a> {
             pose: initial,
             prev: None,
             lost_streak: 0,
+            it_only_streak: 0,
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -518,9 +542,17 @@ impl<'a> Tracker<'a> {
             )
         };
         let mut reason = None;
+        let it_may_stand =
+            self.config.mode != Mode::KfIt || self.it_only_streak < self.config.max_it_only_frames;
         let chosen = match (&kf_result, &it_result) {
-            (Some((p, s)), _) if good(s) => Some((*p, s.clone())),
-            (_, Some((p, s))) if good(s) => {
+            (Some((p, s)), _) if good(s) => {
+                self.it_only_streak = 0;
+                Some((*p, s.clone()))
+            }
+            (_, Some((p, s))) if good(s) && it_may_stand => {
+                if self.config.mode == Mode::KfIt {
+                    self.it_only_streak += 1;
+                }
                 let why = kf_error.clone().or_else(|| {
                     kf_result
                         .as_ref()
@@ -532,6 +564,9 @@ impl<'a> Tracker<'a> {
                 Some((*p, s.clone()))
             }
             _ => {
+                if !it_may_stand {
+                    self.it_only_streak = 0;
+                }
                 reason = kf_error
                     .clone()
                     .or_else(|| {
@@ -550,7 +585,7 @@ impl<'a> Tracker<'a> {
         };
         // The first frame of a sequence has nothing to track against in IT
         // mode: it is the initial pose, by definition tracking.
-        let first_it_frame = self.config.mode == Mode::It
+        let first_it_frame = matches!(self.config.mode, Mode::It | Mode::KfIt)
             && it_result.is_none()
             && it_error.is_none()
             && !had_prev
