@@ -564,9 +564,6 @@ impl<'a> Tracker<'a> {
                 Some((*p, s.clone()))
             }
             _ => {
-                if !it_may_stand {
-                    self.it_only_streak = 0;
-                }
                 reason = kf_error
                     .clone()
                     .or_else(|| {
@@ -580,6 +577,14 @@ impl<'a> Tracker<'a> {
                             .as_ref()
                             .map(|(_, s)| format!("IT: {}", describe(s)))
                     });
+                if !it_may_stand && it_result.as_ref().is_some_and(|(_, s)| good(s)) {
+                    reason = Some(format!(
+                        "{}; IT alone has stood in for {} frames and drifts",
+                        reason.unwrap_or_default(),
+                        self.config.max_it_only_frames
+                    ));
+                }
+                self.it_only_streak = 0;
                 None
             }
         };
