@@ -1,0 +1,155 @@
+//! The tracker on real data: the first frames of the ViSP picture-cube
+//! sequence in `../shared/data/visp_rbt_cube` (see its README.txt), KF+IT
+//! with the default settings, against the refined ground truth.
+//!
+//! The data stays outside the repository. Without it this test fails with a
+//! message that says where it looked; set `SPLATTRACK_SKIP_REAL_DATA=1` to
+//! skip it instead.
+
+use splattrack::PointModel;
+use splattrack::geometry::Pose;
+use splattrack::gpu::{self, GpuContext};
+use splattrack::io::{Sequence, read_poses};
+use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
+use splattrack::splat::Splatter;
+use splattrack::tracker::{Mode, Status, TrackResult, Tracker, TrackerConfig};
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+fn data_dir(name: &str) -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    if dir.join("poses.csv").is_file() {
+        return Some(dir);
+    }
+    if std::env::var_os("SPLATTRACK_SKIP_REAL_DATA").is_some() {
+        eprintln!("skipped: no real data at {}", dir.display());
+        return None;
+    }
+    panic!(
+        "real data not found at {} (see shared/data/README.txt; set SPLATTRACK_SKIP_REAL_DATA=1 to skip)",
+        dir.display()
+    );
+}
+
+/// `frame -> gt_ok` from gt_quality.csv.
+fn gt_ok(path: &std::path::Path) -> HashMap<usize, bool> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let fi = header.iter().position(|h| *h == "frame").unwrap();
+    let oi = header.iter().position(|h| *h == "gt_ok").unwrap();
+    lines
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            (c[fi].parse().unwrap(), c[oi].trim() == "1")
+        })
+        .collect()
+}
+
+/// A frame's result and, for gt_ok frames, its rotation error (degrees) and
+/// translation error (% of the diameter).
+type Tracked = (TrackResult, Option<(f64, f64)>);
+
+/// Loads sequence `name` and tracks its first `frames` frames with the
+/// default settings in `mode`: per frame, the result and (gt_ok frames only)
+/// the rotation error (degrees) and translation error (% of the diameter).
+fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Tracked>> {
+    let dir = data_dir(name)?;
+    let ctx = ctx();
+    let model = PointModel::load(dir.join("model.ply")).unwrap();
+    let seq = Sequence::open(&dir).unwrap();
+    let cam = seq.camera;
+    assert!(!cam.has_distortion(), "the ViSP camera has no distortion");
+    let splatter = Splatter::new(ctx).unwrap();
+    let store = KeyframeStore::build_from_dir(
+        ctx,
+        &splatter,
+        &model,
+        &cam,
+        &dir.join("keyframes"),
+        &KeyframeConfig::default(),
+    )
+    .unwrap();
+    let init: Pose = read_poses(&seq.init_path()).unwrap()[0].pose;
+    let gt = read_poses(&dir.join("poses.csv")).unwrap();
+    let ok = gt_ok(&dir.join("gt_quality.csv"));
+    let diameter = model.diameter() as f64;
+    let config = TrackerConfig {
+        mode,
+        ..Default::default()
+    };
+    let mut tracker = Tracker::new(ctx, model, cam, Some(store), config, init).unwrap();
+    let mut out = Vec::new();
+    for (i, g) in gt.iter().enumerate().take(frames) {
+        assert_eq!(g.frame_index(), Some(i));
+        let frame = image::open(&seq.frames[i]).unwrap().to_rgb8();
+        let r = tracker.track(&frame).unwrap();
+        let err = ok[&i].then(|| {
+            (
+                r.pose.rotation_error_deg(&g.pose),
+                100.0 * r.pose.translation_error(&g.pose) / diameter,
+            )
+        });
+        eprintln!(
+            "{name} frame {i}: {} ({} inliers) {err:?} {}",
+            r.status.name(),
+            r.inliers,
+            r.reason.as_deref().unwrap_or("")
+        );
+        out.push((r, err));
+    }
+    Some(out)
+}
+
+/// KF+IT on frames 0-15 of the cube: every frame tracked, and every frame
+/// with trustworthy ground truth within 1.5 degrees and 2.5% of the
+/// diameter. Measured with the defaults (lavapipe): at most 0.6 degrees and
+/// 1.2% (1.8 mm, mostly along the optical axis); the ground truth itself is
+/// good to ~1 px, ~0.5-1 degree.
+#[test]
+fn cube_first_frames_kf_it_within_bounds() {
+    let Some(run) = track_first_frames("visp_rbt_cube", Mode::KfIt, 16) else {
+        return;
+    };
+    let (mut worst_rot, mut worst_tr) = (0.0f64, 0.0f64);
+    for (i, (r, err)) in run.iter().enumerate() {
+        assert_eq!(r.status, Status::Tracking, "frame {i}: {:?}", r.reason);
+        let Some((rot, tr)) = *err else { continue };
+        assert!(rot < 1.5, "frame {i}: rotation error {rot:.3} deg");
+        assert!(
+            tr < 2.5,
+            "frame {i}: translation error {tr:.3}% of the diameter"
+        );
+        worst_rot = worst_rot.max(rot);
+        worst_tr = worst_tr.max(tr);
+    }
+    eprintln!("worst: {worst_rot:.3} deg, {worst_tr:.3}%");
+}
+
+/// The weakly textured dragon: the KF step finds almost no matches against
+/// its novel views, so KF+IT runs on IT alone for a few frames and then
+/// says `lost`. Whatever it reports as `tracking` must be right (within 2
+/// degrees and 2.5% of the diameter): a lost track must say so, never
+/// report a wrong pose. (Measured: frames 0-4 tracked within 0.35 degrees,
+/// then lost.)
+#[test]
+fn dragon_kf_it_tracking_frames_are_right() {
+    let Some(run) = track_first_frames("visp_rbt_dragon", Mode::KfIt, 12) else {
+        return;
+    };
+    for (i, (r, err)) in run.iter().enumerate() {
+        if r.status == Status::Lost {
+            assert!(r.reason.is_some(), "frame {i}: lost without a reason");
+            continue;
+        }
+        let Some((rot, tr)) = *err else { continue };
+        assert!(rot < 2.0, "frame {i}: tracking, but {rot:.3} deg off");
+        assert!(tr < 2.5, "frame {i}: tracking, but {tr:.3}% off");
+    }
+}
