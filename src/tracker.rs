@@ -132,6 +132,15 @@ pub struct TrackerConfig {
     /// estimate stands in for it (IT alone drifts); beyond that the frame
     /// is `lost`.
     pub max_it_only_frames: usize,
+    /// IT uses only corners of the previous frame whose surroundings (8
+    /// points at this distance, pixels; 4 = the NCC window's corners and
+    /// edge midpoints) are on the object too. 0 (default): every corner on
+    /// the object, outline included. Outline corners mix the background's
+    /// motion in: with 4, IT's mean rotation error on the real ViSP cube
+    /// drops from 2.7 to 0.75 degrees, but on the synthetic box (fast
+    /// trajectory) it rises from 1.0 to 2.9 degrees (half the matches gone),
+    /// so it is off by default.
+    pub it_interior_px: f32,
 }
 
 impl Default for TrackerConfig {
@@ -158,6 +167,7 @@ impl Default for TrackerConfig {
             refine_window: 15,
             min_splat_radius_px: 1.0,
             max_it_only_frames: 5,
+            it_interior_px: 0.0,
         }
     }
 }
@@ -648,8 +658,40 @@ impl<'a> Tracker<'a> {
             .splatter
             .gather(self.ctx, &self.targets, &pts, GatherMode::Bilinear)
             .map_err(|e| e.to_string())?;
-        // Only corners on the object take part.
-        let on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
+        // Only corners on the object take part; with `it_interior_px`, only
+        // those whose surroundings are on the object too (see the field).
+        let mut on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
+        let r = self.config.it_interior_px;
+        if r > 0.0 && !on_object.is_empty() {
+            const RING: [(f32, f32); 8] = [
+                (-1.0, -1.0),
+                (0.0, -1.0),
+                (1.0, -1.0),
+                (-1.0, 0.0),
+                (1.0, 0.0),
+                (-1.0, 1.0),
+                (0.0, 1.0),
+                (1.0, 1.0),
+            ];
+            let probes: Vec<[f32; 2]> = on_object
+                .iter()
+                .flat_map(|&i| {
+                    let c = prev.corners[i];
+                    RING.iter()
+                        .map(move |(dx, dy)| [c.x + dx * r, c.y + dy * r])
+                })
+                .collect();
+            let ring = self
+                .splatter
+                .gather(self.ctx, &self.targets, &probes, GatherMode::Bilinear)
+                .map_err(|e| e.to_string())?;
+            on_object = on_object
+                .iter()
+                .zip(ring.chunks(RING.len()))
+                .filter(|(_, ring)| ring.iter().all(|s| s.valid))
+                .map(|(&i, _)| i)
+                .collect();
+        }
         let src: Vec<Corner> = on_object.iter().map(|&i| prev.corners[i]).collect();
         let matches = self
             .it_matcher

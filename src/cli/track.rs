@@ -51,6 +51,142 @@ pub struct Args {
     /// Track only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    #[command(flatten)]
+    pub tuning: Tuning,
+}
+
+/// Overrides of [`TrackerConfig`] defaults (unset: the default).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct Tuning {
+    /// Harris: keep corners whose response is at least this fraction of the
+    /// largest one in the search region (default 0.003).
+    #[arg(long)]
+    pub harris_threshold: Option<f32>,
+    /// Harris: at most this many corners per image (default 900).
+    #[arg(long)]
+    pub max_corners: Option<usize>,
+    /// NCC: minimum score of a match (default 0.8).
+    #[arg(long)]
+    pub min_score: Option<f32>,
+    /// NCC: window side, odd (default 9).
+    #[arg(long)]
+    pub ncc_window: Option<u32>,
+    /// Frame-to-frame search radius, pixels (default 40).
+    #[arg(long)]
+    pub it_search: Option<f32>,
+    /// Search radius against the novel view, pixels (default 24).
+    #[arg(long)]
+    pub kf_search: Option<f32>,
+    /// Search radius when recovering a lost track, pixels (default 80).
+    #[arg(long)]
+    pub recover_search: Option<f32>,
+    /// KF steps per frame (default 1).
+    #[arg(long)]
+    pub kf_iterations: Option<usize>,
+    /// Gauss-Newton refinements after each linear solve (default 2).
+    #[arg(long)]
+    pub refine_iterations: Option<usize>,
+    /// Margin around the object's projected bounding circle, pixels (default 24).
+    #[arg(long)]
+    pub roi_margin: Option<f64>,
+    /// A step with fewer inliers than this is not trusted (default 8).
+    #[arg(long)]
+    pub min_inliers: Option<usize>,
+    /// Inlier RMS residual above this: lost (default 3 px).
+    #[arg(long)]
+    pub max_residual: Option<f64>,
+    /// Splat radii are raised to at least this many pixels (default 1; 0:
+    /// the model's radii).
+    #[arg(long)]
+    pub min_splat_px: Option<f32>,
+    /// KF+IT: frames in a row that IT alone may track when the KF step
+    /// fails (default 5).
+    #[arg(long)]
+    pub max_it_only: Option<usize>,
+    /// IT: only corners whose surroundings at this distance (pixels) are on
+    /// the object (default 0: outline corners too; 4 helps IT on the real
+    /// cube, hurts it on the synthetic box).
+    #[arg(long)]
+    pub it_interior: Option<f32>,
+}
+
+impl Tuning {
+    /// `base` with these overrides applied.
+    pub fn apply(&self, mut c: TrackerConfig) -> anyhow::Result<TrackerConfig> {
+        if let Some(v) = self.harris_threshold {
+            if !(v > 0.0 && v <= 1.0) {
+                bail!("--harris-threshold {v}: must be in (0, 1]");
+            }
+            c.harris.relative_threshold = v;
+        }
+        if let Some(v) = self.max_corners {
+            c.harris.max_corners = v;
+        }
+        if let Some(v) = self.min_score {
+            c.ncc.min_score = v;
+        }
+        if let Some(v) = self.ncc_window {
+            c.ncc.window = v;
+        }
+        let radius = |name: &str, v: f32| -> anyhow::Result<f32> {
+            if !(v >= 0.0 && v.is_finite()) {
+                bail!("--{name} {v}: must be a finite radius >= 0");
+            }
+            Ok(v)
+        };
+        if let Some(v) = self.it_search {
+            c.it_search_px = radius("it-search", v)?;
+        }
+        if let Some(v) = self.kf_search {
+            c.kf_search_px = radius("kf-search", v)?;
+        }
+        if let Some(v) = self.recover_search {
+            c.recover_search_px = radius("recover-search", v)?;
+        }
+        if let Some(v) = self.kf_iterations {
+            c.kf_iterations = v;
+        }
+        if let Some(v) = self.refine_iterations {
+            c.refine_iterations = v;
+        }
+        if let Some(v) = self.roi_margin {
+            if !(v >= 0.0 && v.is_finite()) {
+                bail!("--roi-margin {v}: must be >= 0");
+            }
+            c.roi_margin_px = v;
+        }
+        if let Some(v) = self.min_inliers {
+            c.min_inliers = v;
+        }
+        if let Some(v) = self.max_residual {
+            if !(v > 0.0 && v.is_finite()) {
+                bail!("--max-residual {v}: must be > 0");
+            }
+            c.max_residual_px = v;
+        }
+        if let Some(v) = self.min_splat_px {
+            if !(v >= 0.0 && v.is_finite()) {
+                bail!("--min-splat-px {v}: must be >= 0");
+            }
+            c.min_splat_radius_px = v;
+        }
+        if let Some(v) = self.max_it_only {
+            c.max_it_only_frames = v;
+        }
+        if let Some(v) = self.it_interior {
+            if !(v >= 0.0 && v.is_finite()) {
+                bail!("--it-interior {v}: must be >= 0");
+            }
+            c.it_interior_px = v;
+        }
+        c.harris
+            .validate()
+            .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
+        c.ncc
+            .validate()
+            .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
+        Ok(c)
+    }
 }
 
 /// Loads (or builds) the keyframe store the options name.
@@ -295,6 +431,21 @@ pub fn track_sequence(
     setup: &Setup,
     opts: &RunOptions,
 ) -> anyhow::Result<RunStats> {
+    let config = TrackerConfig {
+        mode: opts.mode,
+        ..Default::default()
+    };
+    track_sequence_with(ctx, setup, opts, config)
+}
+
+/// [`track_sequence`] with explicit tracker settings (`opts.mode` wins over
+/// `config.mode`).
+pub fn track_sequence_with(
+    ctx: &GpuContext,
+    setup: &Setup,
+    opts: &RunOptions,
+    config: TrackerConfig,
+) -> anyhow::Result<RunStats> {
     let n = opts
         .frames
         .unwrap_or(setup.sequence.frames.len())
@@ -308,7 +459,7 @@ pub fn track_sequence(
     }
     let config = TrackerConfig {
         mode: opts.mode,
-        ..Default::default()
+        ..config
     };
     let mut tracker = Tracker::new(
         ctx,
@@ -407,6 +558,7 @@ pub fn track_sequence(
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+    let config = args.tuning.apply(TrackerConfig::default())?;
     let ctx = super::gpu(adapter)?;
     let setup = Setup::load(
         &ctx,
@@ -415,7 +567,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         args.keyframes.as_deref(),
         args.init.as_deref(),
     )?;
-    let stats = track_sequence(
+    let stats = track_sequence_with(
         &ctx,
         &setup,
         &RunOptions {
@@ -428,6 +580,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             frames: args.frames,
             label: args.mode.name().to_string(),
         },
+        config,
     )?;
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
@@ -447,4 +600,69 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tuning_overrides_only_what_is_given() {
+        let base = TrackerConfig::default();
+        let same = Tuning::default().apply(base.clone()).unwrap();
+        assert_eq!(same.kf_search_px, base.kf_search_px);
+        assert_eq!(
+            same.harris.relative_threshold,
+            base.harris.relative_threshold
+        );
+        let t = Tuning {
+            harris_threshold: Some(0.001),
+            kf_search: Some(16.0),
+            kf_iterations: Some(2),
+            min_splat_px: Some(0.0),
+            max_it_only: Some(0),
+            it_interior: Some(4.0),
+            ..Default::default()
+        };
+        let c = t.apply(base).unwrap();
+        assert_eq!(c.harris.relative_threshold, 0.001);
+        assert_eq!(c.kf_search_px, 16.0);
+        assert_eq!(c.kf_iterations, 2);
+        assert_eq!(c.min_splat_radius_px, 0.0);
+        assert_eq!(c.max_it_only_frames, 0);
+        assert_eq!(c.it_interior_px, 4.0);
+    }
+
+    #[test]
+    fn tuning_refuses_impossible_values() {
+        let bad = [
+            Tuning {
+                harris_threshold: Some(0.0),
+                ..Default::default()
+            },
+            Tuning {
+                kf_search: Some(f32::NAN),
+                ..Default::default()
+            },
+            Tuning {
+                min_score: Some(1.5),
+                ..Default::default()
+            },
+            Tuning {
+                ncc_window: Some(8),
+                ..Default::default()
+            },
+            Tuning {
+                max_residual: Some(-1.0),
+                ..Default::default()
+            },
+            Tuning {
+                min_splat_px: Some(f32::INFINITY),
+                ..Default::default()
+            },
+        ];
+        for t in bad {
+            assert!(t.apply(TrackerConfig::default()).is_err(), "{t:?}");
+        }
+    }
 }
