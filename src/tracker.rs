@@ -369,9 +369,9 @@ impl<'a> Tracker<'a> {
             return Err(TrackError::NeedsKeyframes(config.mode.name()));
         }
         let mut model = model;
-        let (lo, hi) = model.bounds();
-        let c = (lo + hi) * 0.5;
-        let center = Vector3::new(c.x as f64, c.y as f64, c.z as f64);
+        // The bounding sphere: box centre, farthest point.
+        let crate::splat::ModelBounds { center, radius, .. } =
+            crate::splat::ModelBounds::of(&model);
         let z0 = initial.transform_point(&center).z;
         let floor = (config.min_splat_radius_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
         if floor > 0.0 && floor.is_finite() {
@@ -382,11 +382,6 @@ impl<'a> Tracker<'a> {
         let targets = SplatTargets::new(ctx, cam.width, cam.height);
         let harris = Harris::new(ctx, config.harris.clone())?;
         let matcher = |r: f32| NccMatcher::new(ctx, config.ncc.clone().with_search_radius(Some(r)));
-        let radius = model
-            .positions
-            .iter()
-            .map(|p| (Vector3::new(p.x as f64, p.y as f64, p.z as f64) - center).norm())
-            .fold(0.0, f64::max);
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let tracker = Self {
             ctx,
