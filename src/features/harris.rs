@@ -266,21 +266,7 @@ impl<'a> Harris<'a> {
                 self.corners.get(),
                 self.rgba.get(),
             ];
-            let entries: Vec<wgpu::BindGroupEntry> = bufs
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            self.bind = Some(ctx.catch("harris bind group", || {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("harris"),
-                    layout: &self.layout,
-                    entries: &entries,
-                })
-            })?);
+            self.bind = Some(ctx.bind_buffers("harris", &self.layout, &bufs)?);
         }
         Ok(())
     }

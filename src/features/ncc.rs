@@ -262,21 +262,7 @@ impl<'a> NccMatcher<'a> {
                 self.scores.get(),
                 self.best.get(),
             ];
-            let entries: Vec<wgpu::BindGroupEntry> = bufs
-                .iter()
-                .enumerate()
-                .map(|(i, b)| wgpu::BindGroupEntry {
-                    binding: i as u32,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            self.bind = Some(ctx.catch("ncc bind group", || {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("ncc"),
-                    layout: &self.layout,
-                    entries: &entries,
-                })
-            })?);
+            self.bind = Some(ctx.bind_buffers("ncc", &self.layout, &bufs)?);
         }
 
         let c = &self.config;

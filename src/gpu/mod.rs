@@ -302,6 +302,31 @@ impl GpuContext {
         }
     }
 
+    /// A bind group whose binding `i` is the whole of `buffers[i]`, created
+    /// inside a validation scope.
+    pub fn bind_buffers(
+        &self,
+        label: &str,
+        layout: &wgpu::BindGroupLayout,
+        buffers: &[&wgpu::Buffer],
+    ) -> Result<wgpu::BindGroup, GpuError> {
+        let entries: Vec<wgpu::BindGroupEntry> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        self.catch(&format!("{label} bind group"), || {
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(label),
+                layout,
+                entries: &entries,
+            })
+        })
+    }
+
     /// A buffer initialised with `data`.
     pub fn buffer_init<T: bytemuck::NoUninit>(
         &self,

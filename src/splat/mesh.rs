@@ -198,31 +198,13 @@ impl TriangleMesh {
 
     /// Bounding sphere (box centre, farthest vertex).
     fn bounds(&self) -> (Vector3<f64>, f64) {
-        let mut lo = Vector3::repeat(f64::INFINITY);
-        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-        for v in &self.vertices {
-            let p = Vector3::new(
+        super::bounding_sphere(self.vertices.iter().map(|v| {
+            Vector3::new(
                 v.position[0] as f64,
                 v.position[1] as f64,
                 v.position[2] as f64,
-            );
-            lo = lo.inf(&p);
-            hi = hi.sup(&p);
-        }
-        let c = (lo + hi) / 2.0;
-        let r = self
-            .vertices
-            .iter()
-            .map(|v| {
-                (Vector3::new(
-                    v.position[0] as f64,
-                    v.position[1] as f64,
-                    v.position[2] as f64,
-                ) - c)
-                    .norm()
-            })
-            .fold(0.0, f64::max);
-        (c, r)
+            )
+        }))
     }
 }
 

@@ -224,6 +224,20 @@ impl Default for SplatParams {
     }
 }
 
+/// A bounding sphere of points: the centre of their bounding box and the
+/// distance to the farthest point from it.
+pub fn bounding_sphere(points: impl Iterator<Item = Vector3<f64>> + Clone) -> (Vector3<f64>, f64) {
+    let mut lo = Vector3::repeat(f64::INFINITY);
+    let mut hi = Vector3::repeat(f64::NEG_INFINITY);
+    for p in points.clone() {
+        lo = lo.inf(&p);
+        hi = hi.sup(&p);
+    }
+    let center = (lo + hi) / 2.0;
+    let radius = points.map(|p| (p - center).norm()).fold(0.0, f64::max);
+    (center, radius)
+}
+
 /// The bounding sphere and largest radius of a model: enough to choose the
 /// depth range at any pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -237,19 +251,12 @@ impl ModelBounds {
     /// Bounds of a checked model (the centre of the bounding box, the
     /// farthest point from it).
     pub fn of(model: &PointModel) -> Self {
-        let mut lo = Vector3::repeat(f64::INFINITY);
-        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-        for p in &model.positions {
-            let p = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
-            lo = lo.inf(&p);
-            hi = hi.sup(&p);
-        }
-        let center = (lo + hi) / 2.0;
-        let radius = model
-            .positions
-            .iter()
-            .map(|p| (Vector3::new(p.x as f64, p.y as f64, p.z as f64) - center).norm())
-            .fold(0.0, f64::max);
+        let (center, radius) = bounding_sphere(
+            model
+                .positions
+                .iter()
+                .map(|p| Vector3::new(p.x as f64, p.y as f64, p.z as f64)),
+        );
         let max_splat_radius = model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64));
         Self {
             center,
