@@ -1,7 +1,8 @@
-//! Small drawing primitives on RGB images, for the pictures the tool writes
-//! (overlays, feature maps, plots): lines, circles, crosses, rectangles and
-//! 8x8 bitmap text.
+//! Drawing on RGB images, for every picture the tool writes: primitives
+//! (lines, circles, crosses, rectangles, 8x8 bitmap text), tracking
+//! overlays, and pictures of corners and matches.
 
+use crate::features::{Corner, Match};
 use image::{Rgb, RgbImage};
 
 pub type Colour = [u8; 3];
@@ -124,6 +125,119 @@ pub fn label(img: &mut RgbImage, x: i64, y: i64, s: &str, fg: Colour, bg: Colour
     text(img, x, y, s, fg, scale);
 }
 
+/// A saturated colour of hue `t` in [0, 1).
+pub fn hue(t: f32) -> Colour {
+    let h = t * 6.0;
+    let x = (1.0 - (h % 2.0 - 1.0).abs()) * 255.0;
+    let (r, g, b) = match h as u32 {
+        0 => (255.0, x, 0.0),
+        1 => (x, 255.0, 0.0),
+        2 => (0.0, 255.0, x),
+        3 => (0.0, x, 255.0),
+        4 => (x, 0.0, 255.0),
+        _ => (255.0, 0.0, x),
+    };
+    [r as u8, g as u8, b as u8]
+}
+
+/// The `k`-th of a sequence of well-separated saturated colours.
+pub fn distinct(k: usize) -> Colour {
+    hue((k as f32 * 0.618_034).fract())
+}
+
+/// `frame` with the outline of `mask` (one flag per pixel, row-major: the
+/// object's silhouette) drawn in `colour`, the inside lightly tinted, and
+/// `text` as a label in the top-left corner.
+pub fn silhouette_overlay(frame: &RgbImage, mask: &[bool], colour: Colour, text: &str) -> RgbImage {
+    let mut img = frame.clone();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    for y in 0..h {
+        for x in 0..w {
+            if !mask[y * w + x] {
+                continue;
+            }
+            let edge = [(-1i64, 0i64), (1, 0), (0, -1), (0, 1)]
+                .iter()
+                .any(|(dx, dy)| {
+                    let (nx, ny) = (x as i64 + dx, y as i64 + dy);
+                    nx < 0
+                        || ny < 0
+                        || nx >= w as i64
+                        || ny >= h as i64
+                        || !mask[ny as usize * w + nx as usize]
+                });
+            if edge {
+                for (dx, dy) in [(0, 0), (1, 0), (0, 1)] {
+                    put(&mut img, x as i64 + dx, y as i64 + dy, colour);
+                }
+            } else {
+                blend(&mut img, x as i64, y as i64, colour, 0.18);
+            }
+        }
+    }
+    label(&mut img, 6, 6, text, WHITE, BLACK, 1);
+    img
+}
+
+/// `img` with a green cross on each corner.
+pub fn corners_picture(img: &RgbImage, corners: &[Corner]) -> RgbImage {
+    let mut pic = img.clone();
+    for c in corners {
+        cross(&mut pic, c.x as f64, c.y as f64, 3.0, [0, 255, 0]);
+    }
+    pic
+}
+
+/// A and B side by side (B to the right), a line from each matched corner
+/// of A to its match in B, unmatched corners as small grey crosses.
+pub fn matches_side_by_side(
+    a: &RgbImage,
+    b: &RgbImage,
+    ca: &[Corner],
+    cb: &[Corner],
+    matches: &[Match],
+) -> RgbImage {
+    let (wa, ha) = a.dimensions();
+    let (wb, hb) = b.dimensions();
+    let mut pic = RgbImage::from_pixel(wa + wb, ha.max(hb), Rgb(BLACK));
+    image::imageops::replace(&mut pic, a, 0, 0);
+    image::imageops::replace(&mut pic, b, wa as i64, 0);
+    let dx = wa as f64;
+    for c in ca {
+        cross(&mut pic, c.x as f64, c.y as f64, 2.0, GREY);
+    }
+    for c in cb {
+        cross(&mut pic, c.x as f64 + dx, c.y as f64, 2.0, GREY);
+    }
+    for (k, m) in matches.iter().enumerate() {
+        let col = distinct(k);
+        let (p, q) = (ca[m.a], cb[m.b]);
+        let (px, py, qx, qy) = (p.x as f64, p.y as f64, q.x as f64 + dx, q.y as f64);
+        line(&mut pic, px, py, qx, qy, col, 1.0);
+        cross(&mut pic, px, py, 3.0, col);
+        cross(&mut pic, qx, qy, 3.0, col);
+    }
+    pic
+}
+
+/// B, dimmed, with an arrow per match from the corner's position in A to
+/// its match in B (the image motion), coloured by direction.
+pub fn match_arrows(b: &RgbImage, ca: &[Corner], cb: &[Corner], matches: &[Match]) -> RgbImage {
+    let mut pic = b.clone();
+    for p in pic.pixels_mut() {
+        p.0 = p.0.map(|v| (v as f32 * 0.55) as u8);
+    }
+    for m in matches {
+        let (p, q) = (ca[m.a], cb[m.b]);
+        let angle = (q.y - p.y).atan2(q.x - p.x);
+        let col = hue((angle / std::f32::consts::TAU).rem_euclid(1.0));
+        let (px, py, qx, qy) = (p.x as f64, p.y as f64, q.x as f64, q.y as f64);
+        line(&mut pic, px, py, qx, qy, col, 1.0);
+        cross(&mut pic, qx, qy, 2.0, col);
+    }
+    pic
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,5 +262,21 @@ mod tests {
         // Off-image and non-finite coordinates are ignored, not panics.
         line(&mut img, -50.0, -50.0, f64::NAN, 3.0, WHITE, 3.0);
         circle(&mut img, 100.0, 100.0, 5.0, WHITE);
+    }
+
+    #[test]
+    fn silhouette_overlay_outlines_and_tints_the_mask() {
+        let frame = RgbImage::from_pixel(40, 30, Rgb([100, 100, 100]));
+        // A 10x10 square at (20..30, 10..20).
+        let mask: Vec<bool> = (0..30 * 40)
+            .map(|i| (20..30).contains(&(i % 40)) && (10..20).contains(&(i / 40)))
+            .collect();
+        let img = silhouette_overlay(&frame, &mask, [0, 255, 0], "");
+        assert_eq!(img.get_pixel(20, 15).0, [0, 255, 0]); // outline
+        let inside = img.get_pixel(25, 15).0;
+        assert!(inside[1] > 100 && inside[0] < 100, "{inside:?}"); // tinted
+        assert_eq!(img.get_pixel(35, 25).0, [100, 100, 100]); // untouched
+        assert_eq!(hue(0.0), [255, 0, 0]);
+        assert_ne!(distinct(0), distinct(1));
     }
 }

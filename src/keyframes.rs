@@ -381,32 +381,29 @@ impl KeyframeStore {
             path: path.to_owned(),
             source,
         };
-        let tmp = path.with_extension("partial");
-        {
-            let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(io)?);
-            f.write_all(MAGIC).map_err(io)?;
+        crate::io::write_atomic(path, |f| {
+            f.write_all(MAGIC)?;
             for v in [self.points, self.fingerprint, self.keyframes.len() as u64] {
-                f.write_all(&v.to_le_bytes()).map_err(io)?;
+                f.write_all(&v.to_le_bytes())?;
             }
             for v in self.center.iter() {
-                f.write_all(&v.to_le_bytes()).map_err(io)?;
+                f.write_all(&v.to_le_bytes())?;
             }
             for k in &self.keyframes {
                 let name = k.name.as_bytes();
-                f.write_all(&(name.len() as u32).to_le_bytes())
-                    .map_err(io)?;
-                f.write_all(name).map_err(io)?;
+                f.write_all(&(name.len() as u32).to_le_bytes())?;
+                f.write_all(name)?;
                 for v in k.pose.to_row_major() {
-                    f.write_all(&v.to_le_bytes()).map_err(io)?;
+                    f.write_all(&v.to_le_bytes())?;
                 }
                 for (c, &vis) in k.colors.iter().zip(&k.visible) {
                     let q = c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
-                    f.write_all(&[q[0], q[1], q[2], vis as u8]).map_err(io)?;
+                    f.write_all(&[q[0], q[1], q[2], vis as u8])?;
                 }
             }
-            f.flush().map_err(io)?;
-        }
-        std::fs::rename(&tmp, path).map_err(io)
+            Ok(())
+        })
+        .map_err(io)
     }
 
     /// Loads a store saved by [`KeyframeStore::save`]: the magic

@@ -20,8 +20,13 @@
 //! - [`tracker`]: the IT, KF and KF+IT trackers;
 //! - [`synth`]: synthetic sequences with exact ground truth;
 //! - [`eval`], [`plot`], [`draw`]: errors against ground truth and pictures;
-//! - [`io`]: pose CSVs, sequence directories and raw `.npy` images.
+//! - [`io`]: sequence directories (frames undistorted), pose CSVs and BOP
+//!   results written crash-safely, raw `.npy` images;
+//! - [`app`]: the application layer: a tracking run over a sequence with
+//!   its keyframe store and outputs, as the command line does it;
+//! - [`progress`]: progress of long jobs, for the caller to draw.
 
+pub mod app;
 pub mod draw;
 pub mod eval;
 pub mod features;
@@ -32,6 +37,7 @@ pub mod keyframes;
 pub mod model;
 pub mod plot;
 pub mod pose;
+pub mod progress;
 pub mod rng;
 pub mod shaders;
 pub mod splat;

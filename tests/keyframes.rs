@@ -374,7 +374,7 @@ fn save_load_round_trip() {
     let dir = TempDir::new("kf-roundtrip");
     let path = dir.0.join("store.stkf");
     f.store.save(&path).unwrap();
-    assert!(!path.with_extension("partial").exists());
+    assert!(!splattrack::io::atomic::partial_path(&path).exists());
     let back = KeyframeStore::load(&path).unwrap();
     assert_eq!(back.points, f.store.points);
     assert_eq!(back.fingerprint, f.store.fingerprint);

@@ -3,10 +3,11 @@
 //! trajectory), builds its keyframes, tracks it in the three modes, prints
 //! the error table and writes the plot and overlays.
 
-use super::{synth, track};
+use super::synth;
 use anyhow::Context;
+use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::eval::{self, EvalOptions};
-use splattrack::tracker::Mode;
+use splattrack::tracker::{Mode, TrackerConfig};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -14,12 +15,12 @@ pub struct Args {
     /// Where to put everything.
     #[arg(long, default_value = "out/demo")]
     pub out: PathBuf,
-    /// Built-in object (blob, box, torus).
-    #[arg(long, default_value = "blob")]
-    pub object: String,
-    /// fig10, fast or turn.
-    #[arg(long, default_value = "fig10")]
-    pub trajectory: String,
+    /// Built-in object.
+    #[arg(long, default_value = "blob", value_parser = synth::object_parser())]
+    pub object: synth::Object,
+    /// How the object moves.
+    #[arg(long, default_value = "fig10", value_parser = synth::trajectory_parser())]
+    pub trajectory: synth::TrajectoryArg,
     #[arg(long, default_value_t = 100)]
     pub frames: usize,
     /// Image width and height (the focal length follows the width).
@@ -34,8 +35,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     println!("splattrack demo on {}", ctx.describe());
     let seq_dir = args.out.join("sequence");
     let synth_args = synth::Args {
-        object: args.object.clone(),
-        trajectory: args.trajectory.clone(),
+        object: args.object,
+        trajectory: args.trajectory,
         frames: args.frames,
         width: args.width,
         height: args.height,
@@ -54,15 +55,15 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         seq_dir.display()
     );
     let model = seq_dir.join("model.ply");
-    let setup = track::Setup::load(&ctx, &model, &seq_dir, None, None)?;
+    let inputs = TrackInputs::load(&ctx, &model, &seq_dir, None, None)?;
     println!(
         "2. built {} keyframes from {}",
-        setup.keyframes.as_ref().map_or(0, |k| k.keyframes.len()),
+        inputs.keyframes.as_ref().map_or(0, |k| k.keyframes.len()),
         seq_dir.join("keyframes").display()
     );
     let gt = splattrack::io::read_poses(&seq_dir.join("poses.csv"))?;
     let opts = EvalOptions {
-        diameter: Some(setup.model.diameter() as f64),
+        diameter: Some(inputs.model.diameter() as f64),
         ..Default::default()
     };
     let mut evals = Vec::new();
@@ -71,20 +72,18 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         let name = mode.name().replace('+', "");
         let out = args.out.join(format!("poses_{name}.csv"));
         let overlay = args.out.join(format!("overlay_{name}"));
-        let stats = track::track_sequence(
-            &ctx,
-            &setup,
-            &track::RunOptions {
-                mode,
-                out: &out,
-                overlay: (mode == Mode::KfIt).then_some(overlay.as_path()),
-                overlay_every: (args.frames / 6).max(1),
-                bop: None,
-                obj_id: 1,
-                frames: None,
-                label: format!("3. track {:>5}", mode.name()),
-            },
-        )?;
+        let config = TrackerConfig {
+            mode,
+            ..Default::default()
+        };
+        let label = format!("3. track {:>5} ", mode.name());
+        let mut run = TrackRun::new(&ctx, &inputs, config)
+            .poses(&out)
+            .progress(Some(super::progress::bars(label, 1)));
+        if mode == Mode::KfIt {
+            run = run.overlays(&overlay, (args.frames / 6).max(1));
+        }
+        let stats = run.run(|_, _| {})?;
         let est = splattrack::io::read_poses(&out)?;
         evals.push(
             eval::evaluate(mode.name(), &est, &gt, &opts)

@@ -3,6 +3,7 @@
 use anyhow::{Context, bail};
 use splattrack::eval::{self, EvalOptions, frame_key};
 use std::collections::HashSet;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
@@ -148,7 +149,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 ));
             }
         }
-        std::fs::write(path, s).with_context(|| format!("{}: cannot write", path.display()))?;
+        splattrack::io::write_atomic(path, |w| w.write_all(s.as_bytes()))
+            .with_context(|| format!("{}: cannot write", path.display()))?;
     }
     Ok(())
 }

@@ -2,7 +2,8 @@
 //! [--csv F.csv]`: Harris corners of A, or mutual NCC matches A -> B.
 
 use anyhow::{Context, ensure};
-use image::{Rgb, RgbImage};
+use image::RgbImage;
+use splattrack::draw;
 use splattrack::features::{
     Corner, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher, harris_cpu,
     ncc_match_cpu,
@@ -121,11 +122,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     }
 
     if loaded.len() == 1 {
-        let mut pic = loaded[0].1.clone();
-        for c in &corners[0] {
-            cross(&mut pic, c.x, c.y, 3, Rgb([0, 255, 0]));
-        }
-        save(&pic, &args.out)?;
+        save(&draw::corners_picture(&loaded[0].1, &corners[0]), &args.out)?;
         if let Some(csv) = &args.csv {
             let rows = corners[0]
                 .iter()
@@ -144,9 +141,9 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     println!("{} mutual matches", matches.len());
     let (ra, rb) = (&loaded[0].1, &loaded[1].1);
     let pic = if args.side_by_side || ra.dimensions() != rb.dimensions() {
-        side_by_side(ra, rb, ca, cb, &matches)
+        draw::matches_side_by_side(ra, rb, ca, cb, &matches)
     } else {
-        arrows(rb, ca, cb, &matches)
+        draw::match_arrows(rb, ca, cb, &matches)
     };
     save(&pic, &args.out)?;
     if let Some(csv) = &args.csv {
@@ -165,113 +162,12 @@ fn save(pic: &RgbImage, path: &Path) -> anyhow::Result<()> {
 }
 
 fn write_csv(path: &Path, header: &str, rows: impl Iterator<Item = String>) -> anyhow::Result<()> {
-    let ctx = || format!("cannot write {}", path.display());
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path).with_context(ctx)?);
-    writeln!(f, "{header}").with_context(ctx)?;
-    for r in rows {
-        writeln!(f, "{r}").with_context(ctx)?;
-    }
-    f.flush().with_context(ctx)
-}
-
-/// A and B side by side (B to the right), a line from each matched corner
-/// of A to its match in B, unmatched corners as small grey crosses.
-fn side_by_side(
-    a: &RgbImage,
-    b: &RgbImage,
-    ca: &[Corner],
-    cb: &[Corner],
-    matches: &[Match],
-) -> RgbImage {
-    let (wa, ha) = a.dimensions();
-    let (wb, hb) = b.dimensions();
-    let mut pic = RgbImage::from_pixel(wa + wb, ha.max(hb), Rgb([0, 0, 0]));
-    image::imageops::replace(&mut pic, a, 0, 0);
-    image::imageops::replace(&mut pic, b, wa as i64, 0);
-    let grey = Rgb([150, 150, 150]);
-    for c in ca {
-        cross(&mut pic, c.x, c.y, 2, grey);
-    }
-    for c in cb {
-        cross(&mut pic, c.x + wa as f32, c.y, 2, grey);
-    }
-    for (k, m) in matches.iter().enumerate() {
-        let col = palette(k);
-        let (p, q) = (ca[m.a], cb[m.b]);
-        line(&mut pic, p.x, p.y, q.x + wa as f32, q.y, col);
-        cross(&mut pic, p.x, p.y, 3, col);
-        cross(&mut pic, q.x + wa as f32, q.y, 3, col);
-    }
-    pic
-}
-
-/// B, dimmed, with an arrow per match from the corner's position in A to
-/// its match in B (the image motion), coloured by direction.
-fn arrows(b: &RgbImage, ca: &[Corner], cb: &[Corner], matches: &[Match]) -> RgbImage {
-    let mut pic = b.clone();
-    for p in pic.pixels_mut() {
-        p.0 = p.0.map(|v| (v as f32 * 0.55) as u8);
-    }
-    for m in matches {
-        let (p, q) = (ca[m.a], cb[m.b]);
-        let angle = (q.y - p.y).atan2(q.x - p.x);
-        let col = palette_at((angle / std::f32::consts::TAU).rem_euclid(1.0));
-        line(&mut pic, p.x, p.y, q.x, q.y, col);
-        cross(&mut pic, q.x, q.y, 2, col);
-    }
-    pic
-}
-
-/// Well-separated saturated colours.
-fn palette(k: usize) -> Rgb<u8> {
-    palette_at((k as f32 * 0.618_034).fract())
-}
-
-/// A saturated colour of hue `t` in [0, 1).
-fn palette_at(t: f32) -> Rgb<u8> {
-    let h = t * 6.0;
-    let x = (1.0 - (h % 2.0 - 1.0).abs()) * 255.0;
-    let (r, g, b) = match h as u32 {
-        0 => (255.0, x, 0.0),
-        1 => (x, 255.0, 0.0),
-        2 => (0.0, 255.0, x),
-        3 => (0.0, x, 255.0),
-        4 => (x, 0.0, 255.0),
-        _ => (255.0, 0.0, x),
-    };
-    Rgb([r as u8, g as u8, b as u8])
-}
-
-fn put(pic: &mut RgbImage, x: i64, y: i64, c: Rgb<u8>) {
-    if x >= 0 && y >= 0 && (x as u32) < pic.width() && (y as u32) < pic.height() {
-        pic.put_pixel(x as u32, y as u32, c);
-    }
-}
-
-fn cross(pic: &mut RgbImage, x: f32, y: f32, r: i64, c: Rgb<u8>) {
-    if !(x.is_finite() && y.is_finite()) {
-        return;
-    }
-    let (x, y) = (x.round() as i64, y.round() as i64);
-    for d in -r..=r {
-        put(pic, x + d, y, c);
-        put(pic, x, y + d, c);
-    }
-}
-
-fn line(pic: &mut RgbImage, x0: f32, y0: f32, x1: f32, y1: f32, c: Rgb<u8>) {
-    let n = (x1 - x0).abs().max((y1 - y0).abs()).ceil();
-    if !n.is_finite() || n > 1e5 {
-        return;
-    }
-    let n = n as i64;
-    for i in 0..=n {
-        let t = if n == 0 { 0.0 } else { i as f32 / n as f32 };
-        put(
-            pic,
-            (x0 + t * (x1 - x0)).round() as i64,
-            (y0 + t * (y1 - y0)).round() as i64,
-            c,
-        );
-    }
+    splattrack::io::write_atomic(path, |f| {
+        writeln!(f, "{header}")?;
+        for r in rows {
+            writeln!(f, "{r}")?;
+        }
+        Ok(())
+    })
+    .with_context(|| format!("cannot write {}", path.display()))
 }

@@ -1,6 +1,6 @@
 //! `splattrack keyframes --model M.ply --keyframes DIR --camera camera.json --out store.stkf`.
 
-use anyhow::Context;
+use splattrack::app::load_keyframes;
 use splattrack::{Intrinsics, PointModel};
 use std::path::PathBuf;
 
@@ -24,8 +24,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let ctx = super::gpu(adapter)?;
     let model = PointModel::load(&args.model)?;
     let cam = Intrinsics::load(&args.camera)?;
-    let store = super::track::keyframe_store(&ctx, &model, &cam, Some(&args.keyframes))?
-        .context("no keyframes")?;
+    let store = load_keyframes(&ctx, &model, &cam, &args.keyframes)?;
     store.save(&args.out)?;
     for k in &store.keyframes {
         println!(

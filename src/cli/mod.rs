@@ -1,17 +1,22 @@
-//! Subcommands, one file each; this file holds the shared flags and the
-//! dispatch.
+//! Subcommands, one file each; this file holds the shared flags, the
+//! logger and the dispatch. The work is the library's ([`splattrack::app`]
+//! for tracking); the commands parse flags, print and draw progress.
 
 mod demo;
 mod eval;
 mod features;
 mod info;
 mod keyframes;
+mod progress;
 mod render;
 mod synth;
 mod track;
 
-use clap::{Parser, Subcommand};
+use clap::builder::{PossibleValue, TypedValueParser};
+use clap::{Parser, Subcommand, ValueEnum};
 use splattrack::gpu::{AdapterChoice, GpuContext};
+use std::io::Write;
+use std::marker::PhantomData;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -55,27 +60,94 @@ pub enum Command {
     Synth(synth::Args),
 }
 
-/// A minimal stderr logger: warnings always, more with -v.
+/// The logger: `RUST_LOG` when set (env_logger's syntax), else warnings
+/// from this crate and errors from others, `-v` this crate's info, `-vv`
+/// debug from every crate (wgpu and naga included). One line a message:
+/// `level: message`, other crates' messages naming their module.
 pub fn init_logging(verbose: u8) {
-    struct Stderr;
-    impl log::Log for Stderr {
-        fn enabled(&self, m: &log::Metadata) -> bool {
-            m.target().starts_with("splattrack") && m.level() <= log::max_level()
+    let filters = match std::env::var("RUST_LOG") {
+        Ok(s) if !s.trim().is_empty() => s,
+        _ => match verbose {
+            0 => "error,splattrack=warn",
+            1 => "error,splattrack=info",
+            _ => "debug",
         }
-        fn log(&self, r: &log::Record) {
-            if self.enabled(r.metadata()) {
-                eprintln!("{}: {}", r.level().as_str().to_ascii_lowercase(), r.args());
+        .to_string(),
+    };
+    env_logger::Builder::new()
+        .parse_filters(&filters)
+        .format(|f, r| {
+            let level = r.level().as_str().to_ascii_lowercase();
+            if r.target().starts_with("splattrack") {
+                writeln!(f, "{level}: {}", r.args())
+            } else {
+                writeln!(f, "{level}: {}: {}", r.target(), r.args())
             }
+        })
+        .target(env_logger::Target::Stderr)
+        .init();
+}
+
+/// A parser for an enumerated flag ([`ValueEnum`]: its values listed in
+/// `--help`) that refuses a bad value in one line naming it and the
+/// choices: `unknown NOUN "x" (use a, b, c)`.
+pub struct Choice<E> {
+    noun: &'static str,
+    values: PhantomData<fn() -> E>,
+}
+
+impl<E> Choice<E> {
+    pub fn new(noun: &'static str) -> Self {
+        Self {
+            noun,
+            values: PhantomData,
         }
-        fn flush(&self) {}
     }
-    static LOGGER: Stderr = Stderr;
-    let _ = log::set_logger(&LOGGER);
-    log::set_max_level(match verbose {
-        0 => log::LevelFilter::Warn,
-        1 => log::LevelFilter::Info,
-        _ => log::LevelFilter::Debug,
-    });
+}
+
+impl<E> Clone for Choice<E> {
+    fn clone(&self) -> Self {
+        Self::new(self.noun)
+    }
+}
+
+impl<E: ValueEnum + Clone + Send + Sync + 'static> TypedValueParser for Choice<E> {
+    type Value = E;
+
+    fn parse_ref(
+        &self,
+        _cmd: &clap::Command,
+        _arg: Option<&clap::Arg>,
+        value: &std::ffi::OsStr,
+    ) -> Result<E, clap::Error> {
+        let s = value.to_string_lossy();
+        E::from_str(&s, false).map_err(|_| {
+            let names: Vec<String> = E::value_variants()
+                .iter()
+                .filter_map(|v| v.to_possible_value())
+                .map(|p| p.get_name().to_owned())
+                .collect();
+            clap::Error::raw(
+                clap::error::ErrorKind::InvalidValue,
+                format!("unknown {} {s:?} (use {})\n", self.noun, names.join(", ")),
+            )
+        })
+    }
+
+    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
+        Some(Box::new(
+            E::value_variants()
+                .iter()
+                .filter_map(ValueEnum::to_possible_value),
+        ))
+    }
+}
+
+/// The name a [`ValueEnum`] value has on the command line.
+pub fn choice_name<E: ValueEnum>(v: &E) -> String {
+    v.to_possible_value()
+        .map(|p| p.get_name().to_owned())
+        .unwrap_or_default()
 }
 
 /// The GPU context for `--adapter` (or the environment).

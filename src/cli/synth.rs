@@ -1,21 +1,52 @@
 //! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N] --out DIR`.
 
-use anyhow::bail;
-use indicatif::{ProgressBar, ProgressStyle};
+use super::{Choice, choice_name};
+use anyhow::{Context, bail};
 use splattrack::Intrinsics;
-use splattrack::synth::{SynthConfig, Trajectory, objects::OBJECT_NAMES, sequence};
+use splattrack::progress::ProgressEvent;
+use splattrack::synth::{SynthConfig, Trajectory, sequence};
 use std::path::{Path, PathBuf};
+
+/// The built-in objects (`splattrack::synth::objects::OBJECT_NAMES`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Object {
+    /// Organic, strong texture.
+    Blob,
+    /// Printed faces.
+    Box,
+    /// Self-occluding.
+    Torus,
+}
+
+/// The trajectories (`splattrack::synth::Trajectory`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrajectoryArg {
+    /// Translations then rotations, like the paper's Fig. 10.
+    Fig10,
+    /// All at once, ~4x faster.
+    Fast,
+    /// A full turn about the vertical.
+    Turn,
+}
+
+/// `--object`.
+pub fn object_parser() -> Choice<Object> {
+    Choice::new("object")
+}
+
+/// `--trajectory`.
+pub fn trajectory_parser() -> Choice<TrajectoryArg> {
+    Choice::new("trajectory")
+}
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Built-in object: blob (organic, strong texture), box (printed faces),
-    /// torus (self-occluding).
-    #[arg(long, default_value = "blob")]
-    pub object: String,
-    /// fig10 (translations then rotations, like the paper's Fig. 10), fast
-    /// (all at once, ~4x faster) or turn (a full turn about the vertical).
-    #[arg(long, default_value = "fig10")]
-    pub trajectory: String,
+    /// Built-in object.
+    #[arg(long, default_value = "blob", value_parser = object_parser())]
+    pub object: Object,
+    /// How the object moves.
+    #[arg(long, default_value = "fig10", value_parser = trajectory_parser())]
+    pub trajectory: TrajectoryArg,
     #[arg(long, default_value_t = 120)]
     pub frames: usize,
     /// Image width and height.
@@ -38,20 +69,8 @@ pub struct Args {
 
 /// Builds the configuration the flags describe (checked).
 pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
-    if !OBJECT_NAMES.contains(&args.object.as_str()) {
-        bail!(
-            "unknown object {:?} (built-in objects: {})",
-            args.object,
-            OBJECT_NAMES.join(", ")
-        );
-    }
-    let Some(trajectory) = Trajectory::by_name(&args.trajectory) else {
-        bail!(
-            "unknown trajectory {:?} (use {})",
-            args.trajectory,
-            Trajectory::NAMES.join(", ")
-        );
-    };
+    let trajectory = Trajectory::by_name(&choice_name(&args.trajectory))
+        .context("a trajectory the library lacks")?;
     if args.frames < 2 {
         bail!(
             "--frames {}: a sequence needs at least 2 frames",
@@ -77,7 +96,7 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
     // Focal length scaled with the width: the same field of view (56 deg).
     let f = 600.0 * args.width as f64 / 640.0;
     Ok(SynthConfig {
-        object: args.object.clone(),
+        object: choice_name(&args.object),
         trajectory,
         frames: args.frames,
         camera: Intrinsics::new(
@@ -100,17 +119,19 @@ pub fn write(
     dir: &Path,
     points: usize,
 ) -> anyhow::Result<sequence::SequenceSummary> {
-    let bar = ProgressBar::new(0);
-    bar.set_style(
-        ProgressStyle::with_template("synth {bar:40} {pos}/{len} images [{elapsed} < {eta}]")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    let s = sequence::write_sequence(cfg, dir, points, |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
-    bar.finish_and_clear();
-    Ok(s)
+    let progress = super::progress::bars("synth ", 1);
+    Ok(sequence::write_sequence(
+        cfg,
+        dir,
+        points,
+        |done, total| {
+            progress(ProgressEvent {
+                stage: "images",
+                done: done as u64,
+                total: total as u64,
+            })
+        },
+    )?)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -127,4 +148,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         s.diameter
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::ValueEnum;
+
+    #[test]
+    fn flag_values_are_the_library_names() {
+        let objects: Vec<String> = Object::value_variants().iter().map(choice_name).collect();
+        assert_eq!(objects, splattrack::synth::objects::OBJECT_NAMES);
+        let trajectories: Vec<String> = TrajectoryArg::value_variants()
+            .iter()
+            .map(choice_name)
+            .collect();
+        assert_eq!(trajectories, Trajectory::NAMES);
+    }
 }

@@ -1,8 +1,14 @@
-//! Files on disk (FORMATS.md): pose CSVs, raw float images (.npy).
+//! Files on disk (FORMATS.md): sequence directories, pose CSVs, BOP
+//! results, raw float images (.npy), all written crash-safely
+//! ([`atomic`]).
 
+pub mod atomic;
+pub mod bop;
 pub mod npy;
 pub mod poses;
 pub mod sequence;
 
-pub use poses::{PoseRow, read_poses, write_poses};
-pub use sequence::Sequence;
+pub use atomic::{PartialFile, write_atomic};
+pub use bop::BopWriter;
+pub use poses::{PoseRow, PoseWriter, read_poses, write_poses};
+pub use sequence::{Frame, Sequence};

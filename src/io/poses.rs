@@ -2,6 +2,7 @@
 //! `frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra columns]`,
 //! object-to-camera, R row-major.
 
+use super::atomic::{PartialFile, write_atomic};
 use crate::geometry::{Pose, PoseError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -15,6 +16,12 @@ pub const POSE_COLUMNS: [&str; 13] = [
 pub enum PoseFileError {
     #[error("{path}: cannot read pose file: {source}")]
     Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot write: {source}")]
+    Write {
         path: PathBuf,
         #[source]
         source: std::io::Error,
@@ -173,28 +180,63 @@ pub fn header(extra_columns: &[&str]) -> String {
     h
 }
 
-/// Writes a pose CSV atomically: to a temporary file beside `path`, renamed
-/// over it when complete, so a crash never leaves a truncated file. Rows must
-/// all have the same extra columns.
+/// Writes a pose CSV atomically ([`write_atomic`]), so a crash never
+/// leaves a truncated file. Rows must all have the same extra columns.
 pub fn write_poses(path: &Path, rows: &[PoseRow]) -> Result<(), PoseFileError> {
     let extra: Vec<&str> = rows
         .first()
         .map(|r| r.extra.iter().map(|(k, _)| k.as_str()).collect())
         .unwrap_or_default();
-    let io = |source| PoseFileError::Io {
+    write_atomic(path, |f| {
+        writeln!(f, "{}", header(&extra))?;
+        for r in rows {
+            writeln!(f, "{}", format_row(r))?;
+        }
+        Ok(())
+    })
+    .map_err(|source| PoseFileError::Write {
         path: path.to_owned(),
         source,
-    };
-    let tmp = path.with_extension("csv.partial");
-    {
-        let mut f = std::io::BufWriter::new(std::fs::File::create(&tmp).map_err(io)?);
-        writeln!(f, "{}", header(&extra)).map_err(io)?;
-        for r in rows {
-            writeln!(f, "{}", format_row(r)).map_err(io)?;
-        }
-        f.flush().map_err(io)?;
+    })
+}
+
+/// A pose CSV written row by row while a sequence is tracked: each row is
+/// flushed to `OUT.partial` as it is written, and the file is renamed to
+/// `OUT` only by [`finish`](Self::finish), so a crash leaves every finished
+/// row on disk and never a file that looks complete.
+pub struct PoseWriter {
+    file: PartialFile,
+}
+
+impl PoseWriter {
+    /// Starts `path` with the header for rows with these extra columns.
+    pub fn create(path: &Path, extra_columns: &[&str]) -> Result<Self, PoseFileError> {
+        let file = PartialFile::create(path, &header(extra_columns)).map_err(|source| {
+            PoseFileError::Write {
+                path: super::atomic::partial_path(path),
+                source,
+            }
+        })?;
+        Ok(Self { file })
     }
-    std::fs::rename(&tmp, path).map_err(io)
+
+    /// Appends one row and flushes it.
+    pub fn row(&mut self, row: &PoseRow) -> Result<(), PoseFileError> {
+        self.file
+            .line(&format_row(row))
+            .map_err(|source| PoseFileError::Write {
+                path: self.file.partial().to_owned(),
+                source,
+            })
+    }
+
+    /// Syncs the file and renames it into place.
+    pub fn finish(self) -> Result<(), PoseFileError> {
+        let path = self.file.path().to_owned();
+        self.file
+            .finish()
+            .map_err(|source| PoseFileError::Write { path, source })
+    }
 }
 
 #[cfg(test)]
@@ -233,6 +275,38 @@ mod tests {
             assert!((a.pose.to_matrix4() - b.pose.to_matrix4()).amax() < 1e-8);
         }
         assert!(!path.with_extension("csv.partial").exists());
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn pose_writer_is_crash_safe() {
+        let dir =
+            std::env::temp_dir().join(format!("splattrack-posewriter-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("poses.csv");
+        let partial = dir.join("poses.csv.partial");
+        let row = |i: usize| {
+            let mut r = PoseRow::new(i.to_string(), Pose::identity());
+            r.extra = vec![("status".into(), "tracking".into())];
+            r
+        };
+        // Dropped without finish: the rows so far in .partial, no final file.
+        let mut w = PoseWriter::create(&path, &["status"]).unwrap();
+        w.row(&row(0)).unwrap();
+        w.row(&row(1)).unwrap();
+        drop(w);
+        assert!(!path.exists());
+        let text = std::fs::read_to_string(&partial).unwrap();
+        assert_eq!(text.lines().count(), 3, "{text}");
+        assert_eq!(parse_poses(&text, &partial).unwrap(), vec![row(0), row(1)]);
+        // Finished: the whole file in place, no .partial.
+        let mut w = PoseWriter::create(&path, &["status"]).unwrap();
+        for i in 0..3 {
+            w.row(&row(i)).unwrap();
+        }
+        w.finish().unwrap();
+        assert!(!partial.exists());
+        assert_eq!(read_poses(&path).unwrap().len(), 3);
         std::fs::remove_dir_all(dir).unwrap();
     }
 

@@ -1,9 +1,12 @@
 //! Sequence directories (FORMATS.md "Sequence directory"): `camera.json` (or
 //! an OpenCV `camera.yaml`), `frames/` (png or jpg, sorted by name),
 //! `init.csv`, optional `poses.csv` (ground truth) and `keyframes/`.
+//! [`Sequence::frames`] yields the frames in order, undistorted when the
+//! camera has distortion, ready for a tracker on [`Sequence::tracking_camera`].
 
-use crate::geometry::{CameraError, Intrinsics};
+use crate::geometry::{CameraError, Intrinsics, Undistorter};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(Debug, thiserror::Error)]
 pub enum SequenceError {
@@ -21,16 +24,61 @@ pub enum SequenceError {
     },
     #[error(transparent)]
     Camera(#[from] CameraError),
+    #[error("{path}: cannot read frame: {source}")]
+    FrameImage {
+        path: PathBuf,
+        #[source]
+        source: image::ImageError,
+    },
+    #[error("{path}: frame is {got_w}x{got_h}, the camera ({camera}) is {want_w}x{want_h}")]
+    FrameSize {
+        path: PathBuf,
+        camera: PathBuf,
+        got_w: u32,
+        got_h: u32,
+        want_w: u32,
+        want_h: u32,
+    },
+    #[error("{path}: cannot undistort: {reason}")]
+    Undistort { path: PathBuf, reason: String },
+}
+
+/// One frame of a sequence, as the tracker wants it.
+#[derive(Debug, Clone)]
+pub struct Frame {
+    /// Its position in the sequence (0 for the first).
+    pub index: usize,
+    /// Its label in pose files ([`Sequence::frame_label`]).
+    pub label: String,
+    /// The image file.
+    pub path: PathBuf,
+    /// The image, undistorted when the camera has distortion.
+    pub image: image::RgbImage,
 }
 
 /// A sequence on disk; frames are read lazily.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct Sequence {
     pub dir: PathBuf,
+    /// The camera as calibrated (with its distortion, if any).
     pub camera: Intrinsics,
     pub camera_path: PathBuf,
     /// Frame image paths, sorted by file name.
     pub frames: Vec<PathBuf>,
+    /// Built once when the camera has distortion.
+    undistorter: Option<Arc<Undistorter>>,
+}
+
+impl std::fmt::Debug for Sequence {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Sequence")
+            .field("dir", &self.dir)
+            .field("camera", &self.camera)
+            .field("camera_path", &self.camera_path)
+            .field("frames", &self.frames.len())
+            .field("undistorts", &self.undistorter.is_some())
+            .finish()
+    }
 }
 
 fn is_image(p: &Path) -> bool {
@@ -73,12 +121,63 @@ impl Sequence {
         if frames.is_empty() {
             return Err(SequenceError::NoFrames(frames_dir));
         }
+        let undistorter = camera
+            .has_distortion()
+            .then(|| Arc::new(Undistorter::new(&camera)));
         Ok(Self {
             dir: dir.to_owned(),
             camera,
             camera_path,
             frames,
+            undistorter,
         })
+    }
+
+    /// The camera of the frames [`Sequence::frame`] returns: the calibrated
+    /// one without its distortion.
+    pub fn tracking_camera(&self) -> Intrinsics {
+        self.camera.undistorted()
+    }
+
+    /// Frame `i` (`i < frames.len()`), checked against the camera's size and
+    /// undistorted when the camera has distortion.
+    pub fn frame(&self, i: usize) -> Result<Frame, SequenceError> {
+        let path = &self.frames[i];
+        let image = image::open(path)
+            .map_err(|source| SequenceError::FrameImage {
+                path: path.clone(),
+                source,
+            })?
+            .to_rgb8();
+        let cam = &self.camera;
+        if image.width() != cam.width || image.height() != cam.height {
+            return Err(SequenceError::FrameSize {
+                path: path.clone(),
+                camera: self.camera_path.clone(),
+                got_w: image.width(),
+                got_h: image.height(),
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        let image = match &self.undistorter {
+            Some(u) => u.apply(&image).map_err(|reason| SequenceError::Undistort {
+                path: path.clone(),
+                reason,
+            })?,
+            None => image,
+        };
+        Ok(Frame {
+            index: i,
+            label: self.frame_label(i),
+            path: path.clone(),
+            image,
+        })
+    }
+
+    /// The frames in order, read one at a time ([`Sequence::frame`]).
+    pub fn iter_frames(&self) -> impl Iterator<Item = Result<Frame, SequenceError>> + '_ {
+        (0..self.frames.len()).map(|i| self.frame(i))
     }
 
     /// `init.csv` of the sequence.
@@ -115,6 +214,63 @@ mod tests {
             assert!(s.ground_truth_path().is_some() && s.keyframes_dir().is_some());
             assert!(s.frames.windows(2).all(|w| w[0] < w[1]));
         }
+    }
+
+    fn write_camera(dir: &Path, distortion: &str) {
+        std::fs::write(
+            dir.join("camera.json"),
+            format!(
+                r#"{{"width": 64, "height": 48, "fx": 50, "fy": 50, "cx": 31.5, "cy": 23.5{distortion}}}"#
+            ),
+        )
+        .unwrap();
+    }
+
+    /// A picture with structure everywhere, so undistortion changes it.
+    fn picture(seed: u8) -> image::RgbImage {
+        image::RgbImage::from_fn(64, 48, |x, y| {
+            image::Rgb([(x * 4) as u8 ^ seed, (y * 5) as u8, ((x + y) * 3) as u8])
+        })
+    }
+
+    #[test]
+    fn frames_come_in_name_order_and_undistorted() {
+        let dir = std::env::temp_dir().join(format!("splattrack-seqframes-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("frames")).unwrap();
+        // Written out of order; a non-image file is ignored.
+        for (name, seed) in [("000002.png", 2), ("000000.png", 0), ("000001.png", 1)] {
+            picture(seed).save(dir.join("frames").join(name)).unwrap();
+        }
+        std::fs::write(dir.join("frames/notes.txt"), "x").unwrap();
+        write_camera(&dir, "");
+        let s = Sequence::open(&dir).unwrap();
+        assert_eq!(s.frames.len(), 3);
+        assert_eq!(s.tracking_camera(), s.camera);
+        for (i, f) in s.iter_frames().enumerate() {
+            let f = f.unwrap();
+            assert_eq!((f.index, f.label.as_str()), (i, i.to_string().as_str()));
+            assert!(f.path.ends_with(format!("{i:06}.png")));
+            assert_eq!(f.image, picture(i as u8));
+        }
+        // With distortion: the frames are what the Undistorter makes of them,
+        // for the camera without distortion.
+        write_camera(&dir, r#", "distortion": [-0.2, 0.05, 0.001, -0.001, 0.0]"#);
+        let s = Sequence::open(&dir).unwrap();
+        assert!(s.camera.has_distortion() && !s.tracking_camera().has_distortion());
+        let want = Undistorter::new(&s.camera).apply(&picture(1)).unwrap();
+        let got = s.frame(1).unwrap().image;
+        assert_eq!(got, want);
+        assert_ne!(got, picture(1));
+        // A frame of the wrong size names the frame, both sizes and the camera.
+        image::RgbImage::new(10, 8)
+            .save(dir.join("frames/000001.png"))
+            .unwrap();
+        let e = s.frame(1).unwrap_err().to_string();
+        for want in ["000001.png", "10x8", "64x48", "camera.json"] {
+            assert!(e.contains(want), "{e}");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

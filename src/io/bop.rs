@@ -1,0 +1,95 @@
+//! BOP-style results (the BOP challenge's CSV): one row per frame,
+//! `scene_id,im_id,obj_id,score,R,t,time`, R row-major and t in millimetres
+//! (models in metres), space-separated; written row by row like the pose
+//! CSV ([`PartialFile`]).
+
+use super::atomic::{PartialFile, partial_path};
+use crate::geometry::Pose;
+use std::path::{Path, PathBuf};
+
+/// The header line of a BOP results file.
+pub const BOP_HEADER: &str = "scene_id,im_id,obj_id,score,R,t,time";
+
+/// One row: frame `im_id` of scene 0, its pose, a score (1 tracked, 0
+/// lost) and the seconds it took.
+pub fn format_bop_row(im_id: usize, obj_id: u32, pose: &Pose, score: f64, seconds: f64) -> String {
+    let p = pose.to_row_major();
+    let rot: Vec<String> = p[..9].iter().map(|v| format!("{v:.9}")).collect();
+    let tr: Vec<String> = p[9..]
+        .iter()
+        .map(|v| format!("{:.6}", v * 1000.0))
+        .collect();
+    format!(
+        "0,{im_id},{obj_id},{score:.4},{},{},{seconds:.4}",
+        rot.join(" "),
+        tr.join(" ")
+    )
+}
+
+/// A BOP results file written row by row into `OUT.partial`, renamed to
+/// `OUT` by [`finish`](Self::finish).
+pub struct BopWriter {
+    file: PartialFile,
+    obj_id: u32,
+}
+
+impl BopWriter {
+    /// Starts `path` for object `obj_id`.
+    pub fn create(path: &Path, obj_id: u32) -> Result<Self, BopError> {
+        let file = PartialFile::create(path, BOP_HEADER).map_err(|source| BopError {
+            path: partial_path(path),
+            source,
+        })?;
+        Ok(Self { file, obj_id })
+    }
+
+    /// Appends the row of frame `im_id`.
+    pub fn row(
+        &mut self,
+        im_id: usize,
+        pose: &Pose,
+        score: f64,
+        seconds: f64,
+    ) -> Result<(), BopError> {
+        let line = format_bop_row(im_id, self.obj_id, pose, score, seconds);
+        self.file.line(&line).map_err(|source| BopError {
+            path: self.file.partial().to_owned(),
+            source,
+        })
+    }
+
+    /// Syncs the file and renames it into place.
+    pub fn finish(self) -> Result<(), BopError> {
+        let path = self.file.path().to_owned();
+        self.file
+            .finish()
+            .map_err(|source| BopError { path, source })
+    }
+}
+
+/// A BOP results file could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: cannot write: {source}", path.display())]
+pub struct BopError {
+    /// The file.
+    pub path: PathBuf,
+    /// Why.
+    #[source]
+    pub source: std::io::Error,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::{Matrix3, Vector3};
+
+    #[test]
+    fn rows_are_in_millimetres_and_row_major() {
+        let pose = Pose::new(Matrix3::identity(), Vector3::new(0.1, -0.02, 0.5)).unwrap();
+        assert_eq!(
+            format_bop_row(7, 3, &pose, 1.0, 0.0125),
+            "0,7,3,1.0000,1.000000000 0.000000000 0.000000000 0.000000000 1.000000000 \
+             0.000000000 0.000000000 0.000000000 1.000000000,100.000000 -20.000000 500.000000,0.0125"
+        );
+    }
+}
