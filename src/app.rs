@@ -10,7 +10,8 @@
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
 use crate::gpu::GpuContext;
-use crate::io::bop::{BopError, BopWriter};
+use crate::io::atomic::WriteError;
+use crate::io::bop::BopWriter;
 use crate::io::poses::{PoseFileError, PoseRow, PoseWriter, read_poses};
 use crate::io::sequence::{Frame, Sequence, SequenceError};
 use crate::keyframes::{KeyframeConfig, KeyframeError, KeyframeStore, load_keyframe_images};
@@ -34,9 +35,9 @@ pub enum AppError {
     /// A pose file could not be read or written.
     #[error(transparent)]
     Poses(#[from] PoseFileError),
-    /// The BOP results could not be written.
+    /// An output file (BOP results) could not be written.
     #[error(transparent)]
-    Bop(#[from] BopError),
+    Write(#[from] WriteError),
     /// A keyframe store could not be loaded or saved, or is for another model.
     #[error(transparent)]
     Keyframes(#[from] KeyframeError),

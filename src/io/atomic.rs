@@ -11,6 +11,17 @@ use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
+/// A file could not be written.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: cannot write: {source}", path.display())]
+pub struct WriteError {
+    /// The file.
+    pub path: PathBuf,
+    /// Why.
+    #[source]
+    pub source: std::io::Error,
+}
+
 /// The temporary beside `path` that holds its content until it is complete:
 /// `poses.csv` -> `poses.csv.partial`.
 pub fn partial_path(path: &Path) -> PathBuf {
@@ -58,10 +69,14 @@ pub struct PartialFile {
 
 impl PartialFile {
     /// Creates `path`'s temporary, starting with the line `header`.
-    pub fn create(path: &Path, header: &str) -> std::io::Result<Self> {
+    pub fn create(path: &Path, header: &str) -> Result<Self, WriteError> {
         let tmp = partial_path(path);
+        let f = File::create(&tmp).map_err(|source| WriteError {
+            path: tmp.clone(),
+            source,
+        })?;
         let mut file = Self {
-            w: BufWriter::new(File::create(&tmp)?),
+            w: BufWriter::new(f),
             tmp,
             path: path.to_owned(),
         };
@@ -70,9 +85,13 @@ impl PartialFile {
     }
 
     /// Appends one line (without its newline) and flushes it.
-    pub fn line(&mut self, line: &str) -> std::io::Result<()> {
-        writeln!(self.w, "{line}")?;
-        self.w.flush()
+    pub fn line(&mut self, line: &str) -> Result<(), WriteError> {
+        writeln!(self.w, "{line}")
+            .and_then(|_| self.w.flush())
+            .map_err(|source| WriteError {
+                path: self.tmp.clone(),
+                source,
+            })
     }
 
     /// The file being written (the temporary).
@@ -86,8 +105,11 @@ impl PartialFile {
     }
 
     /// Syncs the temporary and renames it to the final path.
-    pub fn finish(self) -> std::io::Result<()> {
-        commit(self.w, &self.tmp, &self.path)
+    pub fn finish(self) -> Result<(), WriteError> {
+        commit(self.w, &self.tmp, &self.path).map_err(|source| WriteError {
+            path: self.path,
+            source,
+        })
     }
 }
 

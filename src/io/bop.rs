@@ -3,9 +3,9 @@
 //! (models in metres), space-separated; written row by row like the pose
 //! CSV ([`PartialFile`]).
 
-use super::atomic::{PartialFile, partial_path};
+use super::atomic::{PartialFile, WriteError};
 use crate::geometry::Pose;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The header line of a BOP results file.
 pub const BOP_HEADER: &str = "scene_id,im_id,obj_id,score,R,t,time";
@@ -35,11 +35,8 @@ pub struct BopWriter {
 
 impl BopWriter {
     /// Starts `path` for object `obj_id`.
-    pub fn create(path: &Path, obj_id: u32) -> Result<Self, BopError> {
-        let file = PartialFile::create(path, BOP_HEADER).map_err(|source| BopError {
-            path: partial_path(path),
-            source,
-        })?;
+    pub fn create(path: &Path, obj_id: u32) -> Result<Self, WriteError> {
+        let file = PartialFile::create(path, BOP_HEADER)?;
         Ok(Self { file, obj_id })
     }
 
@@ -50,32 +47,15 @@ impl BopWriter {
         pose: &Pose,
         score: f64,
         seconds: f64,
-    ) -> Result<(), BopError> {
-        let line = format_bop_row(im_id, self.obj_id, pose, score, seconds);
-        self.file.line(&line).map_err(|source| BopError {
-            path: self.file.partial().to_owned(),
-            source,
-        })
+    ) -> Result<(), WriteError> {
+        self.file
+            .line(&format_bop_row(im_id, self.obj_id, pose, score, seconds))
     }
 
     /// Syncs the file and renames it into place.
-    pub fn finish(self) -> Result<(), BopError> {
-        let path = self.file.path().to_owned();
-        self.file
-            .finish()
-            .map_err(|source| BopError { path, source })
+    pub fn finish(self) -> Result<(), WriteError> {
+        self.file.finish()
     }
-}
-
-/// A BOP results file could not be written.
-#[derive(Debug, thiserror::Error)]
-#[error("{}: cannot write: {source}", path.display())]
-pub struct BopError {
-    /// The file.
-    pub path: PathBuf,
-    /// Why.
-    #[source]
-    pub source: std::io::Error,
 }
 
 #[cfg(test)]

@@ -8,7 +8,7 @@ pub mod npy;
 pub mod poses;
 pub mod sequence;
 
-pub use atomic::{PartialFile, write_atomic};
+pub use atomic::{PartialFile, WriteError, write_atomic};
 pub use bop::BopWriter;
 pub use poses::{PoseRow, PoseWriter, read_poses, write_poses};
 pub use sequence::{Frame, Sequence};

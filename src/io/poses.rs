@@ -2,7 +2,7 @@
 //! `frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra columns]`,
 //! object-to-camera, R row-major.
 
-use super::atomic::{PartialFile, write_atomic};
+use super::atomic::{PartialFile, WriteError, write_atomic};
 use crate::geometry::{Pose, PoseError};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -20,12 +20,8 @@ pub enum PoseFileError {
         #[source]
         source: std::io::Error,
     },
-    #[error("{path}: cannot write: {source}")]
-    Write {
-        path: PathBuf,
-        #[source]
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    Write(#[from] WriteError),
     #[error("{path}: {reason}")]
     Format { path: PathBuf, reason: String },
     #[error("{path}, line {line}: {reason}")]
@@ -194,9 +190,11 @@ pub fn write_poses(path: &Path, rows: &[PoseRow]) -> Result<(), PoseFileError> {
         }
         Ok(())
     })
-    .map_err(|source| PoseFileError::Write {
-        path: path.to_owned(),
-        source,
+    .map_err(|source| {
+        PoseFileError::Write(WriteError {
+            path: path.to_owned(),
+            source,
+        })
     })
 }
 
@@ -211,31 +209,18 @@ pub struct PoseWriter {
 impl PoseWriter {
     /// Starts `path` with the header for rows with these extra columns.
     pub fn create(path: &Path, extra_columns: &[&str]) -> Result<Self, PoseFileError> {
-        let file = PartialFile::create(path, &header(extra_columns)).map_err(|source| {
-            PoseFileError::Write {
-                path: super::atomic::partial_path(path),
-                source,
-            }
-        })?;
+        let file = PartialFile::create(path, &header(extra_columns))?;
         Ok(Self { file })
     }
 
     /// Appends one row and flushes it.
     pub fn row(&mut self, row: &PoseRow) -> Result<(), PoseFileError> {
-        self.file
-            .line(&format_row(row))
-            .map_err(|source| PoseFileError::Write {
-                path: self.file.partial().to_owned(),
-                source,
-            })
+        Ok(self.file.line(&format_row(row))?)
     }
 
     /// Syncs the file and renames it into place.
     pub fn finish(self) -> Result<(), PoseFileError> {
-        let path = self.file.path().to_owned();
-        self.file
-            .finish()
-            .map_err(|source| PoseFileError::Write { path, source })
+        Ok(self.file.finish()?)
     }
 }
 
