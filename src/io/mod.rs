@@ -1,5 +1,6 @@
 //! Files on disk (FORMATS.md): pose CSVs, raw float images (.npy).
 
+pub mod camera;
 pub mod npy;
 pub mod poses;
 pub mod sequence;

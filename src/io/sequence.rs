@@ -2,7 +2,8 @@
 //! an OpenCV `camera.yaml`), `frames/` (png or jpg, sorted by name),
 //! `init.csv`, optional `poses.csv` (ground truth) and `keyframes/`.
 
-use crate::geometry::{CameraError, Intrinsics};
+use crate::geometry::Intrinsics;
+use crate::io::camera::CameraError;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, thiserror::Error)]
