@@ -22,6 +22,7 @@ use splattrack::tracker::{Mode, Tracker, TrackerConfig};
 use splattrack::{Intrinsics, PointModel};
 use std::error::Error;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 type Result<T> = std::result::Result<T, Box<dyn Error>>;
 
@@ -61,7 +62,7 @@ fn run(
     store: Option<PathBuf>,
 ) -> Result<()> {
     // 1. The GPU: one context for everything (splatting, Harris, NCC).
-    let ctx = GpuContext::new(&AdapterChoice::from_env()?)?;
+    let ctx = Arc::new(GpuContext::new(&AdapterChoice::from_env()?)?);
     println!("adapter: {}", ctx.describe());
 
     // 2. The point model (normals and radii are estimated if the PLY lacks
@@ -85,7 +86,7 @@ fn run(
         mode: Mode::KfIt,
         ..Default::default()
     };
-    let mut tracker = Tracker::new(&ctx, model, cam, keyframes, config, initial)?;
+    let mut tracker = Tracker::new(ctx.clone(), model, cam, keyframes, config, initial)?;
 
     // Ground truth, when the sequence has it, to print the error as we go.
     let gt = match seq.ground_truth_path() {
