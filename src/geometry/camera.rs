@@ -268,6 +268,15 @@ mod tests {
         Intrinsics::new(640, 480, 572.4, 573.6, 325.3, 242.0)
     }
 
+    /// Checks `analytic` against the central difference of `f` (a pixel
+    /// position as a function of a step along one direction) at 0.
+    fn assert_derivative(analytic: Vector2<f64>, f: impl Fn(f64) -> Vector2<f64>, what: &str) {
+        let h = 1e-6;
+        let fd = (f(h) - f(-h)) / (2.0 * h);
+        let rel = (fd - analytic).norm() / (1.0 + analytic.norm());
+        assert!(rel < 1e-6, "{what}: fd {fd} vs {analytic}");
+    }
+
     #[test]
     fn jacobian_matches_finite_differences() {
         let cam = camera();
@@ -279,13 +288,9 @@ mod tests {
                 rng.uniform(0.2, 3.0),
             );
             let j = cam.projection_jacobian(&x);
-            let h = 1e-6;
             for k in 0..3 {
-                let dx = Vector3::ith(k, h);
-                let fd =
-                    (cam.project(&(x + dx)).unwrap() - cam.project(&(x - dx)).unwrap()) / (2.0 * h);
-                let rel = (fd - j.column(k)).norm() / (1.0 + j.column(k).norm());
-                assert!(rel < 1e-6, "column {k}: fd {fd} vs J {}", j.column(k));
+                let f = |h| cam.project(&(x + Vector3::ith(k, h))).unwrap();
+                assert_derivative(j.column(k).into(), f, &format!("column {k}"));
             }
         }
     }
@@ -301,14 +306,12 @@ mod tests {
                 rng.uniform(0.3, 2.0),
             );
             let l = cam.motion_predictors(&x);
-            let h = 1e-6;
             for j in 0..6 {
-                let xi = Vector6::ith(j, h);
-                let fd = (cam.project(&Pose::exp(&xi).transform_point(&x)).unwrap()
-                    - cam.project(&Pose::exp(&-xi).transform_point(&x)).unwrap())
-                    / (2.0 * h);
-                let rel = (fd - l.column(j)).norm() / (1.0 + l.column(j).norm());
-                assert!(rel < 1e-6, "predictor {j}: fd {fd} vs l {}", l.column(j));
+                let f = |h| {
+                    cam.project(&Pose::exp(&Vector6::ith(j, h)).transform_point(&x))
+                        .unwrap()
+                };
+                assert_derivative(l.column(j).into(), f, &format!("predictor {j}"));
             }
         }
     }

@@ -448,12 +448,15 @@ mod tests {
         }
     }
 
+    /// [`synthetic`] matches moved by [`TWIST`].
+    fn moved(seed: u64, n: usize, noise_px: f64, outlier_fraction: f64) -> Vec<Observation> {
+        synthetic(&mut Rng::new(seed), n, &TWIST, noise_px, outlier_fraction).0
+    }
+
     #[test]
     fn least_squares_is_ruined_by_the_same_outliers() {
         // The robust loss is what makes the previous test pass.
-        let mut rng = Rng::new(22);
-        let twist = TWIST;
-        let (obs, _) = synthetic(&mut rng, 200, &twist, 0.3, 0.3);
+        let obs = moved(22, 200, 0.3, 0.3);
         let cfg = IrlsConfig {
             loss: Loss::LeastSquares,
             warmup_iterations: 0,
@@ -462,7 +465,7 @@ mod tests {
         };
         let ls = irls(&obs, &cfg).unwrap();
         let robust = irls(&obs, &IrlsConfig::default()).unwrap();
-        let (e_ls, e_rob) = ((ls.twist - twist).norm(), (robust.twist - twist).norm());
+        let (e_ls, e_rob) = ((ls.twist - TWIST).norm(), (robust.twist - TWIST).norm());
         assert!(
             e_ls > 3.0 * e_rob,
             "least squares {e_ls:.2e} vs robust {e_rob:.2e}"
@@ -471,19 +474,13 @@ mod tests {
 
     #[test]
     fn huber_also_recovers_the_twist() {
-        let mut rng = Rng::new(23);
-        let twist = TWIST;
-        let (obs, _) = synthetic(&mut rng, 300, &twist, 0.3, 0.2);
+        let obs = moved(23, 300, 0.3, 0.2);
         let cfg = IrlsConfig {
             loss: Loss::HUBER,
             ..Default::default()
         };
-        let res = irls(&obs, &cfg).unwrap();
-        assert!(
-            (res.twist - twist).norm() < 3e-3,
-            "{}",
-            (res.twist - twist).norm()
-        );
+        let err = (irls(&obs, &cfg).unwrap().twist - TWIST).norm();
+        assert!(err < 3e-3, "{err}");
     }
 
     #[test]
@@ -549,9 +546,7 @@ mod tests {
 
     #[test]
     fn mostly_garbage_is_refused_for_too_few_inliers() {
-        let mut rng = Rng::new(27);
-        let twist = TWIST;
-        let (obs, _) = synthetic(&mut rng, 40, &twist, 0.2, 0.0);
+        let obs = moved(27, 40, 0.2, 0.0);
         let cfg = IrlsConfig {
             min_inliers: 41,
             ..Default::default()

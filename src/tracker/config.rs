@@ -243,51 +243,33 @@ mod tests {
     #[test]
     fn defaults_are_valid_and_each_rule_names_its_field() {
         TrackerConfig::default().validate().unwrap();
-        let bad: [(TrackerConfig, &str); 6] = [
+        type Change = fn(&mut TrackerConfig);
+        let bad: [(Change, &str); 6] = [
             (
-                TrackerConfig {
-                    harris: HarrisConfig::default().with_relative_threshold(0.0),
-                    ..Default::default()
-                },
+                |c| c.harris.relative_threshold = 0.0,
                 "harris.relative_threshold = 0: must be in (0, 1]",
             ),
             (
-                TrackerConfig {
-                    kf_search_px: f32::NAN,
-                    ..Default::default()
-                },
+                |c| c.kf_search_px = f32::NAN,
                 "kf_search_px = NaN: must be a finite radius >= 0",
             ),
             (
-                TrackerConfig {
-                    max_residual_px: -1.0,
-                    ..Default::default()
-                },
+                |c| c.max_residual_px = -1.0,
                 "max_residual_px = -1: must be > 0",
             ),
             (
-                TrackerConfig {
-                    min_splat_radius_px: f32::INFINITY,
-                    ..Default::default()
-                },
+                |c| c.min_splat_radius_px = f32::INFINITY,
                 "min_splat_radius_px = inf: must be >= 0",
             ),
+            (|c| c.ncc.window = 8, "window = 8"),
             (
-                TrackerConfig {
-                    ncc: NccConfig::default().with_window(8),
-                    ..Default::default()
-                },
-                "window = 8",
-            ),
-            (
-                TrackerConfig {
-                    roi_margin_px: -2.5,
-                    ..Default::default()
-                },
+                |c| c.roi_margin_px = -2.5,
                 "roi_margin_px = -2.5: must be >= 0",
             ),
         ];
-        for (c, want) in bad {
+        for (change, want) in bad {
+            let mut c = TrackerConfig::default();
+            change(&mut c);
             let e = c.validate().unwrap_err().to_string();
             assert!(e.contains(want), "{e:?} lacks {want:?}");
         }

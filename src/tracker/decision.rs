@@ -366,14 +366,19 @@ mod tests {
         }
     }
 
+    /// [`steps`] after `it_only_streak` frames tracked by IT alone.
+    fn after_it_only(it_only_streak: usize, it: StepOutcome, kf: StepOutcome) -> FrameSteps {
+        FrameSteps {
+            it_only_streak,
+            ..steps(it, kf)
+        }
+    }
+
     #[test]
     fn a_trusted_kf_estimate_wins_and_ends_the_it_only_streak() {
         let d = decide(
             &RULES,
-            &FrameSteps {
-                it_only_streak: 3,
-                ..steps(est(1.0, 50, 0.5), est(2.0, 20, 1.0))
-            },
+            &after_it_only(3, est(1.0, 50, 0.5), est(2.0, 20, 1.0)),
         );
         assert_eq!(d.status, Status::Tracking);
         assert_eq!(d.pose, Some(pose(2.0)));
@@ -403,10 +408,7 @@ mod tests {
     fn it_alone_stands_in_only_so_many_frames_in_kf_it() {
         let d = decide(
             &RULES,
-            &FrameSteps {
-                it_only_streak: 5,
-                ..steps(est(1.0, 50, 0.5), est(2.0, 5, 0.8))
-            },
+            &after_it_only(5, est(1.0, 50, 0.5), est(2.0, 5, 0.8)),
         );
         assert_eq!(d.status, Status::Lost);
         assert_eq!((d.pose, d.inliers, d.residual_px), (None, 5, 0.8));
@@ -422,10 +424,7 @@ mod tests {
         };
         let d = decide(
             &it,
-            &FrameSteps {
-                it_only_streak: 9,
-                ..steps(est(1.0, 50, 0.5), StepOutcome::default())
-            },
+            &after_it_only(9, est(1.0, 50, 0.5), StepOutcome::default()),
         );
         assert_eq!((d.status, d.it_only_streak), (Status::Tracking, 9));
     }

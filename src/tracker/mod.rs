@@ -525,7 +525,9 @@ mod tests {
         assert!(json.contains(r#""residual_px":null"#), "{json}");
         let back: TrackResult = serde_json::from_str(&json).unwrap();
         assert!(back.residual_px.is_nan());
-        assert_eq!(serde_json::to_string(&back).unwrap(), json);
+        // serde_json reads floats to within an ulp.
+        assert!((back.pose.to_matrix4() - r.pose.to_matrix4()).amax() < 1e-15);
+        assert_eq!((back.inliers, back.keyframe), (r.inliers, r.keyframe));
         assert_eq!(
             (back.status, back.reason, back.times),
             (r.status, r.reason, r.times)
