@@ -3,10 +3,10 @@
 //! that land on the object matched to the new ones by NCC; the predictors at
 //! the old positions and the displacements solved for the update.
 
-use super::{Anchors, Frame, Mode, PrevFrame, StepError, StepOutcome, Tracker, estimate};
+use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
 use crate::geometry::Pose;
-use crate::pose::{Correspondence, Refined};
+use crate::pose::{Anchor, Correspondence, Refined};
 use crate::splat::{Attributes, GatherMode};
 use nalgebra::Vector2;
 
@@ -30,7 +30,7 @@ impl Tracker {
         frame: &Frame,
         pose: &Pose,
         recovering: bool,
-    ) -> (StepOutcome, Anchors) {
+    ) -> (StepOutcome, Vec<Anchor>) {
         if !matches!(self.config.mode, Mode::It | Mode::KfIt) || recovering {
             return (StepOutcome::default(), Vec::new());
         }
@@ -52,12 +52,7 @@ impl Tracker {
     }
 
     /// Frame-to-frame step from the previous frame's corners.
-    fn it_step(
-        &mut self,
-        prev: &PrevFrame,
-        frame: &Frame,
-        pose: &Pose,
-    ) -> Result<Refined, StepError> {
+    fn it_step(&mut self, prev: &Frame, frame: &Frame, pose: &Pose) -> Result<Refined, StepError> {
         self.splatter.render(
             &self.ctx,
             &self.geometry,

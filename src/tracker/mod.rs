@@ -161,13 +161,8 @@ pub enum TrackError {
 #[error("impossible camera: {0}")]
 pub struct CameraInvalid(pub String);
 
-/// The previous frame, for the IT step.
-struct PrevFrame {
-    grey: GreyImage,
-    corners: Vec<Corner>,
-}
-
-/// The frame being tracked.
+/// A frame as the steps see it (the one being tracked, and the previous
+/// one for IT).
 struct Frame {
     grey: GreyImage,
     corners: Vec<Corner>,
@@ -222,7 +217,7 @@ pub struct Tracker {
     center: Vector3<f64>,
     radius: f64,
     pose: Pose,
-    prev: Option<PrevFrame>,
+    prev: Option<Frame>,
     lost_streak: usize,
     /// KF+IT: consecutive frames tracked by IT alone.
     it_only_streak: usize,
@@ -405,10 +400,7 @@ impl Tracker {
             // Keep the last good pose: never report a pose that failed.
             self.lost_streak += 1;
         }
-        self.prev = Some(PrevFrame {
-            grey: frame.grey,
-            corners: frame.corners,
-        });
+        self.prev = Some(frame);
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
@@ -494,9 +486,6 @@ fn estimate(r: &Refined) -> Estimate {
         scale_px: r.solve.scale_px,
     }
 }
-
-/// The anchors that the KF step borrows from IT when fusing.
-type Anchors = Vec<Anchor>;
 
 #[cfg(test)]
 mod tests {
