@@ -14,10 +14,11 @@ use splattrack::synth::{
     SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Tracker, TrackerConfig};
+use std::sync::Arc;
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {
-    let ctx = GpuContext::from_env().expect("a GPU adapter (lavapipe will do)");
+    let ctx = Arc::new(GpuContext::from_env().expect("a GPU adapter (lavapipe will do)"));
     eprintln!("adapter: {}", ctx.describe());
     let cfg = SynthConfig {
         frames: 120,
@@ -51,7 +52,7 @@ fn bench(c: &mut Criterion) {
             ..Default::default()
         };
         let mut tracker = Tracker::new(
-            &ctx,
+            ctx.clone(),
             model.clone(),
             cfg.camera,
             Some(store.clone()),
@@ -67,7 +68,7 @@ fn bench(c: &mut Criterion) {
                 // Restart at frame 0 after the 30 frames, from its true pose.
                 if i.is_multiple_of(frames.len()) {
                     tracker = Tracker::new(
-                        &ctx,
+                        ctx.clone(),
                         model.clone(),
                         cfg.camera,
                         Some(store.clone()),

@@ -343,7 +343,7 @@ impl<'a> TrackRun<'a> {
         }
         let mode = self.config.mode;
         let mut tracker = Tracker::new(
-            self.ctx,
+            std::sync::Arc::new(self.ctx.clone()),
             self.inputs.model.clone(),
             seq.tracking_camera(),
             self.inputs.keyframes.clone(),
@@ -390,7 +390,9 @@ impl<'a> TrackRun<'a> {
                 stats.lost += 1;
                 log::info!(
                     "frame {i}: lost ({})",
-                    r.reason.as_deref().unwrap_or("no reason")
+                    r.reason
+                        .as_ref()
+                        .map_or_else(|| "no reason".to_owned(), ToString::to_string)
                 );
             }
             if let Some(w) = &mut poses {

@@ -15,13 +15,15 @@
 //! - [`splat`]: GPU EWA surface splatting (novel views, depth, motion
 //!   predictors), its CPU reference, and a triangle-mesh rasteriser;
 //! - [`features`]: Harris corners and NCC matching (GPU, with CPU references);
-//! - [`pose`]: the robust (IRLS) pose update from matches;
+//! - [`pose`]: the robust (IRLS) pose update from matches and its
+//!   Gauss-Newton refinement;
 //! - [`keyframes`]: the keyframe store (per-point colours from keyframes);
-//! - [`tracker`]: the IT, KF and KF+IT trackers;
+//! - [`tracker`]: the IT, KF and KF+IT trackers (settings, steps, and the
+//!   tracking/lost decision);
 //! - [`synth`]: synthetic sequences with exact ground truth;
 //! - [`eval`], [`plot`], [`draw`]: errors against ground truth and pictures;
-//! - [`io`]: sequence directories (frames undistorted), pose CSVs and BOP
-//!   results written crash-safely, raw `.npy` images;
+//! - [`io`]: camera files, sequence directories (frames undistorted), pose
+//!   CSVs and BOP results written crash-safely, raw `.npy` images;
 //! - [`app`]: the application layer: a tracking run over a sequence with
 //!   its keyframe store and outputs, as the command line does it;
 //! - [`progress`]: progress of long jobs, for the caller to draw.

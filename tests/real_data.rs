@@ -6,19 +6,17 @@
 //! message that says where it looked; set `SPLATTRACK_SKIP_REAL_DATA=1` to
 //! skip it instead.
 
+mod tracking_common;
+
 use splattrack::PointModel;
 use splattrack::geometry::Pose;
-use splattrack::gpu::{self, GpuContext};
 use splattrack::io::{Sequence, read_poses};
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::tracker::{Mode, Status, TrackResult, Tracker, TrackerConfig};
 use std::collections::HashMap;
 use std::path::PathBuf;
-
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
+use tracking_common::shared_ctx;
 
 fn data_dir(name: &str) -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -61,14 +59,14 @@ type Tracked = (TrackResult, Option<(f64, f64)>);
 /// the rotation error (degrees) and translation error (% of the diameter).
 fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Tracked>> {
     let dir = data_dir(name)?;
-    let ctx = ctx();
+    let ctx = shared_ctx();
     let model = PointModel::load(dir.join("model.ply")).unwrap();
     let seq = Sequence::open(&dir).unwrap();
     let cam = seq.camera;
     assert!(!cam.has_distortion(), "the ViSP camera has no distortion");
-    let splatter = Splatter::new(ctx).unwrap();
+    let splatter = Splatter::new(&ctx).unwrap();
     let store = KeyframeStore::build_from_dir(
-        ctx,
+        &ctx,
         &splatter,
         &model,
         &cam,
@@ -100,7 +98,10 @@ fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Track
             "{name} frame {i}: {} ({} inliers) {err:?} {}",
             r.status.name(),
             r.inliers,
-            r.reason.as_deref().unwrap_or("")
+            r.reason
+                .as_ref()
+                .map(ToString::to_string)
+                .unwrap_or_default()
         );
         out.push((r, err));
     }

@@ -8,8 +8,9 @@
 //! beats both IT alone and KF alone on mean error; IT alone drifts (its error
 //! grows along the sequence).
 
+mod tracking_common;
+
 use splattrack::geometry::Intrinsics;
-use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::synth::{
@@ -17,6 +18,7 @@ use splattrack::synth::{
     sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
+use tracking_common::shared_ctx;
 
 struct ModeErrors {
     rotation: Vec<f64>,
@@ -30,7 +32,7 @@ fn mean(v: &[f64]) -> f64 {
 
 #[test]
 fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
-    let ctx = shared_test_context();
+    let ctx = shared_ctx();
     let cfg = SynthConfig {
         object: "blob".into(),
         trajectory: Trajectory::Fig10,
@@ -46,9 +48,9 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
     let kf_images = keyframe_images(&cfg, &object, &bg);
-    let splatter = Splatter::new(ctx).unwrap();
+    let splatter = Splatter::new(&ctx).unwrap();
     let store = KeyframeStore::build(
-        ctx,
+        &ctx,
         &splatter,
         &model,
         &cfg.camera,
@@ -63,7 +65,7 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
             ..Default::default()
         };
         let mut t = Tracker::new(
-            ctx,
+            ctx.clone(),
             model.clone(),
             cfg.camera,
             Some(store.clone()),

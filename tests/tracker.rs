@@ -15,13 +15,12 @@
 mod tracking_common;
 
 use splattrack::geometry::Pose;
-use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::KeyframeStore;
 use splattrack::rng::Rng;
 use splattrack::synth::{SynthConfig, SynthFrame, Trajectory, render_frame};
 use splattrack::tracker::{Mode, Status, TrackError, Tracker, TrackerConfig};
 use std::sync::OnceLock;
-use tracking_common::{Scene, camera_320};
+use tracking_common::{Scene, camera_320, shared_ctx};
 
 const FIRST: usize = 50;
 const COUNT: usize = 20;
@@ -56,10 +55,10 @@ fn fixture() -> &'static Fixture {
     })
 }
 
-fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker<'static> {
+fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker {
     let f = fixture();
     Tracker::new(
-        shared_test_context(),
+        shared_ctx(),
         f.scene.model.clone(),
         f.scene.cam,
         store,
@@ -224,7 +223,7 @@ fn object_behind_the_camera_is_refused() {
     let mut behind = f.frames[0].pose;
     behind.translation.z = -behind.translation.z;
     let e = Tracker::new(
-        shared_test_context(),
+        shared_ctx(),
         f.scene.model.clone(),
         f.scene.cam,
         Some(f.store.clone()),
@@ -240,7 +239,7 @@ fn object_behind_the_camera_is_refused() {
     let mut aside = f.frames[0].pose;
     aside.translation.x += 5.0;
     let e = Tracker::new(
-        shared_test_context(),
+        shared_ctx(),
         f.scene.model.clone(),
         f.scene.cam,
         None,
@@ -261,7 +260,7 @@ fn kf_mode_needs_keyframes_or_model_colours() {
     bare.colors = None;
     for mode in [Mode::Kf, Mode::KfIt] {
         let e = Tracker::new(
-            shared_test_context(),
+            shared_ctx(),
             bare.clone(),
             f.scene.cam,
             None,

@@ -31,7 +31,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let ctx = super::gpu(adapter)?;
+    let ctx = std::sync::Arc::new(super::gpu(adapter)?);
     println!("splattrack demo on {}", ctx.describe());
     let seq_dir = args.out.join("sequence");
     let synth_args = synth::Args {

@@ -5,7 +5,7 @@
 
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
-use splattrack::tracker::{Mode, TrackerConfig};
+use splattrack::tracker::{ConfigError, Mode, TrackerConfig};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long)]
     pub init: Option<PathBuf>,
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
-    #[arg(long, default_value = "kf+it")]
+    #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
     pub mode: Mode,
     /// Output pose CSV (FORMATS.md "Tracker output").
     #[arg(long)]
@@ -104,83 +104,54 @@ pub struct Tuning {
 }
 
 impl Tuning {
-    /// `base` with these overrides applied.
+    /// `base` with these overrides applied, checked by
+    /// [`TrackerConfig::validate`]; a value out of range is named by its flag.
     pub fn apply(&self, mut c: TrackerConfig) -> anyhow::Result<TrackerConfig> {
-        if let Some(v) = self.harris_threshold {
-            if !(v > 0.0 && v <= 1.0) {
-                bail!("--harris-threshold {v}: must be in (0, 1]");
+        fn set<T: Copy>(field: &mut T, v: Option<T>) {
+            if let Some(v) = v {
+                *field = v;
             }
-            c.harris.relative_threshold = v;
         }
-        if let Some(v) = self.max_corners {
-            c.harris.max_corners = v;
-        }
-        if let Some(v) = self.min_score {
-            c.ncc.min_score = v;
-        }
-        if let Some(v) = self.ncc_window {
-            c.ncc.window = v;
-        }
-        let radius = |name: &str, v: f32| -> anyhow::Result<f32> {
-            if !(v >= 0.0 && v.is_finite()) {
-                bail!("--{name} {v}: must be a finite radius >= 0");
+        set(&mut c.harris.relative_threshold, self.harris_threshold);
+        set(&mut c.harris.max_corners, self.max_corners);
+        set(&mut c.ncc.min_score, self.min_score);
+        set(&mut c.ncc.window, self.ncc_window);
+        set(&mut c.it_search_px, self.it_search);
+        set(&mut c.kf_search_px, self.kf_search);
+        set(&mut c.recover_search_px, self.recover_search);
+        set(&mut c.kf_iterations, self.kf_iterations);
+        set(&mut c.refine_iterations, self.refine_iterations);
+        set(&mut c.roi_margin_px, self.roi_margin);
+        set(&mut c.min_inliers, self.min_inliers);
+        set(&mut c.max_residual_px, self.max_residual);
+        set(&mut c.min_splat_radius_px, self.min_splat_px);
+        set(&mut c.max_it_only_frames, self.max_it_only);
+        set(&mut c.it_interior_px, self.it_interior);
+        match c.validate() {
+            Ok(()) => Ok(c),
+            Err(ConfigError::OutOfRange { field, value, rule }) => {
+                match FLAGS.iter().find(|(f, _)| *f == field) {
+                    Some((_, flag)) => bail!("--{flag} {value}: must be {rule}"),
+                    None => bail!("tracker settings: {field} = {value}: must be {rule}"),
+                }
             }
-            Ok(v)
-        };
-        if let Some(v) = self.it_search {
-            c.it_search_px = radius("it-search", v)?;
+            Err(e) => bail!("tracker settings: {e}"),
         }
-        if let Some(v) = self.kf_search {
-            c.kf_search_px = radius("kf-search", v)?;
-        }
-        if let Some(v) = self.recover_search {
-            c.recover_search_px = radius("recover-search", v)?;
-        }
-        if let Some(v) = self.kf_iterations {
-            c.kf_iterations = v;
-        }
-        if let Some(v) = self.refine_iterations {
-            c.refine_iterations = v;
-        }
-        if let Some(v) = self.roi_margin {
-            if !(v >= 0.0 && v.is_finite()) {
-                bail!("--roi-margin {v}: must be >= 0");
-            }
-            c.roi_margin_px = v;
-        }
-        if let Some(v) = self.min_inliers {
-            c.min_inliers = v;
-        }
-        if let Some(v) = self.max_residual {
-            if !(v > 0.0 && v.is_finite()) {
-                bail!("--max-residual {v}: must be > 0");
-            }
-            c.max_residual_px = v;
-        }
-        if let Some(v) = self.min_splat_px {
-            if !(v >= 0.0 && v.is_finite()) {
-                bail!("--min-splat-px {v}: must be >= 0");
-            }
-            c.min_splat_radius_px = v;
-        }
-        if let Some(v) = self.max_it_only {
-            c.max_it_only_frames = v;
-        }
-        if let Some(v) = self.it_interior {
-            if !(v >= 0.0 && v.is_finite()) {
-                bail!("--it-interior {v}: must be >= 0");
-            }
-            c.it_interior_px = v;
-        }
-        c.harris
-            .validate()
-            .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
-        c.ncc
-            .validate()
-            .map_err(|e| anyhow::anyhow!("tracker settings: {e}"))?;
-        Ok(c)
     }
 }
+
+/// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
+/// [`TrackerConfig::validate`] checks.
+const FLAGS: [(&str, &str); 8] = [
+    ("harris.relative_threshold", "harris-threshold"),
+    ("it_search_px", "it-search"),
+    ("kf_search_px", "kf-search"),
+    ("recover_search_px", "recover-search"),
+    ("roi_margin_px", "roi-margin"),
+    ("max_residual_px", "max-residual"),
+    ("min_splat_radius_px", "min-splat-px"),
+    ("it_interior_px", "it-interior"),
+];
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = TrackerConfig {

@@ -18,7 +18,7 @@ pub struct Corner {
 
 /// Harris detector parameters. The defaults follow the paper where it says
 /// something (about 900 corners, section 5.2) and common practice elsewhere.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct HarrisConfig {
     /// Standard deviation of the Gaussian-derivative filter (pixels),
     /// at most 7/3. Default 1.

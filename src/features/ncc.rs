@@ -17,7 +17,7 @@ pub struct Match {
 }
 
 /// NCC matching parameters.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NccConfig {
     /// Window side in pixels, odd (the paper: 9).
     pub window: u32,

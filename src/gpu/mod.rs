@@ -115,6 +115,8 @@ impl AdapterChoice {
 pub const REQUIRED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE;
 
 /// A device and queue with what is known about the adapter behind them.
+/// Cloning is cheap: wgpu's device and queue are shared handles.
+#[derive(Clone)]
 pub struct GpuContext {
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,

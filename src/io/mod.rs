@@ -4,6 +4,7 @@
 
 pub mod atomic;
 pub mod bop;
+pub mod camera;
 pub mod npy;
 pub mod poses;
 pub mod sequence;

@@ -4,7 +4,8 @@
 //! [`Sequence::frames`] yields the frames in order, undistorted when the
 //! camera has distortion, ready for a tracker on [`Sequence::tracking_camera`].
 
-use crate::geometry::{CameraError, Intrinsics, Undistorter};
+use crate::geometry::{Intrinsics, Undistorter};
+use crate::io::camera::CameraError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 

@@ -1,21 +1,4 @@
-//! Robust pose updates from feature matches: iteratively reweighted least
-//! squares (IRLS) on the motion-predictor model (Dehais et al. 2010, eqs. 6-7;
-//! DESIGN.md section 3).
-//!
-//! How it works: match `i` moved from `m_{t-1}^i` to `m_t^i`; the motion
-//! predictors `L^i` (2x6) sampled at `m_{t-1}^i` say that a small twist `a`
-//! moves it by `L^i a`. IRLS minimises `sum_i rho(|L^i a - d^i|)` with
-//! `d^i = m_t^i - m_{t-1}^i` by solving the weighted 6x6 normal equations
-//! `(L^T W L) a = L^T W d` repeatedly, re-weighting each match by its
-//! residual. The scale comes from the median absolute residual (MAD). A few
-//! Huber iterations (convex, so they cannot lock onto outliers) come first,
-//! then Tukey's biweight (redescending: gross outliers get exactly zero
-//! weight). Before every solve the system is checked: a normal matrix that
-//! is rank-deficient or badly conditioned (after scaling its rows and columns
-//! to unit diagonal, so that model units and radians compare) is refused with
-//! the reason, never inverted into a garbage update.
-
-#![warn(missing_docs)]
+//! IRLS on the motion-predictor model (see the module [`crate::pose`]).
 
 use nalgebra::{Matrix2x6, Matrix6, SymmetricEigen, Vector2, Vector6};
 
@@ -30,7 +13,7 @@ pub struct Observation {
 }
 
 /// The robust loss `rho`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub enum Loss {
     /// Plain least squares (no robustness; for comparison).
     LeastSquares,
@@ -76,7 +59,7 @@ impl Loss {
 }
 
 /// Settings of [`irls`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct IrlsConfig {
     /// The final loss; Huber iterations always come first (see module docs).
     pub loss: Loss,
@@ -141,7 +124,7 @@ pub struct IrlsResult {
 }
 
 /// Why an update was refused.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq, thiserror::Error, serde::Serialize, serde::Deserialize)]
 pub enum SolveError {
     /// Fewer matches than [`IrlsConfig::min_matches`].
     #[error("too few matches for a pose update: {got} (need at least {need})")]
@@ -355,6 +338,9 @@ mod tests {
     use crate::rng::Rng;
     use nalgebra::Vector3;
 
+    /// A frame-to-frame motion: a few mm and about a degree per axis.
+    const TWIST: Vector6<f64> = Vector6::new(0.002, -0.001, 0.004, 0.01, -0.015, 0.02);
+
     fn cam() -> Intrinsics {
         Intrinsics::new(640, 480, 600.0, 600.0, 320.0, 240.0)
     }
@@ -462,12 +448,15 @@ mod tests {
         }
     }
 
+    /// [`synthetic`] matches moved by [`TWIST`].
+    fn moved(seed: u64, n: usize, noise_px: f64, outlier_fraction: f64) -> Vec<Observation> {
+        synthetic(&mut Rng::new(seed), n, &TWIST, noise_px, outlier_fraction).0
+    }
+
     #[test]
     fn least_squares_is_ruined_by_the_same_outliers() {
         // The robust loss is what makes the previous test pass.
-        let mut rng = Rng::new(22);
-        let twist = Vector6::new(0.002, -0.001, 0.004, 0.01, -0.015, 0.02);
-        let (obs, _) = synthetic(&mut rng, 200, &twist, 0.3, 0.3);
+        let obs = moved(22, 200, 0.3, 0.3);
         let cfg = IrlsConfig {
             loss: Loss::LeastSquares,
             warmup_iterations: 0,
@@ -476,7 +465,7 @@ mod tests {
         };
         let ls = irls(&obs, &cfg).unwrap();
         let robust = irls(&obs, &IrlsConfig::default()).unwrap();
-        let (e_ls, e_rob) = ((ls.twist - twist).norm(), (robust.twist - twist).norm());
+        let (e_ls, e_rob) = ((ls.twist - TWIST).norm(), (robust.twist - TWIST).norm());
         assert!(
             e_ls > 3.0 * e_rob,
             "least squares {e_ls:.2e} vs robust {e_rob:.2e}"
@@ -485,19 +474,13 @@ mod tests {
 
     #[test]
     fn huber_also_recovers_the_twist() {
-        let mut rng = Rng::new(23);
-        let twist = Vector6::new(0.002, -0.001, 0.004, 0.01, -0.015, 0.02);
-        let (obs, _) = synthetic(&mut rng, 300, &twist, 0.3, 0.2);
+        let obs = moved(23, 300, 0.3, 0.2);
         let cfg = IrlsConfig {
             loss: Loss::HUBER,
             ..Default::default()
         };
-        let res = irls(&obs, &cfg).unwrap();
-        assert!(
-            (res.twist - twist).norm() < 3e-3,
-            "{}",
-            (res.twist - twist).norm()
-        );
+        let err = (irls(&obs, &cfg).unwrap().twist - TWIST).norm();
+        assert!(err < 3e-3, "{err}");
     }
 
     #[test]
@@ -563,9 +546,7 @@ mod tests {
 
     #[test]
     fn mostly_garbage_is_refused_for_too_few_inliers() {
-        let mut rng = Rng::new(27);
-        let twist = Vector6::new(0.002, -0.001, 0.004, 0.01, -0.015, 0.02);
-        let (obs, _) = synthetic(&mut rng, 40, &twist, 0.2, 0.0);
+        let obs = moved(27, 40, 0.2, 0.0);
         let cfg = IrlsConfig {
             min_inliers: 41,
             ..Default::default()

@@ -1,0 +1,112 @@
+//! The iterative step (IT, Dehais et al. 2010, section 4): the motion
+//! predictors splatted at the previous pose; the previous frame's corners
+//! that land on the object matched to the new ones by NCC; the predictors at
+//! the old positions and the displacements solved for the update.
+
+use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
+use crate::features::Corner;
+use crate::geometry::Pose;
+use crate::pose::{Anchor, Correspondence, Refined};
+use crate::splat::{Attributes, GatherMode};
+use nalgebra::Vector2;
+
+/// Where `it_interior_px` probes around a corner, in units of that distance.
+const RING: [(f32, f32); 8] = [
+    (-1.0, -1.0),
+    (0.0, -1.0),
+    (1.0, -1.0),
+    (-1.0, 0.0),
+    (1.0, 0.0),
+    (-1.0, 1.0),
+    (0.0, 1.0),
+    (1.0, 1.0),
+];
+
+impl Tracker {
+    /// IT, where the mode runs it and there is a previous frame (never
+    /// while recovering): its outcome and, when fusing, its inliers.
+    pub(super) fn it_stage(
+        &mut self,
+        frame: &Frame,
+        pose: &Pose,
+        recovering: bool,
+    ) -> (StepOutcome, Vec<Anchor>) {
+        if !matches!(self.config.mode, Mode::It | Mode::KfIt) || recovering {
+            return (StepOutcome::default(), Vec::new());
+        }
+        let Some(prev) = self.prev.take() else {
+            return (StepOutcome::default(), Vec::new());
+        };
+        match self.it_step(&prev, frame, pose) {
+            Ok(step) => {
+                let outcome = StepOutcome::from_result(Ok(estimate(&step)));
+                let anchors = if self.config.fuse {
+                    step.anchors
+                } else {
+                    Vec::new()
+                };
+                (outcome, anchors)
+            }
+            Err(e) => (StepOutcome::from_result(Err(e)), Vec::new()),
+        }
+    }
+
+    /// Frame-to-frame step from the previous frame's corners.
+    fn it_step(&mut self, prev: &Frame, frame: &Frame, pose: &Pose) -> Result<Refined, StepError> {
+        self.splatter.render(
+            &self.ctx,
+            &self.geometry,
+            &self.cam,
+            pose,
+            Attributes::ALL,
+            &mut self.targets,
+        )?;
+        let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
+        let samples = self
+            .splatter
+            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        // Only corners on the object take part; with `it_interior_px`, only
+        // those whose surroundings are on the object too (see the field).
+        let mut on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
+        let r = self.config.it_interior_px;
+        if r > 0.0 && !on_object.is_empty() {
+            let probes: Vec<[f32; 2]> = on_object
+                .iter()
+                .flat_map(|&i| {
+                    let c = prev.corners[i];
+                    RING.iter()
+                        .map(move |(dx, dy)| [c.x + dx * r, c.y + dy * r])
+                })
+                .collect();
+            let ring =
+                self.splatter
+                    .gather(&self.ctx, &self.targets, &probes, GatherMode::Bilinear)?;
+            on_object = on_object
+                .iter()
+                .zip(ring.chunks(RING.len()))
+                .filter(|(_, ring)| ring.iter().all(|s| s.valid))
+                .map(|(&i, _)| i)
+                .collect();
+        }
+        let src: Vec<Corner> = on_object.iter().map(|&i| prev.corners[i]).collect();
+        let matches =
+            self.it_matcher
+                .match_features(&prev.grey, &src, &frame.grey, &frame.corners)?;
+        let obs: Vec<Correspondence> = matches
+            .iter()
+            .map(|m| {
+                let a = &src[m.a];
+                // Frame-to-frame, both images are equally sharp: the
+                // detected corners are unbiased against each other.
+                let b = &frame.corners[m.b];
+                self.correspondence(
+                    &samples[on_object[m.a]],
+                    Vector2::new(a.x as f64, a.y as f64),
+                    Vector2::new(b.x as f64, b.y as f64),
+                    pose,
+                )
+            })
+            .collect();
+        self.refine(&obs, pose, &[])
+    }
+}

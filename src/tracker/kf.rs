@@ -1,0 +1,147 @@
+//! The keyframe step (KF, Dehais et al. 2010, section 4): the keyframe
+//! whose viewpoint is closest textures the model; a novel view and its
+//! motion predictors are splatted in one pass; corners of the novel view
+//! matched to the frame's are solved for the correction.
+
+use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
+use crate::features::{Corner, GreyImage, Match, refine_match};
+use crate::geometry::Pose;
+use crate::pose::{Anchor, Correspondence, Refined};
+use crate::splat::{Attribute, Attributes, GatherMode, GpuModel};
+use nalgebra::Vector2;
+
+/// How far the KF step searches for matches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Search {
+    /// From an IT estimate: the object is nearly where predicted.
+    Refine,
+    /// From the previous pose: as far as the object moves between frames.
+    Motion,
+    /// After a loss.
+    Recover,
+}
+
+impl Tracker {
+    /// The KF step(s), where the mode runs them (or the track is recovering)
+    /// and there are keyframes. They start from `it_trusted`, IT's estimate
+    /// when it is sound; without it the first step must search as far as
+    /// frame-to-frame matching does, and after a loss farther. `anchors`
+    /// (IT's inliers, when fusing) join the refinement. Returns the outcome
+    /// and the keyframe last used.
+    pub(super) fn kf_stage(
+        &mut self,
+        frame: &Frame,
+        start_pose: &Pose,
+        recovering: bool,
+        it_trusted: Option<Pose>,
+        anchors: &[Anchor],
+    ) -> (StepOutcome, Option<usize>) {
+        let mut outcome = StepOutcome::default();
+        let mut keyframe = None;
+        let use_kf = matches!(self.config.mode, Mode::Kf | Mode::KfIt)
+            || (recovering && self.store.is_some());
+        if !use_kf || self.store.is_none() {
+            return (outcome, keyframe);
+        }
+        let (mut pose, first) = match (recovering, it_trusted) {
+            (true, _) => (*start_pose, Search::Recover),
+            (false, Some(p)) => (p, Search::Refine),
+            (false, None) => (*start_pose, Search::Motion),
+        };
+        for it in 0..self.config.kf_iterations.max(1) {
+            let search = if it == 0 { first } else { Search::Refine };
+            match self.kf_step(frame, &pose, search, anchors) {
+                Ok((step, k)) => {
+                    pose = step.pose;
+                    outcome.estimate = Some(estimate(&step));
+                    keyframe = Some(k);
+                }
+                Err(e) => {
+                    outcome.error = Some(e);
+                    break;
+                }
+            }
+        }
+        (outcome, keyframe)
+    }
+
+    /// One step against the novel view of the closest keyframe: the refined
+    /// solve and the keyframe's index.
+    fn kf_step(
+        &mut self,
+        frame: &Frame,
+        pose: &Pose,
+        search: Search,
+        anchors: &[Anchor],
+    ) -> Result<(Refined, usize), StepError> {
+        let store = self.store.as_ref().ok_or(StepError::NoKeyframes)?;
+        let k = store.closest(pose);
+        let gm = match &mut self.textured[k] {
+            Some(gm) => &*gm,
+            slot => &*slot.insert(GpuModel::new(&self.ctx, &store.textured(&self.model, k))?),
+        };
+        self.splatter.render(
+            &self.ctx,
+            gm,
+            &self.cam,
+            pose,
+            Attributes::ALL,
+            &mut self.targets,
+        )?;
+        let colour = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Color)?;
+        let view =
+            GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)?;
+        let view_corners = self.harris.detect(&view, None)?;
+        let matcher = match search {
+            Search::Recover => &mut self.recover_matcher,
+            Search::Motion => &mut self.it_matcher,
+            Search::Refine => &mut self.kf_matcher,
+        };
+        let matches = matcher.match_features(&view, &view_corners, &frame.grey, &frame.corners)?;
+        let pts: Vec<[f32; 2]> = matches
+            .iter()
+            .map(|m| [view_corners[m.a].x, view_corners[m.a].y])
+            .collect();
+        let samples = self
+            .splatter
+            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        let obs: Vec<Correspondence> = matches
+            .iter()
+            .zip(&samples)
+            .filter(|(_, s)| s.valid)
+            .filter_map(|(m, s): (&Match, _)| {
+                let a = &view_corners[m.a];
+                let to = self.match_target(&view, a, &frame.grey, &frame.corners[m.b])?;
+                Some(self.correspondence(s, Vector2::new(a.x as f64, a.y as f64), to, pose))
+            })
+            .collect();
+        self.refine(&obs, pose, anchors).map(|s| (s, k))
+    }
+
+    /// Where the corner `a` of image `src` lies in the live frame: the
+    /// matched corner `b`, moved to the NCC peak when refinement is on;
+    /// `None` drops a match whose refinement fails.
+    fn match_target(
+        &self,
+        src: &GreyImage,
+        a: &Corner,
+        live: &GreyImage,
+        b: &Corner,
+    ) -> Option<Vector2<f64>> {
+        if self.config.refine_window == 0 {
+            return Some(Vector2::new(b.x as f64, b.y as f64));
+        }
+        let (p, _) = refine_match(
+            src,
+            [a.x, a.y],
+            live,
+            [b.x, b.y],
+            self.config.refine_window,
+            2,
+            self.config.ncc.min_score * 0.8,
+        )?;
+        Some(Vector2::new(p[0] as f64, p[1] as f64))
+    }
+}

@@ -1,0 +1,525 @@
+//! The tracker (Dehais et al. 2010, sections 4 and 5): iterative
+//! frame-to-frame tracking (IT), tracking against keyframe-textured novel
+//! views (KF), and both in turn (KF+IT).
+//!
+//! How it works, per frame `t` (DESIGN.md section 4):
+//! 1. Harris corners of the frame, inside the object's projected bounding
+//!    circle (plus a margin) at the previous pose.
+//! 2. IT: the motion predictors are splatted at the previous pose `E_{t-1}`;
+//!    the previous frame's corners that land on the object (the splat covers
+//!    them) are matched to the new corners by NCC (mutual best within a
+//!    search radius); the predictors gathered at the old positions and the
+//!    displacements give a robust update `a` (IRLS):
+//!    `E_t' = exp(a^) E_{t-1}`.
+//! 3. KF: the keyframe whose viewpoint is closest to `E_t'` textures the model;
+//!    a novel view and its predictors are splatted at `E_t'` in one pass;
+//!    corners of the novel view (never on its empty pixels) are matched to the
+//!    frame's corners, and IRLS gives the correction: `E_t = exp(a'^) E_t'`.
+//! 4. Each step is refined beyond the paper's single linear solve by a few
+//!    Gauss-Newton iterations ([`crate::pose::Refiner`]): the matched points
+//!    are lifted to 3-D with the splatted depth, re-projected at the updated
+//!    pose, and the residuals solved again with the same robust loss
+//!    (measured: it removes the first-order error of large motions).
+//! 5. The KF result is used when enough inliers survive with a small
+//!    residual, else the IT result (KF+IT keeps tracking frame to frame
+//!    through a frame the keyframes cannot explain); when neither holds the
+//!    frame is `lost`: the pose stays at the last good one, and the next
+//!    frames try to recover against the keyframes with a wide search
+//!    ([`decide`], a pure function with a typed [`LostReason`]).
+//!
+//! Files: `config.rs` (settings), `it.rs` and `kf.rs` (the steps: each
+//! gathers correspondences on the GPU and solves them), `decision.rs` (the
+//! rules), this file (the state, and [`Tracker::track`] running the steps
+//! in turn). A further source of residual rows (e.g. contours) is another
+//! step file feeding the same [`crate::pose::Refiner`].
+
+#![warn(missing_docs)]
+
+mod config;
+mod decision;
+mod it;
+mod kf;
+
+pub use config::{ConfigError, Mode, TrackerConfig};
+pub use decision::{
+    Decision, Estimate, FrameSteps, LostReason, Rules, Stage, Status, StepError, StepOutcome,
+    decide,
+};
+
+use crate::features::{Corner, GreyImage, Harris, NccMatcher};
+use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::GpuContext;
+use crate::keyframes::KeyframeStore;
+use crate::model::PointModel;
+use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
+use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter};
+use nalgebra::{Vector2, Vector3};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+/// Wall-clock time of each stage of one frame (GPU work included, since
+/// every stage waits for its results).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StageTimes {
+    /// Harris corners of the frame.
+    pub features: Duration,
+    /// The frame-to-frame step.
+    pub it: Duration,
+    /// The keyframe step(s).
+    pub kf: Duration,
+    /// The whole call to [`Tracker::track`].
+    pub total: Duration,
+}
+
+/// What [`Tracker::track`] says about a frame. Serialised field by field
+/// (a NaN residual as `null`).
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+pub struct TrackResult {
+    /// The object-to-camera pose of the frame; on a lost frame, the last
+    /// good pose (a pose that failed is never reported).
+    pub pose: Pose,
+    /// Inliers of the last robust solve of this frame.
+    pub inliers: usize,
+    /// Their RMS reprojection residual, pixels (NaN on a lost frame
+    /// without any solve).
+    #[serde(with = "nan_as_null")]
+    pub residual_px: f64,
+    /// Whether the track holds at this frame.
+    pub status: Status,
+    /// Why the frame is lost (when it is); its `Display` is the text.
+    pub reason: Option<LostReason>,
+    /// The keyframe used by the KF step, if any.
+    pub keyframe: Option<usize>,
+    /// Where the time went.
+    pub times: StageTimes,
+}
+
+/// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
+/// `null`, and back.
+mod nan_as_null {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    pub fn serialize<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+        if v.is_nan() {
+            s.serialize_none()
+        } else {
+            s.serialize_some(v)
+        }
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+        Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
+    }
+}
+
+/// Errors that stop tracking (bad input, GPU failure), as opposed to a
+/// frame that is merely lost.
+#[derive(Debug, thiserror::Error)]
+pub enum TrackError {
+    /// [`Tracker::track`] got a frame whose size is not the camera's.
+    #[error("frame is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
+    FrameSize {
+        /// The frame's width, pixels.
+        got_w: u32,
+        /// The frame's height, pixels.
+        got_h: u32,
+        /// The camera's width, pixels.
+        want_w: u32,
+        /// The camera's height, pixels.
+        want_h: u32,
+    },
+    /// The KF and KF+IT modes (named) need a texture for the novel views:
+    /// a keyframe store, or colours in the model.
+    #[error("mode {0} needs keyframes or a model with colours")]
+    NeedsKeyframes(&'static str),
+    /// The initial pose puts the object behind the camera or wholly
+    /// outside the image.
+    #[error("the initial pose puts the object behind the camera or outside the image")]
+    ObjectNotInView,
+    /// The settings are out of range.
+    #[error("tracker settings: {0}")]
+    Config(#[from] ConfigError),
+    /// The camera's intrinsics are impossible.
+    #[error(transparent)]
+    Camera(#[from] CameraInvalid),
+    /// The splatter failed (GPU error, unusable model).
+    #[error(transparent)]
+    Splat(#[from] crate::splat::SplatError),
+    /// Feature detection or matching failed on the GPU.
+    #[error(transparent)]
+    Features(#[from] crate::features::FeatureError),
+    /// The initial pose is not a rigid transform.
+    #[error(transparent)]
+    Pose(#[from] crate::geometry::PoseError),
+    /// The keyframe store is unusable.
+    #[error(transparent)]
+    Keyframes(#[from] crate::keyframes::KeyframeError),
+}
+
+/// An impossible camera.
+#[derive(Debug, thiserror::Error)]
+#[error("impossible camera: {0}")]
+pub struct CameraInvalid(pub String);
+
+/// A frame as the steps see it (the one being tracked, and the previous
+/// one for IT).
+struct Frame {
+    grey: GreyImage,
+    corners: Vec<Corner>,
+}
+
+/// The tracker: create once per sequence, then call [`Tracker::track`] on
+/// each frame in order. It holds its GPU context through an [`Arc`], so a
+/// program may keep both side by side.
+///
+/// ```no_run
+/// use splattrack::gpu::{AdapterChoice, GpuContext};
+/// use splattrack::io::{Sequence, read_poses};
+/// use splattrack::keyframes::KeyframeStore;
+/// use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
+/// use splattrack::PointModel;
+/// use std::path::Path;
+/// use std::sync::Arc;
+///
+/// let ctx = Arc::new(GpuContext::new(&AdapterChoice::from_env()?)?);
+/// let model = PointModel::load("object.ply")?;
+/// let seq = Sequence::open(Path::new("sequence"))?; // camera.json, frames/, init.csv
+/// let init = read_poses(&seq.init_path())?[0].pose;
+/// // A store built once by `splattrack keyframes` (or KeyframeStore::build).
+/// let store = KeyframeStore::load(Path::new("object.stkf"))?;
+/// store.check_model(&model, Path::new("object.stkf"))?;
+/// let config = TrackerConfig { mode: Mode::KfIt, ..Default::default() };
+/// let mut tracker = Tracker::new(ctx.clone(), model, seq.camera, Some(store), config, init)?;
+/// for path in &seq.frames {
+///     let frame = image::open(path)?.to_rgb8(); // undistorted, the camera's size
+///     let r = tracker.track(&frame)?;
+///     println!("{} {:?} {} inliers", r.status, r.pose.translation, r.inliers);
+///     if let Some(reason) = &r.reason {
+///         // Lost: r.pose is the last good pose; later frames try to recover.
+///         println!("lost: {reason}");
+///     }
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct Tracker {
+    cam: Intrinsics,
+    config: TrackerConfig,
+    model: PointModel,
+    store: Option<KeyframeStore>,
+    splatter: Splatter,
+    geometry: GpuModel,
+    textured: Vec<Option<GpuModel>>,
+    targets: SplatTargets,
+    harris: Harris<'static>,
+    it_matcher: NccMatcher<'static>,
+    kf_matcher: NccMatcher<'static>,
+    recover_matcher: NccMatcher<'static>,
+    center: Vector3<f64>,
+    radius: f64,
+    pose: Pose,
+    prev: Option<Frame>,
+    lost_streak: usize,
+    /// KF+IT: consecutive frames tracked by IT alone.
+    it_only_streak: usize,
+    /// The context of every GPU object above. Declared last, so dropped
+    /// last: `harris` and the matchers borrow it (see [`Tracker::new`]).
+    ctx: Arc<GpuContext>,
+}
+
+impl Tracker {
+    /// A tracker for `model` seen by `cam` (undistorted frames), starting at
+    /// `initial` (the pose of the first frame given to [`Tracker::track`]).
+    /// `keyframes` may be `None` for the IT mode, or when the model has
+    /// colours (they then serve as the single texture). `config` must pass
+    /// [`TrackerConfig::validate`].
+    pub fn new(
+        ctx: Arc<GpuContext>,
+        model: PointModel,
+        cam: Intrinsics,
+        keyframes: Option<KeyframeStore>,
+        config: TrackerConfig,
+        initial: Pose,
+    ) -> Result<Self, TrackError> {
+        config.validate()?;
+        cam.validate().map_err(CameraInvalid)?;
+        initial.validate()?;
+        let store = keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial));
+        if store.is_none() && config.mode != Mode::It {
+            return Err(TrackError::NeedsKeyframes(config.mode.name()));
+        }
+        let mut model = model;
+        // The bounding sphere: box centre, farthest point.
+        let crate::splat::ModelBounds { center, radius, .. } =
+            crate::splat::ModelBounds::of(&model);
+        let z0 = initial.transform_point(&center).z;
+        let floor = (config.min_splat_radius_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
+        if floor > 0.0 && floor.is_finite() {
+            model.radii.iter_mut().for_each(|r| *r = r.max(floor));
+        }
+        // SAFETY: the detector and the matchers keep a reference to the
+        // context for their whole life. It points into the `Arc`'s
+        // allocation, which cannot move or be freed while `ctx` holds it;
+        // they are private fields of the tracker, never moved out, and
+        // dropped before `ctx` (field order), so the reference never
+        // outlives the context. (They borrow their context by design; once
+        // they hold an `Arc` themselves, this goes.)
+        let gpu: &'static GpuContext = unsafe { &*Arc::as_ptr(&ctx) };
+        let splatter = Splatter::new(gpu)?;
+        let geometry = GpuModel::new(gpu, &model)?;
+        let targets = SplatTargets::new(gpu, cam.width, cam.height);
+        let harris = Harris::new(gpu, config.harris.clone())?;
+        let matcher = |r: f32| NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)));
+        let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
+        let tracker = Self {
+            it_matcher: matcher(config.it_search_px)?,
+            kf_matcher: matcher(config.kf_search_px)?,
+            recover_matcher: matcher(config.recover_search_px)?,
+            cam,
+            config,
+            model,
+            store,
+            splatter,
+            geometry,
+            textured: (0..n_kf).map(|_| None).collect(),
+            targets,
+            harris,
+            center,
+            radius,
+            pose: initial,
+            prev: None,
+            lost_streak: 0,
+            it_only_streak: 0,
+            ctx,
+        };
+        if tracker.roi(&initial).is_none() {
+            return Err(TrackError::ObjectNotInView);
+        }
+        Ok(tracker)
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    /// The settings the tracker runs with.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// The GPU context the tracker runs on.
+    pub fn context(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+
+    /// The keyframe store in use: the one given to [`Tracker::new`], or
+    /// the single texture made from the model's colours, or none (IT mode).
+    pub fn keyframes(&self) -> Option<&KeyframeStore> {
+        self.store.as_ref()
+    }
+
+    /// The object's projected bounding circle plus the margin, as a pixel
+    /// rectangle (x0, y0, x1, y1) clipped to the image; `None` when the
+    /// object is behind the camera or wholly outside the image.
+    fn roi(&self, pose: &Pose) -> Option<(usize, usize, usize, usize)> {
+        let c = pose.transform_point(&self.center);
+        if c.z <= self.radius * 0.1 {
+            return None;
+        }
+        let uv = self.cam.project(&c)?;
+        let r = self.cam.fx.max(self.cam.fy) * self.radius / (c.z - self.radius).max(c.z * 0.1)
+            + self.config.roi_margin_px;
+        let (w, h) = (self.cam.width as f64, self.cam.height as f64);
+        let x0 = (uv.x - r).floor().max(0.0);
+        let y0 = (uv.y - r).floor().max(0.0);
+        let x1 = (uv.x + r).ceil().min(w - 1.0);
+        let y1 = (uv.y + r).ceil().min(h - 1.0);
+        (x0 <= x1 && y0 <= y1).then_some((x0 as usize, y0 as usize, x1 as usize, y1 as usize))
+    }
+
+    fn roi_mask(&self, pose: &Pose) -> Vec<bool> {
+        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
+        let mut mask = vec![false; w * h];
+        if let Some((x0, y0, x1, y1)) = self.roi(pose) {
+            for y in y0..=y1 {
+                mask[y * w + x0..=y * w + x1].fill(true);
+            }
+        }
+        mask
+    }
+
+    /// Tracks one frame (RGB, undistorted, the camera's size): Harris
+    /// corners, the IT step, the KF step(s), then [`decide`].
+    pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
+        if frame.width() != self.cam.width || frame.height() != self.cam.height {
+            return Err(TrackError::FrameSize {
+                got_w: frame.width(),
+                got_h: frame.height(),
+                want_w: self.cam.width,
+                want_h: self.cam.height,
+            });
+        }
+        let t0 = Instant::now();
+        let mut times = StageTimes::default();
+        let grey = GreyImage::from_rgb8(frame);
+        let start_pose = self.pose;
+        let mask = self.roi_mask(&start_pose);
+        let corners = self.harris.detect(&grey, Some(&mask))?;
+        let frame = Frame { grey, corners };
+        times.features = t0.elapsed();
+
+        let rules = Rules::of(&self.config);
+        let recovering = self.lost_streak > 0;
+        let first_frame = self.prev.is_none() && !recovering;
+        let t_it = Instant::now();
+        let (it, it_anchors) = self.it_stage(&frame, &start_pose, recovering);
+        times.it = t_it.elapsed();
+        let t_kf = Instant::now();
+        let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
+        let (kf, keyframe) =
+            self.kf_stage(&frame, &start_pose, recovering, it_trusted, &it_anchors);
+        times.kf = t_kf.elapsed();
+
+        let d = decide(
+            &rules,
+            &FrameSteps {
+                it,
+                kf,
+                first_frame,
+                it_only_streak: self.it_only_streak,
+            },
+        );
+        if let Some(why) = &d.kf_passed_over {
+            log::debug!("KF step not used ({why}); keeping the IT estimate");
+        }
+        self.it_only_streak = d.it_only_streak;
+        if d.status == Status::Tracking {
+            self.pose = d.pose.unwrap_or(start_pose);
+            self.lost_streak = 0;
+        } else {
+            // Keep the last good pose: never report a pose that failed.
+            self.lost_streak += 1;
+        }
+        self.prev = Some(frame);
+        times.total = t0.elapsed();
+        Ok(TrackResult {
+            pose: self.pose,
+            inliers: d.inliers,
+            residual_px: d.residual_px,
+            status: d.status,
+            reason: d.reason,
+            keyframe,
+            times,
+        })
+    }
+
+    /// Renders the model at `pose` and returns its coverage mask (for
+    /// overlays): one flag per pixel.
+    pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
+        self.splatter.render(
+            &self.ctx,
+            &self.geometry,
+            &self.cam,
+            pose,
+            Attributes::COLOR,
+            &mut self.targets,
+        )?;
+        let w = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Weight)?;
+        Ok(w.data.iter().map(|v| *v > 0.0 && !v.is_nan()).collect())
+    }
+}
+
+/// What the steps share: turning a match into a correspondence, and the
+/// robust solve.
+impl Tracker {
+    /// The match of pixel `from` of the view splatted at `pose` (`s`: its
+    /// predictors and depth there) with `to` in the live frame: its row of
+    /// the linear solve, and the object point seen at `from` (lifted with
+    /// the splatted depth) for the refinement.
+    fn correspondence(
+        &self,
+        s: &GatherSample,
+        from: Vector2<f64>,
+        to: Vector2<f64>,
+        pose: &Pose,
+    ) -> Correspondence {
+        Correspondence {
+            observation: Observation {
+                predictors: s.matrix(),
+                displacement: to - from,
+            },
+            anchor: Anchor {
+                point: pose
+                    .inverse()
+                    .transform_point(&self.cam.unproject(&from, s.depth as f64)),
+                target: to,
+            },
+        }
+    }
+
+    /// The linear solve of `obs` from `pose`, then the Gauss-Newton
+    /// refinements, with `extra` anchors from another step.
+    fn refine(
+        &self,
+        obs: &[Correspondence],
+        pose: &Pose,
+        extra: &[Anchor],
+    ) -> Result<Refined, StepError> {
+        let refiner = Refiner {
+            cam: &self.cam,
+            irls: &self.config.irls,
+            iterations: self.config.refine_iterations,
+            extra_weight: self.config.fuse_weight,
+        };
+        Ok(refiner.solve(obs, pose, extra)?)
+    }
+}
+
+/// A step's estimate from its refined solve.
+fn estimate(r: &Refined) -> Estimate {
+    Estimate {
+        pose: r.pose,
+        inliers: r.solve.inlier_count,
+        residual_px: r.solve.residual_rms_px,
+        scale_px: r.solve.scale_px,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn track_result_serde_roundtrip() {
+        let r = TrackResult {
+            pose: Pose::new(
+                crate::geometry::rotation_exp(&Vector3::new(0.1, -0.2, 0.3)),
+                Vector3::new(0.01, 0.02, 0.6),
+            )
+            .unwrap(),
+            inliers: 0,
+            residual_px: f64::NAN,
+            status: Status::Lost,
+            reason: Some(LostReason::NothingToTrackAgainst),
+            keyframe: Some(3),
+            times: StageTimes {
+                features: Duration::from_micros(1500),
+                total: Duration::from_millis(20),
+                ..Default::default()
+            },
+        };
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(json.contains(r#""residual_px":null"#), "{json}");
+        let back: TrackResult = serde_json::from_str(&json).unwrap();
+        assert!(back.residual_px.is_nan());
+        // serde_json reads floats to within an ulp.
+        assert!((back.pose.to_matrix4() - r.pose.to_matrix4()).amax() < 1e-15);
+        assert_eq!((back.inliers, back.keyframe), (r.inliers, r.keyframe));
+        assert_eq!(
+            (back.status, back.reason, back.times),
+            (r.status, r.reason, r.times)
+        );
+    }
+}
