@@ -62,7 +62,7 @@ impl Drop for Files {
 
 fn bench_load(c: &mut Criterion) {
     let quiet = LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     };
     let dir = std::env::temp_dir();

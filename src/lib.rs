@@ -20,7 +20,8 @@
 //! - [`tracker`]: the IT, KF and KF+IT trackers;
 //! - [`synth`]: synthetic sequences with exact ground truth;
 //! - [`eval`], [`plot`], [`draw`]: errors against ground truth and pictures;
-//! - [`io`]: pose CSVs, sequence directories and raw `.npy` images.
+//! - [`io`]: pose CSVs, sequence directories and raw `.npy` images;
+//! - [`progress`]: progress of long jobs, reported to the caller.
 
 pub mod draw;
 pub mod eval;
@@ -32,6 +33,7 @@ pub mod keyframes;
 pub mod model;
 pub mod plot;
 pub mod pose;
+pub mod progress;
 pub mod rng;
 pub mod shaders;
 pub mod splat;

@@ -39,7 +39,7 @@ static ALLOC: TrackingAlloc = TrackingAlloc;
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }

@@ -11,7 +11,7 @@ use splattrack::rng::Rng;
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }
@@ -297,5 +297,32 @@ fn k_and_factor_options_are_honoured() {
             ..quiet()
         };
         assert!(PointModel::from_points(base.positions.clone(), None, &opts).is_err());
+    }
+}
+
+#[test]
+fn progress_is_reported_per_stage_up_to_the_total() {
+    use splattrack::progress::ProgressEvent;
+    use std::sync::{Arc, Mutex};
+    let (pos, _) = sphere(40_000, Vec3::ZERO, 1.0, 3);
+    let f = TempFile::with_bytes(
+        "progress",
+        "ply",
+        &ply_bytes("binary_little_endian", &[vertex_element(&pos, None, None)]),
+    );
+    let events: Arc<Mutex<Vec<ProgressEvent>>> = Arc::default();
+    let sink = events.clone();
+    let opts = LoadOptions {
+        progress: Some(Arc::new(move |e| sink.lock().unwrap().push(e))),
+        ..Default::default()
+    };
+    PointModel::load_with(f.path(), &opts).expect("load");
+    let events = events.lock().unwrap();
+    for stage in ["reading", "neighbours", "orienting"] {
+        let of: Vec<&ProgressEvent> = events.iter().filter(|e| e.stage == stage).collect();
+        assert!(of.len() >= 3, "{stage}: {of:?}");
+        assert!(of.windows(2).all(|w| w[0].done <= w[1].done), "{stage}");
+        let last = of.last().unwrap();
+        assert_eq!((last.done, last.total), (40_000, 40_000), "{stage}");
     }
 }

@@ -12,7 +12,7 @@ const FORMATS: [&str; 3] = ["ascii", "binary_little_endian", "binary_big_endian"
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }

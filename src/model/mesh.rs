@@ -21,7 +21,8 @@
 //! surface closes. Colours are interpolated from vertex colours.
 
 use super::error::{ModelError, memory_path};
-use super::ply::{self, read_line_capped};
+use super::ply::read_line_capped;
+use super::schema;
 use super::{AttributeSource, PointModel, Provenance};
 use crate::rng::Rng;
 use glam::{DVec3, Vec3};
@@ -59,7 +60,7 @@ pub struct TriangleMesh {
 /// fan-triangulated).
 pub fn load_mesh_ply(path: impl AsRef<Path>) -> Result<TriangleMesh, ModelError> {
     let path = path.as_ref();
-    let c = ply::read(path, true, false)?;
+    let c = schema::read(path, true, None)?;
     if c.degenerate_faces > 0 {
         log::warn!(
             "{}: skipped {} faces with fewer than 3 vertices",
