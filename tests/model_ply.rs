@@ -179,6 +179,7 @@ fn other_properties_and_elements_are_ignored_and_faces_give_vertices() {
         let mesh = load_mesh_ply(f.path()).expect("mesh");
         assert_eq!(mesh.triangles.len(), 10);
         assert_eq!(mesh.triangles[3], [3, 4, 5]);
+        let pos: Vec<_> = pos.iter().map(|p| p.as_dvec3()).collect();
         assert_eq!(mesh.vertices, pos);
     }
 }

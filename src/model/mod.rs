@@ -30,6 +30,7 @@ mod estimate;
 mod mesh;
 mod ply;
 mod schema;
+pub mod shapes;
 
 pub use error::ModelError;
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};
@@ -240,10 +241,9 @@ impl PointModel {
         seed: u64,
     ) -> Result<Self, ModelError> {
         TriangleMesh {
-            vertices: vertices.to_vec(),
+            vertices: vertices.iter().map(|v| v.as_dvec3()).collect(),
             triangles: triangles.to_vec(),
-            colors: None,
-            path: None,
+            ..Default::default()
         }
         .sample(n_points, seed)
     }

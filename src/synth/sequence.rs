@@ -50,12 +50,8 @@ pub fn sample_model(
     n_points: usize,
     seed: u64,
 ) -> Result<PointModel, SynthError> {
-    let verts: Vec<Vec3> = object
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| Vec3::new(v.x as f32, v.y as f32, v.z as f32))
-        .collect();
+    // Sampled from single-precision vertices, as a mesh file would hold them.
+    let verts: Vec<Vec3> = object.mesh.vertices.iter().map(|v| v.as_vec3()).collect();
     let mut model = PointModel::from_mesh(&verts, &object.mesh.triangles, n_points, seed)?;
     let colors = model
         .positions
@@ -131,7 +127,8 @@ pub fn write_sequence(
     );
     std::fs::write(&cam_path, cam_json).map_err(io_err(&cam_path))?;
     let obj_path = dir.join("mesh.obj");
-    std::fs::write(&obj_path, object.mesh.to_obj()).map_err(io_err(&obj_path))?;
+    std::fs::write(&obj_path, object.mesh.to_obj("splattrack synthetic object"))
+        .map_err(io_err(&obj_path))?;
     let model = sample_model(&object, model_points, cfg.seed)?;
     model.save_ply(dir.join("model.ply"))?;
 
