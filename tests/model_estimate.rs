@@ -5,8 +5,8 @@
 mod model_common;
 
 use glam::{Vec2, Vec3};
-use model_common::{TempFile, ply_bytes, sphere, torus, vertex_element};
-use splattrack::model::{AttributeSource, LoadOptions, PointModel};
+use model_common::{TempFile, ply_bytes, sphere, vertex_element};
+use splattrack::model::{AttributeSource, LoadOptions, PointModel, shapes};
 use splattrack::rng::Rng;
 
 fn quiet() -> LoadOptions {
@@ -47,7 +47,7 @@ fn sphere_normals_are_accurate_and_outward() {
 
 #[test]
 fn torus_normals_are_outward_around_the_hole() {
-    let (pos, truth) = torus(8000, 1.0, 0.3, 2);
+    let (pos, truth) = shapes::random_torus(8000, 1.0, 0.3, 2);
     let m = PointModel::from_points(pos, None, &quiet()).expect("estimate");
     let (agree, median_cos) = compare(&m.normals, &truth);
     assert_eq!(agree, 1.0, "a sign flip somewhere on the torus");

@@ -3,8 +3,10 @@
 use anyhow::bail;
 use indicatif::{ProgressBar, ProgressStyle};
 use splattrack::Intrinsics;
+use splattrack::progress::{ProgressEvent, ProgressFn};
 use splattrack::synth::{SynthConfig, Trajectory, objects::OBJECT_NAMES, sequence};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -105,10 +107,12 @@ pub fn write(
         ProgressStyle::with_template("synth {bar:40} {pos}/{len} images [{elapsed} < {eta}]")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
-    let s = sequence::write_sequence(cfg, dir, points, |done, total| {
-        bar.set_length(total as u64);
-        bar.set_position(done as u64);
-    })?;
+    let drawn = bar.clone();
+    let progress: ProgressFn = Arc::new(move |e: ProgressEvent| {
+        drawn.set_length(e.total);
+        drawn.set_position(e.done);
+    });
+    let s = sequence::write_sequence(cfg, dir, points, Some(&progress))?;
     bar.finish_and_clear();
     Ok(s)
 }

@@ -185,11 +185,7 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriangleMesh, ModelError> {
         }
     }
     let nv = vertices.len();
-    if let Some((t, v)) = triangles
-        .iter()
-        .enumerate()
-        .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
-    {
+    if let Some((t, v)) = index_out_of_range(&triangles, nv) {
         return Err(ModelError::Invalid {
             path: path.to_path_buf(),
             reason: format!(
@@ -205,6 +201,14 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriangleMesh, ModelError> {
         colors: (all_colored && nv > 0).then_some(colors),
         path: Some(path.to_path_buf()),
     })
+}
+
+/// The first triangle with a vertex index of `nv` or more, and that index.
+pub(crate) fn index_out_of_range(triangles: &[[u32; 3]], nv: usize) -> Option<(usize, u32)> {
+    triangles
+        .iter()
+        .enumerate()
+        .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
 }
 
 impl TriangleMesh {
@@ -292,12 +296,7 @@ impl TriangleMesh {
                 )));
             }
         }
-        if let Some((t, v)) = self
-            .triangles
-            .iter()
-            .enumerate()
-            .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
-        {
+        if let Some((t, v)) = index_out_of_range(&self.triangles, nv) {
             return Err(invalid(format!(
                 "triangle {t} references vertex {v} but there are {nv} vertices"
             )));

@@ -13,6 +13,7 @@
 
 use super::Stage;
 use super::error::ModelError;
+use super::mesh::index_out_of_range;
 use super::ply::{self, BodyReader, Element, Header, Kind, Property, Scalar, Slot, Values};
 use crate::progress::ProgressFn;
 use glam::Vec3;
@@ -201,23 +202,19 @@ fn read_body<V: Values>(
     path: &Path,
     progress: Option<&ProgressFn>,
 ) -> Result<PlyContents, ModelError> {
-    let vertex_at = header
-        .elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| ModelError::MissingElement {
-            path: path.to_path_buf(),
-            element: "vertex",
-        })?;
-    let face_at = if want_faces {
-        let at = header
+    let find = |element: &'static str| {
+        header
             .elements
             .iter()
-            .position(|e| e.name == "face")
+            .position(|e| e.name == element)
             .ok_or_else(|| ModelError::MissingElement {
                 path: path.to_path_buf(),
-                element: "face",
-            })?;
+                element,
+            })
+    };
+    let vertex_at = find("vertex")?;
+    let face_at = if want_faces {
+        let at = find("face")?;
         if header.elements[at].face_list().is_none() {
             return Err(ModelError::MissingProperty {
                 path: path.to_path_buf(),
@@ -332,11 +329,7 @@ fn read_body<V: Values>(
     }
     if let Some(triangles) = &out.triangles {
         let nv = out.positions.len();
-        if let Some((t, bad)) = triangles
-            .iter()
-            .enumerate()
-            .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
-        {
+        if let Some((t, bad)) = index_out_of_range(triangles, nv) {
             return Err(ModelError::Invalid {
                 path: path.to_path_buf(),
                 reason: format!(

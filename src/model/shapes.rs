@@ -156,14 +156,27 @@ impl TriangleMesh {
     }
 }
 
-fn provenance() -> Provenance {
-    Provenance {
-        path: None,
-        normals: AttributeSource::FromMesh,
-        radii: AttributeSource::FromMesh,
-        colors: AttributeSource::FromMesh,
-        dropped_non_finite: 0,
-        normals_reestimated: 0,
+/// Points exactly on a shape, with its exact normals: attributes as good
+/// as a mesh's.
+fn exact(
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    radii: Vec<f32>,
+    colors: Vec<[f32; 3]>,
+) -> PointModel {
+    PointModel {
+        positions,
+        normals,
+        radii,
+        colors: Some(colors),
+        provenance: Provenance {
+            path: None,
+            normals: AttributeSource::FromMesh,
+            radii: AttributeSource::FromMesh,
+            colors: AttributeSource::FromMesh,
+            dropped_non_finite: 0,
+            normals_reestimated: 0,
+        },
     }
 }
 
@@ -184,13 +197,7 @@ fn model(positions: Vec<Vec3>, normals: Vec<Vec3>, radius: f32, color_scale: f32
         .map(|&p| color_field(p, color_scale))
         .collect();
     let radii = vec![radius; positions.len()];
-    PointModel {
-        positions,
-        normals,
-        radii,
-        colors: Some(colors),
-        provenance: provenance(),
-    }
+    exact(positions, normals, radii, colors)
 }
 
 /// `n` points on a sphere (a Fibonacci lattice: nearly uniform), outward
@@ -292,11 +299,27 @@ pub fn random_cloud(
             rng.next_f64() as f32,
         ]);
     }
-    PointModel {
-        positions,
-        normals,
-        radii,
-        colors: Some(colors),
-        provenance: provenance(),
+    exact(positions, normals, radii, colors)
+}
+
+/// `n` points uniformly random over a torus about the z axis (ring radius
+/// `big`, tube radius `small`) and their outward normals: a cloud with no
+/// structure for normal and radius estimation to lean on.
+pub fn random_torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = Rng::new(seed);
+    let mut pos = Vec::with_capacity(n);
+    let mut nrm = Vec::with_capacity(n);
+    while pos.len() < n {
+        let u = std::f32::consts::TAU * rng.next_f64() as f32;
+        let v = std::f32::consts::TAU * rng.next_f64() as f32;
+        // Rejection sampling for uniform area density.
+        if rng.next_f64() as f32 > (big + small * v.cos()) / (big + small) {
+            continue;
+        }
+        let d = Vec3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
+        let centre = Vec3::new(big * u.cos(), big * u.sin(), 0.0);
+        pos.push(centre + small * d);
+        nrm.push(d);
     }
+    (pos, nrm)
 }

@@ -6,6 +6,7 @@ use super::{SynthConfig, SynthObject, background, keyframe_poses, render_frame};
 use crate::geometry::Pose;
 use crate::io::{PoseRow, write_poses};
 use crate::model::{AttributeSource, PointModel};
+use crate::progress::{ProgressEvent, ProgressFn};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -102,12 +103,13 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<(), SynthError> {
 /// Writes the sequence `cfg` describes into `dir`: camera.json, frames/,
 /// init.csv, poses.csv (ground truth), keyframes/ (images and poses.csv),
 /// model.ply (`model_points` points sampled from the mesh) and mesh.obj.
-/// `progress` is called after each frame with (done, total).
+/// `progress` hears of each image written (stage "images": frames, then
+/// keyframes).
 pub fn write_sequence(
     cfg: &SynthConfig,
     dir: &Path,
     model_points: usize,
-    mut progress: impl FnMut(usize, usize),
+    progress: Option<&ProgressFn>,
 ) -> Result<SequenceSummary, SynthError> {
     let object = SynthObject::by_name(&cfg.object)
         .ok_or_else(|| SynthError::UnknownObject(cfg.object.clone()))?;
@@ -135,6 +137,15 @@ pub fn write_sequence(
     let bg = background(cam, cfg.seed);
     let n_kf = keyframe_poses(cfg.distance).len();
     let total = cfg.frames + n_kf;
+    let report = |done: usize| {
+        if let Some(report) = progress {
+            report(ProgressEvent {
+                stage: "images",
+                done: done as u64,
+                total: total as u64,
+            });
+        }
+    };
     let mut rows = Vec::with_capacity(cfg.frames);
     let mut poses = Vec::with_capacity(cfg.frames);
     for i in 0..cfg.frames {
@@ -142,7 +153,7 @@ pub fn write_sequence(
         save_png(&f.image, &frames_dir.join(format!("{i:06}.png")))?;
         rows.push(PoseRow::new(format!("{i:06}"), f.pose));
         poses.push(f.pose);
-        progress(i + 1, total);
+        report(i + 1);
     }
     write_poses(&dir.join("poses.csv"), &rows)?;
     write_poses(&dir.join("init.csv"), &rows[..1])?;
@@ -154,7 +165,7 @@ pub fn write_sequence(
     {
         save_png(&img, &kf_dir.join(&name))?;
         kf_rows.push(PoseRow::new(name, pose));
-        progress(cfg.frames + k + 1, total);
+        report(cfg.frames + k + 1);
     }
     write_poses(&kf_dir.join("poses.csv"), &kf_rows)?;
     Ok(SequenceSummary {

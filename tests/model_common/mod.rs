@@ -161,27 +161,6 @@ pub fn sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
     (pos, nrm)
 }
 
-/// Points on a torus around the z axis (radii `big`, `small`), with outward
-/// normals, uniformly random over the surface.
-pub fn torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = Rng::new(seed);
-    let mut pos = Vec::with_capacity(n);
-    let mut nrm = Vec::with_capacity(n);
-    while pos.len() < n {
-        let u = std::f32::consts::TAU * rng.next_f64() as f32;
-        let v = std::f32::consts::TAU * rng.next_f64() as f32;
-        // Rejection sampling for uniform area density.
-        if rng.next_f64() as f32 > (big + small * v.cos()) / (big + small) {
-            continue;
-        }
-        let d = Vec3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
-        let centre = Vec3::new(big * u.cos(), big * u.sin(), 0.0);
-        pos.push(centre + small * d);
-        nrm.push(d);
-    }
-    (pos, nrm)
-}
-
 /// Vertex rows `x y z` (float) plus optional `nx ny nz` and `radius`.
 pub fn vertex_element(pos: &[Vec3], normals: Option<&[Vec3]>, radius: Option<f32>) -> El {
     let mut props = vec![("float", "x"), ("float", "y"), ("float", "z")];
