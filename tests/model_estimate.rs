@@ -5,7 +5,7 @@
 mod model_common;
 
 use glam::{Vec2, Vec3};
-use model_common::{TempFile, ply_bytes, sphere, vertex_element};
+use model_common::{TempFile, ply_bytes, vertex_element};
 use splattrack::model::{AttributeSource, LoadOptions, PointModel, shapes};
 use splattrack::rng::Rng;
 
@@ -35,7 +35,7 @@ fn compare(est: &[Vec3], truth: &[Vec3]) -> (f64, f32) {
 
 #[test]
 fn sphere_normals_are_accurate_and_outward() {
-    let (pos, truth) = sphere(5000, Vec3::new(3.0, -2.0, 1.0), 0.5, 1);
+    let (pos, truth) = shapes::jittered_sphere(5000, Vec3::new(3.0, -2.0, 1.0), 0.5, 1);
     let m = PointModel::from_points(pos, None, &quiet()).expect("estimate");
     m.validate().expect("valid");
     assert_eq!(m.provenance.normals, AttributeSource::Estimated);
@@ -59,9 +59,9 @@ fn each_component_is_oriented_on_its_own() {
     // Two spheres of different sizes, far apart, and a small one inside
     // neither: three components, each seeded separately.
     let parts = [
-        sphere(2000, Vec3::new(-5.0, 0.0, 0.0), 1.0, 3),
-        sphere(1500, Vec3::new(5.0, 1.0, 0.0), 0.4, 4),
-        sphere(300, Vec3::new(0.0, 0.0, 8.0), 0.2, 5),
+        shapes::jittered_sphere(2000, Vec3::new(-5.0, 0.0, 0.0), 1.0, 3),
+        shapes::jittered_sphere(1500, Vec3::new(5.0, 1.0, 0.0), 0.4, 4),
+        shapes::jittered_sphere(300, Vec3::new(0.0, 0.0, 8.0), 0.2, 5),
     ];
     let pos: Vec<Vec3> = parts.iter().flat_map(|p| p.0.clone()).collect();
     let truth: Vec<Vec3> = parts.iter().flat_map(|p| p.1.clone()).collect();
@@ -105,7 +105,7 @@ fn shared_cube_and_dragon_normals_match_the_loaded_ones() {
 
 #[test]
 fn zero_normals_are_reestimated_to_agree_with_loaded_neighbours() {
-    let (pos, truth) = sphere(3000, Vec3::ZERO, 1.0, 6);
+    let (pos, truth) = shapes::jittered_sphere(3000, Vec3::ZERO, 1.0, 6);
     for flip in [1.0f32, -1.0] {
         // The file's convention (here possibly inward) is kept: re-estimated
         // normals follow their loaded neighbours, not a rule of their own.
@@ -237,7 +237,7 @@ fn estimated_radii_close_the_surface() {
 
 #[test]
 fn degenerate_clouds_still_give_valid_models() {
-    let (pos, truth) = sphere(1500, Vec3::splat(1000.0), 1.0, 9);
+    let (pos, truth) = shapes::jittered_sphere(1500, Vec3::splat(1000.0), 1.0, 9);
     // Far from the origin: the estimation centres the points first.
     let m = PointModel::from_points(pos.clone(), None, &quiet()).expect("offset sphere");
     assert_eq!(compare(&m.normals, &truth).0, 1.0);
@@ -262,7 +262,7 @@ fn degenerate_clouds_still_give_valid_models() {
 
 #[test]
 fn k_and_factor_options_are_honoured() {
-    let (pos, _) = sphere(2000, Vec3::ZERO, 1.0, 10);
+    let (pos, _) = shapes::jittered_sphere(2000, Vec3::ZERO, 1.0, 10);
     let base = PointModel::from_points(pos.clone(), None, &quiet()).expect("default");
     let bigger = PointModel::from_points(
         pos.clone(),
@@ -304,7 +304,7 @@ fn k_and_factor_options_are_honoured() {
 fn progress_is_reported_per_stage_up_to_the_total() {
     use splattrack::progress::ProgressEvent;
     use std::sync::{Arc, Mutex};
-    let (pos, _) = sphere(40_000, Vec3::ZERO, 1.0, 3);
+    let (pos, _) = shapes::jittered_sphere(40_000, Vec3::ZERO, 1.0, 3);
     let f = TempFile::with_bytes(
         "progress",
         "ply",

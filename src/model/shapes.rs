@@ -323,3 +323,61 @@ pub fn random_torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Ve
     }
     (pos, nrm)
 }
+
+/// `n` points on a sphere (centre `c`, radius `r`): a Fibonacci lattice
+/// jittered with `seed`, even but not regular, and their outward normals.
+pub fn jittered_sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    let mut rng = Rng::new(seed);
+    let mut pos = Vec::with_capacity(n);
+    let mut nrm = Vec::with_capacity(n);
+    for i in 0..n {
+        // Fibonacci lattice plus a small jitter: even but not regular.
+        let z = 1.0 - 2.0 * (i as f64 + 0.2 + 0.6 * rng.next_f64()) / n as f64;
+        let phi = i as f64 * 2.399_963_229_728_653 + 0.3 * rng.next_f64();
+        let s = (1.0 - z * z).max(0.0).sqrt();
+        let d = Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32);
+        pos.push(c + r * d);
+        nrm.push(d);
+    }
+    (pos, nrm)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn meshes_have_the_shapes_area_and_outward_normals() {
+        let pi = std::f64::consts::PI;
+        let (a, b, c) = (0.5, 0.35, 0.25);
+        for (name, mesh, area, tol) in [
+            ("sphere", TriangleMesh::sphere(0.5, 48, 96), pi, 0.01),
+            (
+                "box",
+                TriangleMesh::cuboid(DVec3::new(a, b, c), 8),
+                8.0 * (a * b + a * c + b * c),
+                1e-12,
+            ),
+            (
+                "torus",
+                TriangleMesh::torus(0.45, 0.18, 96, 48),
+                4.0 * pi * pi * 0.45 * 0.18,
+                0.01,
+            ),
+        ] {
+            let err = (mesh.area() - area).abs() / area;
+            assert!(err < tol, "{name}: area {} vs {area}", mesh.area());
+            let normals = mesh.normals.as_ref().unwrap();
+            assert_eq!(normals.len(), mesh.vertices.len());
+            for t in &mesh.triangles {
+                let [p, q, r] = t.map(|i| mesh.vertices[i as usize]);
+                let face = (q - p).cross(r - p);
+                for &i in t {
+                    let n = normals[i as usize];
+                    assert!((n.length() - 1.0).abs() < 1e-9, "{name}");
+                    assert!(face.dot(n) > 0.0, "{name}: triangle {t:?} winds inward");
+                }
+            }
+        }
+    }
+}
