@@ -8,30 +8,13 @@
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use glam::Vec3;
-use splattrack::model::{LoadOptions, PointModel, TriangleMesh};
-use splattrack::rng::Rng;
+use splattrack::model::{LoadOptions, PointModel, TriangleMesh, shapes};
 use std::hint::black_box;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 const SIZES: [usize; 3] = [10_000, 100_000, 1_000_000];
-
-fn torus(n: usize, seed: u64) -> Vec<Vec3> {
-    let (big, small) = (1.0f32, 0.3f32);
-    let mut rng = Rng::new(seed);
-    let mut pos = Vec::with_capacity(n);
-    while pos.len() < n {
-        let u = std::f32::consts::TAU * rng.next_f64() as f32;
-        let v = std::f32::consts::TAU * rng.next_f64() as f32;
-        if rng.next_f64() as f32 > (big + small * v.cos()) / (big + small) {
-            continue; // uniform over the area
-        }
-        let d = Vec3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
-        pos.push(Vec3::new(big * u.cos(), big * u.sin(), 0.0) + small * d);
-    }
-    pos
-}
 
 /// Writes a positions-only binary PLY.
 fn write_xyz(path: &Path, pos: &[Vec3]) {
@@ -62,7 +45,7 @@ impl Drop for Files {
 
 fn bench_load(c: &mut Criterion) {
     let quiet = LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     };
     let dir = std::env::temp_dir();
@@ -70,7 +53,7 @@ fn bench_load(c: &mut Criterion) {
     let mut full = Vec::new();
     for n in SIZES {
         let bare = dir.join(format!("splattrack-bench-{}-{n}.ply", std::process::id()));
-        write_xyz(&bare, &torus(n, n as u64));
+        write_xyz(&bare, &shapes::random_torus(n, 1.0, 0.3, n as u64).0);
         files.0.push(bare.clone());
         // The same cloud with normals and radii in the file, for reading alone.
         let model = PointModel::load_with(&bare, &quiet).expect("estimate");

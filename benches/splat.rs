@@ -12,7 +12,8 @@ use glam::Vec3;
 use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, look_at};
 use splattrack::gpu::{GpuContext, GpuTimer};
-use splattrack::splat::{Attributes, GpuModel, SplatParams, SplatTargets, Splatter, cpu, shapes};
+use splattrack::model::shapes;
+use splattrack::splat::{Attributes, GpuModel, SplatParams, SplatTargets, Splatter, cpu};
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {

@@ -15,7 +15,7 @@ use crate::io::bop::BopWriter;
 use crate::io::poses::{PoseFileError, PoseRow, PoseWriter, read_poses};
 use crate::io::sequence::{Frame, Sequence, SequenceError};
 use crate::keyframes::{KeyframeConfig, KeyframeError, KeyframeStore, load_keyframe_images};
-use crate::model::{ModelError, PointModel};
+use crate::model::{LoadOptions, ModelError, PointModel};
 use crate::progress::{ProgressEvent, ProgressFn};
 use crate::splat::{SplatError, Splatter};
 use crate::tracker::{Status, TrackError, TrackResult, Tracker, TrackerConfig};
@@ -199,15 +199,17 @@ impl TrackInputs {
     /// Loads the model, opens the sequence, reads the initial pose (`init`,
     /// default `SEQUENCE/init.csv`: its first row) and loads or builds the
     /// keyframe store `keyframes` names ([`load_keyframes`]; default
-    /// `SEQUENCE/keyframes` when present, else none).
+    /// `SEQUENCE/keyframes` when present, else none). `model_options`
+    /// says how the model is loaded (progress, estimation settings).
     pub fn load(
         ctx: &GpuContext,
         model: &Path,
+        model_options: &LoadOptions,
         sequence: &Path,
         keyframes: Option<&Path>,
         init: Option<&Path>,
     ) -> Result<Self, AppError> {
-        let model = PointModel::load(model)?;
+        let model = PointModel::load_with(model, model_options)?;
         let sequence = Sequence::open(sequence)?;
         let init_path = init
             .map(Path::to_owned)

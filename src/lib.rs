@@ -7,20 +7,21 @@
 //!
 //! Modules, one concern each:
 //! - [`model`]: point models from PLY (normals and radii estimated when absent),
-//!   meshes sampled into points;
+//!   triangle meshes sampled into points, shapes with a known surface;
 //! - [`geometry`]: intrinsics, poses (SE(3)), the projection, its Jacobian and
 //!   the motion predictors: the host reference for every GPU kernel;
 //! - [`gpu`]: the headless wgpu context, readback helpers, GPU timers;
 //! - [`shaders`]: the WGSL sources, validated by naga;
 //! - [`splat`]: GPU EWA surface splatting (novel views, depth, motion
-//!   predictors), its CPU reference, and a triangle-mesh rasteriser;
+//!   predictors) and its CPU reference;
 //! - [`features`]: Harris corners and NCC matching (GPU, with CPU references);
 //! - [`pose`]: the robust (IRLS) pose update from matches and its
 //!   Gauss-Newton refinement;
 //! - [`keyframes`]: the keyframe store (per-point colours from keyframes);
 //! - [`tracker`]: the IT, KF and KF+IT trackers (settings, steps, and the
 //!   tracking/lost decision);
-//! - [`synth`]: synthetic sequences with exact ground truth;
+//! - [`synth`]: synthetic sequences with exact ground truth (a CPU triangle
+//!   rasteriser, also the splatter's independent reference in tests);
 //! - [`eval`], [`plot`], [`draw`]: errors against ground truth and pictures;
 //! - [`io`]: camera files, sequence directories (frames undistorted), pose
 //!   CSVs and BOP results written crash-safely, raw `.npy` images;

@@ -9,7 +9,6 @@ pub const ALL: &[(&str, &str)] = &[
         "splat_resolve",
         include_str!("../shaders/splat_resolve.wgsl"),
     ),
-    ("mesh", include_str!("../shaders/mesh.wgsl")),
     ("harris", include_str!("../shaders/harris.wgsl")),
     ("ncc", include_str!("../shaders/ncc.wgsl")),
 ];

@@ -29,7 +29,7 @@ fn sequence() -> &'static Path {
             camera: Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5),
             ..Default::default()
         };
-        write_sequence(&cfg, &dir, 4000, |_, _| {}).expect("write the sequence");
+        write_sequence(&cfg, &dir, 4000, None).expect("write the sequence");
         dir
     })
 }
@@ -85,7 +85,15 @@ fn a_run_writes_every_output_reports_progress_and_each_frame() {
     let ctx = shared_test_context();
     let seq = sequence();
     let d = workdir("run");
-    let inputs = TrackInputs::load(ctx, &seq.join("model.ply"), seq, None, None).unwrap();
+    let inputs = TrackInputs::load(
+        ctx,
+        &seq.join("model.ply"),
+        &Default::default(),
+        seq,
+        None,
+        None,
+    )
+    .unwrap();
     assert_eq!(inputs.keyframes.as_ref().unwrap().keyframes.len(), 12);
     let events = Arc::new(Mutex::new(Vec::<ProgressEvent>::new()));
     let sink = events.clone();

@@ -597,15 +597,7 @@ fn info_describes_shared_and_synthetic_models() {
     let f = fixture();
     let (points, diameter, out) = info_values(&f.model);
     assert_eq!(points, 20_000, "{out}");
-    let mesh = splattrack::synth::SynthObject::blob().mesh;
-    let (lo, hi) = mesh.vertices.iter().fold(
-        (
-            nalgebra::Vector3::repeat(f64::INFINITY),
-            nalgebra::Vector3::repeat(f64::NEG_INFINITY),
-        ),
-        |(lo, hi), v| (lo.inf(v), hi.sup(v)),
-    );
-    let mesh_diag = (hi - lo).norm();
+    let mesh_diag = splattrack::synth::SynthObject::blob().mesh.diameter();
     assert!(
         diameter <= mesh_diag + 1e-4 && diameter > 0.97 * mesh_diag,
         "{diameter} vs the mesh's {mesh_diag}"

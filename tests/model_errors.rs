@@ -4,8 +4,8 @@
 mod model_common;
 
 use glam::Vec3;
-use model_common::{El, TempFile, Val, ply_bytes, sphere, vertex_element};
-use splattrack::model::{LoadOptions, ModelError, PointModel, load_mesh_ply, load_obj};
+use model_common::{El, TempFile, Val, ply_bytes, vertex_element};
+use splattrack::model::{LoadOptions, ModelError, PointModel, load_mesh_ply, load_obj, shapes};
 use splattrack::rng::Rng;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
@@ -39,7 +39,7 @@ static ALLOC: TrackingAlloc = TrackingAlloc;
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }
@@ -59,7 +59,7 @@ fn check_message(err: &ModelError, path: &Path) -> String {
 }
 
 fn small_cloud(n: usize) -> (Vec<Vec3>, Vec<Vec3>) {
-    sphere(n, Vec3::ZERO, 1.0, 11)
+    shapes::jittered_sphere(n, Vec3::ZERO, 1.0, 11)
 }
 
 #[test]

@@ -5,13 +5,13 @@
 mod model_common;
 
 use glam::{Vec2, Vec3};
-use model_common::{TempFile, ply_bytes, sphere, torus, vertex_element};
-use splattrack::model::{AttributeSource, LoadOptions, PointModel};
+use model_common::{TempFile, ply_bytes, vertex_element};
+use splattrack::model::{AttributeSource, LoadOptions, PointModel, shapes};
 use splattrack::rng::Rng;
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }
@@ -35,7 +35,7 @@ fn compare(est: &[Vec3], truth: &[Vec3]) -> (f64, f32) {
 
 #[test]
 fn sphere_normals_are_accurate_and_outward() {
-    let (pos, truth) = sphere(5000, Vec3::new(3.0, -2.0, 1.0), 0.5, 1);
+    let (pos, truth) = shapes::jittered_sphere(5000, Vec3::new(3.0, -2.0, 1.0), 0.5, 1);
     let m = PointModel::from_points(pos, None, &quiet()).expect("estimate");
     m.validate().expect("valid");
     assert_eq!(m.provenance.normals, AttributeSource::Estimated);
@@ -47,7 +47,7 @@ fn sphere_normals_are_accurate_and_outward() {
 
 #[test]
 fn torus_normals_are_outward_around_the_hole() {
-    let (pos, truth) = torus(8000, 1.0, 0.3, 2);
+    let (pos, truth) = shapes::random_torus(8000, 1.0, 0.3, 2);
     let m = PointModel::from_points(pos, None, &quiet()).expect("estimate");
     let (agree, median_cos) = compare(&m.normals, &truth);
     assert_eq!(agree, 1.0, "a sign flip somewhere on the torus");
@@ -59,9 +59,9 @@ fn each_component_is_oriented_on_its_own() {
     // Two spheres of different sizes, far apart, and a small one inside
     // neither: three components, each seeded separately.
     let parts = [
-        sphere(2000, Vec3::new(-5.0, 0.0, 0.0), 1.0, 3),
-        sphere(1500, Vec3::new(5.0, 1.0, 0.0), 0.4, 4),
-        sphere(300, Vec3::new(0.0, 0.0, 8.0), 0.2, 5),
+        shapes::jittered_sphere(2000, Vec3::new(-5.0, 0.0, 0.0), 1.0, 3),
+        shapes::jittered_sphere(1500, Vec3::new(5.0, 1.0, 0.0), 0.4, 4),
+        shapes::jittered_sphere(300, Vec3::new(0.0, 0.0, 8.0), 0.2, 5),
     ];
     let pos: Vec<Vec3> = parts.iter().flat_map(|p| p.0.clone()).collect();
     let truth: Vec<Vec3> = parts.iter().flat_map(|p| p.1.clone()).collect();
@@ -105,7 +105,7 @@ fn shared_cube_and_dragon_normals_match_the_loaded_ones() {
 
 #[test]
 fn zero_normals_are_reestimated_to_agree_with_loaded_neighbours() {
-    let (pos, truth) = sphere(3000, Vec3::ZERO, 1.0, 6);
+    let (pos, truth) = shapes::jittered_sphere(3000, Vec3::ZERO, 1.0, 6);
     for flip in [1.0f32, -1.0] {
         // The file's convention (here possibly inward) is kept: re-estimated
         // normals follow their loaded neighbours, not a rule of their own.
@@ -237,7 +237,7 @@ fn estimated_radii_close_the_surface() {
 
 #[test]
 fn degenerate_clouds_still_give_valid_models() {
-    let (pos, truth) = sphere(1500, Vec3::splat(1000.0), 1.0, 9);
+    let (pos, truth) = shapes::jittered_sphere(1500, Vec3::splat(1000.0), 1.0, 9);
     // Far from the origin: the estimation centres the points first.
     let m = PointModel::from_points(pos.clone(), None, &quiet()).expect("offset sphere");
     assert_eq!(compare(&m.normals, &truth).0, 1.0);
@@ -262,7 +262,7 @@ fn degenerate_clouds_still_give_valid_models() {
 
 #[test]
 fn k_and_factor_options_are_honoured() {
-    let (pos, _) = sphere(2000, Vec3::ZERO, 1.0, 10);
+    let (pos, _) = shapes::jittered_sphere(2000, Vec3::ZERO, 1.0, 10);
     let base = PointModel::from_points(pos.clone(), None, &quiet()).expect("default");
     let bigger = PointModel::from_points(
         pos.clone(),
@@ -297,5 +297,32 @@ fn k_and_factor_options_are_honoured() {
             ..quiet()
         };
         assert!(PointModel::from_points(base.positions.clone(), None, &opts).is_err());
+    }
+}
+
+#[test]
+fn progress_is_reported_per_stage_up_to_the_total() {
+    use splattrack::progress::ProgressEvent;
+    use std::sync::{Arc, Mutex};
+    let (pos, _) = shapes::jittered_sphere(40_000, Vec3::ZERO, 1.0, 3);
+    let f = TempFile::with_bytes(
+        "progress",
+        "ply",
+        &ply_bytes("binary_little_endian", &[vertex_element(&pos, None, None)]),
+    );
+    let events: Arc<Mutex<Vec<ProgressEvent>>> = Arc::default();
+    let sink = events.clone();
+    let opts = LoadOptions {
+        progress: Some(Arc::new(move |e| sink.lock().unwrap().push(e))),
+        ..Default::default()
+    };
+    PointModel::load_with(f.path(), &opts).expect("load");
+    let events = events.lock().unwrap();
+    for stage in ["reading", "neighbours", "orienting"] {
+        let of: Vec<&ProgressEvent> = events.iter().filter(|e| e.stage == stage).collect();
+        assert!(of.len() >= 3, "{stage}: {of:?}");
+        assert!(of.windows(2).all(|w| w[0].done <= w[1].done), "{stage}");
+        let last = of.last().unwrap();
+        assert_eq!((last.done, last.total), (40_000, 40_000), "{stage}");
     }
 }

@@ -109,7 +109,7 @@ fn dragon_samples_agree_with_the_shared_point_model() {
     let model = PointModel::load_with(
         "../shared/data/visp_rbt_dragon/model.ply",
         &LoadOptions {
-            progress: false,
+            progress: None,
             ..Default::default()
         },
     )

@@ -5,14 +5,14 @@
 mod model_common;
 
 use glam::Vec3;
-use model_common::{El, TempFile, Val, ply_bytes, sphere};
-use splattrack::model::{AttributeSource, LoadOptions, PointModel, load_mesh_ply};
+use model_common::{El, TempFile, Val, ply_bytes};
+use splattrack::model::{AttributeSource, LoadOptions, PointModel, load_mesh_ply, shapes};
 
 const FORMATS: [&str; 3] = ["ascii", "binary_little_endian", "binary_big_endian"];
 
 fn quiet() -> LoadOptions {
     LoadOptions {
-        progress: false,
+        progress: None,
         ..Default::default()
     }
 }
@@ -20,7 +20,7 @@ fn quiet() -> LoadOptions {
 /// 60 points with every attribute: positions on a sphere, exact outward
 /// normals, uchar colours, radii.
 fn full_element(coord_type: &str, color_type: &str) -> (El, Vec<Vec3>, Vec<Vec3>, Vec<[f32; 3]>) {
-    let (pos, nrm) = sphere(60, Vec3::new(0.5, -1.0, 2.0), 0.25, 1);
+    let (pos, nrm) = shapes::jittered_sphere(60, Vec3::new(0.5, -1.0, 2.0), 0.25, 1);
     let mut el = El::new(
         "vertex",
         &[
@@ -132,7 +132,7 @@ fn double_coordinates_are_read() {
 
 #[test]
 fn other_properties_and_elements_are_ignored_and_faces_give_vertices() {
-    let (pos, nrm) = sphere(40, Vec3::ZERO, 1.0, 2);
+    let (pos, nrm) = shapes::jittered_sphere(40, Vec3::ZERO, 1.0, 2);
     for format in FORMATS {
         let camera = El::new("camera", &[("float", "fx"), ("list uchar float", "dist")])
             .row(vec![Val::S(500.0), Val::L(vec![0.1, 0.2])]);
@@ -179,6 +179,7 @@ fn other_properties_and_elements_are_ignored_and_faces_give_vertices() {
         let mesh = load_mesh_ply(f.path()).expect("mesh");
         assert_eq!(mesh.triangles.len(), 10);
         assert_eq!(mesh.triangles[3], [3, 4, 5]);
+        let pos: Vec<_> = pos.iter().map(|p| p.as_dvec3()).collect();
         assert_eq!(mesh.vertices, pos);
     }
 }
@@ -283,7 +284,7 @@ fn save_ply_round_trips_and_ply_rs_agrees() {
 
 #[test]
 fn save_without_colours_and_refuse_invalid_models() {
-    let (pos, nrm) = sphere(30, Vec3::ZERO, 1.0, 3);
+    let (pos, nrm) = shapes::jittered_sphere(30, Vec3::ZERO, 1.0, 3);
     let mut m = PointModel::from_points(pos.clone(), None, &quiet()).expect("from points");
     assert!(m.provenance.path.is_none());
     for (a, b) in m.normals.iter().zip(&nrm) {

@@ -6,10 +6,8 @@ use glam::Vec3;
 use nalgebra::{Vector2, Vector3};
 use splattrack::geometry::{Intrinsics, Pose, look_at};
 use splattrack::gpu::{self, GpuContext};
-use splattrack::model::PointModel;
-use splattrack::splat::{
-    Attribute, Attributes, GpuModel, SplatImage, SplatTargets, Splatter, shapes,
-};
+use splattrack::model::{PointModel, shapes};
+use splattrack::splat::{Attribute, Attributes, GpuModel, SplatImage, SplatTargets, Splatter};
 
 fn ctx() -> &'static GpuContext {
     gpu::shared_test_context()

@@ -5,9 +5,8 @@ use glam::Vec3;
 use nalgebra::{Matrix3, Vector3};
 use splattrack::geometry::{Intrinsics, Pose};
 use splattrack::gpu;
-use splattrack::splat::{
-    Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter, shapes,
-};
+use splattrack::model::shapes;
+use splattrack::splat::{Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter};
 
 #[test]
 fn bad_models_poses_and_targets_are_typed_errors() {

@@ -14,11 +14,11 @@ use glam::Vec3;
 use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, Pose, look_at};
 use splattrack::gpu::{self, GpuContext};
-use splattrack::model::PointModel;
+use splattrack::model::{PointModel, shapes};
 use splattrack::rng::Rng;
 use splattrack::splat::{
     Attribute, Attributes, GatherMode, GpuModel, SplatImage, SplatParams, SplatTargets, Splatter,
-    cpu, shapes,
+    cpu,
 };
 
 fn ctx() -> &'static GpuContext {

@@ -55,7 +55,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         seq_dir.display()
     );
     let model = seq_dir.join("model.ply");
-    let inputs = TrackInputs::load(&ctx, &model, &seq_dir, None, None)?;
+    let inputs = TrackInputs::load(&ctx, &model, &super::model_options(), &seq_dir, None, None)?;
     println!(
         "2. built {} keyframes from {}",
         inputs.keyframes.as_ref().map_or(0, |k| k.keyframes.len()),

@@ -73,7 +73,7 @@ fn excluded_frames(path: &Path) -> anyhow::Result<HashSet<String>> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let gt = splattrack::io::read_poses(&args.gt)?;
     let diameter = match (&args.model, args.diameter) {
-        (Some(m), _) => Some(splattrack::PointModel::load(m)?.diameter() as f64),
+        (Some(m), _) => Some(super::load_model(m)?.diameter() as f64),
         (None, Some(d)) if d.is_finite() && d > 0.0 => Some(d),
         (None, Some(d)) => bail!("--diameter {d}: must be a positive number"),
         (None, None) => None,

@@ -29,7 +29,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     );
     println!("self-test: ok (compute dispatch and readback agree with the CPU)");
     if let Some(path) = args.model {
-        let m = splattrack::PointModel::load(&path)?;
+        let m = super::load_model(&path)?;
         let (lo, hi) = m.bounds();
         let src = |s: splattrack::model::AttributeSource| match s {
             splattrack::model::AttributeSource::Loaded => "from the file",

@@ -1,7 +1,7 @@
 //! `splattrack keyframes --model M.ply --keyframes DIR --camera camera.json --out store.stkf`.
 
+use splattrack::Intrinsics;
 use splattrack::app::load_keyframes;
-use splattrack::{Intrinsics, PointModel};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -22,7 +22,7 @@ pub struct Args {
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let ctx = super::gpu(adapter)?;
-    let model = PointModel::load(&args.model)?;
+    let model = super::load_model(&args.model)?;
     let cam = Intrinsics::load(&args.camera)?;
     let store = load_keyframes(&ctx, &model, &cam, &args.keyframes)?;
     store.save(&args.out)?;

@@ -14,7 +14,9 @@ mod track;
 
 use clap::builder::{PossibleValue, TypedValueParser};
 use clap::{Parser, Subcommand, ValueEnum};
+use splattrack::PointModel;
 use splattrack::gpu::{AdapterChoice, GpuContext};
+use splattrack::model::LoadOptions;
 use std::io::Write;
 use std::marker::PhantomData;
 
@@ -170,4 +172,18 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),
     }
+}
+
+/// How the commands load point models: with progress bars for clouds large
+/// enough to take a while.
+pub fn model_options() -> LoadOptions {
+    LoadOptions {
+        progress: Some(progress::bars("", 200_000)),
+        ..Default::default()
+    }
+}
+
+/// Loads a point model with [`model_options`].
+pub fn load_model(path: &std::path::Path) -> anyhow::Result<PointModel> {
+    Ok(PointModel::load_with(path, &model_options())?)
 }

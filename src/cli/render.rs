@@ -4,7 +4,6 @@
 use anyhow::{Context, bail};
 use nalgebra::{Matrix3, Vector3};
 use splattrack::geometry::{Intrinsics, Pose};
-use splattrack::model::PointModel;
 use splattrack::splat::{Attribute, GpuModel, SplatImage, Splatter, viz};
 use std::path::{Path, PathBuf};
 
@@ -121,7 +120,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     let pose = pick_pose(&args)?;
-    let model = PointModel::load(&args.model)?;
+    let model = super::load_model(&args.model)?;
     let ctx = super::gpu(adapter)?;
     let splatter = Splatter::new(&ctx)?;
     let gm = GpuModel::new(&ctx, &model).with_context(|| args.model.display().to_string())?;

@@ -3,7 +3,6 @@
 use super::{Choice, choice_name};
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
-use splattrack::progress::ProgressEvent;
 use splattrack::synth::{SynthConfig, Trajectory, sequence};
 use std::path::{Path, PathBuf};
 
@@ -120,18 +119,7 @@ pub fn write(
     points: usize,
 ) -> anyhow::Result<sequence::SequenceSummary> {
     let progress = super::progress::bars("synth ", 1);
-    Ok(sequence::write_sequence(
-        cfg,
-        dir,
-        points,
-        |done, total| {
-            progress(ProgressEvent {
-                stage: "images",
-                done: done as u64,
-                total: total as u64,
-            })
-        },
-    )?)
+    Ok(sequence::write_sequence(cfg, dir, points, Some(&progress))?)
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -165,6 +165,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let inputs = TrackInputs::load(
         &ctx,
         &args.model,
+        &super::model_options(),
         &args.sequence,
         args.keyframes.as_deref(),
         args.init.as_deref(),

@@ -31,9 +31,9 @@
 //!    about 2% of the surface uncovered for purely random (Poisson) samplings,
 //!    where `exp(-factor^2)` of the surface is uncovered.
 
+use super::Stage;
 use super::error::ModelError;
 use glam::{DVec3, Vec3};
-use indicatif::ProgressBar;
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use std::num::NonZeroUsize;
 use std::path::Path;
@@ -57,9 +57,10 @@ pub(crate) struct Task<'a> {
     pub radius_factor: f32,
 }
 
-pub(crate) struct Bars {
-    pub neighbours: ProgressBar,
-    pub orient: ProgressBar,
+/// Where the two stages report their progress.
+pub(crate) struct Bars<'a> {
+    pub neighbours: Stage<'a>,
+    pub orient: Stage<'a>,
 }
 
 fn err(path: &Path, what: &'static str, reason: impl Into<String>) -> ModelError {
@@ -77,7 +78,7 @@ pub(crate) fn estimate(
     radii: &mut [f32],
     task: &Task,
     path: &Path,
-    bars: &Bars,
+    bars: &Bars<'_>,
 ) -> Result<(), ModelError> {
     let n = positions.len();
     let what = if task.normals.is_some() {
@@ -159,7 +160,6 @@ pub(crate) fn estimate(
     let qty = NonZeroUsize::new(k + 1).unwrap_or(NonZeroUsize::MIN);
     let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
     let mut nbrs: Vec<u32> = Vec::with_capacity(k + 1);
-    bars.neighbours.set_length(n as u64);
     for (i, point) in pts.iter().enumerate() {
         let item = i as u32;
         let found = tree
@@ -204,10 +204,10 @@ pub(crate) fn estimate(
             sorted_radii[i] = task.radius_factor * last_dist2.max(0.0).sqrt() / (k as f32).sqrt();
         }
         if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
-            bars.neighbours.inc(PROGRESS_STEP as u64);
+            bars.neighbours.advance(PROGRESS_STEP as u64);
         }
     }
-    bars.neighbours.finish_and_clear();
+    bars.neighbours.finish();
 
     if orient_too {
         orient(
@@ -338,7 +338,7 @@ fn orient(
     estimated: &[bool],
     graph: &[u32],
     kg: usize,
-    bar: &ProgressBar,
+    bar: &Stage,
 ) {
     let n = pts.len();
     // Reverse edges, so that the graph is symmetric: j may be i's neighbour
@@ -394,13 +394,12 @@ fn orient(
             push_edges(to, state, normals, queue);
             done += 1;
             if done.is_multiple_of(PROGRESS_STEP) {
-                bar.inc(PROGRESS_STEP as u64);
+                bar.advance(PROGRESS_STEP as u64);
             }
         }
     };
 
     // Trusted normals first: they orient everything connected to them.
-    bar.set_length(n as u64);
     for i in 0..n {
         if state[i] == DONE {
             push_edges(i, &state, normals, &mut queue);
@@ -432,7 +431,7 @@ fn orient(
         push_edges(seed, &state, normals, &mut queue);
         grow(&mut queue, &mut state, normals);
     }
-    bar.finish_and_clear();
+    bar.finish();
 }
 
 /// Buckets for the edge weights of the orientation tree. Prim's algorithm

@@ -5,9 +5,10 @@
 //! own (the PLY's; metres for most scanners).
 //!
 //! How loading works ([`PointModel::load_with`]):
-//! 1. the PLY is read by the `ply` submodule (ascii, binary little- or
+//! 1. the PLY is read by the `ply` codec (ascii, binary little- or
 //!    big-endian; counts checked against the file size before any
-//!    allocation);
+//!    allocation) through the point-model `schema` (which properties are
+//!    positions, normals, colours, radii);
 //! 2. points with a NaN or infinite coordinate are dropped (counted in
 //!    [`Provenance::dropped_non_finite`], with a warning);
 //! 3. loaded radii must be finite and > 0, or the file is refused; loaded
@@ -28,13 +29,16 @@ mod error;
 mod estimate;
 mod mesh;
 mod ply;
+mod schema;
+pub mod shapes;
 
 pub use error::ModelError;
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};
 
+use crate::progress::{ProgressEvent, ProgressFn};
 use error::memory_path;
 use glam::{DVec3, Vec3};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use std::cell::Cell;
 use std::path::{Path, PathBuf};
 
 /// Where an attribute of a [`PointModel`] came from.
@@ -79,11 +83,14 @@ pub struct PointModel {
 }
 
 /// Options for loading and estimation.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct LoadOptions {
-    /// Show progress bars on stderr for large clouds (only drawn when stderr is
-    /// a terminal). Default: true.
-    pub progress: bool,
+    /// Receives the progress of reading ("reading", rows of the file),
+    /// finding neighbours ("neighbours", points) and orienting normals
+    /// ("orienting", points), in steps of 16384 and once more at the end
+    /// of each stage. Small clouds load in a blink: a caller drawing bars
+    /// may skip those of under 200,000 units. Default: None.
+    pub progress: Option<ProgressFn>,
     /// Neighbours used for normals and radii. Default: 16.
     pub k_neighbours: usize,
     /// Estimated radius = `radius_factor * d_k / sqrt(k)`, `d_k` the distance
@@ -96,10 +103,22 @@ pub struct LoadOptions {
     pub recompute_radii: bool,
 }
 
+impl std::fmt::Debug for LoadOptions {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("LoadOptions")
+            .field("progress", &self.progress.as_ref().map(|_| "callback"))
+            .field("k_neighbours", &self.k_neighbours)
+            .field("radius_factor", &self.radius_factor)
+            .field("recompute_normals", &self.recompute_normals)
+            .field("recompute_radii", &self.recompute_radii)
+            .finish()
+    }
+}
+
 impl Default for LoadOptions {
     fn default() -> Self {
         Self {
-            progress: true,
+            progress: None,
             k_neighbours: 16,
             radius_factor: 2.0,
             recompute_normals: false,
@@ -108,22 +127,50 @@ impl Default for LoadOptions {
     }
 }
 
-/// Clouds smaller than this load too fast for a progress bar to be useful.
-const PROGRESS_MIN_ITEMS: usize = 200_000;
+/// One stage of a job, reported to an optional [`ProgressFn`].
+pub(crate) struct Stage<'a> {
+    report: Option<&'a ProgressFn>,
+    stage: &'static str,
+    total: u64,
+    done: Cell<u64>,
+}
 
-/// A progress bar on stderr, hidden when disabled, when the job is small or
-/// when stderr is not a terminal.
-pub(crate) fn progress_bar(enabled: bool, len: usize, message: &'static str) -> ProgressBar {
-    if !enabled || len < PROGRESS_MIN_ITEMS {
-        return ProgressBar::hidden();
+impl<'a> Stage<'a> {
+    pub(crate) fn new(report: Option<&'a ProgressFn>, stage: &'static str, total: usize) -> Self {
+        Self {
+            report,
+            stage,
+            total: total as u64,
+            done: Cell::new(0),
+        }
     }
-    let bar = ProgressBar::with_draw_target(Some(len as u64), ProgressDrawTarget::stderr());
-    let style = ProgressStyle::with_template("{msg:>10} [{bar:40}] {pos}/{len} ({eta})")
-        .map(|s| s.progress_chars("=> "))
-        .unwrap_or_else(|_| ProgressStyle::default_bar());
-    bar.set_style(style);
-    bar.set_message(message);
-    bar
+
+    /// A stage that reports nothing.
+    pub(crate) fn silent() -> Self {
+        Self::new(None, "", 0)
+    }
+
+    fn emit(&self) {
+        if let Some(report) = self.report {
+            report(ProgressEvent {
+                stage: self.stage,
+                done: self.done.get(),
+                total: self.total,
+            });
+        }
+    }
+
+    /// `units` more are done.
+    pub(crate) fn advance(&self, units: u64) {
+        self.done.set(self.done.get() + units);
+        self.emit();
+    }
+
+    /// The stage is complete.
+    pub(crate) fn finish(&self) {
+        self.done.set(self.total);
+        self.emit();
+    }
 }
 
 impl PointModel {
@@ -139,7 +186,7 @@ impl PointModel {
     /// dropped and estimated.
     pub fn load_with(path: impl AsRef<Path>, opts: &LoadOptions) -> Result<Self, ModelError> {
         let path = path.as_ref();
-        let contents = ply::read(path, false, opts.progress)?;
+        let contents = schema::read(path, false, opts.progress.as_ref())?;
         if contents.has_faces {
             log::info!(
                 "{}: a mesh; its {} vertices are loaded as points (load_mesh_ply or load_auto sample its surface instead)",
@@ -194,10 +241,9 @@ impl PointModel {
         seed: u64,
     ) -> Result<Self, ModelError> {
         TriangleMesh {
-            vertices: vertices.to_vec(),
+            vertices: vertices.iter().map(|v| v.as_dvec3()).collect(),
             triangles: triangles.to_vec(),
-            colors: None,
-            path: None,
+            ..Default::default()
         }
         .sample(n_points, seed)
     }
@@ -217,7 +263,7 @@ impl PointModel {
                 });
             }
         }
-        let contents = ply::PlyContents {
+        let contents = schema::PlyContents {
             positions,
             colors,
             ..Default::default()
@@ -228,7 +274,7 @@ impl PointModel {
     }
 
     fn from_contents(
-        mut c: ply::PlyContents,
+        mut c: schema::PlyContents,
         path: &Path,
         opts: &LoadOptions,
     ) -> Result<Self, ModelError> {
@@ -353,8 +399,8 @@ impl PointModel {
             radius_factor: opts.radius_factor,
         };
         let bars = estimate::Bars {
-            neighbours: progress_bar(opts.progress, n, "neighbours"),
-            orient: progress_bar(opts.progress, n, "orienting"),
+            neighbours: Stage::new(opts.progress.as_ref(), "neighbours", n),
+            orient: Stage::new(opts.progress.as_ref(), "orienting", n),
         };
         estimate::estimate(&c.positions, &mut normals, &mut radii, &task, path, &bars)?;
 
@@ -399,8 +445,8 @@ impl PointModel {
             radius_factor: opts.radius_factor,
         };
         let bars = estimate::Bars {
-            neighbours: progress_bar(opts.progress, n, "neighbours"),
-            orient: progress_bar(opts.progress, n, "orienting"),
+            neighbours: Stage::new(opts.progress.as_ref(), "neighbours", n),
+            orient: Stage::new(opts.progress.as_ref(), "orienting", n),
         };
         let path = self.provenance.path.clone().unwrap_or_else(memory_path);
         self.normals.resize(n, Vec3::Z);
@@ -427,8 +473,8 @@ impl PointModel {
             radius_factor: opts.radius_factor,
         };
         let bars = estimate::Bars {
-            neighbours: progress_bar(opts.progress, n, "neighbours"),
-            orient: ProgressBar::hidden(),
+            neighbours: Stage::new(opts.progress.as_ref(), "neighbours", n),
+            orient: Stage::silent(),
         };
         let path = self.provenance.path.clone().unwrap_or_else(memory_path);
         self.radii.resize(n, 0.0);
@@ -470,9 +516,9 @@ impl PointModel {
         if let Some(p) = &self.provenance.path {
             comments.push(format!("source: {}", p.display()));
         }
-        ply::write(
+        schema::write(
             path,
-            &ply::WriteData {
+            &schema::WriteData {
                 positions: &self.positions,
                 normals: &self.normals,
                 radii: &self.radii,

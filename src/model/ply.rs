@@ -1,5 +1,7 @@
-//! PLY reading and writing (Turk 1994; the format as documented by Paul
-//! Bourke, "PLY - Polygon File Format").
+//! The PLY codec (Turk 1994; the format as documented by Paul Bourke, "PLY -
+//! Polygon File Format"): headers, elements and properties, streamed body
+//! values, and binary writing. What the elements mean (points, normals,
+//! colours, radii, faces) is the `schema` module's business.
 //!
 //! How it works: the header is read line by line with a cap on its size (so a
 //! garbage file cannot make us buffer gigabytes looking for a newline), then
@@ -7,9 +9,9 @@
 //! hold *before* anything is allocated (at least one byte per binary value of
 //! a fixed-size property, two per ASCII token): a count more than twice that
 //! is refused as a lying header, and no array is ever reserved beyond what
-//! the file can fill. The body is then streamed: each value goes straight
-//! into the model's arrays, so a million points cost one pass and no
-//! per-point allocation.
+//! the file can fill. The body is then streamed row by row ([`read_rows`]):
+//! each value goes straight to the slot its reader assigned to the property,
+//! so a million points cost one pass and no per-point allocation.
 //!
 //! Why not ply-rs-bw (4.0): its ASCII grammar rejects `nan` and `inf` (which
 //! we must read, count and drop), its per-element property callbacks are
@@ -19,9 +21,8 @@
 //! be.) So this module reads PLY itself, and the tests use ply-rs-bw as an
 //! independent check of the writer.
 
+use super::Stage;
 use super::error::ModelError;
-use glam::Vec3;
-use indicatif::ProgressBar;
 use std::fs::File;
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -31,7 +32,7 @@ const MAX_HEADER_BYTES: u64 = 1 << 20;
 /// Longest body line accepted in ASCII files (a face with ~100k indices).
 const MAX_LINE_BYTES: u64 = 1 << 20;
 /// Progress is reported every this many elements.
-const PROGRESS_STEP: usize = 1 << 14;
+pub(crate) const PROGRESS_STEP: usize = 1 << 14;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Encoding {
@@ -101,7 +102,7 @@ pub(crate) struct Element {
 }
 
 impl Element {
-    fn prop(&self, name: &str) -> Option<&Property> {
+    pub fn prop(&self, name: &str) -> Option<&Property> {
         self.props.iter().find(|p| p.name == name)
     }
 
@@ -160,7 +161,7 @@ fn header_err(path: &Path, line: usize, reason: impl Into<String>) -> ModelError
     }
 }
 
-fn io_err(path: &Path, action: &'static str, source: std::io::Error) -> ModelError {
+pub(crate) fn io_err(path: &Path, action: &'static str, source: std::io::Error) -> ModelError {
     ModelError::Io {
         path: path.to_path_buf(),
         action,
@@ -374,7 +375,7 @@ pub(crate) fn read_header<R: BufRead>(r: &mut R, path: &Path) -> Result<Header, 
 /// what the body can hold is a lying or corrupted header and is refused here;
 /// a smaller excess is a cut file, read until the data runs out so that the
 /// error says where (`Truncated`).
-fn check_counts(
+pub(crate) fn check_counts(
     header: &Header,
     upto: usize,
     body_len: u64,
@@ -408,14 +409,14 @@ fn check_counts(
 }
 
 /// Why reading a value failed, before the element context is added.
-enum Fault {
+pub(crate) enum Fault {
     Eof,
     Parse { line: usize, reason: String },
     Io(std::io::Error),
 }
 
 /// A stream of PLY body values, ASCII or binary.
-trait Values {
+pub(crate) trait Values {
     /// Starts the next element; ASCII reads its line.
     fn begin(&mut self) -> Result<(), Fault>;
     fn scalar(&mut self, t: Scalar) -> Result<f64, Fault>;
@@ -599,31 +600,27 @@ impl<R: BufRead> Values for Ascii<R> {
     }
 }
 
-/// Where a vertex property's value goes; `VALUE_SLOTS` values per vertex.
+/// Where a property's value goes: into the row's values at an index, into
+/// the row's list, or nowhere.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Slot {
+pub(crate) enum Slot {
     Value(usize),
     List,
     Skip,
 }
 
-const POS: usize = 0;
-const NORMAL: usize = 3;
-const COLOR: usize = 6;
-const RADIUS: usize = 9;
-const VALUE_SLOTS: usize = 10;
-
-/// Streams the `count` rows of `element`, calling `row(index, values, list)`
-/// for each.
-fn read_rows<V: Values>(
+/// Streams the `count` rows of `element`, one slot per property, calling
+/// `row(index, values, list)` for each and advancing `progress` every
+/// [`PROGRESS_STEP`] rows.
+pub(crate) fn read_rows<V: Values, const N: usize>(
     src: &mut V,
     element: &Element,
     slots: &[Slot],
     path: &Path,
-    bar: &ProgressBar,
-    mut row: impl FnMut(usize, &[f64; VALUE_SLOTS], &[f64]) -> Result<(), ModelError>,
+    progress: &Stage,
+    mut row: impl FnMut(usize, &[f64; N], &[f64]) -> Result<(), ModelError>,
 ) -> Result<(), ModelError> {
-    let mut values = [0.0f64; VALUE_SLOTS];
+    let mut values = [0.0f64; N];
     let mut list: Vec<f64> = Vec::new();
     let fault = |f: Fault, i: usize| match f {
         Fault::Eof => ModelError::Truncated {
@@ -674,332 +671,67 @@ fn read_rows<V: Values>(
         src.end().map_err(|f| fault(f, i))?;
         row(i, &values, &list)?;
         if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
-            bar.inc(PROGRESS_STEP as u64);
+            progress.advance(PROGRESS_STEP as u64);
         }
     }
     Ok(())
 }
 
-/// What a PLY file held, before any filtering.
-#[derive(Debug, Default)]
-pub(crate) struct PlyContents {
-    pub positions: Vec<Vec3>,
-    pub normals: Option<Vec<Vec3>>,
-    pub colors: Option<Vec<[f32; 3]>>,
-    pub radii: Option<Vec<f32>>,
-    /// Fan-triangulated faces, when asked for.
-    pub triangles: Option<Vec<[u32; 3]>>,
-    /// Faces with fewer than three vertices, skipped.
-    pub degenerate_faces: usize,
-    /// The file has a face element (whether or not it was read).
-    pub has_faces: bool,
+/// A reader of one PLY schema: given the header and the body's value stream
+/// (whatever its encoding), it reads the elements it needs.
+pub(crate) trait BodyReader {
+    type Output;
+    fn read<V: Values>(
+        self,
+        src: &mut V,
+        header: &Header,
+        body_len: u64,
+    ) -> Result<Self::Output, ModelError>;
 }
 
-/// How the vertex element maps onto value slots, and how colours scale to 0..1.
-struct VertexPlan {
-    slots: Vec<Slot>,
-    has_normals: bool,
-    has_colors: bool,
-    has_radius: bool,
-    color_scale: [f64; 3],
-}
-
-fn vertex_plan(element: &Element, path: &Path) -> Result<VertexPlan, ModelError> {
-    let named = |names: &[&str]| names.iter().find_map(|n| element.prop(n));
-    let scalar_of = |p: &Property| -> Result<Scalar, ModelError> {
-        match p.kind {
-            Kind::Scalar(s) => Ok(s),
-            Kind::List { .. } => Err(ModelError::MissingProperty {
-                path: path.to_path_buf(),
-                element: element.name.clone(),
-                reason: format!("has property '{}' as a list, expected a number", p.name),
-            }),
-        }
-    };
-    let mut slots = vec![Slot::Skip; element.props.len()];
-    let mut assign = |p: &Property, slot: usize| {
-        if let Some(i) = element.props.iter().position(|q| q.name == p.name) {
-            slots[i] = Slot::Value(slot);
-        }
-    };
-
-    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
-        let Some(p) = element.prop(name) else {
-            return Err(ModelError::MissingProperty {
-                path: path.to_path_buf(),
-                element: element.name.clone(),
-                reason: format!("has no property '{name}'"),
-            });
-        };
-        scalar_of(p)?;
-        assign(p, POS + axis);
-    }
-
-    let normal_props = [
-        named(&["nx", "normal_x"]),
-        named(&["ny", "normal_y"]),
-        named(&["nz", "normal_z"]),
-    ];
-    let normal_count = normal_props.iter().flatten().count();
-    let has_normals = normal_count == 3;
-    if has_normals {
-        for (axis, p) in normal_props.iter().flatten().enumerate() {
-            scalar_of(p)?;
-            assign(p, NORMAL + axis);
-        }
-    } else if normal_count > 0 {
-        log::warn!(
-            "{}: only {normal_count} of the 3 normal components; normals ignored and estimated",
-            path.display()
-        );
-    }
-
-    let color_props = [
-        named(&["red", "diffuse_red", "r"]),
-        named(&["green", "diffuse_green", "g"]),
-        named(&["blue", "diffuse_blue", "b"]),
-    ];
-    let color_count = color_props.iter().flatten().count();
-    let has_colors = color_count == 3;
-    let mut color_scale = [1.0; 3];
-    if has_colors {
-        for (c, p) in color_props.iter().flatten().enumerate() {
-            color_scale[c] = match scalar_of(p)? {
-                Scalar::U8 => 1.0 / 255.0,
-                Scalar::U16 => 1.0 / 65535.0,
-                Scalar::F32 | Scalar::F64 => 1.0,
-                other => {
-                    return Err(ModelError::Invalid {
-                        path: path.to_path_buf(),
-                        reason: format!(
-                            "colour property '{}' has type {other:?}; expected uchar, ushort, float or double",
-                            p.name
-                        ),
-                    });
-                }
-            };
-            assign(p, COLOR + c);
-        }
-    } else if color_count > 0 {
-        log::warn!(
-            "{}: only {color_count} of the 3 colour components; colours ignored",
-            path.display()
-        );
-    }
-
-    let has_radius = match element.prop("radius") {
-        Some(p) => {
-            scalar_of(p)?;
-            assign(p, RADIUS);
-            true
-        }
-        None => false,
-    };
-    Ok(VertexPlan {
-        slots,
-        has_normals,
-        has_colors,
-        has_radius,
-        color_scale,
-    })
-}
-
-/// Reads the vertex element (and the faces when `want_faces`), skipping every
-/// other element and ignoring unknown properties. Elements after the last one
-/// needed are not read.
-pub(crate) fn read(
-    path: &Path,
-    want_faces: bool,
-    progress: bool,
-) -> Result<PlyContents, ModelError> {
-    let (header, reader, file_len) = open(path)?;
+/// Opens `path`, reads its header and hands the body, decoded as the header
+/// says, to `reader`.
+pub(crate) fn read<B: BodyReader>(path: &Path, reader: B) -> Result<B::Output, ModelError> {
+    let (header, file, file_len) = open(path)?;
     let body_len = file_len.saturating_sub(header.body_offset);
     match header.encoding {
         Encoding::Ascii => {
             let mut src = Ascii {
-                reader,
+                reader: file,
                 line: Vec::with_capacity(256),
                 pos: 0,
                 line_no: header.lines,
             };
-            read_body(&mut src, &header, body_len, want_faces, path, progress)
+            reader.read(&mut src, &header, body_len)
         }
         enc => {
             let mut src = Binary {
-                reader,
+                reader: file,
                 remaining: body_len,
                 big_endian: enc == Encoding::BinaryBigEndian,
             };
-            read_body(&mut src, &header, body_len, want_faces, path, progress)
+            reader.read(&mut src, &header, body_len)
         }
     }
 }
 
-fn read_body<V: Values>(
-    src: &mut V,
-    header: &Header,
-    body_len: u64,
-    want_faces: bool,
+/// Writes a binary little-endian PLY of one element, `count` rows of the
+/// scalar properties `props` (`(type, name)`), each row's bytes appended by
+/// `row(index, bytes)`. The file is written through a temporary file renamed
+/// into place, so that a failed write never leaves a plausible-looking file
+/// behind.
+pub(crate) fn write(
     path: &Path,
-    progress: bool,
-) -> Result<PlyContents, ModelError> {
-    let vertex_at = header
-        .elements
-        .iter()
-        .position(|e| e.name == "vertex")
-        .ok_or_else(|| ModelError::MissingElement {
-            path: path.to_path_buf(),
-            element: "vertex",
-        })?;
-    let face_at = if want_faces {
-        let at = header
-            .elements
-            .iter()
-            .position(|e| e.name == "face")
-            .ok_or_else(|| ModelError::MissingElement {
-                path: path.to_path_buf(),
-                element: "face",
-            })?;
-        if header.elements[at].face_list().is_none() {
-            return Err(ModelError::MissingProperty {
-                path: path.to_path_buf(),
-                element: "face".into(),
-                reason: "has no 'vertex_indices' (or 'vertex_index') list".into(),
-            });
-        }
-        Some(at)
-    } else {
-        None
-    };
-    let last = vertex_at.max(face_at.unwrap_or(0));
-    let reserve = check_counts(header, last + 1, body_len, path)?;
-
-    let vertex = &header.elements[vertex_at];
-    let plan = vertex_plan(vertex, path)?;
-    // Bounded by the file size, whatever the header says.
-    let n = reserve[vertex_at];
-    let mut out = PlyContents {
-        positions: Vec::with_capacity(n),
-        normals: plan.has_normals.then(|| Vec::with_capacity(n)),
-        colors: plan.has_colors.then(|| Vec::with_capacity(n)),
-        radii: plan.has_radius.then(|| Vec::with_capacity(n)),
-        triangles: None,
-        degenerate_faces: 0,
-        has_faces: header.has_faces(),
-    };
-    let rows: usize = header.elements[..=last].iter().map(|e| e.count).sum();
-    let bar = &super::progress_bar(progress, rows, "reading");
-
-    for (at, element) in header.elements.iter().enumerate().take(last + 1) {
-        if at == vertex_at {
-            let scale = plan.color_scale;
-            read_rows(src, element, &plan.slots, path, bar, |_, v, _| {
-                out.positions.push(Vec3::new(
-                    v[POS] as f32,
-                    v[POS + 1] as f32,
-                    v[POS + 2] as f32,
-                ));
-                if let Some(normals) = out.normals.as_mut() {
-                    normals.push(Vec3::new(
-                        v[NORMAL] as f32,
-                        v[NORMAL + 1] as f32,
-                        v[NORMAL + 2] as f32,
-                    ));
-                }
-                if let Some(colors) = out.colors.as_mut() {
-                    colors.push([
-                        (v[COLOR] * scale[0]) as f32,
-                        (v[COLOR + 1] * scale[1]) as f32,
-                        (v[COLOR + 2] * scale[2]) as f32,
-                    ]);
-                }
-                if let Some(radii) = out.radii.as_mut() {
-                    radii.push(v[RADIUS] as f32);
-                }
-                Ok(())
-            })?;
-        } else if Some(at) == face_at {
-            let slots: Vec<Slot> = element
-                .props
-                .iter()
-                .map(|p| {
-                    if element.face_list().is_some_and(|f| f.name == p.name) {
-                        Slot::List
-                    } else {
-                        Slot::Skip
-                    }
-                })
-                .collect();
-            let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(reserve[at]);
-            let mut degenerate = 0usize;
-            read_rows(src, element, &slots, path, bar, |i, _, list| {
-                if list.len() < 3 {
-                    degenerate += 1;
-                    return Ok(());
-                }
-                let mut idx = [0u32; 3];
-                let index = |k: usize| -> Result<u32, ModelError> {
-                    let v = list[k];
-                    if v >= 0.0 && v.fract() == 0.0 && v <= f64::from(u32::MAX) {
-                        Ok(v as u32)
-                    } else {
-                        Err(ModelError::Invalid {
-                            path: path.to_path_buf(),
-                            reason: format!("face {i} has vertex index {v}"),
-                        })
-                    }
-                };
-                idx[0] = index(0)?;
-                // Fan triangulation: polygons are assumed convex (and planar).
-                for k in 1..list.len() - 1 {
-                    idx[1] = index(k)?;
-                    idx[2] = index(k + 1)?;
-                    triangles.push(idx);
-                }
-                Ok(())
-            })?;
-            out.triangles = Some(triangles);
-            out.degenerate_faces = degenerate;
-        } else {
-            let slots = vec![Slot::Skip; element.props.len()];
-            read_rows(src, element, &slots, path, bar, |_, _, _| Ok(()))?;
-        }
-    }
-    if let Some(triangles) = &out.triangles {
-        let nv = out.positions.len();
-        if let Some((t, bad)) = triangles
-            .iter()
-            .enumerate()
-            .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
-        {
-            return Err(ModelError::Invalid {
-                path: path.to_path_buf(),
-                reason: format!(
-                    "triangle {t} references vertex {bad}, but there are only {nv} vertices"
-                ),
-            });
-        }
-    }
-    bar.finish_and_clear();
-    Ok(out)
-}
-
-/// What `write` stores per point.
-pub(crate) struct WriteData<'a> {
-    pub positions: &'a [Vec3],
-    pub normals: &'a [Vec3],
-    pub radii: &'a [f32],
-    pub colors: Option<&'a [[f32; 3]]>,
-    pub comments: &'a [String],
-}
-
-/// Writes a binary little-endian PLY through a temporary file renamed into
-/// place, so that a failed write never leaves a plausible-looking model behind.
-pub(crate) fn write(path: &Path, data: &WriteData) -> Result<(), ModelError> {
+    comments: &[String],
+    element: &str,
+    count: usize,
+    props: &[(&str, &str)],
+    row: impl FnMut(usize, &mut Vec<u8>),
+) -> Result<(), ModelError> {
     let mut tmp_name = path.file_name().unwrap_or_default().to_os_string();
     tmp_name.push(format!(".tmp{}", std::process::id()));
     let tmp: PathBuf = path.with_file_name(tmp_name);
-    let result = write_to(&tmp, data).and_then(|()| {
+    let result = write_to(&tmp, comments, element, count, props, row).and_then(|()| {
         std::fs::rename(&tmp, path).map_err(|e| io_err(path, "rename the temporary file to", e))
     });
     if result.is_err() {
@@ -1008,39 +740,32 @@ pub(crate) fn write(path: &Path, data: &WriteData) -> Result<(), ModelError> {
     result
 }
 
-fn write_to(path: &Path, data: &WriteData) -> Result<(), ModelError> {
+fn write_to(
+    path: &Path,
+    comments: &[String],
+    element: &str,
+    count: usize,
+    props: &[(&str, &str)],
+    mut row: impl FnMut(usize, &mut Vec<u8>),
+) -> Result<(), ModelError> {
     let file = File::create(path).map_err(|e| io_err(path, "create", e))?;
     let mut w = BufWriter::with_capacity(1 << 16, file);
     let mut header = String::from("ply\nformat binary_little_endian 1.0\n");
-    for c in data.comments {
+    for c in comments {
         // A newline in a comment would end the header line early.
         header.push_str(&format!("comment {}\n", c.replace(['\n', '\r'], " ")));
     }
-    header.push_str(&format!(
-        "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n\
-         property float nx\nproperty float ny\nproperty float nz\n",
-        data.positions.len()
-    ));
-    if data.colors.is_some() {
-        header.push_str("property uchar red\nproperty uchar green\nproperty uchar blue\n");
+    header.push_str(&format!("element {element} {count}\n"));
+    for (ty, name) in props {
+        header.push_str(&format!("property {ty} {name}\n"));
     }
-    header.push_str("property float radius\nend_header\n");
+    header.push_str("end_header\n");
     let werr = |e| io_err(path, "write", e);
     w.write_all(header.as_bytes()).map_err(werr)?;
-    let mut rec = Vec::with_capacity(31);
-    for i in 0..data.positions.len() {
+    let mut rec = Vec::with_capacity(64);
+    for i in 0..count {
         rec.clear();
-        for v in [data.positions[i], data.normals[i]] {
-            for c in v.to_array() {
-                rec.extend_from_slice(&c.to_le_bytes());
-            }
-        }
-        if let Some(colors) = data.colors {
-            for c in colors[i] {
-                rec.push((c.clamp(0.0, 1.0) * 255.0).round() as u8);
-            }
-        }
-        rec.extend_from_slice(&data.radii[i].to_le_bytes());
+        row(i, &mut rec);
         w.write_all(&rec).map_err(werr)?;
     }
     w.flush().map_err(werr)?;

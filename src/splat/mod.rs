@@ -53,8 +53,6 @@
 
 pub mod cpu;
 pub mod gpu_data;
-pub mod mesh;
-pub mod shapes;
 pub mod viz;
 
 use crate::geometry::{Intrinsics, Pose};

@@ -14,7 +14,7 @@ pub mod objects;
 pub mod raster;
 pub mod sequence;
 
-pub use objects::{Light, SynthObject, Texture, TriMesh};
+pub use objects::{Light, SynthObject, Texture};
 
 use crate::geometry::{Intrinsics, Pose, look_at, rotation_exp};
 use crate::rng::Rng;

@@ -3,60 +3,12 @@
 //! Textures are functions of the *object-space* surface point (and normal),
 //! so the mesh needs no UV mapping, the rasteriser can shade every sample
 //! exactly, and a point model sampled from the same surface gets exactly the
-//! colours the frames show (before lighting and noise).
+//! colours the frames show (before lighting and noise). The geometry comes
+//! from the crate's [`shapes`](crate::model::shapes).
 
+use crate::model::TriangleMesh;
+use glam::DVec3;
 use nalgebra::Vector3;
-
-/// An indexed triangle mesh with per-vertex normals (object frame, metres).
-#[derive(Debug, Clone)]
-pub struct TriMesh {
-    /// Vertex positions.
-    pub vertices: Vec<Vector3<f64>>,
-    /// Unit normals, one per vertex (the smooth surface's).
-    pub normals: Vec<Vector3<f64>>,
-    /// Counter-clockwise seen from outside.
-    pub triangles: Vec<[u32; 3]>,
-}
-
-impl TriMesh {
-    /// Bounding-box diagonal.
-    pub fn diameter(&self) -> f64 {
-        let mut lo = Vector3::repeat(f64::INFINITY);
-        let mut hi = Vector3::repeat(f64::NEG_INFINITY);
-        for v in &self.vertices {
-            lo = lo.inf(v);
-            hi = hi.sup(v);
-        }
-        (hi - lo).norm()
-    }
-
-    /// Total surface area.
-    pub fn area(&self) -> f64 {
-        self.triangles
-            .iter()
-            .map(|t| {
-                let [a, b, c] = t.map(|i| self.vertices[i as usize]);
-                (b - a).cross(&(c - a)).norm() * 0.5
-            })
-            .sum()
-    }
-
-    /// Wavefront OBJ text (positions, normals, faces).
-    pub fn to_obj(&self) -> String {
-        let mut s = String::from("# splattrack synthetic object\n");
-        for v in &self.vertices {
-            s.push_str(&format!("v {:.7} {:.7} {:.7}\n", v.x, v.y, v.z));
-        }
-        for n in &self.normals {
-            s.push_str(&format!("vn {:.6} {:.6} {:.6}\n", n.x, n.y, n.z));
-        }
-        for t in &self.triangles {
-            let [a, b, c] = t.map(|i| i + 1);
-            s.push_str(&format!("f {a}//{a} {b}//{b} {c}//{c}\n"));
-        }
-        s
-    }
-}
 
 /// Surface colour as a function of the object-space point and normal.
 #[derive(Debug, Clone)]
@@ -201,8 +153,9 @@ pub struct SynthObject {
     pub name: &'static str,
     /// A line for help texts.
     pub description: &'static str,
-    /// The geometry (object frame, metres, centred on the origin).
-    pub mesh: TriMesh,
+    /// The geometry (object frame, metres, centred on the origin), with
+    /// vertex normals.
+    pub mesh: TriangleMesh,
     /// The surface colour.
     pub texture: Texture,
 }
@@ -224,7 +177,7 @@ impl SynthObject {
     /// A smooth organic shape (a lumpy sphere, ~0.2 m) with a strong
     /// cell texture.
     pub fn blob() -> Self {
-        let r = |d: &Vector3<f64>| {
+        let r = |d: DVec3| {
             0.09 * (1.0
                 + 0.12 * (3.0 * d.x + 0.4).sin() * (2.0 * d.y).cos()
                 + 0.08 * (4.0 * d.z + 1.1).sin()
@@ -233,7 +186,7 @@ impl SynthObject {
         Self {
             name: "blob",
             description: "smooth organic shape with a strong texture",
-            mesh: radial_mesh(r, 64, 128),
+            mesh: TriangleMesh::radial(r, 64, 128),
             texture: Texture::Cells {
                 cell: 0.022,
                 seed: 7,
@@ -246,7 +199,7 @@ impl SynthObject {
         Self {
             name: "box",
             description: "box with printed faces",
-            mesh: box_mesh(Vector3::new(0.06, 0.045, 0.03)),
+            mesh: TriangleMesh::cuboid(DVec3::new(0.06, 0.045, 0.03), 1),
             texture: Texture::Printed {
                 seed: 11,
                 shapes_per_face: 24,
@@ -256,137 +209,15 @@ impl SynthObject {
 
     /// A torus (8 cm ring, 3 cm tube): it hides parts of itself.
     pub fn torus() -> Self {
-        let (rr, r) = (0.08, 0.03);
-        let (nu, nv) = (96usize, 32usize);
-        let mut vertices = Vec::new();
-        let mut normals = Vec::new();
-        for i in 0..nu {
-            let u = i as f64 / nu as f64 * std::f64::consts::TAU;
-            for j in 0..nv {
-                let v = j as f64 / nv as f64 * std::f64::consts::TAU;
-                let n = Vector3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
-                let c = Vector3::new(rr * u.cos(), rr * u.sin(), 0.0);
-                vertices.push(c + n * r);
-                normals.push(n);
-            }
-        }
-        let mut triangles = Vec::new();
-        for i in 0..nu {
-            for j in 0..nv {
-                let a = (i * nv + j) as u32;
-                let b = (((i + 1) % nu) * nv + j) as u32;
-                let c = (((i + 1) % nu) * nv + (j + 1) % nv) as u32;
-                let d = (i * nv + (j + 1) % nv) as u32;
-                triangles.push([a, b, c]);
-                triangles.push([a, c, d]);
-            }
-        }
         Self {
             name: "torus",
             description: "torus: self-occluding",
-            mesh: TriMesh {
-                vertices,
-                normals,
-                triangles,
-            },
+            mesh: TriangleMesh::torus(0.08, 0.03, 96, 32),
             texture: Texture::Cells {
                 cell: 0.018,
                 seed: 5,
             },
         }
-    }
-}
-
-/// A closed star-shaped surface `d -> r(d) d` over a latitude/longitude grid,
-/// with normals from the surface's own gradient (finite differences).
-fn radial_mesh(r: impl Fn(&Vector3<f64>) -> f64, nlat: usize, nlon: usize) -> TriMesh {
-    let dir = |th: f64, ph: f64| Vector3::new(th.sin() * ph.cos(), th.sin() * ph.sin(), th.cos());
-    let point = |th: f64, ph: f64| {
-        let d = dir(th, ph);
-        d * r(&d)
-    };
-    let mut vertices = vec![point(0.0, 0.0)];
-    let mut normals = Vec::new();
-    for i in 1..nlat {
-        let th = i as f64 / nlat as f64 * std::f64::consts::PI;
-        for j in 0..nlon {
-            let ph = j as f64 / nlon as f64 * std::f64::consts::TAU;
-            vertices.push(point(th, ph));
-        }
-    }
-    vertices.push(point(std::f64::consts::PI, 0.0));
-    // Normals: cross product of the surface's partial derivatives.
-    let h = 1e-5;
-    let normal = |th: f64, ph: f64| {
-        let dth = point(th + h, ph) - point(th - h, ph);
-        let dph = point(th, ph + h) - point(th, ph - h);
-        let n = dth.cross(&dph);
-        if n.norm() < 1e-14 {
-            dir(th, ph)
-        } else {
-            n.normalize()
-        }
-    };
-    normals.push(Vector3::new(0.0, 0.0, 1.0));
-    for i in 1..nlat {
-        let th = i as f64 / nlat as f64 * std::f64::consts::PI;
-        for j in 0..nlon {
-            let ph = j as f64 / nlon as f64 * std::f64::consts::TAU;
-            normals.push(normal(th, ph));
-        }
-    }
-    normals.push(Vector3::new(0.0, 0.0, -1.0));
-    let south = (vertices.len() - 1) as u32;
-    let ring = |i: usize, j: usize| (1 + (i - 1) * nlon + j % nlon) as u32;
-    let mut triangles = Vec::new();
-    for j in 0..nlon {
-        triangles.push([0, ring(1, j), ring(1, j + 1)]);
-        triangles.push([south, ring(nlat - 1, j + 1), ring(nlat - 1, j)]);
-    }
-    for i in 1..nlat - 1 {
-        for j in 0..nlon {
-            let (a, b, c, d) = (
-                ring(i, j),
-                ring(i + 1, j),
-                ring(i + 1, j + 1),
-                ring(i, j + 1),
-            );
-            triangles.push([a, b, c]);
-            triangles.push([a, c, d]);
-        }
-    }
-    TriMesh {
-        vertices,
-        normals,
-        triangles,
-    }
-}
-
-/// An axis-aligned box with half extents `h`, 4 vertices per face (flat
-/// normals), CCW from outside.
-fn box_mesh(h: Vector3<f64>) -> TriMesh {
-    let mut vertices = Vec::new();
-    let mut normals = Vec::new();
-    let mut triangles = Vec::new();
-    for axis in 0..3 {
-        for sign in [-1.0, 1.0] {
-            let n = Vector3::ith(axis, sign);
-            let u = Vector3::ith((axis + 1) % 3, 1.0);
-            let v = n.cross(&u);
-            let base = vertices.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                let p = n * h[axis] + u * (a * h[(axis + 1) % 3]) + v * (b * h.dot(&v.abs()));
-                vertices.push(p);
-                normals.push(n);
-            }
-            triangles.push([base, base + 1, base + 2]);
-            triangles.push([base, base + 2, base + 3]);
-        }
-    }
-    TriMesh {
-        vertices,
-        normals,
-        triangles,
     }
 }
 
@@ -422,17 +253,18 @@ mod tests {
                 .iter()
                 .map(|t| {
                     let [a, b, c] = t.map(|i| m.vertices[i as usize]);
-                    a.dot(&b.cross(&c)) / 6.0
+                    a.dot(b.cross(c)) / 6.0
                 })
                 .sum();
             assert!(vol > 0.0, "{name}: volume {vol}");
             // Vertex normals agree with face winding.
+            let normals = m.normals.as_ref().expect("vertex normals");
             for t in &m.triangles {
                 let [a, b, c] = t.map(|i| m.vertices[i as usize]);
-                let fnrm = (b - a).cross(&(c - a));
-                if fnrm.norm() > 1e-12 {
-                    let vn = m.normals[t[0] as usize];
-                    assert!(fnrm.dot(&vn) > 0.0, "{name}: normal disagrees with winding");
+                let fnrm = (b - a).cross(c - a);
+                if fnrm.length() > 1e-12 {
+                    let vn = normals[t[0] as usize];
+                    assert!(fnrm.dot(vn) > 0.0, "{name}: normal disagrees with winding");
                 }
             }
         }

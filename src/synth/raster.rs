@@ -7,9 +7,14 @@
 //! (pixel (u, v) is the point (u, v) of the image plane), with an optional
 //! n x n supersampling grid centred on each pixel centre (so it adds blur,
 //! never a shift).
+//!
+//! It is also the splatter's independent reference in tests: [`depth`]
+//! gives the z-buffer of any [`TriangleMesh`] at the pixel centres.
 
 use super::objects::{Light, SynthObject};
 use crate::geometry::{Intrinsics, Pose};
+use crate::model::TriangleMesh;
+use glam::DVec3;
 use nalgebra::{Vector2, Vector3};
 
 /// What one rendering produced: a linear RGB image in 0..1, the depth
@@ -35,28 +40,59 @@ struct ProjectedVertex {
     cam: Vector3<f64>,
 }
 
-/// Renders `object` at `pose` over `background` (linear RGB, the camera's
-/// size, row-major) with `samples` x `samples` supersampling.
-pub fn render(
-    object: &SynthObject,
-    pose: &Pose,
-    cam: &Intrinsics,
-    light: &Light,
-    background: &[[f32; 3]],
-    samples: usize,
-) -> Rendering {
+fn na(v: DVec3) -> Vector3<f64> {
+    Vector3::new(v.x, v.y, v.z)
+}
+
+/// The nearest triangle at every sample of an `s x s` grid per pixel.
+struct Samples {
+    /// Samples per pixel and axis.
+    s: usize,
+    /// Samples per row.
+    sw: usize,
+    /// Camera z of the nearest surface; infinite where none.
+    zbuf: Vec<f64>,
+    /// The nearest triangle; `u32::MAX` where none.
+    hit: Vec<u32>,
+    /// Perspective-correct barycentrics of the triangle's first two vertices.
+    bary: Vec<[f32; 2]>,
+}
+
+impl Samples {
+    /// Camera z at the centre sample of pixel (x, y) (`s` odd); NaN off the mesh.
+    fn centre_depth(&self, x: usize, y: usize) -> f32 {
+        let s = self.s;
+        let k = (y * s + s / 2) * self.sw + x * s + s / 2;
+        if self.hit[k] == u32::MAX {
+            f32::NAN
+        } else {
+            self.zbuf[k] as f32
+        }
+    }
+}
+
+/// The z-buffer of `mesh` at `pose`: camera z at every pixel centre
+/// (OpenCV convention), NaN where the mesh does not cover it.
+pub fn depth(mesh: &TriangleMesh, pose: &Pose, cam: &Intrinsics) -> Vec<f32> {
+    let samples = rasterise(mesh, pose, cam, 1);
+    let w = cam.width as usize;
+    (0..w * cam.height as usize)
+        .map(|k| samples.centre_depth(k % w, k / w))
+        .collect()
+}
+
+/// Scan-converts `mesh` at `pose` into an `s x s` sample grid per pixel.
+fn rasterise(mesh: &TriangleMesh, pose: &Pose, cam: &Intrinsics, s: usize) -> Samples {
     let (w, h) = (cam.width as usize, cam.height as usize);
-    let s = samples.max(1);
     let (sw, sh) = (w * s, h * s);
     let mut zbuf = vec![f64::INFINITY; sw * sh];
     let mut hit: Vec<u32> = vec![u32::MAX; sw * sh];
     let mut bary: Vec<[f32; 2]> = vec![[0.0; 2]; sw * sh];
-    let mesh = &object.mesh;
     let verts: Vec<ProjectedVertex> = mesh
         .vertices
         .iter()
         .map(|v| {
-            let c = pose.transform_point(v);
+            let c = pose.transform_point(&na(*v));
             let inv_z = 1.0 / c.z;
             ProjectedVertex {
                 uv: Vector2::new(cam.fx * c.x * inv_z + cam.cx, cam.fy * c.y * inv_z + cam.cy),
@@ -113,6 +149,31 @@ pub fn render(
             }
         }
     }
+    Samples {
+        s,
+        sw,
+        zbuf,
+        hit,
+        bary,
+    }
+}
+
+/// Renders `object` at `pose` over `background` (linear RGB, the camera's
+/// size, row-major) with `samples` x `samples` supersampling. Shading uses
+/// the mesh's vertex normals (its face normals where it has none).
+pub fn render(
+    object: &SynthObject,
+    pose: &Pose,
+    cam: &Intrinsics,
+    light: &Light,
+    background: &[[f32; 3]],
+    samples: usize,
+) -> Rendering {
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let s = samples.max(1);
+    let mesh = &object.mesh;
+    let grid = rasterise(mesh, pose, cam, s);
+    let (sw, zbuf, hit, bary) = (grid.sw, &grid.zbuf, &grid.hit, &grid.bary);
     let mut out = Rendering {
         width: cam.width,
         height: cam.height,
@@ -141,13 +202,15 @@ pub fn render(
                     let [ia, ib, ic] = mesh.triangles[t as usize];
                     let [ba, bb] = bary[k];
                     let bc = 1.0 - ba - bb;
-                    let p = mesh.vertices[ia as usize] * ba as f64
-                        + mesh.vertices[ib as usize] * bb as f64
-                        + mesh.vertices[ic as usize] * bc as f64;
-                    let n = (mesh.normals[ia as usize] * ba as f64
-                        + mesh.normals[ib as usize] * bb as f64
-                        + mesh.normals[ic as usize] * bc as f64)
-                        .normalize();
+                    let [pa, pb, pc] = [ia, ib, ic].map(|i| na(mesh.vertices[i as usize]));
+                    let p = pa * ba as f64 + pb * bb as f64 + pc * bc as f64;
+                    let n = match &mesh.normals {
+                        Some(normals) => {
+                            let [na_, nb, nc] = [ia, ib, ic].map(|i| na(normals[i as usize]));
+                            (na_ * ba as f64 + nb * bb as f64 + nc * bc as f64).normalize()
+                        }
+                        None => (pb - pa).cross(&(pc - pa)).normalize(),
+                    };
                     let albedo = object.texture.albedo(&p, &n);
                     let n_cam = normal_to_cam * n;
                     let shade = light.shade(&n_cam) as f32;
@@ -161,12 +224,7 @@ pub fn render(
             // Depth at the pixel centre itself where a sample sits there
             // (odd `samples`), else the nearest sample's.
             let depth = if s % 2 == 1 {
-                let k = (y * s + s / 2) * sw + x * s + s / 2;
-                if hit[k] == u32::MAX {
-                    f32::NAN
-                } else {
-                    zbuf[k] as f32
-                }
+                grid.centre_depth(x, y)
             } else if cover > 0.0 {
                 nearest as f32
             } else {

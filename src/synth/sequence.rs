@@ -6,6 +6,7 @@ use super::{SynthConfig, SynthObject, background, keyframe_poses, render_frame};
 use crate::geometry::Pose;
 use crate::io::{PoseRow, write_poses};
 use crate::model::{AttributeSource, PointModel};
+use crate::progress::{ProgressEvent, ProgressFn};
 use glam::Vec3;
 use std::path::{Path, PathBuf};
 
@@ -50,12 +51,8 @@ pub fn sample_model(
     n_points: usize,
     seed: u64,
 ) -> Result<PointModel, SynthError> {
-    let verts: Vec<Vec3> = object
-        .mesh
-        .vertices
-        .iter()
-        .map(|v| Vec3::new(v.x as f32, v.y as f32, v.z as f32))
-        .collect();
+    // Sampled from single-precision vertices, as a mesh file would hold them.
+    let verts: Vec<Vec3> = object.mesh.vertices.iter().map(|v| v.as_vec3()).collect();
     let mut model = PointModel::from_mesh(&verts, &object.mesh.triangles, n_points, seed)?;
     let colors = model
         .positions
@@ -106,12 +103,13 @@ fn save_png(img: &image::RgbImage, path: &Path) -> Result<(), SynthError> {
 /// Writes the sequence `cfg` describes into `dir`: camera.json, frames/,
 /// init.csv, poses.csv (ground truth), keyframes/ (images and poses.csv),
 /// model.ply (`model_points` points sampled from the mesh) and mesh.obj.
-/// `progress` is called after each frame with (done, total).
+/// `progress` hears of each image written (stage "images": frames, then
+/// keyframes).
 pub fn write_sequence(
     cfg: &SynthConfig,
     dir: &Path,
     model_points: usize,
-    mut progress: impl FnMut(usize, usize),
+    progress: Option<&ProgressFn>,
 ) -> Result<SequenceSummary, SynthError> {
     let object = SynthObject::by_name(&cfg.object)
         .ok_or_else(|| SynthError::UnknownObject(cfg.object.clone()))?;
@@ -131,13 +129,23 @@ pub fn write_sequence(
     );
     std::fs::write(&cam_path, cam_json).map_err(io_err(&cam_path))?;
     let obj_path = dir.join("mesh.obj");
-    std::fs::write(&obj_path, object.mesh.to_obj()).map_err(io_err(&obj_path))?;
+    std::fs::write(&obj_path, object.mesh.to_obj("splattrack synthetic object"))
+        .map_err(io_err(&obj_path))?;
     let model = sample_model(&object, model_points, cfg.seed)?;
     model.save_ply(dir.join("model.ply"))?;
 
     let bg = background(cam, cfg.seed);
     let n_kf = keyframe_poses(cfg.distance).len();
     let total = cfg.frames + n_kf;
+    let report = |done: usize| {
+        if let Some(report) = progress {
+            report(ProgressEvent {
+                stage: "images",
+                done: done as u64,
+                total: total as u64,
+            });
+        }
+    };
     let mut rows = Vec::with_capacity(cfg.frames);
     let mut poses = Vec::with_capacity(cfg.frames);
     for i in 0..cfg.frames {
@@ -145,7 +153,7 @@ pub fn write_sequence(
         save_png(&f.image, &frames_dir.join(format!("{i:06}.png")))?;
         rows.push(PoseRow::new(format!("{i:06}"), f.pose));
         poses.push(f.pose);
-        progress(i + 1, total);
+        report(i + 1);
     }
     write_poses(&dir.join("poses.csv"), &rows)?;
     write_poses(&dir.join("init.csv"), &rows[..1])?;
@@ -157,7 +165,7 @@ pub fn write_sequence(
     {
         save_png(&img, &kf_dir.join(&name))?;
         kf_rows.push(PoseRow::new(name, pose));
-        progress(cfg.frames + k + 1, total);
+        report(cfg.frames + k + 1);
     }
     write_poses(&kf_dir.join("poses.csv"), &kf_rows)?;
     Ok(SequenceSummary {

@@ -1,10 +1,9 @@
 //! Helpers shared by the `model_*` integration tests: a PLY writer that can
 //! produce any encoding and property type (independent of the crate's own
-//! writer), temporary files, and synthetic surfaces.
+//! writer) and temporary files.
 #![allow(dead_code)]
 
 use glam::Vec3;
-use splattrack::rng::Rng;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -141,45 +140,6 @@ pub fn ply_bytes(format: &str, elements: &[El]) -> Vec<u8> {
         }
     }
     out
-}
-
-/// Points on a sphere (centre `c`, radius `r`), stratified in
-/// (cos theta, phi) cells then jittered, with outward normals.
-pub fn sphere(n: usize, c: Vec3, r: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = Rng::new(seed);
-    let mut pos = Vec::with_capacity(n);
-    let mut nrm = Vec::with_capacity(n);
-    for i in 0..n {
-        // Fibonacci lattice plus a small jitter: even but not regular.
-        let z = 1.0 - 2.0 * (i as f64 + 0.2 + 0.6 * rng.next_f64()) / n as f64;
-        let phi = i as f64 * 2.399_963_229_728_653 + 0.3 * rng.next_f64();
-        let s = (1.0 - z * z).max(0.0).sqrt();
-        let d = Vec3::new((s * phi.cos()) as f32, (s * phi.sin()) as f32, z as f32);
-        pos.push(c + r * d);
-        nrm.push(d);
-    }
-    (pos, nrm)
-}
-
-/// Points on a torus around the z axis (radii `big`, `small`), with outward
-/// normals, uniformly random over the surface.
-pub fn torus(n: usize, big: f32, small: f32, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
-    let mut rng = Rng::new(seed);
-    let mut pos = Vec::with_capacity(n);
-    let mut nrm = Vec::with_capacity(n);
-    while pos.len() < n {
-        let u = std::f32::consts::TAU * rng.next_f64() as f32;
-        let v = std::f32::consts::TAU * rng.next_f64() as f32;
-        // Rejection sampling for uniform area density.
-        if rng.next_f64() as f32 > (big + small * v.cos()) / (big + small) {
-            continue;
-        }
-        let d = Vec3::new(v.cos() * u.cos(), v.cos() * u.sin(), v.sin());
-        let centre = Vec3::new(big * u.cos(), big * u.sin(), 0.0);
-        pos.push(centre + small * d);
-        nrm.push(d);
-    }
-    (pos, nrm)
 }
 
 /// Vertex rows `x y z` (float) plus optional `nx ny nz` and `radius`.
