@@ -3,12 +3,13 @@
 // attributes by the summed weight. `resolve` writes one attribute of every
 // pixel to a packed float buffer (NaN where no splat contributed);
 // `gather` samples predictors and depth at a few pixel positions only, so the
-// tracker reads back k x 14 floats instead of whole images.
+// tracker reads back k x GATHER_STRIDE floats instead of whole images.
 // CPU references: `SplatImage::from_accumulators` and `cpu::sample_at` in
-// src/splat/.
+// src/splat/. The constants (GATHER_STRIDE, workgroup sizes) come from
+// the prelude of src/shaders.rs.
 
-// Keep in sync with `ResolveParams` in src/splat/gpu_data.rs.
-struct Params {
+// Twin: `ResolveParams` in src/splat/gpu_data.rs.
+struct ResolveParams {
     width: u32,
     height: u32,
     // normalize: 0 colour (3), 1 depth (1), 2 normal (3), 3 motion (12),
@@ -18,7 +19,7 @@ struct Params {
     mode: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(0) var<uniform> params: ResolveParams;
 @group(0) @binding(1) var t0: texture_2d<f32>;
 @group(0) @binding(2) var t1: texture_2d<f32>;
 @group(0) @binding(3) var t2: texture_2d<f32>;
@@ -32,7 +33,7 @@ fn nan() -> f32 {
     return bitcast<f32>(0x7fc00000u);
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;
@@ -104,9 +105,10 @@ fn inside(p: vec2<i32>) -> bool {
     return p.x >= 0 && p.y >= 0 && p.x < i32(params.width) && p.y < i32(params.height);
 }
 
-// Output per point: du_tx, dv_tx, ..., du_rz, dv_rz (12), depth, valid
-// (1 or 0); predictors and depth are NaN when invalid.
-@compute @workgroup_size(64)
+// Output per point (GATHER_STRIDE floats): du_tx, dv_tx, ..., du_rz,
+// dv_rz (12), depth, valid (1 or 0); predictors and depth are NaN when
+// invalid.
+@compute @workgroup_size(WORKGROUP_1D)
 fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i >= params.kind {
@@ -145,7 +147,7 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
             s = load(p);
         }
     }
-    let base = i * 14u;
+    let base = i * GATHER_STRIDE;
     let valid = s.w > 0.0;
     for (var k = 0u; k < 4u; k++) {
         out[base + k] = select(nan(), s.a[k], valid);
