@@ -94,11 +94,13 @@ fn index(id: vec3<u32>) -> u32 {
 // or y, or -1 where that leaves the image (the tap then invalidates the
 // result).
 fn tap(id: vec3<u32>, t: i32, horizontal: bool) -> i32 {
-    let p = vec2<i32>(id.xy) + select(vec2<i32>(0, t), vec2<i32>(t, 0), horizontal);
-    if (p.x < 0 || p.y < 0 || p.x >= i32(params.width) || p.y >= i32(params.height)) {
-        return -1;
+    let w = i32(params.width);
+    if (horizontal) {
+        let x = i32(id.x) + t;
+        return select(i32(id.y) * w + x, -1, x < 0 || x >= w);
     }
-    return p.y * i32(params.width) + p.x;
+    let y = i32(id.y) + t;
+    return select(y * w + i32(id.x), -1, y < 0 || y >= i32(params.height));
 }
 
 // Rec. 601 luma, the same weights and order as GreyImage::from_rgb8.
@@ -117,63 +119,41 @@ fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
     pixels[i] = Pixel(luma, flags);
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (outside(id)) {
-        return;
-    }
+// The Gaussian-derivative pass along x (`horizontal`: from the pixels,
+// giving (I*g'_x, I*g_x, valid, 0)) or along y (from deriv_h's output,
+// giving (Ix, Iy, valid, 0)).
+fn derive(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     let rd = i32(params.rd);
     let nd = 2u * params.rd + 1u;
     var a = 0.0;
     var b = 0.0;
     var ok = 1.0;
     for (var t = -rd; t <= rd; t++) {
-        let j = tap(id, t, true);
+        let j = tap(id, t, horizontal);
         if (j < 0) {
             ok = 0.0;
             continue;
         }
-        let p = pixels[j];
-        if (!pixel_valid(p)) {
-            ok = 0.0;
+        var s: vec3<f32>;
+        if (horizontal) {
+            let p = pixels[j];
+            s = vec3<f32>(p.value, p.value, select(0.0, 1.0, pixel_valid(p)));
+        } else {
+            s = tmp[j].xyz;
         }
-        let k = u32(t + rd);
-        a = a + p.value * weight(nd + k);
-        b = b + p.value * weight(k);
-    }
-    tmp[index(id)] = vec4<f32>(a, b, ok, 0.0);
-}
-
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (outside(id)) {
-        return;
-    }
-    let rd = i32(params.rd);
-    let nd = 2u * params.rd + 1u;
-    var ix = 0.0;
-    var iy = 0.0;
-    var ok = 1.0;
-    for (var t = -rd; t <= rd; t++) {
-        let j = tap(id, t, false);
-        if (j < 0) {
-            ok = 0.0;
-            continue;
-        }
-        let s = tmp[j];
         ok = min(ok, s.z);
+        // g' then g along x; g then g' along y.
         let k = u32(t + rd);
-        ix = ix + s.x * weight(k);
-        iy = iy + s.y * weight(nd + k);
+        a = a + s.x * weight(select(k, nd + k, horizontal));
+        b = b + s.y * weight(select(nd + k, k, horizontal));
     }
-    grad[index(id)] = vec4<f32>(ix, iy, ok, 0.0);
+    return vec4<f32>(a, b, ok, 0.0);
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (outside(id)) {
-        return;
-    }
+// The Gaussian smoothing of the structure tensor along x (`horizontal`:
+// from the gradients) or along y (from integrate_h's output):
+// (Sxx, Syy, Sxy, valid).
+fn integrate(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     let ri = i32(params.ri);
     let base = 2u * (2u * params.rd + 1u);
     var sxx = 0.0;
@@ -181,19 +161,46 @@ fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
     var sxy = 0.0;
     var ok = 1.0;
     for (var t = -ri; t <= ri; t++) {
-        let j = tap(id, t, true);
+        let j = tap(id, t, horizontal);
         if (j < 0) {
             ok = 0.0;
             continue;
         }
-        let g = grad[j];
-        ok = min(ok, g.z);
+        var s: vec4<f32>;
+        if (horizontal) {
+            let g = grad[j];
+            s = vec4<f32>(g.x * g.x, g.y * g.y, g.x * g.y, g.z);
+        } else {
+            s = tmp[j];
+        }
+        ok = min(ok, s.w);
         let c = weight(base + u32(t + ri));
-        sxx = sxx + g.x * g.x * c;
-        syy = syy + g.y * g.y * c;
-        sxy = sxy + g.x * g.y * c;
+        sxx = sxx + s.x * c;
+        syy = syy + s.y * c;
+        sxy = sxy + s.z * c;
     }
-    tmp[index(id)] = vec4<f32>(sxx, syy, sxy, ok);
+    return vec4<f32>(sxx, syy, sxy, ok);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        tmp[index(id)] = derive(id, true);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        grad[index(id)] = derive(id, false);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        tmp[index(id)] = integrate(id, true);
+    }
 }
 
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
@@ -201,25 +208,11 @@ fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
     if (outside(id)) {
         return;
     }
-    let ri = i32(params.ri);
-    let base = 2u * (2u * params.rd + 1u);
-    var sxx = 0.0;
-    var syy = 0.0;
-    var sxy = 0.0;
-    var ok = 1.0;
-    for (var t = -ri; t <= ri; t++) {
-        let j = tap(id, t, false);
-        if (j < 0) {
-            ok = 0.0;
-            continue;
-        }
-        let s = tmp[j];
-        ok = min(ok, s.w);
-        let c = weight(base + u32(t + ri));
-        sxx = sxx + s.x * c;
-        syy = syy + s.y * c;
-        sxy = sxy + s.z * c;
-    }
+    let st = integrate(id, false);
+    let sxx = st.x;
+    let syy = st.y;
+    let sxy = st.z;
+    let ok = st.w;
     let i = index(id);
     if (ok < 0.5) {
         response[i] = INVALID_RESPONSE;
