@@ -39,6 +39,19 @@ wgsl_struct! {
     }
 }
 
+impl Pixel {
+    /// A grey value as the kernels read it: a non-finite (invalid) value
+    /// becomes 0 with [`PIXEL_VALID`] cleared; `allowed` sets
+    /// [`PIXEL_ALLOWED`].
+    pub fn new(value: f32, allowed: bool) -> Self {
+        let valid = value.is_finite();
+        Self {
+            value: if valid { value } else { 0.0 },
+            flags: if valid { PIXEL_VALID } else { 0 } | if allowed { PIXEL_ALLOWED } else { 0 },
+        }
+    }
+}
+
 wgsl_struct! {
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub struct HarrisParams {

@@ -2,7 +2,7 @@
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
 use super::FeatureError;
-use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, PIXEL_VALID, Pixel};
+use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use crate::gpu::{
@@ -284,19 +284,7 @@ impl<'a> NccMatcher<'a> {
             .data
             .iter()
             .chain(&img_b.data)
-            .map(|&v| {
-                if v.is_finite() {
-                    Pixel {
-                        value: v,
-                        flags: PIXEL_VALID,
-                    }
-                } else {
-                    Pixel {
-                        value: 0.0,
-                        flags: 0,
-                    }
-                }
-            })
+            .map(|&v| Pixel::new(v, false))
             .collect();
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));

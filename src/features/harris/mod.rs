@@ -12,9 +12,7 @@ pub use cpu::{harris_cpu, harris_response_cpu};
 pub use gpu::Harris;
 
 use super::FeatureError;
-use super::gpu_data::{
-    Candidate, MAX_DERIV_RADIUS, MAX_INTEGRATION_RADIUS, PIXEL_ALLOWED, PIXEL_VALID, Pixel,
-};
+use super::gpu_data::{Candidate, MAX_DERIV_RADIUS, MAX_INTEGRATION_RADIUS, Pixel};
 use super::image::GreyImage;
 
 /// A corner: sub-pixel position (OpenCV convention: pixel (0, 0) is the
@@ -202,15 +200,7 @@ pub(crate) fn pack_pixels(img: &GreyImage, mask: Option<&[bool]>) -> Vec<Pixel> 
     img.data
         .iter()
         .enumerate()
-        .map(|(i, &v)| {
-            let valid = v.is_finite();
-            let allowed = mask.is_none_or(|m| m[i]);
-            Pixel {
-                value: if valid { v } else { 0.0 },
-                flags: if valid { PIXEL_VALID } else { 0 }
-                    | if allowed { PIXEL_ALLOWED } else { 0 },
-            }
-        })
+        .map(|(i, &v)| Pixel::new(v, mask.is_none_or(|m| m[i])))
         .collect()
 }
 
