@@ -12,7 +12,7 @@
 //!    (`CameraUniform`, `Pixel`) and their helpers;
 //! 3. the shader's own file.
 //!
-//! Every struct the host shares with WGSL is declared with [`wgsl_struct!`],
+//! Every struct the host shares with WGSL is declared with [`wgsl_struct!`](crate::wgsl_struct),
 //! which records its members' names, offsets and sizes; the tests compare
 //! each with naga's layout of the WGSL struct of the same name (and check
 //! that every struct a shader binds as a buffer has a Rust twin), so a
@@ -126,7 +126,7 @@ pub struct Member {
 }
 
 /// A `#[repr(C)]` struct with a WGSL twin of the same name. Implemented by
-/// [`wgsl_struct!`]; never by hand, so that the members cannot drift from
+/// [`wgsl_struct!`](crate::wgsl_struct); never by hand, so that the members cannot drift from
 /// the definition.
 pub trait WgslStruct: bytemuck::Pod {
     /// The struct's name, in Rust and in WGSL.

@@ -1,6 +1,6 @@
 //! Host twins of the structs in `shaders/harris.wgsl`, `shaders/ncc.wgsl`
 //! and `shaders/common.wgsl` (`Pixel`), and the constants the shaders
-//! share with the host. Each struct is declared with [`wgsl_struct!`], and
+//! share with the host. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct), and
 //! the tests of [`crate::shaders`] compare it member by member with its
 //! WGSL twin; each constant reaches WGSL through the prelude of
 //! [`crate::shaders::CONSTANTS`], never by copy.

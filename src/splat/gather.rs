@@ -3,7 +3,7 @@
 
 use nalgebra::Matrix2x6;
 
-/// How [`Splatter::gather`] samples between pixel centres.
+/// How [`super::Splatter::gather`] samples between pixel centres.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum GatherMode {
     /// The pixel whose centre is nearest.
@@ -14,7 +14,7 @@ pub enum GatherMode {
     Bilinear,
 }
 
-/// Motion predictors and depth at one position, as [`Splatter::gather`]
+/// Motion predictors and depth at one position, as [`super::Splatter::gather`]
 /// returns them.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GatherSample {

@@ -1,6 +1,6 @@
 //! Structs and constants shared with shaders/splat.wgsl,
 //! shaders/splat_resolve.wgsl and shaders/common.wgsl (`CameraUniform`),
-//! byte for byte. Each struct is declared with [`wgsl_struct!`] and
+//! byte for byte. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct) and
 //! compared member by member with its WGSL twin by the tests of
 //! [`crate::shaders`]; the constants reach WGSL through its prelude.
 

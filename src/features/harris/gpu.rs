@@ -243,7 +243,7 @@ impl<'a> Harris<'a> {
         Ok(())
     }
 
-    /// The response map (row-major, [`super::INVALID_RESPONSE`] where the
+    /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
     /// support leaves the image or touches an invalid pixel), for tests and
     /// visualisation.
     pub fn response(&mut self, img: &GreyImage) -> Result<Vec<f32>, FeatureError> {

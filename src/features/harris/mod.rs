@@ -1,8 +1,8 @@
 //! Harris corners (Harris & Stephens 1988; Dehais et al. 2010, section
 //! 4.2): the configuration and the host steps that the GPU detector
-//! ([`gpu`], `shaders/harris.wgsl`) and its CPU reference ([`cpu`]) share
-//! (kernel taps, pixel packing, spread selection, merging of refined
-//! duplicates). Both import from here and never from each other. See the
+//! ([`Harris`] in `gpu.rs`, `shaders/harris.wgsl`) and its CPU reference
+//! ([`harris_cpu`] in `cpu.rs`) share (kernel taps, pixel packing, spread
+//! selection, merging of refined duplicates). Both import from here and never from each other. See the
 //! module docs of [`super`] for how it works.
 
 mod cpu;
