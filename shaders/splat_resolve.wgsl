@@ -12,10 +12,12 @@
 struct ResolveParams {
     width: u32,
     height: u32,
-    // normalize: 0 colour (3), 1 depth (1), 2 normal (3), 3 motion (12),
-    // 4 weight (1, the raw sum). gather: number of points.
+    // resolve: RESOLVE_COLOR (3 floats), RESOLVE_DEPTH (1), RESOLVE_NORMAL
+    // (3), RESOLVE_MOTION (12), RESOLVE_WEIGHT (1, the raw sum).
+    // gather: number of points.
     kind: u32,
-    // gather: 0 nearest pixel, 1 bilinear where all four pixels are covered.
+    // gather: GATHER_NEAREST (the nearest pixel) or GATHER_BILINEAR
+    // (bilinear where all four pixels are covered).
     mode: u32,
 }
 
@@ -43,16 +45,16 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = a.w;
     let pixel = id.y * params.width + id.x;
     switch params.kind {
-        case 0u: {
+        case RESOLVE_COLOR: {
             let base = pixel * 3u;
             for (var k = 0u; k < 3u; k++) {
                 out[base + k] = select(nan(), a[k] / w, w > 0.0);
             }
         }
-        case 1u: {
+        case RESOLVE_DEPTH: {
             out[pixel] = select(nan(), textureLoad(t1, p, 0).x / w, w > 0.0);
         }
-        case 2u: {
+        case RESOLVE_NORMAL: {
             let base = pixel * 3u;
             let n = textureLoad(t1, p, 0).yzw;
             // The weighted mean of unit normals, renormalised.
@@ -61,7 +63,7 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
                 out[base + k] = select(nan(), n[k] / len, w > 0.0 && len > 0.0);
             }
         }
-        case 3u: {
+        case RESOLVE_MOTION: {
             let base = pixel * 12u;
             let b = textureLoad(t2, p, 0);
             let c = textureLoad(t3, p, 0);
@@ -72,7 +74,7 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
                 out[base + 8u + k] = select(nan(), d[k] / w, w > 0.0);
             }
         }
-        default: {
+        case RESOLVE_WEIGHT, default: {
             out[pixel] = w;
         }
     }
@@ -118,7 +120,7 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
     var s: Sample;
     s.w = 0.0;
     var done = false;
-    if params.mode == 1u && all(x == x) {
+    if params.mode == GATHER_BILINEAR && all(x == x) {
         let f = floor(x);
         let p0 = vec2<i32>(f);
         let t = x - f;

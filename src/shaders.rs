@@ -5,8 +5,8 @@
 //!
 //! Each shader is composed as
 //! 1. a prelude generated from the Rust constants ([`CONSTANTS`]): pixel
-//!    flags, sentinels, the NCC tile, the gather stride, the Harris tap
-//!    count, the workgroup sizes; a WGSL file never defines one itself (a
+//!    flags, sentinels, the NCC tile, the gather stride and modes, the
+//!    resolve kinds, the Harris tap count, the workgroup sizes; a WGSL file never defines one itself (a
 //!    second definition does not compile);
 //! 2. `shaders/common.wgsl`: the structs several shaders share
 //!    (`CameraUniform`, `Pixel`) and their helpers;
@@ -65,6 +65,13 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("NCC_TILE", U32(f::NCC_TILE)),
         ("GATHER_STRIDE", U32(s::GATHER_STRIDE as u32)),
         ("RESOLVE_WORKGROUP", U32(s::RESOLVE_WORKGROUP)),
+        ("RESOLVE_COLOR", U32(s::RESOLVE_COLOR)),
+        ("RESOLVE_DEPTH", U32(s::RESOLVE_DEPTH)),
+        ("RESOLVE_NORMAL", U32(s::RESOLVE_NORMAL)),
+        ("RESOLVE_MOTION", U32(s::RESOLVE_MOTION)),
+        ("RESOLVE_WEIGHT", U32(s::RESOLVE_WEIGHT)),
+        ("GATHER_NEAREST", U32(s::GATHER_NEAREST)),
+        ("GATHER_BILINEAR", U32(s::GATHER_BILINEAR)),
     ]
 };
 

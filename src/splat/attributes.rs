@@ -1,6 +1,10 @@
 //! What a render produces ([`Attributes`]) and what can be read back
 //! ([`Attribute`]).
 
+use super::gpu_data::{
+    RESOLVE_COLOR, RESOLVE_DEPTH, RESOLVE_MOTION, RESOLVE_NORMAL, RESOLVE_WEIGHT,
+};
+
 /// One attribute image that can be read back.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Attribute {
@@ -25,13 +29,14 @@ impl Attribute {
         }
     }
 
+    /// `ResolveParams.kind` of this attribute.
     pub(crate) fn kind(self) -> u32 {
         match self {
-            Self::Color => 0,
-            Self::Depth => 1,
-            Self::Normal => 2,
-            Self::Motion => 3,
-            Self::Weight => 4,
+            Self::Color => RESOLVE_COLOR,
+            Self::Depth => RESOLVE_DEPTH,
+            Self::Normal => RESOLVE_NORMAL,
+            Self::Motion => RESOLVE_MOTION,
+            Self::Weight => RESOLVE_WEIGHT,
         }
     }
 

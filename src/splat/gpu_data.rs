@@ -78,5 +78,18 @@ wgsl_struct! {
     }
 }
 
+/// `ResolveParams.kind` of `resolve`: which attribute to normalise.
+pub const RESOLVE_COLOR: u32 = 0;
+pub const RESOLVE_DEPTH: u32 = 1;
+pub const RESOLVE_NORMAL: u32 = 2;
+pub const RESOLVE_MOTION: u32 = 3;
+/// The raw summed weight.
+pub const RESOLVE_WEIGHT: u32 = 4;
+
+/// `ResolveParams.mode` of `gather`: the nearest pixel...
+pub const GATHER_NEAREST: u32 = 0;
+/// ...or bilinear where all four pixels are covered.
+pub const GATHER_BILINEAR: u32 = 1;
+
 /// Workgroup edge of `resolve` (8x8 pixels per workgroup).
 pub const RESOLVE_WORKGROUP: u32 = 8;

@@ -1,7 +1,9 @@
 //! The GPU splatter: pipelines for the three passes and the gather kernel
 //! (the module docs of [`super`] say how it works).
 
-use super::gpu_data::{GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams};
+use super::gpu_data::{
+    GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
+};
 use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, target_slots};
 use super::{
     Attribute, Attributes, GatherMode, GatherSample, GpuModel, SplatError, SplatImage, SplatParams,
@@ -344,7 +346,7 @@ impl Splatter {
                 width: w,
                 height: h,
                 kind: attribute.kind(),
-                mode: 0,
+                mode: GATHER_NEAREST,
             },
             &out,
             None,
@@ -395,8 +397,8 @@ impl Splatter {
                 height: targets.height,
                 kind: points.len() as u32,
                 mode: match mode {
-                    GatherMode::Nearest => 0,
-                    GatherMode::Bilinear => 1,
+                    GatherMode::Nearest => GATHER_NEAREST,
+                    GatherMode::Bilinear => GATHER_BILINEAR,
                 },
             },
             &out,
