@@ -14,11 +14,10 @@ use splattrack::synth::{
     SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Tracker, TrackerConfig};
-use std::sync::Arc;
 use std::time::Duration;
 
 fn bench(c: &mut Criterion) {
-    let ctx = Arc::new(GpuContext::from_env().expect("a GPU adapter (lavapipe will do)"));
+    let ctx = GpuContext::from_env().expect("a GPU adapter (lavapipe will do)");
     eprintln!("adapter: {}", ctx.describe());
     let cfg = SynthConfig {
         frames: 120,
@@ -52,7 +51,7 @@ fn bench(c: &mut Criterion) {
             ..Default::default()
         };
         let mut tracker = Tracker::new(
-            ctx.clone(),
+            &ctx,
             model.clone(),
             cfg.camera,
             Some(store.clone()),
@@ -68,7 +67,7 @@ fn bench(c: &mut Criterion) {
                 // Restart at frame 0 after the 30 frames, from its true pose.
                 if i.is_multiple_of(frames.len()) {
                     tracker = Tracker::new(
-                        ctx.clone(),
+                        &ctx,
                         model.clone(),
                         cfg.camera,
                         Some(store.clone()),

@@ -1,9 +1,12 @@
 // Harris corners (Harris & Stephens 1988; Dehais et al. 2010, section 4.2).
 // Host code and the CPU reference that mirrors every pass, operation for
-// operation: src/features/harris.rs and src/features/harris_cpu.rs.
+// operation: src/features/harris/gpu.rs and src/features/harris/cpu.rs.
+// Composed after the prelude and common.wgsl (src/shaders.rs): the
+// constants (PIXEL_VALID, INVALID_RESPONSE, MAX_TAPS, workgroup sizes) and
+// `Pixel` come from there.
 //
-// Passes (one dispatch each, 16x16 threads per workgroup, one thread per
-// pixel): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
+// Passes (one dispatch each, WORKGROUP_2D^2 threads per workgroup, one
+// thread per pixel): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
 // alpha byte carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
 // -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
@@ -14,12 +17,8 @@
 // support, with pixels outside the image counting as invalid. So a response
 // is valid only if its whole support lies on valid pixels inside the image.
 
-const INVALID: f32 = -3.0e38;
-const PIXEL_VALID: u32 = 1u;
-const PIXEL_ALLOWED: u32 = 2u;
-
-// Keep in sync with HarrisParams in src/features/gpu_data.rs.
-struct Params {
+// Twin: HarrisParams in src/features/gpu_data.rs.
+struct HarrisParams {
     width: u32,
     height: u32,
     rd: u32,
@@ -37,14 +36,10 @@ struct Params {
     pad1: u32,
     pad2: u32,
     // g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
-    weights: array<vec4<f32>, 16>,
+    weights: array<vec4<f32>, MAX_TAPS / 4u>,
 }
 
-struct Pixel {
-    value: f32,
-    flags: u32,
-}
-
+// Twins of the structs of the same names in src/features/gpu_data.rs.
 struct Candidate {
     x: u32,
     y: u32,
@@ -59,7 +54,15 @@ struct Counters {
     pad1: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+// A corner being refined; status 1: refined, 0: kept at its start.
+struct RefineCorner {
+    x: f32,
+    y: f32,
+    score: f32,
+    status: f32,
+}
+
+@group(0) @binding(0) var<uniform> params: HarrisParams;
 // Written by the host, or by the grey pass from `rgba`.
 @group(0) @binding(1) var<storage, read_write> pixels: array<Pixel>;
 // deriv_h writes (I*g'_x, I*g_x, valid, 0); integrate_h writes (Sxx, Syy, Sxy, valid).
@@ -69,8 +72,7 @@ struct Counters {
 @group(0) @binding(4) var<storage, read_write> response: array<f32>;
 @group(0) @binding(5) var<storage, read_write> counters: Counters;
 @group(0) @binding(6) var<storage, read_write> candidates: array<Candidate>;
-// (x, y, score, status) per selected corner.
-@group(0) @binding(7) var<storage, read_write> corners: array<vec4<f32>>;
+@group(0) @binding(7) var<storage, read_write> corners: array<RefineCorner>;
 // RGB input packed as RGBA8 (alpha 0: outside the mask).
 @group(0) @binding(8) var<storage, read> rgba: array<u32>;
 
@@ -78,14 +80,36 @@ fn weight(i: u32) -> f32 {
     return params.weights[i / 4u][i % 4u];
 }
 
+// True for the threads of the last workgroups that overhang the image.
+fn outside(id: vec3<u32>) -> bool {
+    return id.x >= params.width || id.y >= params.height;
+}
+
+// Row-major index of the thread's pixel.
+fn index(id: vec3<u32>) -> u32 {
+    return id.y * params.width + id.x;
+}
+
+// Index of the pixel `t` steps from the thread's along x (`horizontal`)
+// or y, or -1 where that leaves the image (the tap then invalidates the
+// result).
+fn tap(id: vec3<u32>, t: i32, horizontal: bool) -> i32 {
+    let w = i32(params.width);
+    if (horizontal) {
+        let x = i32(id.x) + t;
+        return select(i32(id.y) * w + x, -1, x < 0 || x >= w);
+    }
+    let y = i32(id.y) + t;
+    return select(y * w + i32(id.x), -1, y < 0 || y >= i32(params.height));
+}
+
 // Rec. 601 luma, the same weights and order as GreyImage::from_rgb8.
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    if (id.x >= w || id.y >= params.height) {
+    if (outside(id)) {
         return;
     }
-    let i = id.y * w + id.x;
+    let i = index(id);
     let c = unpack4x8unorm(rgba[i]);
     let luma = 0.299 * c.x + 0.587 * c.y + 0.114 * c.z;
     var flags = PIXEL_VALID;
@@ -95,67 +119,41 @@ fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
     pixels[i] = Pixel(luma, flags);
 }
 
-@compute @workgroup_size(16, 16)
-fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    if (id.x >= w || id.y >= params.height) {
-        return;
-    }
+// The Gaussian-derivative pass along x (`horizontal`: from the pixels,
+// giving (I*g'_x, I*g_x, valid, 0)) or along y (from deriv_h's output,
+// giving (Ix, Iy, valid, 0)).
+fn derive(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     let rd = i32(params.rd);
     let nd = 2u * params.rd + 1u;
     var a = 0.0;
     var b = 0.0;
     var ok = 1.0;
     for (var t = -rd; t <= rd; t++) {
-        let x = i32(id.x) + t;
-        if (x < 0 || x >= i32(w)) {
+        let j = tap(id, t, horizontal);
+        if (j < 0) {
             ok = 0.0;
             continue;
         }
-        let p = pixels[id.y * w + u32(x)];
-        if ((p.flags & PIXEL_VALID) == 0u) {
-            ok = 0.0;
+        var s: vec3<f32>;
+        if (horizontal) {
+            let p = pixels[j];
+            s = vec3<f32>(p.value, p.value, select(0.0, 1.0, pixel_valid(p)));
+        } else {
+            s = tmp[j].xyz;
         }
-        let k = u32(t + rd);
-        a = a + p.value * weight(nd + k);
-        b = b + p.value * weight(k);
-    }
-    tmp[id.y * w + id.x] = vec4<f32>(a, b, ok, 0.0);
-}
-
-@compute @workgroup_size(16, 16)
-fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    let h = params.height;
-    if (id.x >= w || id.y >= h) {
-        return;
-    }
-    let rd = i32(params.rd);
-    let nd = 2u * params.rd + 1u;
-    var ix = 0.0;
-    var iy = 0.0;
-    var ok = 1.0;
-    for (var t = -rd; t <= rd; t++) {
-        let y = i32(id.y) + t;
-        if (y < 0 || y >= i32(h)) {
-            ok = 0.0;
-            continue;
-        }
-        let s = tmp[u32(y) * w + id.x];
         ok = min(ok, s.z);
+        // g' then g along x; g then g' along y.
         let k = u32(t + rd);
-        ix = ix + s.x * weight(k);
-        iy = iy + s.y * weight(nd + k);
+        a = a + s.x * weight(select(k, nd + k, horizontal));
+        b = b + s.y * weight(select(nd + k, k, horizontal));
     }
-    grad[id.y * w + id.x] = vec4<f32>(ix, iy, ok, 0.0);
+    return vec4<f32>(a, b, ok, 0.0);
 }
 
-@compute @workgroup_size(16, 16)
-fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    if (id.x >= w || id.y >= params.height) {
-        return;
-    }
+// The Gaussian smoothing of the structure tensor along x (`horizontal`:
+// from the gradients) or along y (from integrate_h's output):
+// (Sxx, Syy, Sxy, valid).
+fn integrate(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     let ri = i32(params.ri);
     let base = 2u * (2u * params.rd + 1u);
     var sxx = 0.0;
@@ -163,50 +161,61 @@ fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
     var sxy = 0.0;
     var ok = 1.0;
     for (var t = -ri; t <= ri; t++) {
-        let x = i32(id.x) + t;
-        if (x < 0 || x >= i32(w)) {
+        let j = tap(id, t, horizontal);
+        if (j < 0) {
             ok = 0.0;
             continue;
         }
-        let g = grad[id.y * w + u32(x)];
-        ok = min(ok, g.z);
-        let c = weight(base + u32(t + ri));
-        sxx = sxx + g.x * g.x * c;
-        syy = syy + g.y * g.y * c;
-        sxy = sxy + g.x * g.y * c;
-    }
-    tmp[id.y * w + id.x] = vec4<f32>(sxx, syy, sxy, ok);
-}
-
-@compute @workgroup_size(16, 16)
-fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    let h = params.height;
-    if (id.x >= w || id.y >= h) {
-        return;
-    }
-    let ri = i32(params.ri);
-    let base = 2u * (2u * params.rd + 1u);
-    var sxx = 0.0;
-    var syy = 0.0;
-    var sxy = 0.0;
-    var ok = 1.0;
-    for (var t = -ri; t <= ri; t++) {
-        let y = i32(id.y) + t;
-        if (y < 0 || y >= i32(h)) {
-            ok = 0.0;
-            continue;
+        var s: vec4<f32>;
+        if (horizontal) {
+            let g = grad[j];
+            s = vec4<f32>(g.x * g.x, g.y * g.y, g.x * g.y, g.z);
+        } else {
+            s = tmp[j];
         }
-        let s = tmp[u32(y) * w + id.x];
         ok = min(ok, s.w);
         let c = weight(base + u32(t + ri));
         sxx = sxx + s.x * c;
         syy = syy + s.y * c;
         sxy = sxy + s.z * c;
     }
-    let i = id.y * w + id.x;
+    return vec4<f32>(sxx, syy, sxy, ok);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        tmp[index(id)] = derive(id, true);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        grad[index(id)] = derive(id, false);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (!outside(id)) {
+        tmp[index(id)] = integrate(id, true);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (outside(id)) {
+        return;
+    }
+    let st = integrate(id, false);
+    let sxx = st.x;
+    let syy = st.y;
+    let sxy = st.z;
+    let ok = st.w;
+    let i = index(id);
     if (ok < 0.5) {
-        response[i] = INVALID;
+        response[i] = INVALID_RESPONSE;
         return;
     }
     let tr = sxx + syy;
@@ -214,21 +223,21 @@ fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
     response[i] = r;
     // Positive floats order like their bit patterns: an integer atomicMax
     // finds the largest response for the relative threshold.
-    if (r > 0.0 && (pixels[i].flags & PIXEL_ALLOWED) != 0u) {
+    if (r > 0.0 && pixel_allowed(pixels[i])) {
         atomicMax(&counters.max_bits, bitcast<u32>(r));
     }
 }
 
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn nms(@builtin(global_invocation_id) id: vec3<u32>) {
-    let w = params.width;
-    let h = params.height;
-    if (id.x >= w || id.y >= h) {
+    if (outside(id)) {
         return;
     }
-    let i = id.y * w + id.x;
+    let w = params.width;
+    let h = params.height;
+    let i = index(id);
     let r = response[i];
-    if (r <= INVALID || (pixels[i].flags & PIXEL_ALLOWED) == 0u) {
+    if (r <= INVALID_RESPONSE || !pixel_allowed(pixels[i])) {
         return;
     }
     let max_r = bitcast<f32>(atomicLoad(&counters.max_bits));
@@ -262,14 +271,14 @@ fn nms(@builtin(global_invocation_id) id: vec3<u32>) {
 // cornerSubPix): at the true corner q, every gradient g(p) of the window is
 // orthogonal to p - q, so q solves sum w g g^T (p - q) = 0 in least squares.
 // The window is re-centred on the estimate and the solve repeated.
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
     let n = id.x;
     if (n >= params.n_corners) {
         return;
     }
     let c = corners[n];
-    let start = c.xy;
+    let start = vec2<f32>(c.x, c.y);
     var q = start;
     var status = 0.0;
     let rw = i32(params.refine_radius);
@@ -332,5 +341,5 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
     }
-    corners[n] = vec4<f32>(q, c.z, status);
+    corners[n] = RefineCorner(q.x, q.y, c.score, status);
 }

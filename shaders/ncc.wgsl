@@ -1,12 +1,15 @@
 // NCC matching with a mutual cross-check (Dehais et al. 2010, section 4.2).
 // Host code and the CPU reference: src/features/ncc.rs, src/features/ncc_cpu.rs.
+// Composed after the prelude and common.wgsl (src/shaders.rs): the
+// constants (NO_SCORE, NO_INDEX, NCC_TILE, PIXEL_VALID, workgroup sizes)
+// and `Pixel` come from there.
 //
 // vectorize: one thread per feature of A then B; samples the w x w window
 //   bilinearly at the feature's sub-pixel position into one row of the
 //   (na + nb) x stride descriptor buffer (the paper's n x w^2 layout, rows
-//   zero-padded to a multiple of TILE), zero-mean and unit-norm.
-// score_tiled / score_direct: S = A B^T, as a tiled matrix product (16x16
-//   tiles in workgroup memory, for GPUs) or one thread per entry reading
+//   zero-padded to a multiple of NCC_TILE), zero-mean and unit-norm.
+// score_tiled / score_direct: S = A B^T, as a tiled matrix product
+//   (NCC_TILE x NCC_TILE tiles in workgroup memory, for GPUs) or one thread per entry reading
 //   the rows directly (for CPU adapters such as lavapipe, where workgroup
 //   barriers are expensive: 0.55 s against ~0.02 s for 900 x 900). Same sum
 //   in the same order either way. Pairs with an invalid window or beyond
@@ -14,13 +17,8 @@
 // row_best / col_best: one workgroup per row / column reduces to the best
 //   score (ties: the lower index). The host keeps mutual bests.
 
-const NO_SCORE: f32 = -2.0;
-const NO_INDEX: u32 = 0xffffffffu;
-const TILE: u32 = 16u;
-const PIXEL_VALID: u32 = 1u;
-
-// Keep in sync with NccParams in src/features/gpu_data.rs.
-struct Params {
+// Twin: NccParams in src/features/gpu_data.rs.
+struct NccParams {
     na: u32,
     nb: u32,
     stride: u32,
@@ -35,22 +33,18 @@ struct Params {
     pad: u32,
 }
 
-struct Pixel {
-    value: f32,
-    flags: u32,
-}
-
+// Twin: Best in src/features/gpu_data.rs.
 struct Best {
     index: u32,
     score: f32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(0) var<uniform> params: NccParams;
 // Image A's pixels, then image B's from offset_b.
 @group(0) @binding(1) var<storage, read> pixels: array<Pixel>;
 // Feature positions of A, then of B.
 @group(0) @binding(2) var<storage, read> positions: array<vec2<f32>>;
-// Rows of `stride` floats (a multiple of TILE), read and written as vec4.
+// Rows of `stride` floats (a multiple of NCC_TILE), read and written as vec4.
 @group(0) @binding(3) var<storage, read_write> desc: array<vec4<f32>>;
 
 fn desc_get(i: u32) -> f32 {
@@ -80,7 +74,7 @@ fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     let p10 = pixels[i + 1u];
     let p01 = pixels[i + w];
     let p11 = pixels[i + w + 1u];
-    if ((p00.flags & p10.flags & p01.flags & p11.flags & PIXEL_VALID) == 0u) {
+    if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
         return vec2<f32>(0.0, 0.0);
     }
     let top = p00.value + fx * (p10.value - p00.value);
@@ -88,7 +82,7 @@ fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     return vec2<f32>(top + fy * (bottom - top), 1.0);
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn vectorize(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = id.x;
     if (t >= params.na + params.nb) {
@@ -149,8 +143,8 @@ fn vectorize(@builtin(global_invocation_id) id: vec3<u32>) {
     ok[t] = select(0u, 1u, valid);
 }
 
-var<workgroup> tile_a: array<array<f32, 16>, 16>;
-var<workgroup> tile_b: array<array<f32, 16>, 16>;
+var<workgroup> tile_a: array<array<f32, NCC_TILE>, NCC_TILE>;
+var<workgroup> tile_b: array<array<f32, NCC_TILE>, NCC_TILE>;
 
 // The entry (i, j) of S from the dot product `acc`: NO_SCORE for an
 // invalid window or a pair beyond the search radius.
@@ -170,7 +164,7 @@ fn finish_score(i: u32, j: u32, acc: f32) {
 
 // One thread per row of A and four consecutive rows of B: the A row is
 // loaded once for four dot products.
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(NCC_TILE, NCC_TILE)
 fn score_direct(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.y;
     let j0 = id.x * 4u;
@@ -206,18 +200,18 @@ fn score_direct(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-@compute @workgroup_size(16, 16)
+@compute @workgroup_size(NCC_TILE, NCC_TILE)
 fn score_tiled(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let na = params.na;
     let nb = params.nb;
     let stride = params.stride;
-    let i = wid.y * TILE + lid.y;
-    let j = wid.x * TILE + lid.x;
-    // This thread loads row (wid.y*TILE + lid.y) of A and row
-    // (wid.x*TILE + lid.y) of B, column k0 + lid.x of each.
-    let jb = wid.x * TILE + lid.y;
+    let i = wid.y * NCC_TILE + lid.y;
+    let j = wid.x * NCC_TILE + lid.x;
+    // This thread loads row (wid.y*NCC_TILE + lid.y) of A and row
+    // (wid.x*NCC_TILE + lid.y) of B, column k0 + lid.x of each.
+    let jb = wid.x * NCC_TILE + lid.y;
     var acc = 0.0;
-    for (var k0 = 0u; k0 < stride; k0 += TILE) {
+    for (var k0 = 0u; k0 < stride; k0 += NCC_TILE) {
         var va = 0.0;
         if (i < na) {
             va = desc_get(i * stride + k0 + lid.x);
@@ -229,7 +223,7 @@ fn score_tiled(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_
         tile_a[lid.y][lid.x] = va;
         tile_b[lid.y][lid.x] = vb;
         workgroupBarrier();
-        for (var kk = 0u; kk < TILE; kk++) {
+        for (var kk = 0u; kk < NCC_TILE; kk++) {
             acc = acc + tile_a[lid.y][kk] * tile_b[lid.x][kk];
         }
         workgroupBarrier();
@@ -239,16 +233,17 @@ fn score_tiled(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_
     }
 }
 
-var<workgroup> red_score: array<f32, 64>;
-var<workgroup> red_index: array<u32, 64>;
+var<workgroup> red_score: array<f32, WORKGROUP_1D>;
+var<workgroup> red_index: array<u32, WORKGROUP_1D>;
 
 fn better(s1: f32, i1: u32, s2: f32, i2: u32) -> bool {
     return s1 > s2 || (s1 == s2 && i1 < i2);
 }
 
-// Tree reduction of the 64 per-thread bests; the result is in slot 0.
+// Tree reduction of the WORKGROUP_1D per-thread bests (a power of two);
+// the result is in slot 0.
 fn reduce(lid: u32) {
-    for (var half = 32u; half > 0u; half = half / 2u) {
+    for (var half = WORKGROUP_1D / 2u; half > 0u; half = half / 2u) {
         if (lid < half) {
             let s = red_score[lid + half];
             let i = red_index[lid + half];
@@ -261,47 +256,39 @@ fn reduce(lid: u32) {
     }
 }
 
-@compute @workgroup_size(64)
-fn row_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    let i = wid.x;
+// The best of `n` scores `first`, `first + step`, ... (ties: the lower
+// position k), reduced over the workgroup into slot 0; `live` false: none.
+fn best_of_line(lid: u32, first: u32, step: u32, n: u32, live: bool) {
     var bs = NO_SCORE - 1.0;
     var bi = NO_INDEX;
-    if (i < params.na) {
-        for (var j = lid.x; j < params.nb; j += 64u) {
-            let s = scores[i * params.nb + j];
-            if (better(s, j, bs, bi)) {
+    if (live) {
+        for (var k = lid; k < n; k += WORKGROUP_1D) {
+            let s = scores[first + k * step];
+            if (better(s, k, bs, bi)) {
                 bs = s;
-                bi = j;
+                bi = k;
             }
         }
     }
-    red_score[lid.x] = bs;
-    red_index[lid.x] = bi;
+    red_score[lid] = bs;
+    red_index[lid] = bi;
     workgroupBarrier();
-    reduce(lid.x);
+    reduce(lid);
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn row_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    let i = wid.x;
+    best_of_line(lid.x, i * params.nb, 1u, params.nb, i < params.na);
     if (lid.x == 0u && i < params.na) {
         best[i] = Best(red_index[0], red_score[0]);
     }
 }
 
-@compute @workgroup_size(64)
+@compute @workgroup_size(WORKGROUP_1D)
 fn col_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let j = wid.x;
-    var bs = NO_SCORE - 1.0;
-    var bi = NO_INDEX;
-    if (j < params.nb) {
-        for (var i = lid.x; i < params.na; i += 64u) {
-            let s = scores[i * params.nb + j];
-            if (better(s, i, bs, bi)) {
-                bs = s;
-                bi = i;
-            }
-        }
-    }
-    red_score[lid.x] = bs;
-    red_index[lid.x] = bi;
-    workgroupBarrier();
-    reduce(lid.x);
+    best_of_line(lid.x, j, params.nb, params.na, j < params.nb);
     if (lid.x == 0u && j < params.nb) {
         best[params.na + j] = Best(red_index[0], red_score[0]);
     }

@@ -7,32 +7,18 @@
 // The CPU reference in src/splat/cpu.rs implements the same maths line by
 // line; change both together.
 
-// Keep in sync with `CameraUniform` in src/splat/gpu_data.rs.
-struct Camera {
-    // Rows of the object-to-camera rotation R (w unused).
-    rot0: vec4<f32>,
-    rot1: vec4<f32>,
-    rot2: vec4<f32>,
-    // Translation t (w unused): X_c = R X_o + t.
-    trans: vec4<f32>,
-    // fx, fy, cx, cy (OpenCV: pixel (0,0) is the centre of the top-left pixel).
-    intr: vec4<f32>,
-    // width, height, near, far (camera-space z, model units).
-    size: vec4<f32>,
-    // epsilon (visibility push-back, in splat radii along the ray),
-    // low-pass radius h (px), unused, unused.
-    params: vec4<f32>,
-}
+// `CameraUniform` is in common.wgsl (composed before this file by
+// src/shaders.rs).
 
-// Keep in sync with `SplatGpu` in src/splat/gpu_data.rs.
-struct Splat {
+// Twin: `SplatGpu` in src/splat/gpu_data.rs.
+struct SplatGpu {
     pos_radius: vec4<f32>,
     normal: vec4<f32>,
     color: vec4<f32>,
 }
 
-@group(0) @binding(0) var<uniform> cam: Camera;
-@group(0) @binding(1) var<storage, read> splats: array<Splat>;
+@group(0) @binding(0) var<uniform> cam: CameraUniform;
+@group(0) @binding(1) var<storage, read> splats: array<SplatGpu>;
 
 struct VsOut {
     @builtin(position) position: vec4<f32>,
@@ -76,9 +62,8 @@ fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
     let s = splats[ii];
     let p = s.pos_radius.xyz;
     let r = s.pos_radius.w;
-    let c = vec3<f32>(dot(cam.rot0.xyz, p), dot(cam.rot1.xyz, p), dot(cam.rot2.xyz, p)) + cam.trans.xyz;
-    let n = s.normal.xyz;
-    let m = normalize(vec3<f32>(dot(cam.rot0.xyz, n), dot(cam.rot1.xyz, n), dot(cam.rot2.xyz, n)));
+    let c = to_camera(cam, p);
+    let m = normalize(rotate(cam, s.normal.xyz));
     out.center = c;
     out.radius = r;
     out.normal = m;

@@ -3,22 +3,25 @@
 // attributes by the summed weight. `resolve` writes one attribute of every
 // pixel to a packed float buffer (NaN where no splat contributed);
 // `gather` samples predictors and depth at a few pixel positions only, so the
-// tracker reads back k x 14 floats instead of whole images.
+// tracker reads back k x GATHER_STRIDE floats instead of whole images.
 // CPU references: `SplatImage::from_accumulators` and `cpu::sample_at` in
-// src/splat/.
+// src/splat/. The constants (GATHER_STRIDE, workgroup sizes) come from
+// the prelude of src/shaders.rs.
 
-// Keep in sync with `ResolveParams` in src/splat/gpu_data.rs.
-struct Params {
+// Twin: `ResolveParams` in src/splat/gpu_data.rs.
+struct ResolveParams {
     width: u32,
     height: u32,
-    // normalize: 0 colour (3), 1 depth (1), 2 normal (3), 3 motion (12),
-    // 4 weight (1, the raw sum). gather: number of points.
+    // resolve: RESOLVE_COLOR (3 floats), RESOLVE_DEPTH (1), RESOLVE_NORMAL
+    // (3), RESOLVE_MOTION (12), RESOLVE_WEIGHT (1, the raw sum).
+    // gather: number of points.
     kind: u32,
-    // gather: 0 nearest pixel, 1 bilinear where all four pixels are covered.
+    // gather: GATHER_NEAREST (the nearest pixel) or GATHER_BILINEAR
+    // (bilinear where all four pixels are covered).
     mode: u32,
 }
 
-@group(0) @binding(0) var<uniform> params: Params;
+@group(0) @binding(0) var<uniform> params: ResolveParams;
 @group(0) @binding(1) var t0: texture_2d<f32>;
 @group(0) @binding(2) var t1: texture_2d<f32>;
 @group(0) @binding(3) var t2: texture_2d<f32>;
@@ -32,7 +35,7 @@ fn nan() -> f32 {
     return bitcast<f32>(0x7fc00000u);
 }
 
-@compute @workgroup_size(8, 8)
+@compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     if id.x >= params.width || id.y >= params.height {
         return;
@@ -42,16 +45,16 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     let w = a.w;
     let pixel = id.y * params.width + id.x;
     switch params.kind {
-        case 0u: {
+        case RESOLVE_COLOR: {
             let base = pixel * 3u;
             for (var k = 0u; k < 3u; k++) {
                 out[base + k] = select(nan(), a[k] / w, w > 0.0);
             }
         }
-        case 1u: {
+        case RESOLVE_DEPTH: {
             out[pixel] = select(nan(), textureLoad(t1, p, 0).x / w, w > 0.0);
         }
-        case 2u: {
+        case RESOLVE_NORMAL: {
             let base = pixel * 3u;
             let n = textureLoad(t1, p, 0).yzw;
             // The weighted mean of unit normals, renormalised.
@@ -60,7 +63,7 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
                 out[base + k] = select(nan(), n[k] / len, w > 0.0 && len > 0.0);
             }
         }
-        case 3u: {
+        case RESOLVE_MOTION: {
             let base = pixel * 12u;
             let b = textureLoad(t2, p, 0);
             let c = textureLoad(t3, p, 0);
@@ -71,7 +74,7 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
                 out[base + 8u + k] = select(nan(), d[k] / w, w > 0.0);
             }
         }
-        default: {
+        case RESOLVE_WEIGHT, default: {
             out[pixel] = w;
         }
     }
@@ -104,9 +107,10 @@ fn inside(p: vec2<i32>) -> bool {
     return p.x >= 0 && p.y >= 0 && p.x < i32(params.width) && p.y < i32(params.height);
 }
 
-// Output per point: du_tx, dv_tx, ..., du_rz, dv_rz (12), depth, valid
-// (1 or 0); predictors and depth are NaN when invalid.
-@compute @workgroup_size(64)
+// Output per point (GATHER_STRIDE floats): du_tx, dv_tx, ..., du_rz,
+// dv_rz (12), depth, valid (1 or 0); predictors and depth are NaN when
+// invalid.
+@compute @workgroup_size(WORKGROUP_1D)
 fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
     if i >= params.kind {
@@ -116,7 +120,7 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
     var s: Sample;
     s.w = 0.0;
     var done = false;
-    if params.mode == 1u && all(x == x) {
+    if params.mode == GATHER_BILINEAR && all(x == x) {
         let f = floor(x);
         let p0 = vec2<i32>(f);
         let t = x - f;
@@ -145,7 +149,7 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
             s = load(p);
         }
     }
-    let base = i * 14u;
+    let base = i * GATHER_STRIDE;
     let valid = s.w > 0.0;
     for (var k = 0u; k < 4u; k++) {
         out[base + k] = select(nan(), s.a[k], valid);

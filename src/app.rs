@@ -345,7 +345,7 @@ impl<'a> TrackRun<'a> {
         }
         let mode = self.config.mode;
         let mut tracker = Tracker::new(
-            std::sync::Arc::new(self.ctx.clone()),
+            self.ctx,
             self.inputs.model.clone(),
             seq.tracking_camera(),
             self.inputs.keyframes.clone(),

@@ -80,29 +80,23 @@ fn timer_reports_pass_durations() {
     let n = 1 << 16;
     let params = c.buffer_init(
         "p",
-        &[1.5f32.to_bits(), n as u32, 0, 0],
+        &[gpu::selftest::SelftestParams {
+            a: 1.5,
+            n: n as u32,
+            _pad0: 0,
+            _pad1: 0,
+        }],
         wgpu::BufferUsages::UNIFORM,
     );
     let x = c.buffer_init("x", &vec![1.0f32; n], gpu::STORAGE_IN);
     let y = c.buffer_init("y", &vec![2.0f32; n], gpu::STORAGE_OUT);
-    let bind = c.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: None,
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: x.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: y.as_entire_binding(),
-            },
-        ],
-    });
+    let bind = c
+        .bind_buffers(
+            "saxpy",
+            &pipeline.get_bind_group_layout(0),
+            &[&params, &x, &y],
+        )
+        .unwrap();
     let mut enc = c.device.create_command_encoder(&Default::default());
     for label in ["first", "second"] {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -111,7 +105,7 @@ fn timer_reports_pass_durations() {
         });
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(gpu::workgroups(n as u32, 64), 1, 1);
+        pass.dispatch_workgroups(gpu::workgroups(n as u32, gpu::WORKGROUP_1D), 1, 1);
     }
     timer.resolve(&mut enc);
     c.queue.submit([enc.finish()]);

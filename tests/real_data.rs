@@ -10,13 +10,13 @@ mod tracking_common;
 
 use splattrack::PointModel;
 use splattrack::geometry::Pose;
+use splattrack::gpu::shared_test_context;
 use splattrack::io::{Sequence, read_poses};
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::tracker::{Mode, Status, TrackResult, Tracker, TrackerConfig};
 use std::collections::HashMap;
 use std::path::PathBuf;
-use tracking_common::shared_ctx;
 
 fn data_dir(name: &str) -> Option<PathBuf> {
     let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -59,7 +59,7 @@ type Tracked = (TrackResult, Option<(f64, f64)>);
 /// the rotation error (degrees) and translation error (% of the diameter).
 fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Tracked>> {
     let dir = data_dir(name)?;
-    let ctx = shared_ctx();
+    let ctx = shared_test_context();
     let model = PointModel::load(dir.join("model.ply")).unwrap();
     let seq = Sequence::open(&dir).unwrap();
     let cam = seq.camera;

@@ -11,6 +11,7 @@
 mod tracking_common;
 
 use splattrack::geometry::Intrinsics;
+use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::synth::{
@@ -18,7 +19,6 @@ use splattrack::synth::{
     sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
-use tracking_common::shared_ctx;
 
 struct ModeErrors {
     rotation: Vec<f64>,
@@ -32,7 +32,7 @@ fn mean(v: &[f64]) -> f64 {
 
 #[test]
 fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
-    let ctx = shared_ctx();
+    let ctx = shared_test_context();
     let cfg = SynthConfig {
         object: "blob".into(),
         trajectory: Trajectory::Fig10,
@@ -65,7 +65,7 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
             ..Default::default()
         };
         let mut t = Tracker::new(
-            ctx.clone(),
+            ctx,
             model.clone(),
             cfg.camera,
             Some(store.clone()),

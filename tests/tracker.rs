@@ -15,12 +15,13 @@
 mod tracking_common;
 
 use splattrack::geometry::Pose;
+use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::KeyframeStore;
 use splattrack::rng::Rng;
 use splattrack::synth::{SynthConfig, SynthFrame, Trajectory, render_frame};
 use splattrack::tracker::{Mode, Status, TrackError, Tracker, TrackerConfig};
 use std::sync::OnceLock;
-use tracking_common::{Scene, camera_320, shared_ctx};
+use tracking_common::{Scene, camera_320};
 
 const FIRST: usize = 50;
 const COUNT: usize = 20;
@@ -58,7 +59,7 @@ fn fixture() -> &'static Fixture {
 fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker {
     let f = fixture();
     Tracker::new(
-        shared_ctx(),
+        shared_test_context(),
         f.scene.model.clone(),
         f.scene.cam,
         store,
@@ -223,7 +224,7 @@ fn object_behind_the_camera_is_refused() {
     let mut behind = f.frames[0].pose;
     behind.translation.z = -behind.translation.z;
     let e = Tracker::new(
-        shared_ctx(),
+        shared_test_context(),
         f.scene.model.clone(),
         f.scene.cam,
         Some(f.store.clone()),
@@ -239,7 +240,7 @@ fn object_behind_the_camera_is_refused() {
     let mut aside = f.frames[0].pose;
     aside.translation.x += 5.0;
     let e = Tracker::new(
-        shared_ctx(),
+        shared_test_context(),
         f.scene.model.clone(),
         f.scene.cam,
         None,
@@ -260,7 +261,7 @@ fn kf_mode_needs_keyframes_or_model_colours() {
     bare.colors = None;
     for mode in [Mode::Kf, Mode::KfIt] {
         let e = Tracker::new(
-            shared_ctx(),
+            shared_test_context(),
             bare.clone(),
             f.scene.cam,
             None,

@@ -1,7 +1,11 @@
-//! Host twins of the structs in `shaders/harris.wgsl` and `shaders/ncc.wgsl`.
-//! Keep every field order in sync with the WGSL: a mismatch is silent on
-//! the GPU, so each struct's size is asserted here.
+//! Host twins of the structs in `shaders/harris.wgsl`, `shaders/ncc.wgsl`
+//! and `shaders/common.wgsl` (`Pixel`), and the constants the shaders
+//! share with the host. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct), and
+//! the tests of [`crate::shaders`] compare it member by member with its
+//! WGSL twin; each constant reaches WGSL through the prelude of
+//! [`crate::shaders::CONSTANTS`], never by copy.
 
+use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
 /// Number of Gaussian taps the Harris uniform holds (`HarrisParams.weights`):
@@ -17,117 +21,126 @@ pub const PIXEL_VALID: u32 = 1;
 pub const PIXEL_ALLOWED: u32 = 2;
 
 /// Response of a pixel whose support leaves the image or touches an
-/// invalid pixel. Same constant as `INVALID` in harris.wgsl.
+/// invalid pixel.
 pub const INVALID_RESPONSE: f32 = -3.0e38;
 
 /// Score of a pair that cannot match (invalid window or out of the search
-/// radius). Same constant as `NO_SCORE` in ncc.wgsl; below any NCC.
+/// radius); below any NCC.
 pub const NO_SCORE: f32 = -2.0;
 
 /// `Best.index` when a row or column has no entry.
 pub const NO_INDEX: u32 = u32::MAX;
 
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct Pixel {
-    // Keep in sync with `Pixel` in shaders/harris.wgsl and shaders/ncc.wgsl.
-    pub value: f32,
-    pub flags: u32,
+wgsl_struct! {
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct Pixel {
+        pub value: f32,
+        pub flags: u32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<Pixel>() == 8);
 
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct HarrisParams {
-    // Keep this field order in sync with `Params` in shaders/harris.wgsl.
-    pub width: u32,
-    pub height: u32,
-    pub rd: u32,
-    pub ri: u32,
-    pub k: f32,
-    pub rel_threshold: f32,
-    pub min_response: f32,
-    pub capacity: u32,
-    pub refine_radius: u32,
-    pub refine_iterations: u32,
-    pub refine_inv_2s2: f32,
-    pub n_corners: u32,
-    pub max_shift: f32,
-    pub _pad: [u32; 3],
-    /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
-    pub weights: [[f32; 4]; MAX_TAPS / 4],
+impl Pixel {
+    /// A grey value as the kernels read it: a non-finite (invalid) value
+    /// becomes 0 with [`PIXEL_VALID`] cleared; `allowed` sets
+    /// [`PIXEL_ALLOWED`].
+    pub fn new(value: f32, allowed: bool) -> Self {
+        let valid = value.is_finite();
+        Self {
+            value: if valid { value } else { 0.0 },
+            flags: if valid { PIXEL_VALID } else { 0 } | if allowed { PIXEL_ALLOWED } else { 0 },
+        }
+    }
 }
-const _: () = assert!(std::mem::size_of::<HarrisParams>() == 64 + 4 * MAX_TAPS);
 
-/// A local maximum of the response, as the NMS kernel writes it.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct Candidate {
-    // Keep in sync with `Candidate` in shaders/harris.wgsl.
-    pub x: u32,
-    pub y: u32,
-    pub score: f32,
-    pub _pad: u32,
+wgsl_struct! {
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct HarrisParams {
+        pub width: u32,
+        pub height: u32,
+        pub rd: u32,
+        pub ri: u32,
+        pub k: f32,
+        pub rel_threshold: f32,
+        pub min_response: f32,
+        pub capacity: u32,
+        pub refine_radius: u32,
+        pub refine_iterations: u32,
+        pub refine_inv_2s2: f32,
+        pub n_corners: u32,
+        pub max_shift: f32,
+        pub _pad0: u32,
+        pub _pad1: u32,
+        pub _pad2: u32,
+        /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
+        pub weights: [[f32; 4]; MAX_TAPS / 4],
+    }
 }
-const _: () = assert!(std::mem::size_of::<Candidate>() == 16);
 
-/// Corner counters: the response maximum (f32 bits, positive responses
-/// only, so integer order is float order) and the candidate count.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct Counters {
-    // Keep in sync with `Counters` in shaders/harris.wgsl.
-    pub max_bits: u32,
-    pub count: u32,
-    pub _pad: [u32; 2],
+wgsl_struct! {
+    /// A local maximum of the response, as the NMS kernel writes it.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct Candidate {
+        pub x: u32,
+        pub y: u32,
+        pub score: f32,
+        pub _pad: u32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<Counters>() == 16);
 
-/// A corner being refined: position, score, status (1 = refined, 0 = kept
-/// at its start because the refinement was ill-posed or ran away).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct RefineCorner {
-    // Keep in sync with `vec4<f32>` corners in shaders/harris.wgsl.
-    pub x: f32,
-    pub y: f32,
-    pub score: f32,
-    pub status: f32,
+wgsl_struct! {
+    /// Corner counters: the response maximum (f32 bits, positive responses
+    /// only, so integer order is float order) and the candidate count.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct Counters {
+        pub max_bits: u32,
+        pub count: u32,
+        pub _pad0: u32,
+        pub _pad1: u32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<RefineCorner>() == 16);
 
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable)]
-pub struct NccParams {
-    // Keep this field order in sync with `Params` in shaders/ncc.wgsl.
-    pub na: u32,
-    pub nb: u32,
-    /// Row stride of the descriptor buffer: w² rounded up to the tile size.
-    pub stride: u32,
-    pub window: u32,
-    pub wa: u32,
-    pub ha: u32,
-    pub wb: u32,
-    pub hb: u32,
-    /// Pixel offset of image B in the pixel buffer (= wa * ha).
-    pub offset_b: u32,
-    /// Squared search radius in pixels; negative: no limit.
-    pub radius2: f32,
-    pub min_std: f32,
-    pub _pad: u32,
+wgsl_struct! {
+    /// A corner being refined: position, score, status (1 = refined, 0 = kept
+    /// at its start because the refinement was ill-posed or ran away).
+    #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+    pub struct RefineCorner {
+        pub x: f32,
+        pub y: f32,
+        pub score: f32,
+        pub status: f32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<NccParams>() == 48);
 
-/// Tile edge of the score kernel (`TILE` in ncc.wgsl); descriptor rows are
+wgsl_struct! {
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct NccParams {
+        pub na: u32,
+        pub nb: u32,
+        /// Row stride of the descriptor buffer: w² rounded up to the tile size.
+        pub stride: u32,
+        pub window: u32,
+        pub wa: u32,
+        pub ha: u32,
+        pub wb: u32,
+        pub hb: u32,
+        /// Pixel offset of image B in the pixel buffer (= wa * ha).
+        pub offset_b: u32,
+        /// Squared search radius in pixels; negative: no limit.
+        pub radius2: f32,
+        pub min_std: f32,
+        pub _pad: u32,
+    }
+}
+
+/// Tile edge (and workgroup size) of the score kernels; descriptor rows are
 /// padded with zeros to a multiple of it.
 pub const NCC_TILE: u32 = 16;
 
-/// Best entry of a score row or column.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
-pub struct Best {
-    // Keep in sync with `Best` in shaders/ncc.wgsl.
-    pub index: u32,
-    pub score: f32,
+wgsl_struct! {
+    /// Best entry of a score row or column.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+    pub struct Best {
+        pub index: u32,
+        pub score: f32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<Best>() == 8);

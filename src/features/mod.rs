@@ -9,7 +9,7 @@
 //!
 //! # How it works
 //!
-//! **Harris** ([`Harris`], GPU; [`harris_cpu`], its reference):
+//! **Harris** ([`Harris`], GPU; [`harris_cpu`], its reference; both in [`harris`]):
 //! 1. Gaussian-derivative gradients (`sigma_d`), as two separable passes.
 //! 2. The structure tensor `[Ix², IxIy; IxIy, Iy²]` smoothed by a Gaussian
 //!    (`sigma_i`), two more separable passes, then the response
@@ -47,9 +47,8 @@
 //! pixel. Grey values are `f32` in 0..1 ([`GreyImage`]); NaN marks an
 //! invalid (empty) pixel.
 
-mod gpu_data;
+pub(crate) mod gpu_data;
 pub mod harris;
-mod harris_cpu;
 pub mod image;
 pub mod ncc;
 mod ncc_cpu;
@@ -57,8 +56,7 @@ pub mod patterns;
 pub mod refine;
 
 pub use gpu_data::INVALID_RESPONSE;
-pub use harris::{Corner, Harris, HarrisConfig};
-pub use harris_cpu::{harris_cpu, harris_response_cpu};
+pub use harris::{Corner, Harris, HarrisConfig, harris_cpu, harris_response_cpu};
 pub use image::GreyImage;
 pub use ncc::{Match, NccConfig, NccMatcher};
 pub use ncc_cpu::ncc_match_cpu;
@@ -89,89 +87,4 @@ pub enum FeatureError {
     Config(String),
     #[error(transparent)]
     Gpu(#[from] GpuError),
-}
-
-/// Explicit bind group layout entry for a compute-visible buffer.
-fn layout_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
-    wgpu::BindGroupLayoutEntry {
-        binding,
-        visibility: wgpu::ShaderStages::COMPUTE,
-        ty: wgpu::BindingType::Buffer {
-            ty,
-            has_dynamic_offset: false,
-            min_binding_size: None,
-        },
-        count: None,
-    }
-}
-
-fn storage(read_only: bool) -> wgpu::BufferBindingType {
-    wgpu::BufferBindingType::Storage { read_only }
-}
-
-/// Compute pipelines of one shader sharing one explicit bind group layout,
-/// so that a single bind group serves every pass.
-fn pipelines(
-    ctx: &crate::gpu::GpuContext,
-    shader: &str,
-    layout: &wgpu::BindGroupLayout,
-    entries: &[&str],
-) -> Result<Vec<wgpu::ComputePipeline>, GpuError> {
-    let module = ctx.shader(shader)?;
-    let pl = ctx.catch(shader, || {
-        ctx.device
-            .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(shader),
-                bind_group_layouts: &[Some(layout)],
-                immediate_size: 0,
-            })
-    })?;
-    entries
-        .iter()
-        .map(|entry| {
-            ctx.catch(&format!("{shader}::{entry}"), || {
-                ctx.device
-                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                        label: Some(entry),
-                        layout: Some(&pl),
-                        module: &module,
-                        entry_point: Some(entry),
-                        compilation_options: Default::default(),
-                        cache: None,
-                    })
-            })
-        })
-        .collect()
-}
-
-/// A storage buffer that grows (never shrinks) to fit what it must hold.
-struct GrowBuffer {
-    label: &'static str,
-    usage: wgpu::BufferUsages,
-    buffer: Option<wgpu::Buffer>,
-}
-
-impl GrowBuffer {
-    fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
-        Self {
-            label,
-            usage,
-            buffer: None,
-        }
-    }
-
-    /// Ensures at least `size` bytes; true when the buffer was (re)created,
-    /// so bind groups referencing it must be rebuilt.
-    fn ensure(&mut self, ctx: &crate::gpu::GpuContext, size: u64) -> bool {
-        let size = size.max(16).next_multiple_of(16);
-        if self.buffer.as_ref().is_some_and(|b| b.size() >= size) {
-            return false;
-        }
-        self.buffer = Some(ctx.buffer(self.label, size, self.usage));
-        true
-    }
-
-    fn get(&self) -> &wgpu::Buffer {
-        self.buffer.as_ref().expect("GrowBuffer used before ensure")
-    }
 }

@@ -1,11 +1,14 @@
 //! NCC matching on the GPU (`shaders/ncc.wgsl`); the CPU reference is
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
-use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, PIXEL_VALID, Pixel};
+use super::FeatureError;
+use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
-use super::{FeatureError, GrowBuffer, layout_entry, pipelines, storage};
-use crate::gpu::{GpuContext, GpuTimer, STORAGE_IN, STORAGE_OUT, TimerReport, workgroups};
+use crate::gpu::{
+    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
+    compute_entry, compute_pass, storage, workgroups,
+};
 
 /// A mutual best match: feature `a` of the first image and feature `b` of
 /// the second, with their NCC score in [-1, 1].
@@ -114,8 +117,8 @@ pub(crate) fn mutual(rows: &[Best], cols: &[Best], min_score: f32) -> Vec<Match>
 /// NCC matching on the GPU. Pipelines are built once and buffers grow to
 /// the largest problem seen, so per-frame calls allocate nothing in the
 /// steady state.
-pub struct NccMatcher<'a> {
-    ctx: &'a GpuContext,
+pub struct NccMatcher {
+    ctx: GpuContext,
     config: NccConfig,
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
@@ -142,23 +145,18 @@ const ENTRIES: [&str; 5] = [
     "score_direct",
 ];
 
-impl<'a> NccMatcher<'a> {
-    pub fn new(ctx: &'a GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
+impl NccMatcher {
+    pub fn new(ctx: &GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
         config.validate()?;
-        let mut entries = vec![layout_entry(0, wgpu::BufferBindingType::Uniform)];
-        entries.push(layout_entry(1, storage(true)));
-        entries.push(layout_entry(2, storage(true)));
-        entries.extend((3..7).map(|b| layout_entry(b, storage(false))));
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("ncc"),
-                entries: &entries,
-            });
-        let mut passes = pipelines(ctx, "ncc", &layout, &ENTRIES)?;
+        let mut entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
+        entries.push(compute_entry(1, storage(true)));
+        entries.push(compute_entry(2, storage(true)));
+        entries.extend((3..7).map(|b| compute_entry(b, storage(false))));
+        let layout = ctx.bind_group_layout("ncc", &entries);
+        let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
         let score_direct = passes.pop().expect("five pipelines");
         Ok(Self {
-            ctx,
+            ctx: ctx.clone(),
             config,
             layout,
             passes,
@@ -195,7 +193,7 @@ impl<'a> NccMatcher<'a> {
     /// Times every pass with GPU timestamp queries from now on (where
     /// supported); see [`NccMatcher::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32));
+        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32));
     }
 
     /// Per-pass GPU durations of the last match (empty unless enabled).
@@ -220,7 +218,7 @@ impl<'a> NccMatcher<'a> {
         if na == 0 || nb == 0 || img_a.is_empty() || img_b.is_empty() {
             return Ok(Vec::new());
         }
-        let ctx = self.ctx;
+        let ctx = &self.ctx.clone();
         let lim = &ctx.limits;
         let max_groups = lim.max_compute_workgroups_per_dimension as usize;
         if na.max(nb) > max_groups {
@@ -286,19 +284,7 @@ impl<'a> NccMatcher<'a> {
             .data
             .iter()
             .chain(&img_b.data)
-            .map(|&v| {
-                if v.is_finite() {
-                    Pixel {
-                        value: v,
-                        flags: PIXEL_VALID,
-                    }
-                } else {
-                    Pixel {
-                        value: 0.0,
-                        flags: 0,
-                    }
-                }
-            })
+            .map(|&v| Pixel::new(v, false))
             .collect();
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
@@ -307,7 +293,7 @@ impl<'a> NccMatcher<'a> {
             .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
 
         let groups = [
-            (workgroups((na + nb) as u32, 64), 1),
+            (workgroups((na + nb) as u32, WORKGROUP_1D), 1),
             (
                 workgroups(nb as u32, NCC_TILE),
                 workgroups(na as u32, NCC_TILE),
@@ -318,10 +304,7 @@ impl<'a> NccMatcher<'a> {
         let bind = self.bind.as_ref().expect("bind group built above");
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass(label)),
-            });
+            let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
             if label == "score" && !self.tiled {
                 pass.set_pipeline(&self.score_direct);

@@ -1,4 +1,6 @@
-//! Headless GPU context (wgpu), buffer upload/readback and GPU timers.
+//! Headless GPU context (wgpu), buffer upload/readback, the plumbing every
+//! GPU module shares (bind-group layouts, pipelines, growable buffers) and
+//! GPU timers.
 //!
 //! How it works: [`GpuContext::new`] enumerates every adapter wgpu can see
 //! (Vulkan, Metal, DX12), drops those that lack a feature the pipeline needs
@@ -9,9 +11,11 @@
 //! limits: wgpu otherwise validates against WebGPU's defaults, e.g. 32 bytes
 //! of colour attachments per sample where four RGBA32F targets need 64.
 
+mod pipeline;
 pub mod selftest;
 mod timer;
 
+pub use pipeline::{GrowBuffer, buffer_entry, compute_entry, compute_pass, storage, texture_entry};
 pub use timer::{GpuTimer, TimerReport};
 
 use std::fmt;
@@ -472,6 +476,15 @@ pub const STORAGE_IN: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
 pub const STORAGE_OUT: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
     .union(wgpu::BufferUsages::COPY_SRC)
     .union(wgpu::BufferUsages::COPY_DST);
+
+/// Workgroup size of the kernels that run one thread per item (Harris's
+/// refinement, NCC's vectorisation and reductions, the splatter's gather,
+/// the self-test), a power of two (the NCC reductions halve it).
+pub const WORKGROUP_1D: u32 = 64;
+
+/// Workgroup edge of the kernels that run one thread per pixel in
+/// `WORKGROUP_2D x WORKGROUP_2D` tiles (Harris's image passes).
+pub const WORKGROUP_2D: u32 = 16;
 
 /// Number of workgroups of `size` threads covering `n` items.
 pub fn workgroups(n: u32, size: u32) -> u32 {

@@ -1,17 +1,19 @@
 //! A tiny end-to-end check of the device: upload, compute dispatch and
 //! readback of `y = a x + y`, compared with the same sum on the host.
 
-use super::{GpuContext, GpuError, STORAGE_IN, STORAGE_OUT, workgroups};
+use super::{GpuContext, GpuError, STORAGE_IN, STORAGE_OUT, WORKGROUP_1D, workgroups};
+use crate::wgsl_struct;
 
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
-    // Keep this field order in sync with `Params` in shaders/selftest.wgsl.
-    a: f32,
-    n: u32,
-    _pad: [u32; 2],
+wgsl_struct! {
+    /// The uniform of the `saxpy` kernel.
+    #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+    pub struct SelftestParams {
+        pub a: f32,
+        pub n: u32,
+        pub _pad0: u32,
+        pub _pad1: u32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<Params>() == 16);
 
 /// CPU reference of the `saxpy` kernel.
 pub fn saxpy_cpu(a: f32, x: &[f32], y: &[f32]) -> Vec<f32> {
@@ -25,35 +27,27 @@ pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f
     let pipeline = ctx.compute_pipeline("selftest", "saxpy")?;
     let params = ctx.buffer_init(
         "saxpy params",
-        &[Params { a, n, _pad: [0; 2] }],
+        &[SelftestParams {
+            a,
+            n,
+            _pad0: 0,
+            _pad1: 0,
+        }],
         wgpu::BufferUsages::UNIFORM,
     );
     let xb = ctx.buffer_init("saxpy x", x, STORAGE_IN);
     let yb = ctx.buffer_init("saxpy y", y, STORAGE_OUT);
-    let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-        label: Some("saxpy"),
-        layout: &pipeline.get_bind_group_layout(0),
-        entries: &[
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: xb.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: yb.as_entire_binding(),
-            },
-        ],
-    });
+    let bind = ctx.bind_buffers(
+        "saxpy",
+        &pipeline.get_bind_group_layout(0),
+        &[&params, &xb, &yb],
+    )?;
     let mut enc = ctx.device.create_command_encoder(&Default::default());
     {
         let mut pass = enc.begin_compute_pass(&Default::default());
         pass.set_pipeline(&pipeline);
         pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(workgroups(n, 64), 1, 1);
+        pass.dispatch_workgroups(workgroups(n, WORKGROUP_1D), 1, 1);
     }
     ctx.queue.submit([enc.finish()]);
     ctx.read_buffer(&yb, x.len())

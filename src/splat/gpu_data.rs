@@ -1,39 +1,40 @@
-//! Structs shared with the WGSL shaders, byte for byte.
-//!
-//! Keep every field order in sync with shaders/splat.wgsl and
-//! shaders/splat_resolve.wgsl: a mismatch is a silent GPU bug, so each struct
-//! has a size assertion here.
+//! Structs and constants shared with shaders/splat.wgsl,
+//! shaders/splat_resolve.wgsl and shaders/common.wgsl (`CameraUniform`),
+//! byte for byte. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct) and
+//! compared member by member with its WGSL twin by the tests of
+//! [`crate::shaders`]; the constants reach WGSL through its prelude.
 
 use crate::geometry::{Intrinsics, Pose};
+use crate::wgsl_struct;
 
-/// One splat as the vertex shader reads it (`Splat` in shaders/splat.wgsl).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct SplatGpu {
-    /// Object-space centre, then the radius.
-    pub pos_radius: [f32; 4],
-    /// Object-space unit normal, w unused.
-    pub normal: [f32; 4],
-    /// Linear RGB, w unused.
-    pub color: [f32; 4],
+wgsl_struct! {
+    /// One splat as the vertex shader reads it.
+    #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub struct SplatGpu {
+        /// Object-space centre, then the radius.
+        pub pos_radius: [f32; 4],
+        /// Object-space unit normal, w unused.
+        pub normal: [f32; 4],
+        /// Linear RGB, w unused.
+        pub color: [f32; 4],
+    }
 }
-const _: () = assert!(std::mem::size_of::<SplatGpu>() == 48);
 
-/// The camera and the splatting parameters (`Camera` in shaders/splat.wgsl).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct CameraUniform {
-    /// Rows of R.
-    pub rot: [[f32; 4]; 3],
-    pub trans: [f32; 4],
-    /// fx, fy, cx, cy.
-    pub intr: [f32; 4],
-    /// width, height, near, far.
-    pub size: [f32; 4],
-    /// epsilon (in radii, along the ray), low-pass radius (px), 0, 0.
-    pub params: [f32; 4],
+wgsl_struct! {
+    /// The camera and the splatting parameters.
+    #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub struct CameraUniform {
+        /// Rows of R.
+        pub rot: [[f32; 4]; 3],
+        pub trans: [f32; 4],
+        /// fx, fy, cx, cy.
+        pub intr: [f32; 4],
+        /// width, height, near, far.
+        pub size: [f32; 4],
+        /// epsilon (in radii, along the ray), low-pass radius (px), 0, 0.
+        pub params: [f32; 4],
+    }
 }
-const _: () = assert!(std::mem::size_of::<CameraUniform>() == 112);
 
 impl CameraUniform {
     /// The uniform for a view: the pose and intrinsics rounded to f32 once,
@@ -60,15 +61,35 @@ impl CameraUniform {
     }
 }
 
-/// Parameters of the resolve kernels (`Params` in shaders/splat_resolve.wgsl).
-#[repr(C)]
-#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct ResolveParams {
-    pub width: u32,
-    pub height: u32,
-    /// `resolve`: the attribute kind; `gather`: the number of points.
-    pub kind: u32,
-    /// `gather`: 0 nearest, 1 bilinear.
-    pub mode: u32,
+/// Floats per gathered point: 12 predictors, depth, validity (the stride
+/// of `gather`'s output in shaders/splat_resolve.wgsl).
+pub const GATHER_STRIDE: usize = 14;
+
+wgsl_struct! {
+    /// Parameters of the resolve kernels.
+    #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub struct ResolveParams {
+        pub width: u32,
+        pub height: u32,
+        /// `resolve`: the attribute kind; `gather`: the number of points.
+        pub kind: u32,
+        /// `gather`: 0 nearest, 1 bilinear.
+        pub mode: u32,
+    }
 }
-const _: () = assert!(std::mem::size_of::<ResolveParams>() == 16);
+
+/// `ResolveParams.kind` of `resolve`: which attribute to normalise.
+pub const RESOLVE_COLOR: u32 = 0;
+pub const RESOLVE_DEPTH: u32 = 1;
+pub const RESOLVE_NORMAL: u32 = 2;
+pub const RESOLVE_MOTION: u32 = 3;
+/// The raw summed weight.
+pub const RESOLVE_WEIGHT: u32 = 4;
+
+/// `ResolveParams.mode` of `gather`: the nearest pixel...
+pub const GATHER_NEAREST: u32 = 0;
+/// ...or bilinear where all four pixels are covered.
+pub const GATHER_BILINEAR: u32 = 1;
+
+/// Workgroup edge of `resolve` (8x8 pixels per workgroup).
+pub const RESOLVE_WORKGROUP: u32 = 8;

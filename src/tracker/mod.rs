@@ -54,7 +54,6 @@ use crate::model::PointModel;
 use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
 use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter};
 use nalgebra::{Vector2, Vector3};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Wall-clock time of each stage of one frame (GPU work included, since
@@ -169,8 +168,8 @@ struct Frame {
 }
 
 /// The tracker: create once per sequence, then call [`Tracker::track`] on
-/// each frame in order. It holds its GPU context through an [`Arc`], so a
-/// program may keep both side by side.
+/// each frame in order. It keeps its own handle on the GPU context (a
+/// cheap clone), so a program may keep both side by side.
 ///
 /// ```no_run
 /// use splattrack::gpu::{AdapterChoice, GpuContext};
@@ -179,9 +178,8 @@ struct Frame {
 /// use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
 /// use splattrack::PointModel;
 /// use std::path::Path;
-/// use std::sync::Arc;
 ///
-/// let ctx = Arc::new(GpuContext::new(&AdapterChoice::from_env()?)?);
+/// let ctx = GpuContext::new(&AdapterChoice::from_env()?)?;
 /// let model = PointModel::load("object.ply")?;
 /// let seq = Sequence::open(Path::new("sequence"))?; // camera.json, frames/, init.csv
 /// let init = read_poses(&seq.init_path())?[0].pose;
@@ -189,7 +187,7 @@ struct Frame {
 /// let store = KeyframeStore::load(Path::new("object.stkf"))?;
 /// store.check_model(&model, Path::new("object.stkf"))?;
 /// let config = TrackerConfig { mode: Mode::KfIt, ..Default::default() };
-/// let mut tracker = Tracker::new(ctx.clone(), model, seq.camera, Some(store), config, init)?;
+/// let mut tracker = Tracker::new(&ctx, model, seq.camera, Some(store), config, init)?;
 /// for path in &seq.frames {
 ///     let frame = image::open(path)?.to_rgb8(); // undistorted, the camera's size
 ///     let r = tracker.track(&frame)?;
@@ -210,10 +208,10 @@ pub struct Tracker {
     geometry: GpuModel,
     textured: Vec<Option<GpuModel>>,
     targets: SplatTargets,
-    harris: Harris<'static>,
-    it_matcher: NccMatcher<'static>,
-    kf_matcher: NccMatcher<'static>,
-    recover_matcher: NccMatcher<'static>,
+    harris: Harris,
+    it_matcher: NccMatcher,
+    kf_matcher: NccMatcher,
+    recover_matcher: NccMatcher,
     center: Vector3<f64>,
     radius: f64,
     pose: Pose,
@@ -221,9 +219,8 @@ pub struct Tracker {
     lost_streak: usize,
     /// KF+IT: consecutive frames tracked by IT alone.
     it_only_streak: usize,
-    /// The context of every GPU object above. Declared last, so dropped
-    /// last: `harris` and the matchers borrow it (see [`Tracker::new`]).
-    ctx: Arc<GpuContext>,
+    /// The tracker's own handle on the device (a cheap clone).
+    ctx: GpuContext,
 }
 
 impl Tracker {
@@ -233,7 +230,7 @@ impl Tracker {
     /// colours (they then serve as the single texture). `config` must pass
     /// [`TrackerConfig::validate`].
     pub fn new(
-        ctx: Arc<GpuContext>,
+        ctx: &GpuContext,
         model: PointModel,
         cam: Intrinsics,
         keyframes: Option<KeyframeStore>,
@@ -256,14 +253,7 @@ impl Tracker {
         if floor > 0.0 && floor.is_finite() {
             model.radii.iter_mut().for_each(|r| *r = r.max(floor));
         }
-        // SAFETY: the detector and the matchers keep a reference to the
-        // context for their whole life. It points into the `Arc`'s
-        // allocation, which cannot move or be freed while `ctx` holds it;
-        // they are private fields of the tracker, never moved out, and
-        // dropped before `ctx` (field order), so the reference never
-        // outlives the context. (They borrow their context by design; once
-        // they hold an `Arc` themselves, this goes.)
-        let gpu: &'static GpuContext = unsafe { &*Arc::as_ptr(&ctx) };
+        let gpu = ctx;
         let splatter = Splatter::new(gpu)?;
         let geometry = GpuModel::new(gpu, &model)?;
         let targets = SplatTargets::new(gpu, cam.width, cam.height);
@@ -289,7 +279,7 @@ impl Tracker {
             prev: None,
             lost_streak: 0,
             it_only_streak: 0,
-            ctx,
+            ctx: ctx.clone(),
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -308,7 +298,7 @@ impl Tracker {
     }
 
     /// The GPU context the tracker runs on.
-    pub fn context(&self) -> &Arc<GpuContext> {
+    pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
 

@@ -4,7 +4,7 @@
 #![allow(dead_code)]
 
 use splattrack::geometry::{Intrinsics, Pose};
-use splattrack::gpu::{GpuContext, shared_test_context};
+use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::model::PointModel;
 use splattrack::rng::Rng;
@@ -13,24 +13,6 @@ use splattrack::synth::raster::{self, Rendering};
 use splattrack::synth::sequence::sample_model;
 use splattrack::synth::{Light, SynthObject, background, keyframe_poses, to_image};
 use std::path::PathBuf;
-use std::sync::{Arc, OnceLock};
-
-/// The shared test context as the [`Arc`] a tracker holds: the same device
-/// and queue (they are reference-counted handles).
-pub fn shared_ctx() -> Arc<GpuContext> {
-    static CTX: OnceLock<Arc<GpuContext>> = OnceLock::new();
-    CTX.get_or_init(|| {
-        let c = shared_test_context();
-        Arc::new(GpuContext {
-            device: c.device.clone(),
-            queue: c.queue.clone(),
-            info: c.info.clone(),
-            limits: c.limits.clone(),
-            features: c.features,
-        })
-    })
-    .clone()
-}
 
 /// 320x240 with the synth command's 56-degree field of view.
 pub fn camera_320() -> Intrinsics {

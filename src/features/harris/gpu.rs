@@ -1,105 +1,20 @@
 //! Harris corners on the GPU (`shaders/harris.wgsl`); the CPU reference is
-//! [`super::harris_cpu`]. See the module docs of [`super`] for how it works.
+//! [`super::cpu`], the shared host steps are in [`super`].
 
-use super::gpu_data::{Candidate, Counters, HarrisParams, MAX_TAPS, RefineCorner};
-use super::harris_cpu::{gaussian_taps, merge, pack_pixels, radius, select_spread};
-use super::image::{GreyImage, check_mask};
-use super::{FeatureError, GrowBuffer, layout_entry, pipelines, storage};
-use crate::gpu::{GpuContext, GpuTimer, STORAGE_IN, STORAGE_OUT, TimerReport, workgroups};
-
-/// A corner: sub-pixel position (OpenCV convention: pixel (0, 0) is the
-/// centre of the top-left pixel) and its Harris response.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Corner {
-    pub x: f32,
-    pub y: f32,
-    pub score: f32,
-}
-
-/// Harris detector parameters. The defaults follow the paper where it says
-/// something (about 900 corners, section 5.2) and common practice elsewhere.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct HarrisConfig {
-    /// Standard deviation of the Gaussian-derivative filter (pixels),
-    /// at most 7/3. Default 1.
-    pub sigma_d: f32,
-    /// Standard deviation of the Gaussian smoothing the structure tensor
-    /// (pixels), at most 14/3. Default 1.5.
-    pub sigma_i: f32,
-    /// `k` in `det - k trace²`. Default 0.04.
-    pub k: f32,
-    /// At most this many corners (the paper uses about 900). Default 900.
-    pub max_corners: usize,
-    /// Keep maxima whose response is at least this fraction of the image's
-    /// largest response (inside the mask). Default 0.01.
-    pub relative_threshold: f32,
-    /// And at least this absolute response (grey values in 0..1), which only
-    /// matters on nearly flat images. Default 1e-10.
-    pub min_response: f32,
-    /// Cell size (pixels) of the grid that spreads the selection; 0: plain
-    /// best-N by response. Default 32.
-    pub grid_cell: u32,
-    /// Sub-pixel refinement by gradient orthogonality. Default on.
-    pub refine: bool,
-    /// Half-size of the refinement window (pixels). Default 4 (9x9).
-    pub refine_radius: u32,
-    /// Maximum refinement iterations. Default 10.
-    pub refine_iterations: u32,
-    /// Refined corners closer than this (pixels) are one corner. Default 1.5.
-    pub merge_radius: f32,
-}
-
-impl Default for HarrisConfig {
-    fn default() -> Self {
-        Self {
-            sigma_d: 1.0,
-            sigma_i: 1.5,
-            k: 0.04,
-            max_corners: 900,
-            relative_threshold: 0.01,
-            min_response: 1e-10,
-            grid_cell: 32,
-            refine: true,
-            refine_radius: 4,
-            refine_iterations: 10,
-            merge_radius: 1.5,
-        }
-    }
-}
-
-impl HarrisConfig {
-    pub fn with_max_corners(mut self, n: usize) -> Self {
-        self.max_corners = n;
-        self
-    }
-    pub fn with_sigmas(mut self, sigma_d: f32, sigma_i: f32) -> Self {
-        self.sigma_d = sigma_d;
-        self.sigma_i = sigma_i;
-        self
-    }
-    pub fn with_k(mut self, k: f32) -> Self {
-        self.k = k;
-        self
-    }
-    pub fn with_relative_threshold(mut self, t: f32) -> Self {
-        self.relative_threshold = t;
-        self
-    }
-    pub fn with_grid_cell(mut self, cell: u32) -> Self {
-        self.grid_cell = cell;
-        self
-    }
-    pub fn with_refine(mut self, on: bool) -> Self {
-        self.refine = on;
-        self
-    }
-}
+use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
+use crate::features::FeatureError;
+use crate::features::gpu_data::{Candidate, Counters, HarrisParams, MAX_TAPS, RefineCorner};
+use crate::features::image::{GreyImage, check_mask};
+use crate::gpu::{
+    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
+    WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+};
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
 /// largest image seen and are reused, so calling [`Harris::detect`] on
 /// every frame allocates nothing in the steady state.
-pub struct Harris<'a> {
-    ctx: &'a GpuContext,
+pub struct Harris {
+    ctx: GpuContext,
     config: HarrisConfig,
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
@@ -121,20 +36,14 @@ pub struct Harris<'a> {
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
 
-impl<'a> Harris<'a> {
-    pub fn new(ctx: &'a GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
+impl Harris {
+    pub fn new(ctx: &GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
         config.validate()?;
-        let mut entries = vec![layout_entry(0, wgpu::BufferBindingType::Uniform)];
-        entries.extend((1..8).map(|b| layout_entry(b, storage(false))));
-        entries.push(layout_entry(8, storage(true)));
-        let layout = ctx
-            .device
-            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-                label: Some("harris"),
-                entries: &entries,
-            });
-        let mut all = pipelines(
-            ctx,
+        let mut entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
+        entries.extend((1..8).map(|b| compute_entry(b, storage(false))));
+        entries.push(compute_entry(8, storage(true)));
+        let layout = ctx.bind_group_layout("harris", &entries);
+        let mut all = ctx.compute_pipelines(
             "harris",
             &layout,
             &[
@@ -144,7 +53,7 @@ impl<'a> Harris<'a> {
         let grey = all.pop().expect("seven pipelines");
         let refine = all.pop().expect("seven pipelines");
         Ok(Self {
-            ctx,
+            ctx: ctx.clone(),
             config,
             layout,
             passes: all,
@@ -176,7 +85,7 @@ impl<'a> Harris<'a> {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(self.ctx, PASSES.len() as u32 + 2));
+        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 2));
     }
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
@@ -211,7 +120,9 @@ impl<'a> Harris<'a> {
             refine_inv_2s2: c.refine_inv_2s2(),
             n_corners,
             max_shift: c.max_shift(),
-            _pad: [0; 3],
+            _pad0: 0,
+            _pad1: 0,
+            _pad2: 0,
             weights,
         }
     }
@@ -228,7 +139,8 @@ impl<'a> Harris<'a> {
             height: h,
             reason,
         };
-        let max_dim = self.ctx.limits.max_compute_workgroups_per_dimension as usize * 16;
+        let max_dim =
+            self.ctx.limits.max_compute_workgroups_per_dimension as usize * WORKGROUP_2D as usize;
         if w > max_dim || h > max_dim {
             return Err(too_large(format!("a side exceeds {max_dim} pixels")));
         }
@@ -242,7 +154,7 @@ impl<'a> Harris<'a> {
                 "needs {big}-byte buffers, limit {limit}"
             )));
         }
-        let ctx = self.ctx;
+        let ctx = &self.ctx.clone();
         let mut changed = false;
         changed |= self.pixels.ensure(ctx, (w * h * 8) as u64);
         changed |= self.rgba.ensure(ctx, (w * h * 4) as u64);
@@ -275,7 +187,7 @@ impl<'a> Harris<'a> {
     fn run_maps(&mut self, input: Input, mask: Option<&[bool]>) -> Result<(), FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
-        let ctx = self.ctx;
+        let ctx = &self.ctx.clone();
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
         match input {
@@ -305,34 +217,33 @@ impl<'a> Harris<'a> {
             bytemuck::bytes_of(&Counters {
                 max_bits: 0,
                 count: 0,
-                _pad: [0; 2],
+                _pad0: 0,
+                _pad1: 0,
             }),
         );
         let bind = self.bind.as_ref().expect("prepared");
+        let (gx, gy) = (
+            workgroups(w as u32, WORKGROUP_2D),
+            workgroups(h as u32, WORKGROUP_2D),
+        );
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         if let Input::Rgb(_) = input {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("grey"),
-                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass("grey")),
-            });
+            let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
             pass.set_pipeline(&self.grey);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(workgroups(w as u32, 16), workgroups(h as u32, 16), 1);
+            pass.dispatch_workgroups(gx, gy, 1);
         }
         for (pipeline, label) in self.passes.iter().zip(PASSES) {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some(label),
-                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass(label)),
-            });
+            let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(workgroups(w as u32, 16), workgroups(h as u32, 16), 1);
+            pass.dispatch_workgroups(gx, gy, 1);
         }
         ctx.queue.submit([enc.finish()]);
         Ok(())
     }
 
-    /// The response map (row-major, [`super::INVALID_RESPONSE`] where the
+    /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
     /// support leaves the image or touches an invalid pixel), for tests and
     /// visualisation.
     pub fn response(&mut self, img: &GreyImage) -> Result<Vec<f32>, FeatureError> {
@@ -386,7 +297,7 @@ impl<'a> Harris<'a> {
             return Ok(Vec::new());
         }
         self.run_maps(input, mask)?;
-        let ctx = self.ctx;
+        let ctx = &self.ctx.clone();
         let counters: Vec<Counters> = ctx.read_buffer(self.counters.get(), 1)?;
         let count = (counters[0].count as usize).min(capacity(w, h));
         let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
@@ -409,7 +320,7 @@ impl<'a> Harris<'a> {
     /// Resolves and reads the timestamps of the passes just run.
     fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
-            let ctx = self.ctx;
+            let ctx = &self.ctx.clone();
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             t.resolve(&mut enc);
             ctx.queue.submit([enc.finish()]);
@@ -424,7 +335,7 @@ impl<'a> Harris<'a> {
         h: usize,
         corners: &[Corner],
     ) -> Result<Vec<Corner>, FeatureError> {
-        let ctx = self.ctx;
+        let ctx = &self.ctx.clone();
         let n = corners.len();
         ctx.queue.write_buffer(
             &self.params,
@@ -444,13 +355,10 @@ impl<'a> Harris<'a> {
             .write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-                label: Some("refine"),
-                timestamp_writes: self.timer.as_mut().and_then(|t| t.compute_pass("refine")),
-            });
+            let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
             pass.set_pipeline(&self.refine);
             pass.set_bind_group(0, self.bind.as_ref().expect("prepared"), &[]);
-            pass.dispatch_workgroups(workgroups(n as u32, 64), 1, 1);
+            pass.dispatch_workgroups(workgroups(n as u32, WORKGROUP_1D), 1, 1);
         }
         ctx.queue.submit([enc.finish()]);
         let out: Vec<RefineCorner> = ctx.read_buffer(self.corners.get(), n)?;

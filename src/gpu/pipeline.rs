@@ -1,0 +1,145 @@
+//! Bind-group layouts, pipelines and passes: the plumbing every GPU module
+//! (the splatter, Harris, NCC) builds the same way.
+
+use super::{GpuContext, GpuError, GpuTimer};
+
+/// A bind group layout entry for a whole buffer, visible to `visibility`.
+pub fn buffer_entry(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+    ty: wgpu::BufferBindingType,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty,
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+/// A bind group layout entry for a compute-visible buffer.
+pub fn compute_entry(binding: u32, ty: wgpu::BufferBindingType) -> wgpu::BindGroupLayoutEntry {
+    buffer_entry(binding, wgpu::ShaderStages::COMPUTE, ty)
+}
+
+/// A bind group layout entry for an unfilterable 2-D float texture read
+/// with `textureLoad`.
+pub fn texture_entry(binding: u32, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Texture {
+            sample_type: wgpu::TextureSampleType::Float { filterable: false },
+            view_dimension: wgpu::TextureViewDimension::D2,
+            multisampled: false,
+        },
+        count: None,
+    }
+}
+
+/// A storage buffer binding type.
+pub const fn storage(read_only: bool) -> wgpu::BufferBindingType {
+    wgpu::BufferBindingType::Storage { read_only }
+}
+
+impl GpuContext {
+    /// A bind group layout of `entries`.
+    pub fn bind_group_layout(
+        &self,
+        label: &str,
+        entries: &[wgpu::BindGroupLayoutEntry],
+    ) -> wgpu::BindGroupLayout {
+        self.device
+            .create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+    }
+
+    /// Compute pipelines of the entry points `entries` of one shader, sharing
+    /// one explicit bind group layout, so that a single bind group serves
+    /// every pass.
+    pub fn compute_pipelines(
+        &self,
+        shader: &str,
+        layout: &wgpu::BindGroupLayout,
+        entries: &[&str],
+    ) -> Result<Vec<wgpu::ComputePipeline>, GpuError> {
+        let module = self.shader(shader)?;
+        let pl = self.catch(shader, || {
+            self.device
+                .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                    label: Some(shader),
+                    bind_group_layouts: &[Some(layout)],
+                    immediate_size: 0,
+                })
+        })?;
+        entries
+            .iter()
+            .map(|entry| {
+                self.catch(&format!("{shader}::{entry}"), || {
+                    self.device
+                        .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                            label: Some(entry),
+                            layout: Some(&pl),
+                            module: &module,
+                            entry_point: Some(entry),
+                            compilation_options: Default::default(),
+                            cache: None,
+                        })
+                })
+            })
+            .collect()
+    }
+}
+
+/// Begins a compute pass named `label`, timed by `timer` when there is one
+/// (and the adapter has timestamps).
+pub fn compute_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    label: &str,
+    timer: Option<&mut GpuTimer>,
+) -> wgpu::ComputePass<'e> {
+    enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        label: Some(label),
+        timestamp_writes: timer.and_then(|t| t.compute_pass(label)),
+    })
+}
+
+/// A buffer that grows (never shrinks) to fit what it must hold, so that
+/// per-frame work allocates nothing in the steady state.
+pub struct GrowBuffer {
+    label: &'static str,
+    usage: wgpu::BufferUsages,
+    buffer: Option<wgpu::Buffer>,
+}
+
+impl GrowBuffer {
+    pub fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+        Self {
+            label,
+            usage,
+            buffer: None,
+        }
+    }
+
+    /// Ensures at least `size` bytes; true when the buffer was (re)created,
+    /// so bind groups referencing it must be rebuilt.
+    pub fn ensure(&mut self, ctx: &GpuContext, size: u64) -> bool {
+        let size = size.max(16).next_multiple_of(16);
+        if self.buffer.as_ref().is_some_and(|b| b.size() >= size) {
+            return false;
+        }
+        self.buffer = Some(ctx.buffer(self.label, size, self.usage));
+        true
+    }
+
+    /// The buffer; panics before the first [`GrowBuffer::ensure`].
+    pub fn get(&self) -> &wgpu::Buffer {
+        self.buffer.as_ref().expect("GrowBuffer used before ensure")
+    }
+}

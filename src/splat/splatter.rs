@@ -1,0 +1,435 @@
+//! The GPU splatter: pipelines for the three passes and the gather kernel
+//! (the module docs of [`super`] say how it works).
+
+use super::gpu_data::{
+    GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
+};
+use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, target_slots};
+use super::{
+    Attribute, Attributes, GatherMode, GatherSample, GpuModel, SplatError, SplatImage, SplatParams,
+    SplatTargets,
+};
+use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::{
+    GpuContext, GpuTimer, STORAGE_OUT, WORKGROUP_1D, buffer_entry, compute_entry, storage,
+    texture_entry, workgroups,
+};
+
+/// The GPU splatter: pipelines for the three passes and the gather kernel.
+/// Create once per device.
+pub struct Splatter {
+    params: SplatParams,
+    render_layout: wgpu::BindGroupLayout,
+    visibility: wgpu::RenderPipeline,
+    /// Indexed by [`Attributes::index`].
+    attribute: Vec<wgpu::RenderPipeline>,
+    resolve_layout: wgpu::BindGroupLayout,
+    resolve: wgpu::ComputePipeline,
+    gather: wgpu::ComputePipeline,
+    /// Bound where an entry point has no points to read.
+    dummy_points: wgpu::Buffer,
+}
+
+impl Splatter {
+    pub fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
+        Self::with_params(ctx, SplatParams::default())
+    }
+
+    pub fn with_params(ctx: &GpuContext, params: SplatParams) -> Result<Self, SplatError> {
+        let need = TARGETS as u32 * 16;
+        if ctx.limits.max_color_attachments < TARGETS as u32
+            || ctx.limits.max_color_attachment_bytes_per_sample < need
+        {
+            return Err(SplatError::Unsupported(format!(
+                "{} colour attachments of {need} bytes per sample needed, the adapter allows {} and {}",
+                TARGETS,
+                ctx.limits.max_color_attachments,
+                ctx.limits.max_color_attachment_bytes_per_sample
+            )));
+        }
+        let device = &ctx.device;
+        let render_layout = ctx.bind_group_layout(
+            "splat",
+            &[
+                buffer_entry(
+                    0,
+                    wgpu::ShaderStages::VERTEX_FRAGMENT,
+                    wgpu::BufferBindingType::Uniform,
+                ),
+                buffer_entry(1, wgpu::ShaderStages::VERTEX, storage(true)),
+            ],
+        );
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("splat"),
+            bind_group_layouts: &[Some(&render_layout)],
+            immediate_size: 0,
+        });
+        let module = ctx.shader("splat")?;
+        let pipeline =
+            |label: &str, entry: &str, write: bool, targets: &[Option<wgpu::ColorTargetState>]| {
+                ctx.catch(label, || {
+                    device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                        label: Some(label),
+                        layout: Some(&layout),
+                        vertex: wgpu::VertexState {
+                            module: &module,
+                            entry_point: Some("vs_splat"),
+                            compilation_options: Default::default(),
+                            buffers: &[],
+                        },
+                        primitive: wgpu::PrimitiveState {
+                            topology: wgpu::PrimitiveTopology::TriangleStrip,
+                            ..Default::default()
+                        },
+                        depth_stencil: Some(wgpu::DepthStencilState {
+                            format: DEPTH_FORMAT,
+                            depth_write_enabled: Some(write),
+                            depth_compare: Some(if write {
+                                wgpu::CompareFunction::Less
+                            } else {
+                                wgpu::CompareFunction::LessEqual
+                            }),
+                            stencil: Default::default(),
+                            bias: Default::default(),
+                        }),
+                        multisample: Default::default(),
+                        fragment: Some(wgpu::FragmentState {
+                            module: &module,
+                            entry_point: Some(entry),
+                            compilation_options: Default::default(),
+                            targets,
+                        }),
+                        multiview_mask: None,
+                        cache: None,
+                    })
+                })
+            };
+        let visibility = pipeline("splat visibility", "fs_visibility", true, &[])?;
+        let additive = Some(wgpu::ColorTargetState {
+            format: ACC_FORMAT,
+            blend: Some(wgpu::BlendState {
+                color: wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::One,
+                    dst_factor: wgpu::BlendFactor::One,
+                    operation: wgpu::BlendOperation::Add,
+                },
+                alpha: wgpu::BlendComponent {
+                    src_factor: wgpu::BlendFactor::One,
+                    dst_factor: wgpu::BlendFactor::One,
+                    operation: wgpu::BlendOperation::Add,
+                },
+            }),
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let mut attribute = Vec::new();
+        for index in 0..4 {
+            let attrs = Attributes {
+                geometry: index & 1 != 0,
+                motion: index & 2 != 0,
+            };
+            let targets = target_slots(attrs).map(|on| if on { additive.clone() } else { None });
+            let entry = ["fs_attr_c", "fs_attr_cg", "fs_attr_cm", "fs_attr_cgm"][index];
+            attribute.push(pipeline(entry, entry, false, &targets)?);
+        }
+
+        let tex = |binding| texture_entry(binding, wgpu::ShaderStages::COMPUTE);
+        let resolve_layout = ctx.bind_group_layout(
+            "splat resolve",
+            &[
+                compute_entry(0, wgpu::BufferBindingType::Uniform),
+                tex(1),
+                tex(2),
+                tex(3),
+                tex(4),
+                tex(5),
+                compute_entry(6, storage(false)),
+                compute_entry(7, storage(true)),
+            ],
+        );
+        let [resolve, gather]: [wgpu::ComputePipeline; 2] = ctx
+            .compute_pipelines("splat_resolve", &resolve_layout, &["resolve", "gather"])?
+            .try_into()
+            .expect("two pipelines");
+        let dummy_points = ctx.buffer("no points", 16, wgpu::BufferUsages::STORAGE);
+        Ok(Self {
+            params,
+            render_layout,
+            visibility,
+            attribute,
+            resolve_layout,
+            resolve,
+            gather,
+            dummy_points,
+        })
+    }
+
+    pub fn params(&self) -> &SplatParams {
+        &self.params
+    }
+
+    /// Splats `model` at `pose` into `targets` (whose size must be the
+    /// camera's). Submits the work and returns without waiting.
+    pub fn render(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        targets: &mut SplatTargets,
+    ) -> Result<(), SplatError> {
+        self.render_timed(ctx, model, cam, pose, attrs, targets, None)
+    }
+
+    /// [`Splatter::render`] with GPU timestamps for the passes "visibility"
+    /// and "attributes" (resolved into `timer`; read it after the submit).
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_timed(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        targets: &mut SplatTargets,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<(), SplatError> {
+        if targets.width != cam.width || targets.height != cam.height {
+            return Err(SplatError::SizeMismatch {
+                got_w: targets.width,
+                got_h: targets.height,
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        let uniform = model.bounds.view(cam, pose, &self.params)?;
+        ctx.queue
+            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(&uniform));
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat"),
+            layout: &self.render_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: targets.uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: model.buffer.as_entire_binding(),
+                },
+            ],
+        });
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splat visibility"),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.render_pass("visibility")),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.visibility);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.draw(0..4, 0..model.count);
+        }
+        {
+            let slots = target_slots(attrs);
+            let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = slots
+                .iter()
+                .zip(&targets.acc_views)
+                .map(|(&on, view)| {
+                    on.then_some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })
+                })
+                .collect();
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splat attributes"),
+                color_attachments: &colors,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Load,
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.render_pass("attributes")),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.attribute[attrs.index()]);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.draw(0..4, 0..model.count);
+        }
+        if let Some(t) = timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        targets.rendered = Some(attrs);
+        Ok(())
+    }
+
+    fn resolve_bind(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        params: ResolveParams,
+        out: &wgpu::Buffer,
+        points: Option<&wgpu::Buffer>,
+    ) -> wgpu::BindGroup {
+        let pbuf = ctx.buffer_init(
+            "splat resolve params",
+            &[params],
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let mut entries = vec![wgpu::BindGroupEntry {
+            binding: 0,
+            resource: pbuf.as_entire_binding(),
+        }];
+        for (i, v) in targets.acc_views.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 1 + i as u32,
+                resource: wgpu::BindingResource::TextureView(v),
+            });
+        }
+        entries.push(wgpu::BindGroupEntry {
+            binding: 6,
+            resource: out.as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 7,
+            resource: points.unwrap_or(&self.dummy_points).as_entire_binding(),
+        });
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat resolve"),
+            layout: &self.resolve_layout,
+            entries: &entries,
+        })
+    }
+
+    /// Normalises one attribute of the last render on the GPU and reads the
+    /// whole image back (for the CLI and tests; the tracker uses
+    /// [`Splatter::gather`]).
+    pub fn read(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        attribute: Attribute,
+    ) -> Result<SplatImage, SplatError> {
+        targets.check(attribute.needs(), attribute)?;
+        let (w, h) = (targets.width, targets.height);
+        let n = w as usize * h as usize * attribute.channels();
+        let out = ctx.buffer("splat image", (n * 4) as u64, STORAGE_OUT);
+        let bind = self.resolve_bind(
+            ctx,
+            targets,
+            ResolveParams {
+                width: w,
+                height: h,
+                kind: attribute.kind(),
+                mode: GATHER_NEAREST,
+            },
+            &out,
+            None,
+        );
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.resolve);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(
+                workgroups(w, RESOLVE_WORKGROUP),
+                workgroups(h, RESOLVE_WORKGROUP),
+                1,
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+        let data = ctx.read_buffer::<f32>(&out, n)?;
+        Ok(SplatImage {
+            width: w,
+            height: h,
+            channels: attribute.channels(),
+            data,
+        })
+    }
+
+    /// Motion predictors, depth and validity at `points` (OpenCV pixel
+    /// coordinates) from the last render, which must include geometry and
+    /// motion ([`Attributes::ALL`]). Reads back 14 floats per point only.
+    pub fn gather(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        points: &[[f32; 2]],
+        mode: GatherMode,
+    ) -> Result<Vec<GatherSample>, SplatError> {
+        targets.check(Attributes::ALL, Attribute::Motion)?;
+        if points.is_empty() {
+            return Ok(Vec::new());
+        }
+        let pbuf = ctx.buffer_init("gather points", points, wgpu::BufferUsages::STORAGE);
+        let n = points.len() * GATHER_STRIDE;
+        let out = ctx.buffer("gather out", (n * 4) as u64, STORAGE_OUT);
+        let bind = self.resolve_bind(
+            ctx,
+            targets,
+            ResolveParams {
+                width: targets.width,
+                height: targets.height,
+                kind: points.len() as u32,
+                mode: match mode {
+                    GatherMode::Nearest => GATHER_NEAREST,
+                    GatherMode::Bilinear => GATHER_BILINEAR,
+                },
+            },
+            &out,
+            Some(&pbuf),
+        );
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.gather);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(workgroups(points.len() as u32, WORKGROUP_1D), 1, 1);
+        }
+        ctx.queue.submit([enc.finish()]);
+        let data = ctx.read_buffer::<f32>(&out, n)?;
+        Ok(data
+            .chunks(GATHER_STRIDE)
+            .map(GatherSample::from_floats)
+            .collect())
+    }
+
+    /// One-shot convenience: upload, render and read one attribute.
+    pub fn render_image(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attribute: Attribute,
+    ) -> Result<SplatImage, SplatError> {
+        let mut targets = SplatTargets::new(ctx, cam.width, cam.height);
+        self.render(ctx, model, cam, pose, attribute.needs(), &mut targets)?;
+        self.read(ctx, &targets, attribute)
+    }
+}

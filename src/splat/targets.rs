@@ -1,0 +1,147 @@
+//! The render targets of the splatter ([`SplatTargets`]) and normalised
+//! images read back from them ([`SplatImage`]).
+
+use super::gpu_data::CameraUniform;
+use super::{Attribute, Attributes, SplatError};
+use crate::gpu::GpuContext;
+
+pub(super) const ACC_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
+pub(super) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+pub(super) const TARGETS: usize = 5;
+
+/// The GPU-resident result of a render: accumulation targets (weighted sums)
+/// and the visibility depth. Allocate once per image size and reuse.
+pub struct SplatTargets {
+    pub(super) width: u32,
+    pub(super) height: u32,
+    acc: Vec<wgpu::Texture>,
+    pub(super) acc_views: Vec<wgpu::TextureView>,
+    pub(super) depth_view: wgpu::TextureView,
+    pub(super) uniform: wgpu::Buffer,
+    pub(super) rendered: Option<Attributes>,
+}
+
+impl SplatTargets {
+    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Self {
+        let size = wgpu::Extent3d {
+            width,
+            height,
+            depth_or_array_layers: 1,
+        };
+        let tex = |label, format, usage| {
+            ctx.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size,
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let acc: Vec<wgpu::Texture> = (0..TARGETS)
+            .map(|_| {
+                tex(
+                    "splat accumulator",
+                    ACC_FORMAT,
+                    wgpu::TextureUsages::RENDER_ATTACHMENT
+                        | wgpu::TextureUsages::TEXTURE_BINDING
+                        | wgpu::TextureUsages::COPY_SRC,
+                )
+            })
+            .collect();
+        let acc_views = acc
+            .iter()
+            .map(|t| t.create_view(&Default::default()))
+            .collect();
+        let depth = tex(
+            "splat visibility depth",
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        );
+        let depth_view = depth.create_view(&Default::default());
+        let uniform = ctx.buffer(
+            "splat camera",
+            std::mem::size_of::<CameraUniform>() as u64,
+            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        );
+        Self {
+            width,
+            height,
+            acc,
+            acc_views,
+            depth_view,
+            uniform,
+            rendered: None,
+        }
+    }
+
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// The attribute groups of the last render, if any.
+    pub fn rendered(&self) -> Option<Attributes> {
+        self.rendered
+    }
+
+    /// The raw accumulation textures (weighted sums; layout in the module
+    /// docs), for passes that consume them on the GPU.
+    pub fn accumulators(&self) -> &[wgpu::Texture] {
+        &self.acc
+    }
+
+    pub(super) fn check(&self, need: Attributes, what: Attribute) -> Result<(), SplatError> {
+        match self.rendered {
+            Some(r) if r.contains(need) => Ok(()),
+            _ => Err(SplatError::NotRendered(what)),
+        }
+    }
+}
+
+/// A normalised attribute image read back to the host: row-major
+/// `height x width x channels`, NaN in every channel of empty pixels.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SplatImage {
+    pub width: u32,
+    pub height: u32,
+    pub channels: usize,
+    pub data: Vec<f32>,
+}
+
+impl SplatImage {
+    /// The channels of pixel (x, y).
+    pub fn pixel(&self, x: u32, y: u32) -> &[f32] {
+        let i = (y as usize * self.width as usize + x as usize) * self.channels;
+        &self.data[i..i + self.channels]
+    }
+
+    /// True where a splat covers the pixel.
+    pub fn is_valid(&self, x: u32, y: u32) -> bool {
+        !self.pixel(x, y)[0].is_nan()
+    }
+
+    /// Number of covered pixels.
+    pub fn coverage(&self) -> usize {
+        self.data
+            .chunks(self.channels)
+            .filter(|p| !p[0].is_nan())
+            .count()
+    }
+}
+
+/// Which of the five accumulation targets a render writes.
+pub(super) fn target_slots(attrs: Attributes) -> [bool; TARGETS] {
+    [
+        true,
+        attrs.geometry,
+        attrs.motion,
+        attrs.motion,
+        attrs.motion,
+    ]
+}
