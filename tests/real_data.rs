@@ -64,9 +64,9 @@ fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Track
     let seq = Sequence::open(&dir).unwrap();
     let cam = seq.camera;
     assert!(!cam.has_distortion(), "the ViSP camera has no distortion");
-    let splatter = Splatter::new(&ctx).unwrap();
+    let splatter = Splatter::new(ctx).unwrap();
     let store = KeyframeStore::build_from_dir(
-        &ctx,
+        ctx,
         &splatter,
         &model,
         &cam,
