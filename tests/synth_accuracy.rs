@@ -48,9 +48,9 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
     let kf_images = keyframe_images(&cfg, &object, &bg);
-    let splatter = Splatter::new(&ctx).unwrap();
+    let splatter = Splatter::new(ctx).unwrap();
     let store = KeyframeStore::build(
-        &ctx,
+        ctx,
         &splatter,
         &model,
         &cfg.camera,
