@@ -10,8 +10,11 @@
 //!   triangle meshes sampled into points, shapes with a known surface;
 //! - [`geometry`]: intrinsics, poses (SE(3)), the projection, its Jacobian and
 //!   the motion predictors: the host reference for every GPU kernel;
-//! - [`gpu`]: the headless wgpu context, readback helpers, GPU timers;
-//! - [`shaders`]: the WGSL sources, validated by naga;
+//! - [`gpu`]: the headless wgpu context, readback, bind-group and pipeline
+//!   helpers, GPU timers;
+//! - [`shaders`]: the WGSL sources, composed with a prelude generated from
+//!   the Rust constants and validated by naga (with the Rust/WGSL struct
+//!   layouts checked against each other);
 //! - [`splat`]: GPU EWA surface splatting (novel views, depth, motion
 //!   predictors) and its CPU reference;
 //! - [`features`]: Harris corners and NCC matching (GPU, with CPU references);
