@@ -372,6 +372,20 @@ impl KeyframeStore {
                 fp,
             });
         }
+        // The centre is the model's (model_center): another one is a
+        // corrupt or hostile store, whose keyframe choice would be wrong.
+        let (lo, hi) = model.bounds();
+        let extent = (hi - lo).length().max(f32::MIN_POSITIVE) as f64;
+        let want = model_center(model);
+        if (self.center - want).norm() > 1e-3 * extent {
+            return Err(KeyframeError::Format {
+                path: path.to_owned(),
+                reason: format!(
+                    "the stored model centre ({:.4}, {:.4}, {:.4}) is not the model's ({:.4}, {:.4}, {:.4})",
+                    self.center.x, self.center.y, self.center.z, want.x, want.y, want.z
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -433,6 +447,12 @@ impl KeyframeStore {
             *v = u64::from_le_bytes(b);
         }
         let [points, fingerprint, count] = u64s;
+        if count == 0 {
+            return Err(bad("the store holds no keyframe"));
+        }
+        if points == 0 {
+            return Err(bad("the store is for a model of 0 points"));
+        }
         let per_kf = points.checked_mul(4).and_then(|v| v.checked_add(4 + 96));
         match per_kf.and_then(|p| p.checked_mul(count)) {
             Some(need) if need <= bytes.len() as u64 => {}
@@ -444,8 +464,8 @@ impl KeyframeStore {
             Ok(f64::from_le_bytes(b))
         };
         let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
-        if !center.iter().all(|v| v.is_finite()) {
-            return Err(bad("the model centre is not finite"));
+        if !center.iter().all(|v| v.is_finite() && v.abs() <= 1e9) {
+            return Err(bad("the model centre is not finite or absurdly far (above 1e9)"));
         }
         let mut keyframes = Vec::with_capacity(count as usize);
         for k in 0..count {

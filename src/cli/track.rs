@@ -5,6 +5,7 @@
 
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
+use splattrack::io::guard::{check_output, check_output_dir};
 use splattrack::tracker::{ConfigError, Mode, TrackerConfig};
 use std::path::PathBuf;
 
@@ -160,6 +161,19 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     };
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
+    }
+    // Outputs that are this run's other inputs (the sequence's own files
+    // are checked by the run).
+    let mut inputs = vec![args.model.as_path()];
+    inputs.extend(args.init.as_deref());
+    inputs.extend(args.keyframes.as_deref());
+    check_output(&args.out, "--out", &inputs)?;
+    if let Some(bop) = &args.bop {
+        check_output(bop, "--bop", &inputs)?;
+    }
+    if let Some(dir) = &args.overlay {
+        let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
+        check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
     let ctx = super::gpu(adapter)?;
     let inputs = TrackInputs::load(

@@ -5,6 +5,7 @@
 pub mod atomic;
 pub mod bop;
 pub mod camera;
+pub mod guard;
 pub mod npy;
 pub mod poses;
 pub mod sequence;
