@@ -128,6 +128,11 @@ impl Tuning {
         set(&mut c.min_splat_radius_px, self.min_splat_px);
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
+        if let Some(n) = self.max_corners {
+            if !(1..=MAX_CORNERS).contains(&n) {
+                bail!("--max-corners {n}: must be 1..={MAX_CORNERS}");
+            }
+        }
         match c.validate() {
             Ok(()) => Ok(c),
             Err(ConfigError::OutOfRange { field, value, rule }) => {
@@ -140,6 +145,11 @@ impl Tuning {
         }
     }
 }
+
+/// The most corners per image the flags allow (a corner costs 16 bytes of
+/// GPU memory and a share of every matching pass; a billion would ask for
+/// a 16 GB buffer).
+pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
