@@ -429,6 +429,11 @@ impl KeyframeStore {
             path: path.to_owned(),
             source,
         })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// [`KeyframeStore::load`] of a file's bytes (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, KeyframeError> {
         let bad = |reason: &str| KeyframeError::Format {
             path: path.to_owned(),
             reason: reason.to_owned(),

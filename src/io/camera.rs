@@ -42,6 +42,12 @@ impl Intrinsics {
             path: path.to_owned(),
             source,
         })?;
+        Self::from_text(&text, path)
+    }
+
+    /// [`Intrinsics::load`] of a file's text: `path` names it in errors and
+    /// its extension says JSON or YAML.
+    pub fn from_text(text: &str, path: &Path) -> Result<Self, CameraError> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -49,9 +55,9 @@ impl Intrinsics {
             .to_ascii_lowercase();
         let looks_yaml = text.trim_start().starts_with("%YAML") || text.contains("camera_matrix");
         let cam = if ext == "yaml" || ext == "yml" || (ext != "json" && looks_yaml) {
-            Self::parse_opencv_yaml(&text)
+            Self::parse_opencv_yaml(text)
         } else {
-            Self::parse_json(&text)
+            Self::parse_json(text)
         }
         .map_err(|reason| CameraError::Parse {
             path: path.to_owned(),
