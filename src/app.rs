@@ -483,7 +483,12 @@ impl TrackRun<'_> {
             check_output(p, "BOP output", &with_poses)?;
         }
         if let Some((dir, _)) = &self.overlays {
-            check_output_dir(dir, "overlay folder", &[&frames_dir, &kf_dir, &seq.dir], &[])?;
+            check_output_dir(
+                dir,
+                "overlay folder",
+                &[&frames_dir, &kf_dir, &seq.dir],
+                &[],
+            )?;
         }
         Ok(())
     }

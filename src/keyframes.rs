@@ -470,7 +470,9 @@ impl KeyframeStore {
         };
         let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
         if !center.iter().all(|v| v.is_finite() && v.abs() <= 1e9) {
-            return Err(bad("the model centre is not finite or absurdly far (above 1e9)"));
+            return Err(bad(
+                "the model centre is not finite or absurdly far (above 1e9)",
+            ));
         }
         let mut keyframes = Vec::with_capacity(count as usize);
         for k in 0..count {

@@ -125,7 +125,11 @@ impl LineChart {
         // widened, so a tick step always moves.
         let widen = |lo: f64, hi: f64| {
             let min_range = (lo.abs().max(hi.abs()) * 1e-9).max(1.0);
-            if hi - lo < min_range { lo + min_range } else { hi }
+            if hi - lo < min_range {
+                lo + min_range
+            } else {
+                hi
+            }
         };
         xmax = widen(xmin, xmax);
         if ymax <= ymin {
@@ -292,7 +296,11 @@ mod tests {
         // Frame labels that are microsecond timestamps, one or many frames.
         for pts in [
             vec![(1.6e15, 0.5)],
-            vec![(1.6e15, 0.5), (1.6e15 + 33_333.0, 0.7), (1.6e15 + 66_666.0, 0.2)],
+            vec![
+                (1.6e15, 0.5),
+                (1.6e15 + 33_333.0, 0.7),
+                (1.6e15 + 66_666.0, 0.2),
+            ],
             vec![(f64::MAX / 4.0, 1e300), (-f64::MAX / 4.0, -1e300)],
         ] {
             let mut c = LineChart::new("t", "frame", "deg");

@@ -25,7 +25,10 @@ fn every_corpus_and_crash_input_is_refused_or_accepted_without_panic() {
         // reader accepts (so the replay exercises the whole reader).
         assert!(!corpus.is_empty(), "fuzz/corpus/{target} is empty");
         let mut accepted = 0;
-        for p in corpus.iter().chain(&inputs(&root.join("regressions").join(target))) {
+        for p in corpus
+            .iter()
+            .chain(&inputs(&root.join("regressions").join(target)))
+        {
             let data = std::fs::read(p).unwrap();
             let r = std::panic::catch_unwind(|| run(target, &data));
             match r {

@@ -73,7 +73,13 @@ pub struct Args {
 }
 
 /// The files of a sequence directory that `synth` writes (FORMATS.md).
-const SEQUENCE_FILES: [&str; 5] = ["camera.json", "init.csv", "poses.csv", "model.ply", "keyframes/poses.csv"];
+const SEQUENCE_FILES: [&str; 5] = [
+    "camera.json",
+    "init.csv",
+    "poses.csv",
+    "model.ply",
+    "keyframes/poses.csv",
+];
 
 /// Makes `dir` ready for a new sequence: absent or empty is fine; a
 /// non-empty one is refused without `force`, and with it the sequence

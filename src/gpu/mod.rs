@@ -56,9 +56,7 @@ pub enum GpuError {
     Shader { name: String, message: String },
     #[error("GPU out of memory in {context}: {message}")]
     OutOfMemory { context: String, message: String },
-    #[error(
-        "{what} needs {asked}, above this adapter's {limit_name} of {limit} ({adapter})"
-    )]
+    #[error("{what} needs {asked}, above this adapter's {limit_name} of {limit} ({adapter})")]
     TooLarge {
         what: String,
         asked: String,
@@ -296,10 +294,7 @@ impl GpuContext {
         let h = health.clone();
         device.set_device_lost_callback(move |reason, message| {
             let mut lost = h.lost.lock().unwrap_or_else(|p| p.into_inner());
-            // Dropping the device is not a loss worth reporting.
-            if reason != wgpu::DeviceLostReason::Destroyed {
-                *lost = Some(format!("{reason:?}: {message}"));
-            }
+            *lost = Some(format!("{reason:?}: {message}"));
         });
         Ok(Self {
             device,

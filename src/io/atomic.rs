@@ -224,10 +224,16 @@ mod tests {
             std::fs::read_to_string(d.join("crash.csv.partial.1")).unwrap(),
             "h\nx\n"
         );
-        assert_eq!(std::fs::read_to_string(d.join("crash.csv")).unwrap(), "h2\ny\n");
+        assert_eq!(
+            std::fs::read_to_string(d.join("crash.csv")).unwrap(),
+            "h2\ny\n"
+        );
         std::fs::write(d.join("whole.bin.partial"), "left").unwrap();
         write_atomic(&d.join("whole.bin"), |w| w.write_all(b"ok")).unwrap();
-        assert_eq!(std::fs::read_to_string(d.join("whole.bin.partial.1")).unwrap(), "left");
+        assert_eq!(
+            std::fs::read_to_string(d.join("whole.bin.partial.1")).unwrap(),
+            "left"
+        );
         std::fs::remove_dir_all(d).unwrap();
     }
 }

@@ -6,7 +6,13 @@
 use std::path::{Path, PathBuf};
 
 /// The readers fuzzed, by the name of their target and corpus folder.
-pub const TARGETS: [&str; 5] = ["ply", "camera_json", "camera_yaml", "poses_csv", "keyframe_store"];
+pub const TARGETS: [&str; 5] = [
+    "ply",
+    "camera_json",
+    "camera_yaml",
+    "poses_csv",
+    "keyframe_store",
+];
 
 /// Feeds `data` to the reader `target` names ([`TARGETS`]); true when it
 /// accepted the input, false when it refused it with an error. Panics only

@@ -93,8 +93,13 @@ mod tests {
         let init = d.join("init.csv");
         // The same file by another spelling.
         let other = d.join("frames/../init.csv");
-        let e = check_output(&other, "--out", &[&init]).unwrap_err().to_string();
-        assert!(e.contains("would overwrite the input") && e.contains("init.csv"), "{e}");
+        let e = check_output(&other, "--out", &[&init])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("would overwrite the input") && e.contains("init.csv"),
+            "{e}"
+        );
         assert!(check_output(&d.join("out.csv"), "--out", &[&init]).is_ok());
         // Not yet existing outputs resolve too.
         assert!(same_path(&d.join("frames/../new.csv"), &d.join("new.csv")));

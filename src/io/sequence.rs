@@ -108,7 +108,11 @@ pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
                 // leading zeros, then the longer number is the larger.
                 let ta = &na[na.iter().take_while(|&&c| c == b'0').count()..];
                 let tb = &nb[nb.iter().take_while(|&&c| c == b'0').count()..];
-                let o = ta.len().cmp(&tb.len()).then_with(|| ta.cmp(tb)).then_with(|| da.cmp(&db));
+                let o = ta
+                    .len()
+                    .cmp(&tb.len())
+                    .then_with(|| ta.cmp(tb))
+                    .then_with(|| da.cmp(&db));
                 if o != Ordering::Equal {
                     return o;
                 }
@@ -138,7 +142,12 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, SequenceError> {
         .filter(|p| p.is_file() && is_image(p))
         .collect();
     v.sort_by(|a, b| {
-        let name = |p: &PathBuf| p.file_name().unwrap_or_default().to_string_lossy().into_owned();
+        let name = |p: &PathBuf| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
         natural_cmp(&name(a), &name(b)).then_with(|| a.cmp(b))
     });
     Ok(v)
