@@ -561,3 +561,82 @@ pub fn load_keyframe_images(
     }
     Ok(out)
 }
+
+/// Default GPU memory for the textured models of [`TexturedCache`]: 256 MB.
+pub const DEFAULT_TEXTURED_BUDGET: u64 = 256 << 20;
+
+/// Bytes of one splat on the GPU (position and radius, normal, colour).
+const SPLAT_BYTES: u64 = 48;
+
+/// The GPU copies of the model textured by each keyframe, uploaded on
+/// first use and kept within a memory budget: when one more would exceed
+/// it, the least recently used is dropped (and uploaded again if needed),
+/// so a store of any size holds a bounded amount of GPU memory. At least
+/// one is always kept.
+pub struct TexturedCache {
+    slots: Vec<Option<(GpuModel, u64)>>,
+    clock: u64,
+    max_resident: usize,
+    uploads: u64,
+}
+
+impl TexturedCache {
+    /// A cache for `keyframes` keyframes of a model of `points` points
+    /// holding at most `budget_bytes` of textured models.
+    pub fn new(keyframes: usize, points: usize, budget_bytes: u64) -> Self {
+        let per_model = (points as u64).max(1) * SPLAT_BYTES;
+        Self {
+            slots: (0..keyframes).map(|_| None).collect(),
+            clock: 0,
+            max_resident: ((budget_bytes / per_model) as usize).max(1),
+            uploads: 0,
+        }
+    }
+
+    /// The model textured by keyframe `k` of `store`, uploaded when absent.
+    pub fn get(
+        &mut self,
+        ctx: &GpuContext,
+        store: &KeyframeStore,
+        model: &PointModel,
+        k: usize,
+    ) -> Result<&GpuModel, SplatError> {
+        self.clock += 1;
+        let now = self.clock;
+        if self.slots[k].is_none() {
+            while self.resident() >= self.max_resident {
+                let oldest = self
+                    .slots
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, s)| s.as_ref().map(|(_, t)| (*t, i)))
+                    .min()
+                    .map(|(_, i)| i);
+                match oldest {
+                    Some(i) => self.slots[i] = None,
+                    None => break,
+                }
+            }
+            self.slots[k] = Some((GpuModel::new(ctx, &store.textured(model, k))?, now));
+            self.uploads += 1;
+        }
+        let (gm, stamp) = self.slots[k].as_mut().expect("filled above");
+        *stamp = now;
+        Ok(gm)
+    }
+
+    /// Textured models on the GPU now.
+    pub fn resident(&self) -> usize {
+        self.slots.iter().filter(|s| s.is_some()).count()
+    }
+
+    /// The most that may be resident at once.
+    pub fn max_resident(&self) -> usize {
+        self.max_resident
+    }
+
+    /// Uploads so far (a re-upload after eviction counts again).
+    pub fn uploads(&self) -> u64 {
+        self.uploads
+    }
+}
