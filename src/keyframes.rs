@@ -438,7 +438,7 @@ impl KeyframeStore {
             path: path.to_owned(),
             reason: reason.to_owned(),
         };
-        let mut r = &bytes[..];
+        let mut r = bytes;
         let mut magic = [0u8; 8];
         r.read_exact(&mut magic)
             .map_err(|_| bad("file too short"))?;

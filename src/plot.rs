@@ -123,15 +123,10 @@ impl LineChart {
         // A range too narrow for f64 to step through at the values' size
         // (one frame labelled 1.6e15, a timestamp in microseconds) is
         // widened, so a tick step always moves.
-        let widen = |lo: f64, hi: f64| {
-            let min_range = (lo.abs().max(hi.abs()) * 1e-9).max(1.0);
-            if hi - lo < min_range {
-                lo + min_range
-            } else {
-                hi
-            }
-        };
-        xmax = widen(xmin, xmax);
+        let min_range = (xmin.abs().max(xmax.abs()) * 1e-9).max(1.0);
+        if xmax - xmin < min_range {
+            xmax = xmin + min_range;
+        }
         if ymax <= ymin {
             ymax = ymin + 1.0;
         }

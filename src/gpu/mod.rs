@@ -56,20 +56,30 @@ pub enum GpuError {
     Shader { name: String, message: String },
     #[error("GPU out of memory in {context}: {message}")]
     OutOfMemory { context: String, message: String },
-    #[error("{what} needs {asked}, above this adapter's {limit_name} of {limit} ({adapter})")]
-    TooLarge {
-        what: String,
-        asked: String,
-        limit_name: &'static str,
-        limit: u64,
-        adapter: String,
-    },
+    #[error("{0}")]
+    TooLarge(Box<LimitExceeded>),
     #[error("GPU error: {0}")]
     Uncaptured(String),
     #[error("the GPU device was lost ({0}); every frame finished before it is on disk")]
     DeviceLost(String),
     #[error("the GPU did not finish its work within {0} s (set {TIMEOUT_ENV} to wait longer)")]
     Timeout(u64),
+}
+
+/// A size above one of the adapter's limits ([`GpuError::TooLarge`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{what} needs {asked}, above this adapter's {limit_name} of {limit} ({adapter})")]
+pub struct LimitExceeded {
+    /// What was to be allocated.
+    pub what: String,
+    /// Its size, in words ("a 16.0 GB buffer").
+    pub asked: String,
+    /// The wgpu limit's name.
+    pub limit_name: &'static str,
+    /// The limit's value.
+    pub limit: u64,
+    /// The adapter.
+    pub adapter: String,
 }
 
 /// Environment variable: seconds to wait for the GPU to finish submitted
@@ -357,13 +367,13 @@ impl GpuContext {
         }
         for (limit_name, limit) in checks {
             if bytes > limit {
-                return Err(GpuError::TooLarge {
+                return Err(GpuError::TooLarge(Box::new(LimitExceeded {
                     what: what.to_owned(),
                     asked: format!("a {} buffer", human_bytes(bytes)),
                     limit_name,
                     limit,
                     adapter: self.describe(),
-                });
+                })));
             }
         }
         Ok(())
@@ -374,13 +384,13 @@ impl GpuContext {
     pub fn check_texture_size(&self, what: &str, width: u32, height: u32) -> Result<(), GpuError> {
         let limit = self.limits.max_texture_dimension_2d;
         if width > limit || height > limit || width == 0 || height == 0 {
-            return Err(GpuError::TooLarge {
+            return Err(GpuError::TooLarge(Box::new(LimitExceeded {
                 what: what.to_owned(),
                 asked: format!("a {width} x {height} texture"),
                 limit_name: "max_texture_dimension_2d",
                 limit: limit as u64,
                 adapter: self.describe(),
-            });
+            })));
         }
         Ok(())
     }
