@@ -569,6 +569,74 @@ fn no_command_overwrites_its_inputs_or_a_crashed_runs_output() {
         fails(&args, &["would overwrite the input", want]);
     }
     assert_eq!(std::fs::read(frames.join("000000.png")).unwrap(), before);
+    // The other commands' outputs over their inputs.
+    let gt = f.seq.join("poses.csv");
+    let gt_before = std::fs::read(&gt).unwrap();
+    let frame0 = frames.join("000000.png");
+    let camera = f.seq.join("camera.json");
+    let kf_dir = f.seq.join("keyframes");
+    let others: Vec<(Vec<&str>, &str)> = vec![
+        (
+            vec!["eval", "--poses", s(&out), "--gt", s(&gt), "--csv", s(&gt)],
+            "poses.csv",
+        ),
+        (
+            vec![
+                "eval",
+                "--poses",
+                s(&out),
+                "--gt",
+                s(&gt),
+                "--plot",
+                s(&out),
+            ],
+            "poses.csv",
+        ),
+        (
+            vec![
+                "features",
+                "--image",
+                s(&frame0),
+                "--cpu",
+                "--out",
+                s(&frame0),
+            ],
+            "000000.png",
+        ),
+        (
+            vec![
+                "render",
+                "--model",
+                s(&f.model),
+                "--camera",
+                s(&camera),
+                "--pose-file",
+                s(&gt),
+                "--out",
+                s(&f.model),
+            ],
+            "model.ply",
+        ),
+        (
+            vec![
+                "keyframes",
+                "--model",
+                s(&f.model),
+                "--keyframes",
+                s(&kf_dir),
+                "--camera",
+                s(&camera),
+                "--out",
+                s(&f.model),
+            ],
+            "model.ply",
+        ),
+    ];
+    for (args, want) in others {
+        fails(&args, &["would overwrite the input", want]);
+    }
+    assert_eq!(std::fs::read(&gt).unwrap(), gt_before);
+    assert_eq!(std::fs::read(frames.join("000000.png")).unwrap(), before);
     // synth refuses a non-empty folder; --force replaces the sequence
     // there, stale frames included.
     let seq = d.join("synth");

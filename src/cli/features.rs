@@ -82,6 +82,11 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         "--image: give one image (corners) or two (matches), not {}",
         args.images.len()
     );
+    let inputs: Vec<&Path> = args.images.iter().map(PathBuf::as_path).collect();
+    splattrack::io::guard::check_output(&args.out, "--out", &inputs)?;
+    if let Some(csv) = &args.csv {
+        splattrack::io::guard::check_output(csv, "--csv", &inputs)?;
+    }
     ensure!(
         (1..=super::track::MAX_CORNERS).contains(&args.max),
         "--max {}: must be 1..={}",
