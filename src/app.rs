@@ -94,6 +94,9 @@ pub enum AppError {
     /// No frame to track (an empty range).
     #[error("no frames to track")]
     NoFrames,
+    /// An output would overwrite one of the run's inputs.
+    #[error(transparent)]
+    Clobber(#[from] crate::io::guard::ClobberError),
 }
 
 /// Loads the keyframe store `path` names: a store file saved by
@@ -337,6 +340,7 @@ impl<'a> TrackRun<'a> {
         if n == 0 {
             return Err(AppError::NoFrames);
         }
+        self.check_outputs()?;
         if let Some((dir, _)) = &self.overlays {
             std::fs::create_dir_all(dir).map_err(|e| AppError::Overlay {
                 path: dir.clone(),
@@ -452,6 +456,41 @@ impl<'a> TrackRun<'a> {
         totals.sort_by(f64::total_cmp);
         stats.median_ms = totals[totals.len() / 2];
         Ok(stats)
+    }
+}
+
+impl TrackRun<'_> {
+    /// Refuses, before anything is written, outputs that would overwrite
+    /// the sequence's files (camera, init.csv, ground truth, keyframe
+    /// poses, frames) or each other, and overlays aimed at the frames or
+    /// keyframes folder.
+    fn check_outputs(&self) -> Result<(), AppError> {
+        use crate::io::guard::{check_output, check_output_dir};
+        let seq = &self.inputs.sequence;
+        let init = seq.init_path();
+        let gt = seq.dir.join("poses.csv");
+        let kf_dir = seq.dir.join("keyframes");
+        let kf_poses = kf_dir.join("poses.csv");
+        let frames_dir = seq.dir.join("frames");
+        let mut inputs: Vec<&Path> = vec![&seq.camera_path, &init, &gt, &kf_poses];
+        inputs.extend(seq.frames.iter().map(PathBuf::as_path));
+        if let Some(p) = &self.poses {
+            check_output(p, "pose output", &inputs)?;
+        }
+        if let Some((p, _)) = &self.bop {
+            let mut with_poses = inputs.clone();
+            with_poses.extend(self.poses.as_deref());
+            check_output(p, "BOP output", &with_poses)?;
+        }
+        if let Some((dir, _)) = &self.overlays {
+            check_output_dir(
+                dir,
+                "overlay folder",
+                &[&frames_dir, &kf_dir, &seq.dir],
+                &[],
+            )?;
+        }
+        Ok(())
     }
 }
 

@@ -372,6 +372,20 @@ impl KeyframeStore {
                 fp,
             });
         }
+        // The centre is the model's (model_center): another one is a
+        // corrupt or hostile store, whose keyframe choice would be wrong.
+        let (lo, hi) = model.bounds();
+        let extent = (hi - lo).length().max(f32::MIN_POSITIVE) as f64;
+        let want = model_center(model);
+        if (self.center - want).norm() > 1e-3 * extent {
+            return Err(KeyframeError::Format {
+                path: path.to_owned(),
+                reason: format!(
+                    "the stored model centre ({:.4}, {:.4}, {:.4}) is not the model's ({:.4}, {:.4}, {:.4})",
+                    self.center.x, self.center.y, self.center.z, want.x, want.y, want.z
+                ),
+            });
+        }
         Ok(())
     }
 
@@ -415,11 +429,16 @@ impl KeyframeStore {
             path: path.to_owned(),
             source,
         })?;
+        Self::from_bytes(&bytes, path)
+    }
+
+    /// [`KeyframeStore::load`] of a file's bytes (`path` names it in errors).
+    pub fn from_bytes(bytes: &[u8], path: &Path) -> Result<Self, KeyframeError> {
         let bad = |reason: &str| KeyframeError::Format {
             path: path.to_owned(),
             reason: reason.to_owned(),
         };
-        let mut r = &bytes[..];
+        let mut r = bytes;
         let mut magic = [0u8; 8];
         r.read_exact(&mut magic)
             .map_err(|_| bad("file too short"))?;
@@ -433,6 +452,12 @@ impl KeyframeStore {
             *v = u64::from_le_bytes(b);
         }
         let [points, fingerprint, count] = u64s;
+        if count == 0 {
+            return Err(bad("the store holds no keyframe"));
+        }
+        if points == 0 {
+            return Err(bad("the store is for a model of 0 points"));
+        }
         let per_kf = points.checked_mul(4).and_then(|v| v.checked_add(4 + 96));
         match per_kf.and_then(|p| p.checked_mul(count)) {
             Some(need) if need <= bytes.len() as u64 => {}
@@ -444,8 +469,10 @@ impl KeyframeStore {
             Ok(f64::from_le_bytes(b))
         };
         let center = Vector3::new(read_f64(&mut r)?, read_f64(&mut r)?, read_f64(&mut r)?);
-        if !center.iter().all(|v| v.is_finite()) {
-            return Err(bad("the model centre is not finite"));
+        if !center.iter().all(|v| v.is_finite() && v.abs() <= 1e9) {
+            return Err(bad(
+                "the model centre is not finite or absurdly far (above 1e9)",
+            ));
         }
         let mut keyframes = Vec::with_capacity(count as usize);
         for k in 0..count {
@@ -533,4 +560,83 @@ pub fn load_keyframe_images(
         out.push((row.frame_stem().to_owned(), img, row.pose));
     }
     Ok(out)
+}
+
+/// Default GPU memory for the textured models of [`TexturedCache`]: 256 MB.
+pub const DEFAULT_TEXTURED_BUDGET: u64 = 256 << 20;
+
+/// Bytes of one splat on the GPU (position and radius, normal, colour).
+const SPLAT_BYTES: u64 = 48;
+
+/// The GPU copies of the model textured by each keyframe, uploaded on
+/// first use and kept within a memory budget: when one more would exceed
+/// it, the least recently used is dropped (and uploaded again if needed),
+/// so a store of any size holds a bounded amount of GPU memory. At least
+/// one is always kept.
+pub struct TexturedCache {
+    slots: Vec<Option<(GpuModel, u64)>>,
+    clock: u64,
+    max_resident: usize,
+    uploads: u64,
+}
+
+impl TexturedCache {
+    /// A cache for `keyframes` keyframes of a model of `points` points
+    /// holding at most `budget_bytes` of textured models.
+    pub fn new(keyframes: usize, points: usize, budget_bytes: u64) -> Self {
+        let per_model = (points as u64).max(1) * SPLAT_BYTES;
+        Self {
+            slots: (0..keyframes).map(|_| None).collect(),
+            clock: 0,
+            max_resident: ((budget_bytes / per_model) as usize).max(1),
+            uploads: 0,
+        }
+    }
+
+    /// The model textured by keyframe `k` of `store`, uploaded when absent.
+    pub fn get(
+        &mut self,
+        ctx: &GpuContext,
+        store: &KeyframeStore,
+        model: &PointModel,
+        k: usize,
+    ) -> Result<&GpuModel, SplatError> {
+        self.clock += 1;
+        let now = self.clock;
+        if self.slots[k].is_none() {
+            while self.resident() >= self.max_resident {
+                let oldest = self
+                    .slots
+                    .iter()
+                    .enumerate()
+                    .filter_map(|(i, s)| s.as_ref().map(|(_, t)| (*t, i)))
+                    .min()
+                    .map(|(_, i)| i);
+                match oldest {
+                    Some(i) => self.slots[i] = None,
+                    None => break,
+                }
+            }
+            self.slots[k] = Some((GpuModel::new(ctx, &store.textured(model, k))?, now));
+            self.uploads += 1;
+        }
+        let (gm, stamp) = self.slots[k].as_mut().expect("filled above");
+        *stamp = now;
+        Ok(gm)
+    }
+
+    /// Textured models on the GPU now.
+    pub fn resident(&self) -> usize {
+        self.slots.iter().filter(|s| s.is_some()).count()
+    }
+
+    /// The most that may be resident at once.
+    pub fn max_resident(&self) -> usize {
+        self.max_resident
+    }
+
+    /// Uploads so far (a re-upload after eviction counts again).
+    pub fn uploads(&self) -> u64 {
+        self.uploads
+    }
 }

@@ -43,6 +43,21 @@ fn tick_step(range: f64, n: f64) -> f64 {
     nice * mag
 }
 
+/// The multiples of `step` in `[lo, hi]`, at most 100 of them (counted,
+/// not accumulated: adding a step that is tiny next to the values would
+/// never reach `hi`).
+fn ticks(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite() && step.is_finite() && step > 0.0) {
+        return Vec::new();
+    }
+    let first = (lo / step).ceil();
+    let n = ((hi / step + 1e-6).floor() - first + 1.0).clamp(0.0, 100.0) as usize;
+    (0..n)
+        .map(|k| (first + k as f64) * step)
+        .filter(|v| *v <= hi + step * 1e-6)
+        .collect()
+}
+
 fn fmt_tick(v: f64, step: f64) -> String {
     let decimals = if step >= 1.0 {
         0
@@ -105,8 +120,12 @@ impl LineChart {
         if let Some(m) = self.y_max {
             ymax = m;
         }
-        if xmax <= xmin {
-            xmax = xmin + 1.0;
+        // A range too narrow for f64 to step through at the values' size
+        // (one frame labelled 1.6e15, a timestamp in microseconds) is
+        // widened, so a tick step always moves.
+        let min_range = (xmin.abs().max(xmax.abs()) * 1e-9).max(1.0);
+        if xmax - xmin < min_range {
+            xmax = xmin + min_range;
         }
         if ymax <= ymin {
             ymax = ymin + 1.0;
@@ -120,8 +139,7 @@ impl LineChart {
         let sy = |y: f64| bottom as f64 - (y - ymin) / (ymax - ymin) * (bottom - top) as f64;
         draw::text(img, left, y0 + 6, &self.title, draw::BLACK, 2);
         // Grid and ticks.
-        let mut y = (ymin / ystep).ceil() * ystep;
-        while y <= ymax + ystep * 1e-6 {
+        for y in ticks(ymin, ymax, ystep) {
             let py = sy(y);
             draw::line(
                 img,
@@ -141,10 +159,8 @@ impl LineChart {
                 draw::BLACK,
                 1,
             );
-            y += ystep;
         }
-        let mut x = (xmin / xstep).ceil() * xstep;
-        while x <= xmax + xstep * 1e-6 {
+        for x in ticks(xmin, xmax, xstep) {
             let px = sx(x);
             draw::line(
                 img,
@@ -164,7 +180,6 @@ impl LineChart {
                 draw::BLACK,
                 1,
             );
-            x += xstep;
         }
         for g in &self.guides {
             let py = sy(*g);
@@ -270,6 +285,27 @@ pub fn stack(charts: &[LineChart], width: u32, height: u32) -> RgbImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn huge_labels_plot_without_hanging() {
+        // Frame labels that are microsecond timestamps, one or many frames.
+        for pts in [
+            vec![(1.6e15, 0.5)],
+            vec![
+                (1.6e15, 0.5),
+                (1.6e15 + 33_333.0, 0.7),
+                (1.6e15 + 66_666.0, 0.2),
+            ],
+            vec![(f64::MAX / 4.0, 1e300), (-f64::MAX / 4.0, -1e300)],
+        ] {
+            let mut c = LineChart::new("t", "frame", "deg");
+            c.add("a", pts);
+            let img = c.render(320, 200);
+            assert_eq!(img.dimensions(), (320, 200));
+        }
+        assert!(ticks(0.0, 1e300, 1e-300).len() <= 100);
+        assert_eq!(ticks(0.0, 10.0, 2.0), vec![0.0, 2.0, 4.0, 6.0, 8.0, 10.0]);
+    }
 
     #[test]
     fn ticks_are_round_numbers() {

@@ -153,3 +153,134 @@ fn invalid_shader_names_are_errors_not_panics() {
         Err(GpuError::Validation { .. })
     ));
 }
+
+/// A fresh device (not the shared one: these tests break theirs).
+fn own_ctx() -> GpuContext {
+    let choice = AdapterChoice::from_env().unwrap();
+    let choice = if choice == AdapterChoice::Auto {
+        AdapterChoice::Cpu
+    } else {
+        choice
+    };
+    GpuContext::new(&choice).expect("a GPU adapter (lavapipe in CI)")
+}
+
+#[test]
+fn sizes_above_the_adapters_limits_are_refused_before_allocation() {
+    let c = ctx();
+    let huge = c.limits.max_buffer_size.saturating_add(1);
+    // Checked at once...
+    let e = c
+        .try_buffer("harris corners", huge, gpu::STORAGE_OUT)
+        .unwrap_err();
+    assert!(matches!(e, GpuError::TooLarge(_)), "{e}");
+    let msg = e.to_string();
+    assert!(
+        msg.contains("harris corners") && msg.contains("max_buffer_size"),
+        "{msg}"
+    );
+    let over_binding = c.limits.max_storage_buffer_binding_size + 16;
+    if over_binding <= c.limits.max_buffer_size {
+        let e = c
+            .try_buffer("storage", over_binding, gpu::STORAGE_OUT)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("max_storage_buffer_binding_size"), "{e}");
+    }
+    let e = c
+        .check_texture_size("render targets", 20_000, 20_000)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("20000 x 20000") && e.contains("max_texture_dimension_2d"),
+        "{e}"
+    );
+    assert!(c.check_texture_size("ok", 640, 480).is_ok());
+    assert!(c.try_buffer("fine", 1024, gpu::STORAGE_OUT).is_ok());
+}
+
+#[test]
+fn gpu_errors_outside_a_scope_become_typed_errors_not_panics() {
+    let c = own_ctx();
+    // The infallible buffer() with a size a 16 GB corner list would ask
+    // for: nothing allocated, and the next wait reports it.
+    let size = 16_000_000_000u64.max(c.limits.max_buffer_size.saturating_add(1));
+    let b = c.buffer("corners of 1e9", size, gpu::STORAGE_OUT);
+    assert_eq!(b.size(), 16);
+    let e = c.wait().unwrap_err();
+    assert!(matches!(e, GpuError::TooLarge(_)), "{e}");
+    // Reported once; the device is fine afterwards.
+    c.wait().unwrap();
+    // A real wgpu validation error outside any scope (a texture above the
+    // limit): wgpu's default handler would panic; ours records it.
+    let too_big = c.limits.max_texture_dimension_2d + 1;
+    let _t = c.device.create_texture(&wgpu::TextureDescriptor {
+        label: Some("too big"),
+        size: wgpu::Extent3d {
+            width: too_big,
+            height: 1,
+            depth_or_array_layers: 1,
+        },
+        mip_level_count: 1,
+        sample_count: 1,
+        dimension: wgpu::TextureDimension::D2,
+        format: wgpu::TextureFormat::Rgba8Unorm,
+        usage: wgpu::TextureUsages::COPY_SRC,
+        view_formats: &[],
+    });
+    let e = c.wait().unwrap_err();
+    assert!(matches!(e, GpuError::Uncaptured(_)), "{e}");
+    assert!(e.to_string().starts_with("GPU error"), "{e}");
+    c.wait().unwrap();
+    // Inside catch(): a typed validation error naming the context.
+    let e = c
+        .catch("the test texture", || {
+            c.device.create_texture(&wgpu::TextureDescriptor {
+                label: Some("too big"),
+                size: wgpu::Extent3d {
+                    width: too_big,
+                    height: 1,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: 1,
+                dimension: wgpu::TextureDimension::D2,
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                usage: wgpu::TextureUsages::COPY_SRC,
+                view_formats: &[],
+            })
+        })
+        .unwrap_err();
+    assert!(e.to_string().contains("the test texture"), "{e}");
+}
+
+#[test]
+fn a_lost_device_ends_work_with_an_error() {
+    let c = own_ctx();
+    let b = c.buffer_init("data", &[1.0f32, 2.0, 3.0, 4.0], gpu::STORAGE_OUT);
+    assert_eq!(c.read_buffer::<f32>(&b, 4).unwrap(), [1.0, 2.0, 3.0, 4.0]);
+    c.device.destroy();
+    let e = c.read_buffer::<f32>(&b, 4).unwrap_err();
+    assert!(matches!(e, GpuError::DeviceLost(_)), "{e}");
+    assert!(e.to_string().contains("device was lost"), "{e}");
+    assert!(c.wait().is_err());
+}
+
+#[test]
+fn memory_report_counts_live_buffers() {
+    let c = own_ctx();
+    let before = c.memory_report();
+    let bufs: Vec<_> = (0..5)
+        .map(|_| c.buffer("count me", 1 << 20, gpu::STORAGE_OUT))
+        .collect();
+    let during = c.memory_report();
+    assert_eq!(during.buffers - before.buffers, 5, "{before:?} {during:?}");
+    assert!(
+        during.buffer_bytes - before.buffer_bytes >= 5 << 20,
+        "{before:?} {during:?}"
+    );
+    drop(bufs);
+    c.wait().unwrap();
+    let after = c.memory_report();
+    assert_eq!(after.buffers, before.buffers, "{before:?} {after:?}");
+}

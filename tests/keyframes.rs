@@ -560,3 +560,48 @@ fn keyframe_that_does_not_see_the_object_is_refused() {
     let e = build("behind", behind).unwrap_err();
     assert!(e.to_string().contains("behind the camera"), "{e}");
 }
+
+#[test]
+fn the_textured_cache_stays_within_its_budget_and_renders_the_same() {
+    use splattrack::keyframes::TexturedCache;
+    use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets};
+    let f = fixture();
+    let ctx = shared_test_context();
+    let model = &f.scene.model;
+    // Room for two textured models of this size.
+    let budget = 2 * 48 * model.len() as u64 + 100;
+    let mut cache = TexturedCache::new(f.store.keyframes.len(), model.len(), budget);
+    assert_eq!(cache.max_resident(), 2);
+    let splatter = Splatter::new(ctx).unwrap();
+    let cam = &f.scene.cam;
+    let mut targets = SplatTargets::new(ctx, cam.width, cam.height);
+    let mut colour = |gm: &GpuModel, pose: &Pose| {
+        splatter
+            .render(ctx, gm, cam, pose, Attributes::ALL, &mut targets)
+            .unwrap();
+        splatter.read(ctx, &targets, Attribute::Color).unwrap().data
+    };
+    let mut uploads = Vec::new();
+    for k in [0, 1, 0, 2, 1, 1, 3] {
+        let pose = f.poses[k];
+        let got = colour(cache.get(ctx, &f.store, model, k).unwrap(), &pose);
+        assert!(cache.resident() <= 2, "{} resident", cache.resident());
+        uploads.push(cache.uploads());
+        // The cached model is keyframe k's texture: the same picture as a
+        // fresh upload of it.
+        // (Additive blending may sum in another order on the GPU: equal
+        // within float rounding, far below an 8-bit step.)
+        let fresh = GpuModel::new(ctx, &f.store.textured(model, k)).unwrap();
+        let want = colour(&fresh, &pose);
+        let diff = got
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0f32, f32::max);
+        assert!(diff < 1e-4, "keyframe {k}: max difference {diff}");
+    }
+    // 0, 1 uploaded; 0 hit; 2 evicts 1; 1 evicts 0; 1 hit; 3 evicts 2.
+    assert_eq!(uploads, [1, 2, 2, 3, 4, 4, 5]);
+    // A budget below one model still keeps one.
+    assert_eq!(TexturedCache::new(12, model.len(), 1).max_resident(), 1);
+}

@@ -44,8 +44,11 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         noise: 0.01,
         seed: 1,
         out: seq_dir.clone(),
+        force: true,
     };
     let cfg = synth::config(&synth_args)?;
+    // The demo's own sequence folder: regenerated on each run.
+    synth::prepare_out(&seq_dir, true)?;
     let summary = synth::write(&cfg, &seq_dir, synth_args.points)?;
     println!(
         "1. synthesised {} frames of the {} object along the {} trajectory: {}",

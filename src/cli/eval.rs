@@ -71,6 +71,16 @@ fn excluded_frames(path: &Path) -> anyhow::Result<HashSet<String>> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Outputs never overwrite inputs.
+    let mut inputs: Vec<&Path> = args.poses.iter().map(PathBuf::as_path).collect();
+    inputs.push(&args.gt);
+    inputs.extend(args.model.as_deref());
+    inputs.extend(args.gt_quality.as_deref());
+    for (out, flag) in [(&args.plot, "--plot"), (&args.csv, "--csv")] {
+        if let Some(out) = out {
+            splattrack::io::guard::check_output(out, flag, &inputs)?;
+        }
+    }
     let gt = splattrack::io::read_poses(&args.gt)?;
     let diameter = match (&args.model, args.diameter) {
         (Some(m), _) => Some(super::load_model(m)?.diameter() as f64),

@@ -47,7 +47,25 @@ pub struct Args {
     pub side_by_side: bool,
 }
 
+/// The most pixels an input image or the picture drawn may have (64 Mpx:
+/// 8192 x 8192; about 200 MB as RGB), so odd-shaped inputs cannot ask for
+/// a canvas of tens of GB.
+pub const MAX_PIXELS: u64 = 1 << 26;
+
 fn load(path: &Path) -> anyhow::Result<(GreyImage, RgbImage)> {
+    let reader = image::ImageReader::open(path)
+        .with_context(|| format!("cannot open {}", path.display()))?
+        .with_guessed_format()
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .with_context(|| format!("cannot decode image {}", path.display()))?;
+    ensure!(
+        w as u64 * h as u64 <= MAX_PIXELS,
+        "{}: {w} x {h} is more than {} Mpx",
+        path.display(),
+        MAX_PIXELS >> 20
+    );
     let img = image::ImageReader::open(path)
         .with_context(|| format!("cannot open {}", path.display()))?
         .with_guessed_format()
@@ -64,7 +82,17 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         "--image: give one image (corners) or two (matches), not {}",
         args.images.len()
     );
-    ensure!(args.max > 0, "--max must be at least 1");
+    let inputs: Vec<&Path> = args.images.iter().map(PathBuf::as_path).collect();
+    splattrack::io::guard::check_output(&args.out, "--out", &inputs)?;
+    if let Some(csv) = &args.csv {
+        splattrack::io::guard::check_output(csv, "--csv", &inputs)?;
+    }
+    ensure!(
+        (1..=super::track::MAX_CORNERS).contains(&args.max),
+        "--max {}: must be 1..={}",
+        args.max,
+        super::track::MAX_CORNERS
+    );
     let ext = args
         .out
         .extension()
@@ -140,7 +168,18 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     };
     println!("{} mutual matches", matches.len());
     let (ra, rb) = (&loaded[0].1, &loaded[1].1);
-    let pic = if args.side_by_side || ra.dimensions() != rb.dimensions() {
+    let side_by_side = args.side_by_side || ra.dimensions() != rb.dimensions();
+    let canvas = (ra.width() as u64 + rb.width() as u64) * ra.height().max(rb.height()) as u64;
+    ensure!(
+        !side_by_side || canvas <= MAX_PIXELS,
+        "{} and {}: drawn side by side they need a {} x {} picture, more than {} Mpx; give images of similar shape",
+        args.images[0].display(),
+        args.images[1].display(),
+        ra.width() as u64 + rb.width() as u64,
+        ra.height().max(rb.height()),
+        MAX_PIXELS >> 20
+    );
+    let pic = if side_by_side {
         draw::matches_side_by_side(ra, rb, ca, cb, &matches)
     } else {
         draw::match_arrows(rb, ca, cb, &matches)

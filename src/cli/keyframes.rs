@@ -21,6 +21,11 @@ pub struct Args {
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+    splattrack::io::guard::check_output(
+        &args.out,
+        "--out",
+        &[&args.model, &args.camera, &args.keyframes.join("poses.csv")],
+    )?;
     let ctx = super::gpu(adapter)?;
     let model = super::load_model(&args.model)?;
     let cam = Intrinsics::load(&args.camera)?;

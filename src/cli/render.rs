@@ -98,6 +98,9 @@ enum Output {
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+    let mut inputs: Vec<&Path> = vec![&args.model, &args.camera];
+    inputs.extend(args.pose_file.as_deref());
+    splattrack::io::guard::check_output(&args.out, "--out", &inputs)?;
     let kind = match args
         .out
         .extension()

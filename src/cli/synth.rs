@@ -61,9 +61,61 @@ pub struct Args {
     pub noise: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// The sequence directory to write.
+    /// The sequence directory to write (must be empty or absent).
     #[arg(long)]
     pub out: PathBuf,
+    /// Write into a non-empty directory: first remove what a sequence
+    /// holds there (the images of frames/ and keyframes/, their poses.csv,
+    /// camera.json, init.csv, poses.csv, model.ply), so no stale frame or
+    /// ground truth survives; other files are left alone.
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// The files of a sequence directory that `synth` writes (FORMATS.md).
+const SEQUENCE_FILES: [&str; 5] = [
+    "camera.json",
+    "init.csv",
+    "poses.csv",
+    "model.ply",
+    "keyframes/poses.csv",
+];
+
+/// Makes `dir` ready for a new sequence: absent or empty is fine; a
+/// non-empty one is refused without `force`, and with it the sequence
+/// files and images there are removed first.
+pub fn prepare_out(dir: &Path, force: bool) -> anyhow::Result<()> {
+    let mut entries = match std::fs::read_dir(dir) {
+        Ok(rd) => rd,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(e).with_context(|| format!("{}: cannot read", dir.display())),
+    };
+    if entries.next().is_none() {
+        return Ok(());
+    }
+    if !force {
+        bail!(
+            "{}: not empty (it may hold a sequence and its ground truth); use an empty directory or --force to replace the sequence there",
+            dir.display()
+        );
+    }
+    for name in SEQUENCE_FILES {
+        let p = dir.join(name);
+        if p.is_file() {
+            std::fs::remove_file(&p).with_context(|| format!("{}: cannot remove", p.display()))?;
+        }
+    }
+    for sub in ["frames", "keyframes"] {
+        let d = dir.join(sub);
+        if !d.is_dir() {
+            continue;
+        }
+        for img in splattrack::io::sequence::list_images(&d)? {
+            std::fs::remove_file(&img)
+                .with_context(|| format!("{}: cannot remove", img.display()))?;
+        }
+    }
+    Ok(())
 }
 
 /// Builds the configuration the flags describe (checked).
@@ -124,6 +176,7 @@ pub fn write(
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cfg = config(&args)?;
+    prepare_out(&args.out, args.force)?;
     let s = write(&cfg, &args.out, args.points)?;
     println!(
         "wrote {} ({} object, {} trajectory): {} frames, {} keyframes, model.ply with {} points (diameter {:.3} m)",

@@ -5,6 +5,7 @@
 
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
+use splattrack::io::guard::{check_output, check_output_dir};
 use splattrack::tracker::{ConfigError, Mode, TrackerConfig};
 use std::path::PathBuf;
 
@@ -127,6 +128,11 @@ impl Tuning {
         set(&mut c.min_splat_radius_px, self.min_splat_px);
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
+        if let Some(n) = self.max_corners {
+            if !(1..=MAX_CORNERS).contains(&n) {
+                bail!("--max-corners {n}: must be 1..={MAX_CORNERS}");
+            }
+        }
         match c.validate() {
             Ok(()) => Ok(c),
             Err(ConfigError::OutOfRange { field, value, rule }) => {
@@ -139,6 +145,11 @@ impl Tuning {
         }
     }
 }
+
+/// The most corners per image the flags allow (a corner costs 16 bytes of
+/// GPU memory and a share of every matching pass; a billion would ask for
+/// a 16 GB buffer).
+pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
@@ -160,6 +171,19 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     };
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
+    }
+    // Outputs that are this run's other inputs (the sequence's own files
+    // are checked by the run).
+    let mut inputs = vec![args.model.as_path()];
+    inputs.extend(args.init.as_deref());
+    inputs.extend(args.keyframes.as_deref());
+    check_output(&args.out, "--out", &inputs)?;
+    if let Some(bop) = &args.bop {
+        check_output(bop, "--bop", &inputs)?;
+    }
+    if let Some(dir) = &args.overlay {
+        let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
+        check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
     let ctx = super::gpu(adapter)?;
     let inputs = TrackInputs::load(

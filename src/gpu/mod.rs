@@ -54,6 +54,60 @@ pub enum GpuError {
     Validation { context: String, message: String },
     #[error("shader {name} is invalid: {message}")]
     Shader { name: String, message: String },
+    #[error("GPU out of memory in {context}: {message}")]
+    OutOfMemory { context: String, message: String },
+    #[error("{0}")]
+    TooLarge(Box<LimitExceeded>),
+    #[error("GPU error: {0}")]
+    Uncaptured(String),
+    #[error("the GPU device was lost ({0}); every frame finished before it is on disk")]
+    DeviceLost(String),
+    #[error("the GPU did not finish its work within {0} s (set {TIMEOUT_ENV} to wait longer)")]
+    Timeout(u64),
+}
+
+/// A size above one of the adapter's limits ([`GpuError::TooLarge`]).
+#[derive(Debug, thiserror::Error)]
+#[error("{what} needs {asked}, above this adapter's {limit_name} of {limit} ({adapter})")]
+pub struct LimitExceeded {
+    /// What was to be allocated.
+    pub what: String,
+    /// Its size, in words ("a 16.0 GB buffer").
+    pub asked: String,
+    /// The wgpu limit's name.
+    pub limit_name: &'static str,
+    /// The limit's value.
+    pub limit: u64,
+    /// The adapter.
+    pub adapter: String,
+}
+
+/// Environment variable: seconds to wait for the GPU to finish submitted
+/// work before giving up with [`GpuError::Timeout`] (default
+/// [`DEFAULT_TIMEOUT_S`]).
+pub const TIMEOUT_ENV: &str = "SPLATTRACK_GPU_TIMEOUT";
+
+/// Seconds the host waits for the GPU at most, unless [`TIMEOUT_ENV`] says.
+pub const DEFAULT_TIMEOUT_S: u64 = 300;
+
+/// What went wrong on the device outside an error scope: the first error
+/// wgpu reports to the uncaptured-error handler (which would otherwise
+/// panic), a size refused before allocation, and device loss. Checked by
+/// [`GpuContext::check`] after every wait, so the run ends with a typed
+/// error instead of a panic.
+#[derive(Default)]
+struct Health {
+    first_error: std::sync::Mutex<Option<GpuError>>,
+    lost: std::sync::Mutex<Option<String>>,
+}
+
+impl Health {
+    fn record(&self, e: GpuError) {
+        let mut slot = self.first_error.lock().unwrap_or_else(|p| p.into_inner());
+        if slot.is_none() {
+            *slot = Some(e);
+        }
+    }
 }
 
 fn rejected_note(rejected: &[String]) -> String {
@@ -127,6 +181,7 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
     pub features: wgpu::Features,
+    health: std::sync::Arc<Health>,
 }
 
 impl fmt::Debug for GpuContext {
@@ -234,13 +289,135 @@ impl GpuContext {
                 adapter: describe_info(&info),
                 source,
             })?;
+        let health = std::sync::Arc::new(Health::default());
+        let h = health.clone();
+        device.on_uncaptured_error(std::sync::Arc::new(move |e: wgpu::Error| {
+            log::error!("GPU: {e}");
+            h.record(match e {
+                wgpu::Error::OutOfMemory { .. } => GpuError::OutOfMemory {
+                    context: "GPU work".into(),
+                    message: e.to_string(),
+                },
+                other => GpuError::Uncaptured(other.to_string()),
+            });
+        }));
+        let h = health.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            let mut lost = h.lost.lock().unwrap_or_else(|p| p.into_inner());
+            *lost = Some(format!("{reason:?}: {message}"));
+        });
         Ok(Self {
             device,
             queue,
             info,
             limits,
             features,
+            health,
         })
+    }
+
+    /// The first GPU failure seen outside an error scope since the last
+    /// check (a validation or out-of-memory error, a size refused by
+    /// [`GpuContext::check_buffer_size`] inside [`GpuContext::buffer`]) or
+    /// device loss, as an error; `Ok` while the device is healthy. Called
+    /// after every wait on the device.
+    pub fn check(&self) -> Result<(), GpuError> {
+        if let Some(reason) = self
+            .health
+            .lost
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+        {
+            return Err(GpuError::DeviceLost(reason));
+        }
+        match self
+            .health
+            .first_error
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take()
+        {
+            Some(e) => Err(e),
+            None => Ok(()),
+        }
+    }
+
+    /// Refuses a buffer of `bytes` above the adapter's `max_buffer_size`
+    /// (and, for storage buffers, `max_storage_buffer_binding_size`),
+    /// before anything is allocated.
+    pub fn check_buffer_size(
+        &self,
+        what: &str,
+        bytes: u64,
+        usage: wgpu::BufferUsages,
+    ) -> Result<(), GpuError> {
+        let mut checks = vec![("max_buffer_size", self.limits.max_buffer_size)];
+        if usage.contains(wgpu::BufferUsages::STORAGE) {
+            checks.push((
+                "max_storage_buffer_binding_size",
+                self.limits.max_storage_buffer_binding_size,
+            ));
+        }
+        if usage.contains(wgpu::BufferUsages::UNIFORM) {
+            checks.push((
+                "max_uniform_buffer_binding_size",
+                self.limits.max_uniform_buffer_binding_size,
+            ));
+        }
+        for (limit_name, limit) in checks {
+            if bytes > limit {
+                return Err(GpuError::TooLarge(Box::new(LimitExceeded {
+                    what: what.to_owned(),
+                    asked: format!("a {} buffer", human_bytes(bytes)),
+                    limit_name,
+                    limit,
+                    adapter: self.describe(),
+                })));
+            }
+        }
+        Ok(())
+    }
+
+    /// Refuses a `width x height` 2-D texture above the adapter's
+    /// `max_texture_dimension_2d`, before anything is allocated.
+    pub fn check_texture_size(&self, what: &str, width: u32, height: u32) -> Result<(), GpuError> {
+        let limit = self.limits.max_texture_dimension_2d;
+        if width > limit || height > limit || width == 0 || height == 0 {
+            return Err(GpuError::TooLarge(Box::new(LimitExceeded {
+                what: what.to_owned(),
+                asked: format!("a {width} x {height} texture"),
+                limit_name: "max_texture_dimension_2d",
+                limit: limit as u64,
+                adapter: self.describe(),
+            })));
+        }
+        Ok(())
+    }
+
+    /// Seconds [`GpuContext::wait`] waits at most ([`TIMEOUT_ENV`]).
+    pub fn timeout_s() -> u64 {
+        std::env::var(TIMEOUT_ENV)
+            .ok()
+            .and_then(|v| v.trim().parse::<u64>().ok())
+            .filter(|&s| s > 0)
+            .unwrap_or(DEFAULT_TIMEOUT_S)
+    }
+
+    /// Waits for the submitted work, at most [`GpuContext::timeout_s`]
+    /// seconds, then reports any failure the device saw ([`GpuContext::check`]).
+    fn poll_wait(&self) -> Result<(), GpuError> {
+        let secs = Self::timeout_s();
+        let r = self.device.poll(wgpu::PollType::Wait {
+            submission_index: None,
+            timeout: Some(std::time::Duration::from_secs(secs)),
+        });
+        self.check()?;
+        match r {
+            Ok(_) => Ok(()),
+            Err(wgpu::PollError::Timeout) => Err(GpuError::Timeout(secs)),
+            Err(e) => Err(GpuError::Readback(e.to_string())),
+        }
     }
 
     /// "name (type, backend)".
@@ -297,9 +474,18 @@ impl GpuContext {
     /// Runs `f` inside a validation error scope and turns a wgpu validation
     /// error into a [`GpuError`] rather than wgpu's default panic.
     pub fn catch<T>(&self, context: &str, f: impl FnOnce() -> T) -> Result<T, GpuError> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
         let scope = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
         let out = f();
-        match pollster::block_on(scope.pop()) {
+        let validation = pollster::block_on(scope.pop());
+        let oom = pollster::block_on(oom.pop());
+        if let Some(e) = oom {
+            return Err(GpuError::OutOfMemory {
+                context: context.to_owned(),
+                message: e.to_string(),
+            });
+        }
+        match validation {
             None => Ok(out),
             Some(e) => Err(GpuError::Validation {
                 context: context.to_owned(),
@@ -341,6 +527,10 @@ impl GpuContext {
         usage: wgpu::BufferUsages,
     ) -> wgpu::Buffer {
         let bytes: &[u8] = bytemuck::cast_slice(data);
+        if let Err(e) = self.check_buffer_size(label, bytes.len() as u64, usage) {
+            self.health.record(e);
+            return self.buffer(label, 16, usage);
+        }
         // wgpu rejects zero-sized bindings: keep at least 16 bytes.
         if bytes.len() < 16 {
             let mut padded = bytes.to_vec();
@@ -361,14 +551,36 @@ impl GpuContext {
             })
     }
 
-    /// An uninitialised buffer of `size` bytes (at least 16).
+    /// An uninitialised buffer of `size` bytes (at least 16). A size above
+    /// the adapter's limits ([`GpuContext::check_buffer_size`]) is not
+    /// allocated: the error is recorded, a 16-byte stand-in returned, and
+    /// the next wait on the device ([`GpuContext::check`]) reports it.
     pub fn buffer(&self, label: &str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+        let size = match self.check_buffer_size(label, size, usage) {
+            Ok(()) => size,
+            Err(e) => {
+                self.health.record(e);
+                16
+            }
+        };
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.max(16).next_multiple_of(4),
             usage,
             mapped_at_creation: false,
         })
+    }
+
+    /// [`GpuContext::buffer`], refusing a size above the adapter's limits
+    /// at once.
+    pub fn try_buffer(
+        &self,
+        label: &str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> Result<wgpu::Buffer, GpuError> {
+        self.check_buffer_size(label, size, usage)?;
+        self.catch(label, || self.buffer(label, size, usage))
     }
 
     /// Reads `count` values of `T` from the start of `buffer` (which needs
@@ -444,10 +656,8 @@ impl GpuContext {
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        rx.recv()
+        self.poll_wait()?;
+        rx.recv_timeout(std::time::Duration::from_secs(10))
             .map_err(|e| GpuError::Readback(e.to_string()))?
             .map_err(|e| GpuError::Readback(e.to_string()))?;
         let bytes = slice
@@ -460,10 +670,56 @@ impl GpuContext {
 
     /// Waits until the GPU has finished all submitted work.
     pub fn wait(&self) -> Result<(), GpuError> {
-        self.device
-            .poll(wgpu::PollType::wait_indefinitely())
-            .map(|_| ())
-            .map_err(|e| GpuError::Readback(e.to_string()))
+        self.poll_wait()
+    }
+
+    /// Host-visible figures of the device's memory: live buffers and
+    /// textures (wgpu's internal counters, when compiled in) and the
+    /// allocator's report where the backend gives one.
+    pub fn memory_report(&self) -> GpuMemory {
+        let c = self.device.get_internal_counters();
+        let report = self.device.generate_allocator_report();
+        GpuMemory {
+            buffers: c.hal.buffers.read(),
+            textures: c.hal.textures.read(),
+            buffer_bytes: c.hal.buffer_memory.read(),
+            texture_bytes: c.hal.texture_memory.read(),
+            allocated_bytes: report.as_ref().map(|r| r.total_allocated_bytes),
+            reserved_bytes: report.as_ref().map(|r| r.total_reserved_bytes),
+        }
+    }
+}
+
+/// Figures of [`GpuContext::memory_report`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GpuMemory {
+    /// Live buffers (0 when wgpu is built without its counters).
+    pub buffers: isize,
+    /// Live textures (likewise).
+    pub textures: isize,
+    /// Bytes of buffer memory (likewise).
+    pub buffer_bytes: isize,
+    /// Bytes of texture memory (likewise).
+    pub texture_bytes: isize,
+    /// Bytes the allocator holds for resources, where reported.
+    pub allocated_bytes: Option<u64>,
+    /// Bytes it reserved from the driver, where reported.
+    pub reserved_bytes: Option<u64>,
+}
+
+/// `bytes` as "12.3 MB" (powers of 1000).
+pub fn human_bytes(bytes: u64) -> String {
+    let units = ["B", "kB", "MB", "GB", "TB", "PB", "EB"];
+    let mut v = bytes as f64;
+    let mut u = 0;
+    while v >= 1000.0 && u + 1 < units.len() {
+        v /= 1000.0;
+        u += 1;
+    }
+    if u == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.1} {}", units[u])
     }
 }
 

@@ -38,6 +38,7 @@ pub fn write_atomic(
     body: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     let tmp = partial_path(path);
+    keep_previous_partial(&tmp)?;
     let result = File::create(&tmp).and_then(|f| {
         let mut w = BufWriter::new(f);
         body(&mut w)?;
@@ -54,7 +55,48 @@ fn commit(w: BufWriter<File>, tmp: &Path, path: &Path) -> std::io::Result<()> {
     let f = w.into_inner().map_err(|e| e.into_error())?;
     f.sync_all()?;
     drop(f);
-    std::fs::rename(tmp, path)
+    std::fs::rename(tmp, path)?;
+    // The rename itself is durable once the directory is synced (where the
+    // platform allows opening a directory; elsewhere this is best effort).
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if let Ok(d) = File::open(dir) {
+            let _ = d.sync_all();
+        }
+    }
+    Ok(())
+}
+
+/// A `.partial` file left at `tmp` by an earlier run that did not finish
+/// (a crash, a lost device) may be the only record of that run: it is
+/// moved aside to `NAME.partial.1` (the first free number) rather than
+/// truncated, with a warning. Returns where it went.
+pub fn keep_previous_partial(tmp: &Path) -> std::io::Result<Option<PathBuf>> {
+    if std::fs::symlink_metadata(tmp).is_err() {
+        return Ok(None);
+    }
+    for n in 1..10_000u32 {
+        let mut name = tmp.file_name().unwrap_or_default().to_owned();
+        name.push(format!(".{n}"));
+        let kept = tmp.with_file_name(name);
+        if std::fs::symlink_metadata(&kept).is_err() {
+            std::fs::rename(tmp, &kept)?;
+            log::warn!(
+                "{} was left by an unfinished run: kept as {}",
+                tmp.display(),
+                kept.display()
+            );
+            eprintln!(
+                "note: {} was left by an unfinished run: kept as {}",
+                tmp.display(),
+                kept.display()
+            );
+            return Ok(Some(kept));
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "{}: too many unfinished runs kept beside it (.partial.1 to .partial.9999); remove some",
+        tmp.display()
+    )))
 }
 
 /// A text file written line by line into its [`partial_path`], each line
@@ -71,6 +113,10 @@ impl PartialFile {
     /// Creates `path`'s temporary, starting with the line `header`.
     pub fn create(path: &Path, header: &str) -> Result<Self, WriteError> {
         let tmp = partial_path(path);
+        keep_previous_partial(&tmp).map_err(|source| WriteError {
+            path: tmp.clone(),
+            source,
+        })?;
         let f = File::create(&tmp).map_err(|source| WriteError {
             path: tmp.clone(),
             source,
@@ -169,6 +215,24 @@ mod tests {
         assert_eq!(
             std::fs::read_to_string(d.join("crash.csv.partial")).unwrap(),
             "h\nx\n"
+        );
+        // A rerun keeps the crashed run's partial output, never truncates it.
+        let mut f = PartialFile::create(&d.join("crash.csv"), "h2").unwrap();
+        f.line("y").unwrap();
+        f.finish().unwrap();
+        assert_eq!(
+            std::fs::read_to_string(d.join("crash.csv.partial.1")).unwrap(),
+            "h\nx\n"
+        );
+        assert_eq!(
+            std::fs::read_to_string(d.join("crash.csv")).unwrap(),
+            "h2\ny\n"
+        );
+        std::fs::write(d.join("whole.bin.partial"), "left").unwrap();
+        write_atomic(&d.join("whole.bin"), |w| w.write_all(b"ok")).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(d.join("whole.bin.partial.1")).unwrap(),
+            "left"
         );
         std::fs::remove_dir_all(d).unwrap();
     }

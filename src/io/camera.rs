@@ -42,6 +42,12 @@ impl Intrinsics {
             path: path.to_owned(),
             source,
         })?;
+        Self::from_text(&text, path)
+    }
+
+    /// [`Intrinsics::load`] of a file's text: `path` names it in errors and
+    /// its extension says JSON or YAML.
+    pub fn from_text(text: &str, path: &Path) -> Result<Self, CameraError> {
         let ext = path
             .extension()
             .and_then(|e| e.to_str())
@@ -49,18 +55,20 @@ impl Intrinsics {
             .to_ascii_lowercase();
         let looks_yaml = text.trim_start().starts_with("%YAML") || text.contains("camera_matrix");
         let cam = if ext == "yaml" || ext == "yml" || (ext != "json" && looks_yaml) {
-            Self::parse_opencv_yaml(&text)
+            Self::parse_opencv_yaml(text)
         } else {
-            Self::parse_json(&text)
+            Self::parse_json(text)
         }
         .map_err(|reason| CameraError::Parse {
             path: path.to_owned(),
             reason,
         })?;
-        cam.validate().map_err(|reason| CameraError::Invalid {
-            path: path.to_owned(),
-            reason,
-        })?;
+        cam.validate()
+            .and_then(|()| plausible(&cam))
+            .map_err(|reason| CameraError::Invalid {
+                path: path.to_owned(),
+                reason,
+            })?;
         Ok(cam)
     }
 
@@ -153,6 +161,29 @@ impl Intrinsics {
             distortion,
         })
     }
+}
+
+/// A camera no lens makes is refused: a field of view outside 0.01 to 179
+/// degrees (a focal length absurdly small or large for the image), or a
+/// principal point more than ten image sizes off the image.
+fn plausible(cam: &Intrinsics) -> Result<(), String> {
+    for (name, f, size) in [("fx", cam.fx, cam.width), ("fy", cam.fy, cam.height)] {
+        let fov = 2.0 * (size as f64 / (2.0 * f)).atan().to_degrees();
+        if !(0.01..=179.0).contains(&fov) {
+            return Err(format!(
+                "{name} = {f} px gives a field of view of {fov:.3} degrees over {size} px (must be 0.01 to 179)"
+            ));
+        }
+    }
+    for (name, c, size) in [("cx", cam.cx, cam.width), ("cy", cam.cy, cam.height)] {
+        let s = size as f64;
+        if !(c >= -10.0 * s && c <= 11.0 * s) {
+            return Err(format!(
+                "{name} = {c} px is more than ten image sizes off a {size} px image"
+            ));
+        }
+    }
+    Ok(())
 }
 
 fn distortion_from_slice(d: &[f64]) -> Result<[f64; 5], String> {

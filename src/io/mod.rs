@@ -5,6 +5,9 @@
 pub mod atomic;
 pub mod bop;
 pub mod camera;
+#[doc(hidden)]
+pub mod fuzz_entry;
+pub mod guard;
 pub mod npy;
 pub mod poses;
 pub mod sequence;

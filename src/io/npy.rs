@@ -56,13 +56,15 @@ pub fn write_npy(
             ),
         });
     }
-    let mut f = std::io::BufWriter::new(std::fs::File::create(path).map_err(io)?);
-    f.write_all(&header_for(&[height, width, channels]))
-        .map_err(io)?;
-    for v in data {
-        f.write_all(&v.to_le_bytes()).map_err(io)?;
-    }
-    f.flush().map_err(io)
+    // Crash-safe, like every result file: complete or absent.
+    crate::io::write_atomic(path, |f| {
+        f.write_all(&header_for(&[height, width, channels]))?;
+        for v in data {
+            f.write_all(&v.to_le_bytes())?;
+        }
+        Ok(())
+    })
+    .map_err(io)
 }
 
 /// Reads a `<f4` C-order array; returns its shape and values.

@@ -89,7 +89,49 @@ fn is_image(p: &Path) -> bool {
         .unwrap_or(false)
 }
 
-/// Image files of a directory, sorted by name.
+/// Orders file names as people number them: runs of digits compare by
+/// value, so `2.png` comes before `10.png` (plain text order puts `10`
+/// first); other characters compare as text.
+pub fn natural_cmp(a: &str, b: &str) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    let (mut a, mut b) = (a.as_bytes(), b.as_bytes());
+    loop {
+        match (a.first(), b.first()) {
+            (None, None) => return Ordering::Equal,
+            (None, Some(_)) => return Ordering::Less,
+            (Some(_), None) => return Ordering::Greater,
+            (Some(x), Some(y)) if x.is_ascii_digit() && y.is_ascii_digit() => {
+                let da = a.iter().take_while(|c| c.is_ascii_digit()).count();
+                let db = b.iter().take_while(|c| c.is_ascii_digit()).count();
+                let (na, nb) = (&a[..da], &b[..db]);
+                // Compare by value without parsing (any length): strip
+                // leading zeros, then the longer number is the larger.
+                let ta = &na[na.iter().take_while(|&&c| c == b'0').count()..];
+                let tb = &nb[nb.iter().take_while(|&&c| c == b'0').count()..];
+                let o = ta
+                    .len()
+                    .cmp(&tb.len())
+                    .then_with(|| ta.cmp(tb))
+                    .then_with(|| da.cmp(&db));
+                if o != Ordering::Equal {
+                    return o;
+                }
+                a = &a[da..];
+                b = &b[db..];
+            }
+            (Some(x), Some(y)) => {
+                if x != y {
+                    return x.cmp(y);
+                }
+                a = &a[1..];
+                b = &b[1..];
+            }
+        }
+    }
+}
+
+/// Image files of a directory, in [`natural_cmp`] order of their names
+/// (`1.png`, `2.png`, `10.png`).
 pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, SequenceError> {
     let rd = std::fs::read_dir(dir).map_err(|source| SequenceError::Io {
         path: dir.to_owned(),
@@ -99,7 +141,15 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, SequenceError> {
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_file() && is_image(p))
         .collect();
-    v.sort();
+    v.sort_by(|a, b| {
+        let name = |p: &PathBuf| {
+            p.file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned()
+        };
+        natural_cmp(&name(a), &name(b)).then_with(|| a.cmp(b))
+    });
     Ok(v)
 }
 
@@ -121,6 +171,25 @@ impl Sequence {
         let frames = list_images(&frames_dir)?;
         if frames.is_empty() {
             return Err(SequenceError::NoFrames(frames_dir));
+        }
+        // The first frame's size, from its header, before anything the
+        // camera's size decides is allocated (undistortion maps, render
+        // targets): a camera file that claims 20000 x 20000 for 640 x 480
+        // frames is refused here.
+        let (got_w, got_h) =
+            image::image_dimensions(&frames[0]).map_err(|source| SequenceError::FrameImage {
+                path: frames[0].clone(),
+                source,
+            })?;
+        if (got_w, got_h) != (camera.width, camera.height) {
+            return Err(SequenceError::FrameSize {
+                path: frames[0].clone(),
+                camera: camera_path,
+                got_w,
+                got_h,
+                want_w: camera.width,
+                want_h: camera.height,
+            });
         }
         let undistorter = camera
             .has_distortion()

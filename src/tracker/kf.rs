@@ -7,7 +7,7 @@ use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::{Corner, GreyImage, Match, refine_match};
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::{Attribute, Attributes, GatherMode, GpuModel};
+use crate::splat::{Attribute, Attributes, GatherMode};
 use nalgebra::Vector2;
 
 /// How far the KF step searches for matches.
@@ -76,10 +76,7 @@ impl Tracker {
     ) -> Result<(Refined, usize), StepError> {
         let store = self.store.as_ref().ok_or(StepError::NoKeyframes)?;
         let k = store.closest(pose);
-        let gm = match &mut self.textured[k] {
-            Some(gm) => &*gm,
-            slot => &*slot.insert(GpuModel::new(&self.ctx, &store.textured(&self.model, k))?),
-        };
+        let gm = self.textured.get(&self.ctx, store, &self.model, k)?;
         self.splatter.render(
             &self.ctx,
             gm,

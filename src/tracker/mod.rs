@@ -206,7 +206,7 @@ pub struct Tracker {
     store: Option<KeyframeStore>,
     splatter: Splatter,
     geometry: GpuModel,
-    textured: Vec<Option<GpuModel>>,
+    textured: crate::keyframes::TexturedCache,
     targets: SplatTargets,
     harris: Harris,
     it_matcher: NccMatcher,
@@ -260,6 +260,7 @@ impl Tracker {
         let harris = Harris::new(gpu, config.harris.clone())?;
         let matcher = |r: f32| NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)));
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
+        let model_len = model.len();
         let tracker = Self {
             it_matcher: matcher(config.it_search_px)?,
             kf_matcher: matcher(config.kf_search_px)?,
@@ -270,7 +271,11 @@ impl Tracker {
             store,
             splatter,
             geometry,
-            textured: (0..n_kf).map(|_| None).collect(),
+            textured: crate::keyframes::TexturedCache::new(
+                n_kf,
+                model_len,
+                crate::keyframes::DEFAULT_TEXTURED_BUDGET,
+            ),
             targets,
             harris,
             center,

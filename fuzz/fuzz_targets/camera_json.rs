@@ -1,0 +1,7 @@
+#![no_main]
+//! Fuzz target: arbitrary bytes into the camera_json reader
+//! (splattrack::io::fuzz_entry). Run: `cargo fuzz run camera_json`.
+
+libfuzzer_sys::fuzz_target!(|data: &[u8]| {
+    splattrack::io::fuzz_entry::run("camera_json", data);
+});
