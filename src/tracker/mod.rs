@@ -39,12 +39,14 @@ mod config;
 mod decision;
 mod it;
 mod kf;
+pub mod verify;
 
 pub use config::{ConfigError, Mode, TrackerConfig};
 pub use decision::{
     Decision, Estimate, FrameSteps, LostReason, Rules, Stage, Status, StepError, StepOutcome,
-    decide,
+    decide, verified,
 };
+pub use verify::{Unverified, VerifyConfig, VerifyScores};
 
 use crate::features::{Corner, GreyImage, Harris, NccMatcher};
 use crate::geometry::{Intrinsics, Pose};
@@ -91,6 +93,10 @@ pub struct TrackResult {
     pub keyframe: Option<usize>,
     /// Where the time went.
     pub times: StageTimes,
+    /// What the check of the pose against the image measured (`None`
+    /// when it did not run: verification off, or no pose to check).
+    #[serde(default)]
+    pub verify: Option<VerifyScores>,
 }
 
 /// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
@@ -352,6 +358,7 @@ impl Tracker {
         let t0 = Instant::now();
         let mut times = StageTimes::default();
         let grey = GreyImage::from_rgb8(frame);
+        let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let mask = self.roi_mask(&start_pose);
         let corners = self.harris.detect(&grey, Some(&mask))?;
@@ -379,6 +386,21 @@ impl Tracker {
                 it_only_streak: self.it_only_streak,
             },
         );
+        // Every pose reported `tracking` is checked against the image.
+        let mut scores = None;
+        let d = if d.status == Status::Tracking && self.config.verify.enabled {
+            let check = if frozen {
+                Err(Unverified::FrozenFrame)
+            } else {
+                let s = self.verify_scores(&frame.grey, &d.pose.unwrap_or(start_pose))?;
+                scores = Some(s);
+                log::debug!("verify: {s:?}");
+                verify::judge(&s, &self.config.verify)
+            };
+            verified(d, check)
+        } else {
+            d
+        };
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -400,6 +422,7 @@ impl Tracker {
             reason: d.reason,
             keyframe,
             times,
+            verify: scores,
         })
     }
 
@@ -499,6 +522,7 @@ mod tests {
                 total: Duration::from_millis(20),
                 ..Default::default()
             },
+            verify: None,
         };
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains(r#""residual_px":null"#), "{json}");
