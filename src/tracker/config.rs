@@ -133,6 +133,9 @@ pub struct TrackerConfig {
     /// The check of every reported pose against the image
     /// ([`crate::tracker::VerifyConfig`]).
     pub verify: super::verify::VerifyConfig,
+    /// Automatic initialisation and re-detection
+    /// ([`crate::tracker::InitConfig`]).
+    pub init: super::init::InitConfig,
 }
 
 impl Default for TrackerConfig {
@@ -161,6 +164,7 @@ impl Default for TrackerConfig {
             max_it_only_frames: 5,
             it_interior_px: 0.0,
             verify: Default::default(),
+            init: Default::default(),
         }
     }
 }
