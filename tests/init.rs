@@ -161,25 +161,6 @@ fn summary(name: &str, runs: &[(bool, f64)]) {
 #[ignore = "minutes on lavapipe: the every-tenth-frame measurement (README)"]
 fn every_tenth_frame_synthetic_and_real() {
     let ctx = shared_test_context();
-    for object in ["blob", "box", "torus"] {
-        let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
-        let scene = Scene::new(object, cam, 60_000);
-        let cfg = SynthConfig {
-            object: object.into(),
-            camera: cam,
-            frames: 100,
-            trajectory: Trajectory::Fig10,
-            ..Default::default()
-        };
-        let store = scene.keyframe_store(cfg.distance);
-        let runs: Vec<_> = (0..10)
-            .map(|i| {
-                let f = render_frame(&cfg, &scene.object, &scene.bg, 10 * i);
-                start(&scene.model, cam, &store, &f.image, &f.pose, scene.diameter)
-            })
-            .collect();
-        summary(object, &runs);
-    }
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
         let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
             .join("../shared/data")
@@ -206,5 +187,24 @@ fn every_tenth_frame_synthetic_and_real() {
             })
             .collect();
         summary(name, &runs);
+    }
+    for object in ["blob", "box", "torus"] {
+        let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
+        let scene = Scene::new(object, cam, 60_000);
+        let cfg = SynthConfig {
+            object: object.into(),
+            camera: cam,
+            frames: 100,
+            trajectory: Trajectory::Fig10,
+            ..Default::default()
+        };
+        let store = scene.keyframe_store(cfg.distance);
+        let runs: Vec<_> = (0..10)
+            .map(|i| {
+                let f = render_frame(&cfg, &scene.object, &scene.bg, 10 * i);
+                start(&scene.model, cam, &store, &f.image, &f.pose, scene.diameter)
+            })
+            .collect();
+        summary(object, &runs);
     }
 }
