@@ -539,7 +539,7 @@ mod tests {
             Status::Lost
         );
         // A lost frame keeps its own reason.
-        let lost = decide(&RULES, &steps(failed(3), failed(4)));
+        let lost = decide(&RULES, &steps(failed(3), est(2.0, 5, 0.8)));
         assert_eq!(verified(lost.clone(), Err(why)), lost);
     }
 

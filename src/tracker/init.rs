@@ -423,7 +423,8 @@ mod tests {
     fn a_template_is_found_where_it_was_cut_at_each_scale() {
         let (w, h) = (60, 40);
         let img: Vec<f32> = (0..w * h)
-            .map(|i| (((i % w) * 13 + (i / w) * 7) % 11) as f32 / 10.0)
+            .map(|i| ((i as u64).wrapping_mul(2_654_435_761) >> 7) % 97)
+            .map(|v| v as f32 / 96.0)
             .collect();
         // A 10x8 patch at (23, 17), as a view with its coverage.
         let mut view = vec![0.0; w * h];
