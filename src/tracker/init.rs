@@ -366,7 +366,7 @@ impl Tracker {
 
     /// The textured view (grey) and coverage (0/1) at `pose`, full size;
     /// `None` without any texture.
-    fn template_view(&mut self, pose: &Pose) -> Result<Option<(Vec<f32>, Vec<f32>)>, TrackError> {
+    fn template_view(&mut self, pose: &Pose) -> Result<Option<ViewAndCover>, TrackError> {
         let Some(store) = self.store.as_ref() else {
             return Ok(None);
         };
@@ -405,6 +405,9 @@ impl Tracker {
         Ok(Some((view, cover)))
     }
 }
+
+/// A view's grey levels and coverage (0/1), full size.
+type ViewAndCover = (Vec<f32>, Vec<f32>);
 
 /// The pose with rotation `r` and the object's centre `c` at distance `d`
 /// on the optical axis.

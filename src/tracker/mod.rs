@@ -405,7 +405,7 @@ impl Tracker {
         // No pose yet, or lost for a while: search the whole frame.
         let every = self.config.init.redetect_after_lost;
         if self.searching
-            || (every > 0 && self.lost_streak >= every && self.lost_streak % every == 0)
+            || (every > 0 && self.lost_streak >= every && self.lost_streak.is_multiple_of(every))
         {
             match self.find(frame)? {
                 Some(p) => {
