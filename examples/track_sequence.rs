@@ -98,7 +98,7 @@ fn run(
     let inputs = TrackInputs {
         model,
         sequence,
-        init,
+        init: Some(init),
         keyframes,
     };
 

@@ -192,15 +192,17 @@ pub struct TrackInputs {
     pub model: PointModel,
     /// The sequence, its camera and frames.
     pub sequence: Sequence,
-    /// The pose of the first frame.
-    pub init: Pose,
+    /// The pose of the first frame; `None`: the tracker searches the
+    /// frames for the object ([`Tracker::new_searching`]).
+    pub init: Option<Pose>,
     /// The keyframe store, when there is one.
     pub keyframes: Option<KeyframeStore>,
 }
 
 impl TrackInputs {
     /// Loads the model, opens the sequence, reads the initial pose (`init`,
-    /// default `SEQUENCE/init.csv`: its first row) and loads or builds the
+    /// default `SEQUENCE/init.csv` when present: its first row; neither:
+    /// none, the object is searched for) and loads or builds the
     /// keyframe store `keyframes` names ([`load_keyframes`]; default
     /// `SEQUENCE/keyframes` when present, else none). `model_options`
     /// says how the model is loaded (progress, estimation settings).
@@ -214,10 +216,14 @@ impl TrackInputs {
     ) -> Result<Self, AppError> {
         let model = PointModel::load_with(model, model_options)?;
         let sequence = Sequence::open(sequence)?;
-        let init_path = init
-            .map(Path::to_owned)
-            .unwrap_or_else(|| sequence.init_path());
-        let init = read_poses(&init_path)?[0].pose;
+        let init_path = init.map(Path::to_owned).or_else(|| {
+            let p = sequence.init_path();
+            p.exists().then_some(p)
+        });
+        let init = match init_path {
+            Some(p) => Some(read_poses(&p)?[0].pose),
+            None => None,
+        };
         let kf_path = keyframes
             .map(Path::to_owned)
             .or_else(|| sequence.keyframes_dir());
@@ -348,14 +354,15 @@ impl<'a> TrackRun<'a> {
             })?;
         }
         let mode = self.config.mode;
-        let mut tracker = Tracker::new(
-            self.ctx,
+        let (model, cam, store) = (
             self.inputs.model.clone(),
             seq.tracking_camera(),
             self.inputs.keyframes.clone(),
-            self.config,
-            self.inputs.init,
-        )
+        );
+        let mut tracker = match self.inputs.init {
+            Some(init) => Tracker::new(self.ctx, model, cam, store, self.config, init),
+            None => Tracker::new_searching(self.ctx, model, cam, store, self.config),
+        }
         .map_err(|source| AppError::Start {
             sequence: seq.dir.clone(),
             source: Box::new(source),

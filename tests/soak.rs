@@ -69,7 +69,7 @@ fn ten_thousand_frames_with_flat_memory() {
         inputs.sequence.tracking_camera(),
         inputs.keyframes.clone(),
         config,
-        inputs.init,
+        inputs.init.expect("the synthetic sequence has an init.csv"),
     )
     .unwrap();
     let mut samples = Vec::new();

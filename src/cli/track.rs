@@ -21,7 +21,8 @@ pub struct Args {
     /// `splattrack keyframes` (.stkf). Default: SEQUENCE/keyframes if present.
     #[arg(long)]
     pub keyframes: Option<PathBuf>,
-    /// The pose of frame 0. Default: SEQUENCE/init.csv.
+    /// The pose of frame 0. Default: SEQUENCE/init.csv when present, else
+    /// the object is searched for in the frames (automatic initialisation).
     #[arg(long)]
     pub init: Option<PathBuf>,
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).

@@ -130,6 +130,12 @@ pub struct TrackerConfig {
     /// trajectory) it rises from 1.0 to 2.9 degrees (half the matches gone),
     /// so it is off by default.
     pub it_interior_px: f32,
+    /// The check of every reported pose against the image
+    /// ([`crate::tracker::VerifyConfig`]).
+    pub verify: super::verify::VerifyConfig,
+    /// Automatic initialisation and re-detection
+    /// ([`crate::tracker::InitConfig`]).
+    pub init: super::init::InitConfig,
 }
 
 impl Default for TrackerConfig {
@@ -157,6 +163,8 @@ impl Default for TrackerConfig {
             min_splat_radius_px: 1.0,
             max_it_only_frames: 5,
             it_interior_px: 0.0,
+            verify: Default::default(),
+            init: Default::default(),
         }
     }
 }

@@ -13,6 +13,7 @@
 //! 4. The first frame in IT or KF+IT mode, with nothing to track against
 //!    yet, is tracking at the initial pose.
 
+use super::verify::Unverified;
 use super::{Mode, TrackerConfig};
 use crate::geometry::Pose;
 use crate::pose::SolveError;
@@ -164,6 +165,12 @@ pub enum LostReason {
     },
     /// No step ran.
     NothingToTrackAgainst,
+    /// The pose the steps gave (or the initial pose) fails the check of
+    /// the model against the image ([`super::verify`]).
+    Unverified(Unverified),
+    /// Automatic initialisation or re-detection found no candidate pose
+    /// that passes the check.
+    NotFound,
 }
 
 impl fmt::Display for LostReason {
@@ -187,6 +194,8 @@ impl fmt::Display for LostReason {
                 write!(f, "; IT alone has stood in for {frames} frames and drifts")
             }
             LostReason::NothingToTrackAgainst => f.write_str("nothing to track against"),
+            LostReason::Unverified(why) => write!(f, "verification: {why}"),
+            LostReason::NotFound => f.write_str("object not found in the image"),
         }
     }
 }
@@ -323,6 +332,22 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
         reason,
         kf_passed_over,
         it_only_streak,
+    }
+}
+
+/// A decision after the check of its pose: a `tracking` decision whose
+/// check failed becomes `lost` (the pose not kept), with the failure as
+/// its reason; anything else is unchanged.
+pub fn verified(d: Decision, check: Result<(), Unverified>) -> Decision {
+    match check {
+        Err(why) if d.status == Status::Tracking => Decision {
+            status: Status::Lost,
+            pose: None,
+            reason: Some(LostReason::Unverified(why)),
+            it_only_streak: 0,
+            ..d
+        },
+        _ => d,
     }
 }
 
@@ -488,6 +513,37 @@ mod tests {
     }
 
     #[test]
+    fn a_failed_check_turns_tracking_into_lost_and_nothing_else() {
+        let d = decide(&RULES, &steps(est(1.0, 50, 0.5), est(2.0, 20, 1.0)));
+        let why = Unverified::Appearance {
+            zncc: Some(0.05),
+            edge_support: Some(0.2),
+        };
+        let v = verified(d.clone(), Err(why.clone()));
+        assert_eq!((v.status, v.pose, v.inliers), (Status::Lost, None, 20));
+        assert_eq!(
+            v.reason.unwrap().to_string(),
+            "verification: model does not match the image: ZNCC 0.05, contour edge support 0.20"
+        );
+        assert_eq!(verified(d.clone(), Ok(())), d);
+        // The first frame is tracking only when its pose passes.
+        let first = decide(
+            &RULES,
+            &FrameSteps {
+                first_frame: true,
+                ..Default::default()
+            },
+        );
+        assert_eq!(
+            verified(first, Err(Unverified::FrozenFrame)).status,
+            Status::Lost
+        );
+        // A lost frame keeps its own reason.
+        let lost = decide(&RULES, &steps(failed(3), est(2.0, 5, 0.8)));
+        assert_eq!(verified(lost.clone(), Err(why)), lost);
+    }
+
+    #[test]
     fn reasons_and_statuses_serialise() {
         let reasons = [
             LostReason::ItOnlyTooLong {
@@ -511,6 +567,15 @@ mod tests {
                 error: StepError::Gpu("out of memory".into()),
             },
             LostReason::NothingToTrackAgainst,
+            LostReason::NotFound,
+            LostReason::Unverified(Unverified::NotInView {
+                visible: 0.25,
+                min: 0.5,
+            }),
+            LostReason::Unverified(Unverified::Appearance {
+                zncc: None,
+                edge_support: Some(0.5),
+            }),
         ];
         for r in reasons {
             let json = serde_json::to_string(&r).unwrap();

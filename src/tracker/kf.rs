@@ -12,7 +12,7 @@ use nalgebra::Vector2;
 
 /// How far the KF step searches for matches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Search {
+pub(super) enum Search {
     /// From an IT estimate: the object is nearly where predicted.
     Refine,
     /// From the previous pose: as far as the object moves between frames.
@@ -67,7 +67,7 @@ impl Tracker {
 
     /// One step against the novel view of the closest keyframe: the refined
     /// solve and the keyframe's index.
-    fn kf_step(
+    pub(super) fn kf_step(
         &mut self,
         frame: &Frame,
         pose: &Pose,

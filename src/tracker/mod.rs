@@ -37,14 +37,18 @@
 
 mod config;
 mod decision;
+pub mod init;
 mod it;
 mod kf;
+pub mod verify;
 
 pub use config::{ConfigError, Mode, TrackerConfig};
 pub use decision::{
     Decision, Estimate, FrameSteps, LostReason, Rules, Stage, Status, StepError, StepOutcome,
-    decide,
+    decide, verified,
 };
+pub use init::InitConfig;
+pub use verify::{Unverified, VerifyConfig, VerifyScores};
 
 use crate::features::{Corner, GreyImage, Harris, NccMatcher};
 use crate::geometry::{Intrinsics, Pose};
@@ -53,7 +57,7 @@ use crate::keyframes::KeyframeStore;
 use crate::model::PointModel;
 use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
 use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter};
-use nalgebra::{Vector2, Vector3};
+use nalgebra::{Matrix3, Vector2, Vector3};
 use std::time::{Duration, Instant};
 
 /// Wall-clock time of each stage of one frame (GPU work included, since
@@ -91,6 +95,10 @@ pub struct TrackResult {
     pub keyframe: Option<usize>,
     /// Where the time went.
     pub times: StageTimes,
+    /// What the check of the pose against the image measured (`None`
+    /// when it did not run: verification off, or no pose to check).
+    #[serde(default)]
+    pub verify: Option<VerifyScores>,
 }
 
 /// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
@@ -153,6 +161,9 @@ pub enum TrackError {
     /// The keyframe store is unusable.
     #[error(transparent)]
     Keyframes(#[from] crate::keyframes::KeyframeError),
+    /// The GPU failed during the search for the object.
+    #[error("searching for the object: {0}")]
+    Search(String),
 }
 
 /// An impossible camera.
@@ -219,6 +230,8 @@ pub struct Tracker {
     lost_streak: usize,
     /// KF+IT: consecutive frames tracked by IT alone.
     it_only_streak: usize,
+    /// No pose yet: each frame is searched ([`Tracker::new_searching`]).
+    searching: bool,
     /// The tracker's own handle on the device (a cheap clone).
     ctx: GpuContext,
 }
@@ -284,12 +297,50 @@ impl Tracker {
             prev: None,
             lost_streak: 0,
             it_only_streak: 0,
+            searching: false,
             ctx: ctx.clone(),
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
         }
         Ok(tracker)
+    }
+
+    /// A tracker without an initial pose: each frame is searched for the
+    /// object ([`init`]) until it is found (until then the frames are
+    /// `lost`, reason `not found`), then tracked. Needs a texture
+    /// (keyframes or model colours) for the search.
+    pub fn new_searching(
+        ctx: &GpuContext,
+        model: PointModel,
+        cam: Intrinsics,
+        keyframes: Option<KeyframeStore>,
+        config: TrackerConfig,
+    ) -> Result<Self, TrackError> {
+        // A placeholder pose: the object's centre on the axis, a third of
+        // the image across; the store's own viewpoint when there is one.
+        let bounds = crate::splat::ModelBounds::of(&model);
+        let placeholder = |r: Matrix3<f64>| {
+            let d =
+                cam.fx.min(cam.fy) * 2.0 * bounds.radius / (cam.width.min(cam.height) as f64 / 3.0);
+            let d = d.max(bounds.radius * 1.5);
+            Pose::new(r, Vector3::new(0.0, 0.0, d) - r * bounds.center)
+        };
+        let initial = match keyframes.as_ref().and_then(|s| s.keyframes.first()) {
+            Some(k) => placeholder(k.pose.rotation)?,
+            None => placeholder(Matrix3::identity())?,
+        };
+        let mut t = Self::new(ctx, model, cam, keyframes, config, initial)?;
+        if t.store.is_none() {
+            return Err(TrackError::NeedsKeyframes("search (no initial pose)"));
+        }
+        t.searching = true;
+        Ok(t)
+    }
+
+    /// Whether no pose has been found yet ([`Tracker::new_searching`]).
+    pub fn searching(&self) -> bool {
+        self.searching
     }
 
     /// The current pose estimate.
@@ -356,7 +407,38 @@ impl Tracker {
         }
         let t0 = Instant::now();
         let mut times = StageTimes::default();
+        // No pose yet, or lost for a while: search the whole frame.
+        let every = self.config.init.redetect_after_lost;
+        if self.searching
+            || (every > 0 && self.lost_streak >= every && self.lost_streak.is_multiple_of(every))
+        {
+            match self.find(frame)? {
+                Some(p) => {
+                    log::info!("object found by search");
+                    self.pose = p;
+                    self.searching = false;
+                    self.lost_streak = 0;
+                    self.it_only_streak = 0;
+                    self.prev = None;
+                }
+                None if self.searching => {
+                    times.total = t0.elapsed();
+                    return Ok(TrackResult {
+                        pose: self.pose,
+                        inliers: 0,
+                        residual_px: f64::NAN,
+                        status: Status::Lost,
+                        reason: Some(LostReason::NotFound),
+                        keyframe: None,
+                        times,
+                        verify: None,
+                    });
+                }
+                None => {}
+            }
+        }
         let grey = GreyImage::from_rgb8(frame);
+        let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let mask = self.roi_mask(&start_pose);
         let corners = self.harris.detect(&grey, Some(&mask))?;
@@ -384,6 +466,21 @@ impl Tracker {
                 it_only_streak: self.it_only_streak,
             },
         );
+        // Every pose reported `tracking` is checked against the image.
+        let mut scores = None;
+        let d = if d.status == Status::Tracking && self.config.verify.enabled {
+            let check = if frozen {
+                Err(Unverified::FrozenFrame)
+            } else {
+                let s = self.verify_scores(&frame.grey, &d.pose.unwrap_or(start_pose))?;
+                scores = Some(s);
+                log::debug!("verify: {s:?}");
+                verify::judge(&s, &self.config.verify)
+            };
+            verified(d, check)
+        } else {
+            d
+        };
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -405,6 +502,7 @@ impl Tracker {
             reason: d.reason,
             keyframe,
             times,
+            verify: scores,
         })
     }
 
@@ -504,6 +602,7 @@ mod tests {
                 total: Duration::from_millis(20),
                 ..Default::default()
             },
+            verify: None,
         };
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains(r#""residual_px":null"#), "{json}");

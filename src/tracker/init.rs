@@ -1,0 +1,468 @@
+//! Automatic initialisation and re-detection (issue 12, Deliver 2): find
+//! the object anywhere in a frame without a prior pose.
+//!
+//! 1. Viewpoints: the keyframes' own poses, plus [`InitConfig::sphere`]
+//!    directions spread over the viewing sphere (a Fibonacci lattice), each
+//!    at [`InitConfig::rolls`] turns about the line of sight, all at the
+//!    keyframes' median distance (else the distance at which the object
+//!    spans a third of the image), the object centred.
+//! 2. Templates: each viewpoint splatted with the closest keyframe's
+//!    texture; view and coverage shrunk so the object spans about
+//!    [`InitConfig::template_px`] pixels.
+//! 3. Search: masked ZNCC of each template, at three scales, over every
+//!    position of the frame shrunk alike ([`best_positions`], pure CPU).
+//! 4. The best [`InitConfig::candidates`] hits become poses (the template's
+//!    pose turned so its centre lies on the hit's line of sight, at the
+//!    distance the scale gives), are refined by the tracker's own KF step
+//!    (wide search first), and the first to pass [`super::verify`] (by
+//!    ZNCC, best first) is the answer; none: not found.
+
+use super::{Frame, StepError, TrackError, Tracker};
+use crate::features::GreyImage;
+use crate::geometry::{Pose, look_at, rotation_exp};
+use crate::splat::{Attribute, Attributes};
+use nalgebra::{Matrix3, Vector3};
+
+/// Settings of the search.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct InitConfig {
+    /// Directions over the viewing sphere (besides the keyframes').
+    pub sphere: usize,
+    /// Turns about the line of sight per direction.
+    pub rolls: usize,
+    /// Size the object is shrunk to for the search, pixels.
+    pub template_px: f64,
+    /// Coarse hits refined and verified.
+    pub candidates: usize,
+    /// KF steps refining each candidate.
+    pub refine_steps: usize,
+    /// After this many lost frames in a row, and every as many after,
+    /// search the whole frame again (0: never).
+    pub redetect_after_lost: usize,
+}
+
+impl Default for InitConfig {
+    fn default() -> Self {
+        Self {
+            sphere: 16,
+            rolls: 4,
+            template_px: 24.0,
+            candidates: 6,
+            refine_steps: 3,
+            redetect_after_lost: 5,
+        }
+    }
+}
+
+/// A coarse hit: template `view`, scale, position (top-left, coarse
+/// pixels), score.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Index of the viewpoint.
+    pub view: usize,
+    /// Template scale.
+    pub scale: f64,
+    /// Top-left corner of the scaled template in the coarse frame.
+    pub x: usize,
+    /// See `x`.
+    pub y: usize,
+    /// Masked ZNCC.
+    pub score: f64,
+    /// Top-left corner of the template's crop in the coarse view.
+    pub origin: (usize, usize),
+}
+
+/// Box-filter shrink by an integer factor.
+pub fn shrink(img: &[f32], w: usize, h: usize, f: usize) -> (Vec<f32>, usize, usize) {
+    let (cw, ch) = (w / f, h / f);
+    let mut out = vec![0.0f32; cw * ch];
+    for y in 0..ch {
+        for x in 0..cw {
+            let mut s = 0.0;
+            for dy in 0..f {
+                for dx in 0..f {
+                    s += img[(y * f + dy) * w + x * f + dx];
+                }
+            }
+            out[y * cw + x] = s / (f * f) as f32;
+        }
+    }
+    (out, cw, ch)
+}
+
+/// A masked template: its samples (dx, dy, value), size.
+#[derive(Debug, Clone)]
+pub struct Template {
+    /// Offsets from the top-left and values of the covered samples.
+    pub samples: Vec<(usize, usize, f32)>,
+    /// Width, coarse pixels.
+    pub w: usize,
+    /// Height, coarse pixels.
+    pub h: usize,
+}
+
+impl Template {
+    /// The template from a coarse view and coverage (0..1, kept above
+    /// 0.75), cropped to the covered box and scaled by `scale` (nearest);
+    /// `None` under 12 samples. Also returns the crop's top-left corner.
+    pub fn new(
+        view: &[f32],
+        cover: &[f32],
+        w: usize,
+        h: usize,
+        scale: f64,
+    ) -> Option<(Self, (usize, usize))> {
+        let on = |x: usize, y: usize| cover[y * w + x] > 0.75;
+        let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0, 0);
+        for y in 0..h {
+            for x in 0..w {
+                if on(x, y) {
+                    (x0, y0, x1, y1) = (x0.min(x), y0.min(y), x1.max(x), y1.max(y));
+                }
+            }
+        }
+        if x0 > x1 {
+            return None;
+        }
+        let tw = (((x1 - x0 + 1) as f64) * scale).round().max(1.0) as usize;
+        let th = (((y1 - y0 + 1) as f64) * scale).round().max(1.0) as usize;
+        let mut samples = Vec::new();
+        for ty in 0..th {
+            for tx in 0..tw {
+                let sx = x0 + ((tx as f64 + 0.5) / scale) as usize;
+                let sy = y0 + ((ty as f64 + 0.5) / scale) as usize;
+                if sx <= x1 && sy <= y1 && on(sx, sy) {
+                    samples.push((tx, ty, view[sy * w + sx]));
+                }
+            }
+        }
+        (samples.len() >= 12).then_some((
+            Self {
+                samples,
+                w: tw,
+                h: th,
+            },
+            (x0, y0),
+        ))
+    }
+}
+
+/// The masked ZNCC of `t` at every position of `img` (`w` x `h`) where it
+/// fits: the best `keep` positions, at least `t.w / 2` apart, best first.
+pub fn best_positions(
+    t: &Template,
+    img: &[f32],
+    w: usize,
+    h: usize,
+    keep: usize,
+) -> Vec<(usize, usize, f64)> {
+    if t.w > w || t.h > h || t.samples.is_empty() {
+        return Vec::new();
+    }
+    let n = t.samples.len() as f64;
+    let mean_t = t.samples.iter().map(|s| s.2 as f64).sum::<f64>() / n;
+    let var_t: f64 = t
+        .samples
+        .iter()
+        .map(|s| (s.2 as f64 - mean_t).powi(2))
+        .sum();
+    if var_t < 1e-9 {
+        return Vec::new();
+    }
+    let mut all = Vec::new();
+    for y in 0..=h - t.h {
+        for x in 0..=w - t.w {
+            let (mut si, mut sii, mut sti) = (0.0f64, 0.0, 0.0);
+            for &(dx, dy, v) in &t.samples {
+                let i = img[(y + dy) * w + x + dx] as f64;
+                si += i;
+                sii += i * i;
+                sti += (v as f64 - mean_t) * i;
+            }
+            let var_i = sii - si * si / n;
+            let score = sti / (var_t * var_i).sqrt();
+            if var_i > 1e-9 && score.is_finite() {
+                all.push((x, y, score));
+            }
+        }
+    }
+    all.sort_by(|a, b| b.2.total_cmp(&a.2));
+    let sep = (t.w / 2).max(1);
+    let mut out: Vec<(usize, usize, f64)> = Vec::new();
+    for c in all {
+        if out.len() >= keep {
+            break;
+        }
+        if out
+            .iter()
+            .all(|o| o.0.abs_diff(c.0) >= sep || o.1.abs_diff(c.1) >= sep)
+        {
+            out.push(c);
+        }
+    }
+    out
+}
+
+/// Directions on the unit sphere, evenly spread (Fibonacci lattice).
+pub fn sphere_directions(n: usize) -> Vec<Vector3<f64>> {
+    let golden = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            let a = golden * i as f64;
+            Vector3::new(r * a.cos(), r * a.sin(), z)
+        })
+        .collect()
+}
+
+/// The rotation taking the optical axis (0, 0, 1) to the unit `ray`.
+fn axis_to(ray: &Vector3<f64>) -> Matrix3<f64> {
+    let z = Vector3::z();
+    let axis = z.cross(ray);
+    let s = axis.norm();
+    if s < 1e-12 {
+        return Matrix3::identity();
+    }
+    rotation_exp(&(axis / s * s.atan2(z.dot(ray))))
+}
+
+impl Tracker {
+    /// The viewpoints of the search, the object's centre on the optical
+    /// axis.
+    fn init_viewpoints(&self) -> Vec<Pose> {
+        let c = self.center;
+        let fit = self.cam.fx.min(self.cam.fy) * 2.0 * self.radius
+            / (self.cam.width.min(self.cam.height) as f64 / 3.0);
+        let mut out = Vec::new();
+        let mut dists = Vec::new();
+        if let Some(store) = &self.store {
+            for k in &store.keyframes {
+                let z = k.pose.transform_point(&c).norm();
+                dists.push(z);
+                // The keyframe's view, re-centred on the axis.
+                let ray = k.pose.transform_point(&c).normalize();
+                let r = axis_to(&ray).transpose() * k.pose.rotation;
+                out.push(centred(r, z, &c));
+            }
+        }
+        dists.sort_by(f64::total_cmp);
+        let d = dists
+            .get(dists.len() / 2)
+            .copied()
+            .unwrap_or(fit)
+            .max(self.radius * 1.5);
+        let cfg = &self.config.init;
+        for dir in sphere_directions(cfg.sphere) {
+            let base = look_at(&(c + dir * d), &c, &Vector3::new(0.0, 0.0, 1.0));
+            for k in 0..cfg.rolls.max(1) {
+                let roll = rotation_exp(
+                    &(Vector3::z() * std::f64::consts::TAU * k as f64 / cfg.rolls.max(1) as f64),
+                );
+                out.push(centred(roll * base.rotation, d, &c));
+            }
+        }
+        out
+    }
+
+    /// Searches the whole frame for the object (module docs): the pose
+    /// found, checked against the image, or `None`.
+    pub fn find(&mut self, frame: &image::RgbImage) -> Result<Option<Pose>, TrackError> {
+        let grey = GreyImage::from_rgb8(frame);
+        let corners = self.harris.detect(&grey, None)?;
+        let frame = Frame { grey, corners };
+        self.find_in(&frame)
+    }
+
+    pub(super) fn find_in(&mut self, frame: &Frame) -> Result<Option<Pose>, TrackError> {
+        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
+        let views = self.init_viewpoints();
+        let d0 = views
+            .first()
+            .map_or(1.0, |p| p.transform_point(&self.center).z);
+        let diam_px = self.cam.fx.max(self.cam.fy) * 2.0 * self.radius / d0;
+        let cfg = self.config.init.clone();
+        let f = ((diam_px / cfg.template_px).floor() as usize).clamp(1, 16);
+        let (coarse, cw, ch) = shrink(&frame.grey.data, w, h, f);
+        let mut hits: Vec<Hit> = Vec::new();
+        for (vi, pose) in views.iter().enumerate() {
+            let Some((view, cover)) = self.template_view(pose)? else {
+                continue;
+            };
+            let (v, _, _) = shrink(&view, w, h, f);
+            let (c, _, _) = shrink(&cover, w, h, f);
+            for scale in [0.8, 1.0, 1.25] {
+                let Some((t, origin)) = Template::new(&v, &c, cw, ch, scale) else {
+                    continue;
+                };
+                for (x, y, score) in best_positions(&t, &coarse, cw, ch, 2) {
+                    hits.push(Hit {
+                        view: vi,
+                        scale,
+                        x,
+                        y,
+                        score,
+                        origin,
+                    });
+                }
+            }
+        }
+        hits.sort_by(|a, b| b.score.total_cmp(&a.score));
+        let mut best: Option<(f64, Pose)> = None;
+        for hit in hits.iter().take(cfg.candidates) {
+            let pose = &views[hit.view];
+            let (x0, y0) = hit.origin;
+            // Where the template's centre (the principal point) lands.
+            let (pu, pv) = (self.cam.cx / f as f64, self.cam.cy / f as f64);
+            let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale) * f as f64;
+            let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale) * f as f64;
+            let ray = Vector3::new(
+                (u - self.cam.cx) / self.cam.fx,
+                (vv - self.cam.cy) / self.cam.fy,
+                1.0,
+            )
+            .normalize();
+            let r = axis_to(&ray);
+            let z = pose.transform_point(&self.center).z / hit.scale;
+            let rot = r * pose.rotation;
+            let start = Pose::new(rot, ray * z - rot * self.center)?;
+            let Some(refined) = self.refine_candidate(frame, start)? else {
+                continue;
+            };
+            let s = self.verify_scores(&frame.grey, &refined)?;
+            log::debug!("init candidate {hit:?}: {s:?}");
+            if super::verify::judge(&s, &self.config.verify).is_ok() {
+                let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
+                if best.is_none_or(|b| z > b.0) {
+                    best = Some((z, refined));
+                }
+            }
+        }
+        Ok(best.map(|b| b.1))
+    }
+
+    /// The KF step from `start`, wide search first: the refined pose, or
+    /// `None` when a step fails.
+    fn refine_candidate(&mut self, frame: &Frame, start: Pose) -> Result<Option<Pose>, TrackError> {
+        let mut pose = start;
+        for i in 0..self.config.init.refine_steps.max(1) {
+            if self.roi(&pose).is_none() {
+                return Ok(None);
+            }
+            let search = if i == 0 {
+                super::kf::Search::Recover
+            } else {
+                super::kf::Search::Refine
+            };
+            match self.kf_step(frame, &pose, search, &[]) {
+                Ok((step, _)) => pose = step.pose,
+                Err(StepError::Gpu(e)) => return Err(TrackError::Search(e)),
+                Err(_) => return Ok(None),
+            }
+        }
+        Ok(Some(pose))
+    }
+
+    /// The textured view (grey) and coverage (0/1) at `pose`, full size;
+    /// `None` without any texture.
+    fn template_view(&mut self, pose: &Pose) -> Result<Option<ViewAndCover>, TrackError> {
+        let Some(store) = self.store.as_ref() else {
+            return Ok(None);
+        };
+        let k = store.closest(pose);
+        let gm = self.textured.get(&self.ctx, store, &self.model, k)?;
+        self.splatter.render(
+            &self.ctx,
+            gm,
+            &self.cam,
+            pose,
+            Attributes::COLOR,
+            &mut self.targets,
+        )?;
+        let weight = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Weight)?;
+        let c = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Color)?;
+        let grey = GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)?;
+        let cover: Vec<f32> = weight
+            .data
+            .iter()
+            .map(|v| f32::from(u8::from(*v > 0.0 && !v.is_nan())))
+            .collect();
+        // Empty pixels hold no colour (NaN): zero, so shrinking mixes none in.
+        let view = grey
+            .data
+            .iter()
+            .zip(&cover)
+            .map(|(g, c)| if *c > 0.0 && g.is_finite() { *g } else { 0.0 })
+            .collect();
+        Ok(Some((view, cover)))
+    }
+}
+
+/// A view's grey levels and coverage (0/1), full size.
+type ViewAndCover = (Vec<f32>, Vec<f32>);
+
+/// The pose with rotation `r` and the object's centre `c` at distance `d`
+/// on the optical axis.
+fn centred(r: Matrix3<f64>, d: f64, c: &Vector3<f64>) -> Pose {
+    Pose {
+        rotation: r,
+        translation: Vector3::new(0.0, 0.0, d) - r * c,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_template_is_found_where_it_was_cut_at_each_scale() {
+        let (w, h) = (60, 40);
+        let img: Vec<f32> = (0..w * h)
+            .map(|i| ((i as u64).wrapping_mul(2_654_435_761) >> 7) % 97)
+            .map(|v| v as f32 / 96.0)
+            .collect();
+        // A 10x8 patch at (23, 17), as a view with its coverage.
+        let mut view = vec![0.0; w * h];
+        let mut cover = vec![0.0; w * h];
+        for y in 17..25 {
+            for x in 23..33 {
+                view[y * w + x] = 2.0 * img[y * w + x] + 1.0;
+                cover[y * w + x] = 1.0;
+            }
+        }
+        let (t, origin) = Template::new(&view, &cover, w, h, 1.0).unwrap();
+        assert_eq!((origin, t.w, t.h, t.samples.len()), ((23, 17), 10, 8, 80));
+        let best = best_positions(&t, &img, w, h, 3);
+        assert_eq!((best[0].0, best[0].1), (23, 17));
+        assert!((best[0].2 - 1.0).abs() < 1e-9);
+        assert!(best[1].2 < 1.0);
+        // A scaled template has the scaled size.
+        let (t2, _) = Template::new(&view, &cover, w, h, 1.25).unwrap();
+        assert_eq!((t2.w, t2.h), (13, 10));
+    }
+
+    #[test]
+    fn sphere_directions_are_unit_and_spread() {
+        let d = sphere_directions(24);
+        assert!(d.iter().all(|v| (v.norm() - 1.0).abs() < 1e-12));
+        let mean: Vector3<f64> = d.iter().sum::<Vector3<f64>>() / 24.0;
+        assert!(mean.norm() < 0.05, "{mean:?}");
+        for ray in &d {
+            let r = axis_to(ray);
+            assert!((r * Vector3::z() - ray).norm() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn shrink_averages_blocks() {
+        let img: Vec<f32> = (0..16).map(|i| i as f32).collect();
+        let (s, w, h) = shrink(&img, 4, 4, 2);
+        assert_eq!((w, h), (2, 2));
+        assert_eq!(s, vec![2.5, 4.5, 10.5, 12.5]);
+    }
+}
