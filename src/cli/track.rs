@@ -5,7 +5,7 @@
 
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
-use splattrack::tracker::{ConfigError, Mode, TrackerConfig};
+use splattrack::tracker::{ConfigError, Modalities, Mode, TrackerConfig};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -26,6 +26,11 @@ pub struct Args {
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
     #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
     pub mode: Mode,
+    /// The cues tracked: texture (corners and NCC), contour (the splatted
+    /// silhouette against the frame's colours), or both in one robust solve
+    /// (texture,contour; the default).
+    #[arg(long, default_value = "texture,contour")]
+    pub modalities: Modalities,
     /// Output pose CSV (FORMATS.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
@@ -156,6 +161,7 @@ const FLAGS: [(&str, &str); 8] = [
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = TrackerConfig {
         mode: args.mode,
+        modalities: args.modalities,
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {
@@ -197,8 +203,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if args.profile {
         let m = stats.mean_ms;
         println!(
-            "per frame (mean): features {:.1} ms, IT {:.1} ms, KF {:.1} ms, total {:.1} ms",
-            m[0], m[1], m[2], m[3]
+            "per frame (mean): features {:.1} ms, IT {:.1} ms, KF {:.1} ms, contour {:.1} ms, total {:.1} ms",
+            m[0], m[1], m[2], stats.contour_ms, m[3]
         );
     }
     Ok(())

@@ -52,6 +52,8 @@ pub enum Stage {
     It,
     /// The step against the keyframes' novel view.
     Kf,
+    /// The contour step (fused with the texture inliers).
+    Contour,
 }
 
 impl fmt::Display for Stage {
@@ -59,6 +61,7 @@ impl fmt::Display for Stage {
         f.write_str(match self {
             Stage::It => "IT",
             Stage::Kf => "KF",
+            Stage::Contour => "contour",
         })
     }
 }
@@ -245,6 +248,9 @@ pub struct FrameSteps {
     pub it: StepOutcome,
     /// The keyframe step.
     pub kf: StepOutcome,
+    /// The contour step (it starts from the texture estimate and fuses the
+    /// texture inliers: when trusted, it is the frame's best estimate).
+    pub contour: StepOutcome,
     /// The first frame of the sequence (no previous frame, not recovering).
     pub first_frame: bool,
     /// KF+IT: frames in a row tracked by IT alone before this one.
@@ -279,7 +285,11 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let mut it_only_streak = steps.it_only_streak;
     let mut kf_passed_over = None;
     let mut reason = None;
-    let chosen = if let Some(e) = trusted(&steps.kf) {
+    let chosen = if let Some(e) = trusted(&steps.contour) {
+        // Drift-free like KF: against the model's silhouette.
+        it_only_streak = 0;
+        Some(e)
+    } else if let Some(e) = trusted(&steps.kf) {
         it_only_streak = 0;
         Some(e)
     } else if let Some(e) = trusted(&steps.it).filter(|_| it_may_stand) {
@@ -290,7 +300,8 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
         Some(e)
     } else {
         reason = rules
-            .why_not(Stage::Kf, &steps.kf)
+            .why_not(Stage::Contour, &steps.contour)
+            .or_else(|| rules.why_not(Stage::Kf, &steps.kf))
             .or_else(|| rules.why_not(Stage::It, &steps.it));
         if !it_may_stand && trusted(&steps.it).is_some() {
             reason = Some(LostReason::ItOnlyTooLong {
@@ -306,7 +317,11 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let first_it_frame = matches!(rules.mode, Mode::It | Mode::KfIt)
         && steps.it == StepOutcome::default()
         && steps.first_frame;
-    let last = steps.kf.estimate.or(steps.it.estimate);
+    let last = steps
+        .contour
+        .estimate
+        .or(steps.kf.estimate)
+        .or(steps.it.estimate);
     let (status, pose, inliers, residual_px) = match (chosen, last) {
         (Some(e), _) => (Status::Tracking, Some(e.pose), e.inliers, e.residual_px),
         (None, _) if first_it_frame => (Status::Tracking, None, 0, 0.0),
