@@ -26,10 +26,10 @@ pub struct Args {
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
     #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
     pub mode: Mode,
-    /// The cues tracked: texture (corners and NCC), contour (the splatted
-    /// silhouette against the frame's colours), or both in one robust solve
-    /// (texture,contour; the default).
-    #[arg(long, default_value = "texture,contour")]
+    /// The cues tracked: texture (corners and NCC; the default), contour
+    /// (the splatted silhouette against the frame's colours: for weakly
+    /// textured objects), or both in one robust solve (texture,contour).
+    #[arg(long, default_value = "texture")]
     pub modalities: Modalities,
     /// Output pose CSV (FORMATS.md "Tracker output").
     #[arg(long)]
@@ -106,6 +106,17 @@ pub struct Tuning {
     /// cube, hurts it on the synthetic box).
     #[arg(long)]
     pub it_interior: Option<f32>,
+    /// Contour: renders per frame (default 2; the first searches long then
+    /// short lines, the others short lines at the newest estimate).
+    #[arg(long)]
+    pub contour_rounds: Option<usize>,
+    /// Contour: one contour point per cell of this side, pixels (default 4).
+    #[arg(long)]
+    pub contour_spacing: Option<u32>,
+    /// Contour: Levenberg-Marquardt damping, fraction of the diagonal
+    /// (default 0.01).
+    #[arg(long)]
+    pub contour_damping: Option<f64>,
 }
 
 impl Tuning {
@@ -132,6 +143,9 @@ impl Tuning {
         set(&mut c.min_splat_radius_px, self.min_splat_px);
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
+        set(&mut c.contour.rounds, self.contour_rounds);
+        set(&mut c.contour.spacing_px, self.contour_spacing);
+        set(&mut c.contour.damping, self.contour_damping);
         match c.validate() {
             Ok(()) => Ok(c),
             Err(ConfigError::OutOfRange { field, value, rule }) => {
@@ -147,7 +161,10 @@ impl Tuning {
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 8] = [
+const FLAGS: [(&str, &str); 11] = [
+    ("contour.rounds", "contour-rounds"),
+    ("contour.spacing_px", "contour-spacing"),
+    ("contour.damping", "contour-damping"),
     ("harris.relative_threshold", "harris-threshold"),
     ("it_search_px", "it-search"),
     ("kf_search_px", "kf-search"),

@@ -255,7 +255,7 @@ fn robust_scale(r: &[f64], floor: f64) -> f64 {
 
 /// Estimates the twist that best explains the matches (module docs).
 pub fn irls(obs: &[Observation], cfg: &IrlsConfig) -> Result<IrlsResult, SolveError> {
-    irls_grouped(obs, &[], cfg)
+    irls_grouped(obs, &[], 0.0, cfg)
 }
 
 /// Per-row robust scales: row `i` is weighed and judged an inlier against
@@ -285,10 +285,16 @@ fn group_scales(r: &[f64], groups: &[u8], floor: f64) -> Vec<f64> {
 /// [`irls`] with each row's robust scale taken over its group only
 /// (`groups[i]` for row `i`; empty: one group). A contour residual is one
 /// row: give it as an observation whose second predictor row and
-/// displacement component are zero.
+/// displacement component are zero. `damping` > 0 adds that fraction of
+/// the normal matrix's diagonal to it (Levenberg-Marquardt): motions the
+/// rows hardly constrain then stay near zero instead of fitting noise.
+///
+/// Panics when `groups` is neither empty nor one per observation (a
+/// programming error).
 pub fn irls_grouped(
     obs: &[Observation],
     groups: &[u8],
+    damping: f64,
     cfg: &IrlsConfig,
 ) -> Result<IrlsResult, SolveError> {
     assert!(
@@ -313,7 +319,11 @@ pub fn irls_grouped(
     let mut iterations = 0;
     // The first solve is plain least squares: the robust weights need a fit.
     for it in 0..cfg.max_iterations.max(1) {
-        let (a, b) = normal_equations(obs, &w);
+        let (mut a, b) = normal_equations(obs, &w);
+        if damping > 0.0 {
+            let d = a.diagonal() * damping;
+            a += Matrix6::from_diagonal(&d);
+        }
         let (next, cond, ainv) = checked_solve(&a, &b, cfg.max_condition)?;
         condition = cond;
         inv = ainv;

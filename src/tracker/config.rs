@@ -107,8 +107,11 @@ impl Modalities {
 }
 
 impl Default for Modalities {
+    /// Texture only: on the textured sequences the contour adds nothing
+    /// measured yet, and on the weakly textured ones contour alone beats
+    /// the fusion (README, "Contour").
     fn default() -> Self {
-        Self::BOTH
+        Self::TEXTURE
     }
 }
 
@@ -204,7 +207,7 @@ pub struct TrackerConfig {
     /// trajectory) it rises from 1.0 to 2.9 degrees (half the matches gone),
     /// so it is off by default.
     pub it_interior_px: f32,
-    /// The cues used (default: both).
+    /// The cues used (default: texture only).
     pub modalities: Modalities,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,

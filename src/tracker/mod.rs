@@ -407,7 +407,9 @@ impl Tracker {
             let anchors = std::mem::take(&mut self.kf_anchors);
             match (kf_trusted, it_trusted) {
                 (Some(p), _) => self.contour_stage(rgb, &p, false, &anchors),
-                (None, Some(p)) => self.contour_stage(rgb, &p, false, &it_anchors),
+                // IT's matches are not fused: they carry its drift (on the
+                // real dragon they pulled the fused pose 20 degrees off).
+                (None, Some(p)) => self.contour_stage(rgb, &p, false, &[]),
                 (None, None) => self.contour_stage(rgb, &start_pose, true, &[]),
             }
         } else {
