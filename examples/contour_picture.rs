@@ -39,6 +39,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         draw::line(&mut img, a.x, a.y, b.x, b.y, [255, 255, 255], 1.0);
         draw::circle(&mut img, p.position.x, p.position.y, 2.0, [255, 0, 0]);
     }
+    // Cropped to the outline and a 40 px margin.
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, 0.0f64, 0.0f64);
+    for p in &points {
+        x0 = x0.min(p.position.x);
+        y0 = y0.min(p.position.y);
+        x1 = x1.max(p.position.x);
+        y1 = y1.max(p.position.y);
+    }
+    let cx0 = (x0 - 40.0).max(0.0) as u32;
+    let cy0 = (y0 - 40.0).max(0.0) as u32;
+    let cx1 = ((x1 + 40.0) as u32).min(cam.width - 1);
+    let cy1 = ((y1 + 40.0) as u32).min(cam.height - 1);
+    let img = image::imageops::crop_imm(&img, cx0, cy0, cx1 - cx0 + 1, cy1 - cy0 + 1).to_image();
     img.save(&args[4])?;
     println!("{} contour points drawn into {}", points.len(), args[4]);
     Ok(())
