@@ -383,6 +383,37 @@ mod tests {
     }
 
     #[test]
+    fn modalities_parse_and_refuse_nonsense() {
+        for m in [Modalities::TEXTURE, Modalities::CONTOUR, Modalities::BOTH] {
+            assert_eq!(m.name().parse::<Modalities>(), Ok(m));
+        }
+        assert_eq!(
+            "Contour+texture".parse::<Modalities>(),
+            Ok(Modalities::BOTH)
+        );
+        assert!(
+            "edges"
+                .parse::<Modalities>()
+                .unwrap_err()
+                .contains("\"edges\"")
+        );
+        assert!("".parse::<Modalities>().is_err());
+        let none = TrackerConfig {
+            modalities: Modalities {
+                texture: false,
+                contour: false,
+            },
+            ..Default::default()
+        };
+        assert!(
+            none.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("modalities")
+        );
+    }
+
+    #[test]
     fn config_serde_roundtrip_and_partial_input() {
         let c = TrackerConfig {
             mode: Mode::It,

@@ -405,6 +405,25 @@ mod tests {
     }
 
     #[test]
+    fn a_trusted_contour_estimate_wins_and_an_untrusted_one_is_named() {
+        let steps = FrameSteps {
+            contour: est(0.7, 40, 0.5),
+            it_only_streak: 3,
+            ..steps(est(0.6, 30, 0.4), est(0.5, 20, 0.3))
+        };
+        let d = decide(&RULES, &steps);
+        assert_eq!((d.status, d.pose), (Status::Tracking, Some(pose(0.7))));
+        assert_eq!(d.it_only_streak, 0);
+        let lost = FrameSteps {
+            contour: failed(3),
+            ..Default::default()
+        };
+        let d = decide(&RULES, &lost);
+        assert_eq!(d.status, Status::Lost);
+        assert!(d.reason.unwrap().to_string().starts_with("contour:"));
+    }
+
+    #[test]
     fn a_trusted_it_estimate_stands_in_for_an_untrusted_kf_one() {
         let d = decide(&RULES, &steps(est(1.0, 50, 0.5), est(2.0, 5, 0.8)));
         assert_eq!(d.status, Status::Tracking);
