@@ -269,6 +269,8 @@ pub struct RunStats {
     pub lost: usize,
     /// Mean milliseconds per frame: features, IT, KF, total.
     pub mean_ms: [f64; 4],
+    /// Mean milliseconds per frame of the contour step.
+    pub contour_ms: f64,
     /// Median total milliseconds per frame.
     pub median_ms: f64,
 }
@@ -419,6 +421,7 @@ impl<'a> TrackRun<'a> {
             {
                 *acc += ms(d) / n as f64;
             }
+            stats.contour_ms += ms(t.contour) / n as f64;
             totals.push(ms(t.total));
             if let Some(w) = &mut bop {
                 let score = if r.status == Status::Tracking {

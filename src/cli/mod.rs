@@ -55,7 +55,7 @@ pub enum Command {
     /// per object.
     Keyframes(keyframes::Args),
     /// Track an object through a sequence; writes one pose per frame.
-    Track(track::Args),
+    Track(Box<track::Args>),
     /// Errors of tracked poses against ground truth: table, success rates, plot.
     Eval(eval::Args),
     /// Write a synthetic sequence with exact ground truth.
@@ -168,7 +168,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Render(a) => render::run(a, &cli.adapter),
         Command::Features(a) => features::run(a, &cli.adapter),
         Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
-        Command::Track(a) => track::run(a, &cli.adapter),
+        Command::Track(a) => track::run(*a, &cli.adapter),
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),
     }

@@ -15,6 +15,10 @@ pub enum Object {
     Box,
     /// Self-occluding.
     Torus,
+    /// Untextured: one plain colour, curved with two flat cuts (edges).
+    Plain,
+    /// Untextured box.
+    Plainbox,
 }
 
 /// The trajectories (`splattrack::synth::Trajectory`).

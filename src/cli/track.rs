@@ -6,7 +6,7 @@
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::io::guard::{check_output, check_output_dir};
-use splattrack::tracker::{ConfigError, Mode, TrackerConfig};
+use splattrack::tracker::{ConfigError, Modalities, Mode, TrackerConfig};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -28,6 +28,11 @@ pub struct Args {
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
     #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
     pub mode: Mode,
+    /// The cues tracked: texture (corners and NCC; the default), contour
+    /// (the splatted silhouette against the frame's colours: for weakly
+    /// textured objects), or both in one robust solve (texture,contour).
+    #[arg(long, default_value = "texture")]
+    pub modalities: Modalities,
     /// Output pose CSV (FORMATS.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
@@ -103,6 +108,17 @@ pub struct Tuning {
     /// cube, hurts it on the synthetic box).
     #[arg(long)]
     pub it_interior: Option<f32>,
+    /// Contour: renders per frame (default 2; the first searches long then
+    /// short lines, the others short lines at the newest estimate).
+    #[arg(long)]
+    pub contour_rounds: Option<usize>,
+    /// Contour: one contour point per cell of this side, pixels (default 4).
+    #[arg(long)]
+    pub contour_spacing: Option<u32>,
+    /// Contour: Levenberg-Marquardt damping, fraction of the diagonal
+    /// (default 0.01).
+    #[arg(long)]
+    pub contour_damping: Option<f64>,
 }
 
 impl Tuning {
@@ -129,6 +145,9 @@ impl Tuning {
         set(&mut c.min_splat_radius_px, self.min_splat_px);
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
+        set(&mut c.contour.rounds, self.contour_rounds);
+        set(&mut c.contour.spacing_px, self.contour_spacing);
+        set(&mut c.contour.damping, self.contour_damping);
         if let Some(n) = self.max_corners {
             if !(1..=MAX_CORNERS).contains(&n) {
                 bail!("--max-corners {n}: must be 1..={MAX_CORNERS}");
@@ -154,7 +173,10 @@ pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 8] = [
+const FLAGS: [(&str, &str); 11] = [
+    ("contour.rounds", "contour-rounds"),
+    ("contour.spacing_px", "contour-spacing"),
+    ("contour.damping", "contour-damping"),
     ("harris.relative_threshold", "harris-threshold"),
     ("it_search_px", "it-search"),
     ("kf_search_px", "kf-search"),
@@ -168,6 +190,7 @@ const FLAGS: [(&str, &str); 8] = [
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = TrackerConfig {
         mode: args.mode,
+        modalities: args.modalities,
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {
@@ -222,8 +245,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if args.profile {
         let m = stats.mean_ms;
         println!(
-            "per frame (mean): features {:.1} ms, IT {:.1} ms, KF {:.1} ms, total {:.1} ms",
-            m[0], m[1], m[2], m[3]
+            "per frame (mean): features {:.1} ms, IT {:.1} ms, KF {:.1} ms, contour {:.1} ms, total {:.1} ms",
+            m[0], m[1], m[2], stats.contour_ms, m[3]
         );
     }
     Ok(())

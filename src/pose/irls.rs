@@ -255,6 +255,52 @@ fn robust_scale(r: &[f64], floor: f64) -> f64 {
 
 /// Estimates the twist that best explains the matches (module docs).
 pub fn irls(obs: &[Observation], cfg: &IrlsConfig) -> Result<IrlsResult, SolveError> {
+    irls_grouped(obs, &[], 0.0, cfg)
+}
+
+/// Per-row robust scales: row `i` is weighed and judged an inlier against
+/// the MAD scale of the rows of its own group `groups[i]` (all rows in one
+/// group when `groups` is empty). Modalities with different noise (texture
+/// matches, contour distances) then share one solve without either
+/// drowning the other.
+fn group_scales(r: &[f64], groups: &[u8], floor: f64) -> Vec<f64> {
+    if groups.is_empty() {
+        return vec![robust_scale(r, floor); r.len()];
+    }
+    let mut by_group = [f64::NAN; 256];
+    for g in 0..=255u8 {
+        let v: Vec<f64> = r
+            .iter()
+            .zip(groups)
+            .filter(|(_, gi)| **gi == g)
+            .map(|(ri, _)| *ri)
+            .collect();
+        if !v.is_empty() {
+            by_group[g as usize] = robust_scale(&v, floor);
+        }
+    }
+    groups.iter().map(|&g| by_group[g as usize]).collect()
+}
+
+/// [`irls`] with each row's robust scale taken over its group only
+/// (`groups[i]` for row `i`; empty: one group). A contour residual is one
+/// row: give it as an observation whose second predictor row and
+/// displacement component are zero. `damping` > 0 adds that fraction of
+/// the normal matrix's diagonal to it (Levenberg-Marquardt): motions the
+/// rows hardly constrain then stay near zero instead of fitting noise.
+///
+/// Panics when `groups` is neither empty nor one per observation (a
+/// programming error).
+pub fn irls_grouped(
+    obs: &[Observation],
+    groups: &[u8],
+    damping: f64,
+    cfg: &IrlsConfig,
+) -> Result<IrlsResult, SolveError> {
+    assert!(
+        groups.is_empty() || groups.len() == obs.len(),
+        "one group per observation"
+    );
     if obs.len() < cfg.min_matches.max(3) {
         return Err(SolveError::TooFewMatches {
             got: obs.len(),
@@ -273,7 +319,11 @@ pub fn irls(obs: &[Observation], cfg: &IrlsConfig) -> Result<IrlsResult, SolveEr
     let mut iterations = 0;
     // The first solve is plain least squares: the robust weights need a fit.
     for it in 0..cfg.max_iterations.max(1) {
-        let (a, b) = normal_equations(obs, &w);
+        let (mut a, b) = normal_equations(obs, &w);
+        if damping > 0.0 {
+            let d = a.diagonal() * damping;
+            a += Matrix6::from_diagonal(&d);
+        }
         let (next, cond, ainv) = checked_solve(&a, &b, cfg.max_condition)?;
         condition = cond;
         inv = ainv;
@@ -281,13 +331,17 @@ pub fn irls(obs: &[Observation], cfg: &IrlsConfig) -> Result<IrlsResult, SolveEr
         twist = next;
         iterations = it + 1;
         let r = residuals(obs, &twist);
-        let s = robust_scale(&r, cfg.min_scale_px);
+        let s = group_scales(&r, groups, cfg.min_scale_px);
         let loss = if it < cfg.warmup_iterations {
             Loss::HUBER
         } else {
             cfg.loss
         };
-        let new_w: Vec<f64> = r.iter().map(|&ri| loss.weight(ri, s)).collect();
+        let new_w: Vec<f64> = r
+            .iter()
+            .zip(&s)
+            .map(|(&ri, &si)| loss.weight(ri, si))
+            .collect();
         let settled = it >= cfg.warmup_iterations && step < cfg.tolerance;
         w = new_w;
         if settled || matches!(cfg.loss, Loss::LeastSquares) {
@@ -296,9 +350,11 @@ pub fn irls(obs: &[Observation], cfg: &IrlsConfig) -> Result<IrlsResult, SolveEr
     }
     let r = residuals(obs, &twist);
     let scale = robust_scale(&r, cfg.min_scale_px);
+    let scales = group_scales(&r, groups, cfg.min_scale_px);
     let inliers: Vec<bool> = r
         .iter()
-        .map(|&ri| ri <= cfg.inlier_scales * scale)
+        .zip(&scales)
+        .map(|(&ri, &si)| ri <= cfg.inlier_scales * si)
         .collect();
     let inlier_count = inliers.iter().filter(|&&i| i).count();
     if inlier_count < cfg.min_inliers {

@@ -24,5 +24,5 @@
 mod irls;
 mod refine;
 
-pub use irls::{IrlsConfig, IrlsResult, Loss, Observation, SolveError, irls};
+pub use irls::{IrlsConfig, IrlsResult, Loss, Observation, SolveError, irls, irls_grouped};
 pub use refine::{Anchor, Correspondence, Refined, Refiner};

@@ -28,6 +28,8 @@ pub enum Texture {
         /// Shapes drawn per face.
         shapes_per_face: usize,
     },
+    /// One plain colour (linear albedo): no texture at all, only shading.
+    Plain([f32; 3]),
 }
 
 fn hash(mut x: u64) -> u64 {
@@ -112,6 +114,7 @@ impl Texture {
                 }
                 c
             }
+            Texture::Plain(c) => c,
         }
     }
 }
@@ -161,7 +164,7 @@ pub struct SynthObject {
 }
 
 /// Names of the built-in objects, for the CLI.
-pub const OBJECT_NAMES: [&str; 3] = ["blob", "box", "torus"];
+pub const OBJECT_NAMES: [&str; 5] = ["blob", "box", "torus", "plain", "plainbox"];
 
 impl SynthObject {
     /// One of [`OBJECT_NAMES`].
@@ -170,6 +173,8 @@ impl SynthObject {
             "blob" => Some(Self::blob()),
             "box" => Some(Self::printed_box()),
             "torus" => Some(Self::torus()),
+            "plain" => Some(Self::plain()),
+            "plainbox" => Some(Self::plain_box()),
             _ => None,
         }
     }
@@ -204,6 +209,41 @@ impl SynthObject {
                 seed: 11,
                 shapes_per_face: 24,
             },
+        }
+    }
+
+    /// An untextured, asymmetric object (~0.2 m): a lumpy, elongated body
+    /// with two flat cuts (sharp edges where they meet the curved surface),
+    /// in one plain yellow, like a 3-D print. Only its outline and shading
+    /// show where it is.
+    pub fn plain() -> Self {
+        let cut = |d: DVec3, n: DVec3, h: f64| {
+            let c = d.dot(n);
+            if c > 1e-9 { h / c } else { f64::INFINITY }
+        };
+        let n1 = DVec3::new(0.8, 0.2, 0.55).normalize();
+        let n2 = DVec3::new(-0.3, -0.9, -0.2).normalize();
+        let r = move |d: DVec3| {
+            let body = 0.07
+                * (1.0 + 0.45 * d.x * d.x - 0.2 * d.z * d.z)
+                * (1.0 + 0.08 * (3.0 * d.x + 0.4).sin() * (2.0 * d.y).cos());
+            body.min(cut(d, n1, 0.055)).min(cut(d, n2, 0.05))
+        };
+        Self {
+            name: "plain",
+            description: "untextured: one plain colour, curved, with two flat cuts",
+            mesh: TriangleMesh::radial(r, 96, 192),
+            texture: Texture::Plain([0.85, 0.68, 0.12]),
+        }
+    }
+
+    /// The 12 x 9 x 6 cm box of [`Self::printed_box`] in one plain blue.
+    pub fn plain_box() -> Self {
+        Self {
+            name: "plainbox",
+            description: "untextured box",
+            mesh: TriangleMesh::cuboid(DVec3::new(0.06, 0.045, 0.03), 1),
+            texture: Texture::Plain([0.2, 0.42, 0.75]),
         }
     }
 
@@ -244,7 +284,7 @@ mod tests {
                 .count();
             // The box has duplicated corner vertices (flat normals), so its
             // faces do not share indices: check its orientation only.
-            if name != "box" {
+            if name != "box" && name != "plainbox" {
                 assert_eq!(open, 0, "{name}: {open} unmatched edges");
             }
             // Outward: the divergence theorem gives +volume for CCW-outside.

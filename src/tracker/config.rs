@@ -66,6 +66,83 @@ impl std::str::FromStr for Mode {
     }
 }
 
+/// Which cues of the object the tracker uses: texture (Harris corners
+/// matched by NCC: the IT and KF steps) and/or the contour (the splatted
+/// silhouette searched for along its normals, [`super::contour`]). Written
+/// `texture`, `contour` or `texture,contour` on the command line.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct Modalities {
+    /// Corners and NCC (the paper's IT and KF steps).
+    pub texture: bool,
+    /// The silhouette.
+    pub contour: bool,
+}
+
+impl Modalities {
+    /// Texture only (the paper's tracker).
+    pub const TEXTURE: Self = Self {
+        texture: true,
+        contour: false,
+    };
+    /// Contour only.
+    pub const CONTOUR: Self = Self {
+        texture: false,
+        contour: true,
+    };
+    /// Both, in one robust solve.
+    pub const BOTH: Self = Self {
+        texture: true,
+        contour: true,
+    };
+
+    /// `texture`, `contour` or `texture,contour`.
+    pub fn name(&self) -> &'static str {
+        match (self.texture, self.contour) {
+            (true, false) => "texture",
+            (false, true) => "contour",
+            (true, true) => "texture,contour",
+            (false, false) => "none",
+        }
+    }
+}
+
+impl Default for Modalities {
+    /// Texture only: on the textured sequences the contour adds nothing
+    /// measured yet, and on the weakly textured ones contour alone beats
+    /// the fusion (README, "Contour").
+    fn default() -> Self {
+        Self::TEXTURE
+    }
+}
+
+impl fmt::Display for Modalities {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Modalities {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        let mut m = Self {
+            texture: false,
+            contour: false,
+        };
+        for part in s.split([',', '+']) {
+            match part.trim().to_ascii_lowercase().as_str() {
+                "texture" => m.texture = true,
+                "contour" => m.contour = true,
+                other => {
+                    return Err(format!(
+                        "unknown modality {other:?} (use texture, contour or texture,contour)"
+                    ));
+                }
+            }
+        }
+        Ok(m)
+    }
+}
+
 /// Tracker settings. Defaults follow the paper (900 corners, 9x9 NCC
 /// windows) and were tuned on the synthetic sequences. Serialised field by
 /// field; fields missing when read take their default.
@@ -136,6 +213,10 @@ pub struct TrackerConfig {
     /// Automatic initialisation and re-detection
     /// ([`crate::tracker::InitConfig`]).
     pub init: super::init::InitConfig,
+    /// The cues used (default: texture only).
+    pub modalities: Modalities,
+    /// The contour modality's settings.
+    pub contour: super::contour::ContourConfig,
 }
 
 impl Default for TrackerConfig {
@@ -165,6 +246,8 @@ impl Default for TrackerConfig {
             it_interior_px: 0.0,
             verify: Default::default(),
             init: Default::default(),
+            modalities: Modalities::default(),
+            contour: super::contour::ContourConfig::default(),
         }
     }
 }
@@ -238,6 +321,13 @@ impl TrackerConfig {
             ">= 0",
         )?;
         check("it_interior_px", self.it_interior_px, radius, ">= 0")?;
+        check(
+            "modalities",
+            self.modalities,
+            |m| m.texture || m.contour,
+            "at least one of texture and contour",
+        )?;
+        self.contour.validate()?;
         self.harris.validate()?;
         self.ncc.validate()?;
         Ok(())
@@ -298,6 +388,37 @@ mod tests {
             assert_eq!(Mode::from_str(alias, true), Ok(Mode::KfIt));
             assert_eq!(alias.parse::<Mode>(), Ok(Mode::KfIt));
         }
+    }
+
+    #[test]
+    fn modalities_parse_and_refuse_nonsense() {
+        for m in [Modalities::TEXTURE, Modalities::CONTOUR, Modalities::BOTH] {
+            assert_eq!(m.name().parse::<Modalities>(), Ok(m));
+        }
+        assert_eq!(
+            "Contour+texture".parse::<Modalities>(),
+            Ok(Modalities::BOTH)
+        );
+        assert!(
+            "edges"
+                .parse::<Modalities>()
+                .unwrap_err()
+                .contains("\"edges\"")
+        );
+        assert!("".parse::<Modalities>().is_err());
+        let none = TrackerConfig {
+            modalities: Modalities {
+                texture: false,
+                contour: false,
+            },
+            ..Default::default()
+        };
+        assert!(
+            none.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("modalities")
+        );
     }
 
     #[test]

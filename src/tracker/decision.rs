@@ -53,6 +53,8 @@ pub enum Stage {
     It,
     /// The step against the keyframes' novel view.
     Kf,
+    /// The contour step (fused with the texture inliers).
+    Contour,
 }
 
 impl fmt::Display for Stage {
@@ -60,6 +62,7 @@ impl fmt::Display for Stage {
         f.write_str(match self {
             Stage::It => "IT",
             Stage::Kf => "KF",
+            Stage::Contour => "contour",
         })
     }
 }
@@ -254,6 +257,9 @@ pub struct FrameSteps {
     pub it: StepOutcome,
     /// The keyframe step.
     pub kf: StepOutcome,
+    /// The contour step (it starts from the texture estimate and fuses the
+    /// texture inliers: when trusted, it is the frame's best estimate).
+    pub contour: StepOutcome,
     /// The first frame of the sequence (no previous frame, not recovering).
     pub first_frame: bool,
     /// KF+IT: frames in a row tracked by IT alone before this one.
@@ -288,7 +294,11 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let mut it_only_streak = steps.it_only_streak;
     let mut kf_passed_over = None;
     let mut reason = None;
-    let chosen = if let Some(e) = trusted(&steps.kf) {
+    let chosen = if let Some(e) = trusted(&steps.contour) {
+        // Drift-free like KF: against the model's silhouette.
+        it_only_streak = 0;
+        Some(e)
+    } else if let Some(e) = trusted(&steps.kf) {
         it_only_streak = 0;
         Some(e)
     } else if let Some(e) = trusted(&steps.it).filter(|_| it_may_stand) {
@@ -299,7 +309,8 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
         Some(e)
     } else {
         reason = rules
-            .why_not(Stage::Kf, &steps.kf)
+            .why_not(Stage::Contour, &steps.contour)
+            .or_else(|| rules.why_not(Stage::Kf, &steps.kf))
             .or_else(|| rules.why_not(Stage::It, &steps.it));
         if !it_may_stand && trusted(&steps.it).is_some() {
             reason = Some(LostReason::ItOnlyTooLong {
@@ -315,7 +326,11 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let first_it_frame = matches!(rules.mode, Mode::It | Mode::KfIt)
         && steps.it == StepOutcome::default()
         && steps.first_frame;
-    let last = steps.kf.estimate.or(steps.it.estimate);
+    let last = steps
+        .contour
+        .estimate
+        .or(steps.kf.estimate)
+        .or(steps.it.estimate);
     let (status, pose, inliers, residual_px) = match (chosen, last) {
         (Some(e), _) => (Status::Tracking, Some(e.pose), e.inliers, e.residual_px),
         (None, _) if first_it_frame => (Status::Tracking, None, 0, 0.0),
@@ -412,6 +427,25 @@ mod tests {
             (d.reason, d.kf_passed_over, d.it_only_streak),
             (None, None, 0)
         );
+    }
+
+    #[test]
+    fn a_trusted_contour_estimate_wins_and_an_untrusted_one_is_named() {
+        let steps = FrameSteps {
+            contour: est(0.7, 40, 0.5),
+            it_only_streak: 3,
+            ..steps(est(0.6, 30, 0.4), est(0.5, 20, 0.3))
+        };
+        let d = decide(&RULES, &steps);
+        assert_eq!((d.status, d.pose), (Status::Tracking, Some(pose(0.7))));
+        assert_eq!(d.it_only_streak, 0);
+        let lost = FrameSteps {
+            contour: failed(3),
+            ..Default::default()
+        };
+        let d = decide(&RULES, &lost);
+        assert_eq!(d.status, Status::Lost);
+        assert!(d.reason.unwrap().to_string().starts_with("contour:"));
     }
 
     #[test]

@@ -40,7 +40,7 @@ impl Tracker {
         match self.it_step(&prev, frame, pose) {
             Ok(step) => {
                 let outcome = StepOutcome::from_result(Ok(estimate(&step)));
-                let anchors = if self.config.fuse {
+                let anchors = if self.config.fuse || self.config.modalities.contour {
                     step.anchors
                 } else {
                     Vec::new()

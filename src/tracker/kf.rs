@@ -54,6 +54,7 @@ impl Tracker {
                 Ok((step, k)) => {
                     pose = step.pose;
                     outcome.estimate = Some(estimate(&step));
+                    self.kf_anchors = step.anchors;
                     keyframe = Some(k);
                 }
                 Err(e) => {

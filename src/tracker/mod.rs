@@ -36,13 +36,15 @@
 #![warn(missing_docs)]
 
 mod config;
+pub mod contour;
 mod decision;
 pub mod init;
 mod it;
 mod kf;
 pub mod verify;
 
-pub use config::{ConfigError, Mode, TrackerConfig};
+pub use config::{ConfigError, Modalities, Mode, TrackerConfig};
+pub use contour::ContourConfig;
 pub use decision::{
     Decision, Estimate, FrameSteps, LostReason, Rules, Stage, Status, StepError, StepOutcome,
     decide, verified,
@@ -70,6 +72,9 @@ pub struct StageTimes {
     pub it: Duration,
     /// The keyframe step(s).
     pub kf: Duration,
+    /// The contour step (its iterations).
+    #[serde(default)]
+    pub contour: Duration,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -234,6 +239,12 @@ pub struct Tracker {
     searching: bool,
     /// The tracker's own handle on the device (a cheap clone).
     ctx: GpuContext,
+    /// Contour: the object's and the background's colours, learnt online.
+    colours: contour::ColourModel,
+    /// Contour: the coverage of its last render, to learn the colours from.
+    contour_mask: Option<Vec<bool>>,
+    /// The inliers of this frame's last KF step (for the fused solve).
+    kf_anchors: Vec<Anchor>,
 }
 
 impl Tracker {
@@ -274,6 +285,7 @@ impl Tracker {
         let matcher = |r: f32| NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)));
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let model_len = model.len();
+        let config_bins = config.contour.bins;
         let tracker = Self {
             it_matcher: matcher(config.it_search_px)?,
             kf_matcher: matcher(config.kf_search_px)?,
@@ -299,6 +311,9 @@ impl Tracker {
             it_only_streak: 0,
             searching: false,
             ctx: ctx.clone(),
+            colours: contour::ColourModel::new(config_bins),
+            contour_mask: None,
+            kf_anchors: Vec::new(),
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -397,6 +412,7 @@ impl Tracker {
     /// Tracks one frame (RGB, undistorted, the camera's size): Harris
     /// corners, the IT step, the KF step(s), then [`decide`].
     pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
+        let rgb = frame;
         if frame.width() != self.cam.width || frame.height() != self.cam.height {
             return Err(TrackError::FrameSize {
                 got_w: frame.width(),
@@ -440,8 +456,13 @@ impl Tracker {
         let grey = GreyImage::from_rgb8(frame);
         let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
-        let mask = self.roi_mask(&start_pose);
-        let corners = self.harris.detect(&grey, Some(&mask))?;
+        let texture = self.config.modalities.texture;
+        let corners = if texture {
+            let mask = self.roi_mask(&start_pose);
+            self.harris.detect(&grey, Some(&mask))?
+        } else {
+            Vec::new()
+        };
         let frame = Frame { grey, corners };
         times.features = t0.elapsed();
 
@@ -449,19 +470,46 @@ impl Tracker {
         let recovering = self.lost_streak > 0;
         let first_frame = self.prev.is_none() && !recovering;
         let t_it = Instant::now();
-        let (it, it_anchors) = self.it_stage(&frame, &start_pose, recovering);
+        let (it, it_anchors) = if texture {
+            self.it_stage(&frame, &start_pose, recovering)
+        } else {
+            (StepOutcome::default(), Vec::new())
+        };
         times.it = t_it.elapsed();
         let t_kf = Instant::now();
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
-        let (kf, keyframe) =
-            self.kf_stage(&frame, &start_pose, recovering, it_trusted, &it_anchors);
+        self.kf_anchors.clear();
+        let (kf, keyframe) = if texture {
+            let fused: &[Anchor] = if self.config.fuse { &it_anchors } else { &[] };
+            self.kf_stage(&frame, &start_pose, recovering, it_trusted, fused)
+        } else {
+            (StepOutcome::default(), None)
+        };
         times.kf = t_kf.elapsed();
+        let t_contour = Instant::now();
+        let contour = if self.config.modalities.contour {
+            // From the best texture estimate, fused with its inliers; else
+            // from the previous pose with longer lines.
+            let kf_trusted = kf.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
+            let anchors = std::mem::take(&mut self.kf_anchors);
+            match (kf_trusted, it_trusted) {
+                (Some(p), _) => self.contour_stage(rgb, &p, false, &anchors),
+                // IT's matches are not fused: they carry its drift (on the
+                // real dragon they pulled the fused pose 20 degrees off).
+                (None, Some(p)) => self.contour_stage(rgb, &p, false, &[]),
+                (None, None) => self.contour_stage(rgb, &start_pose, true, &[]),
+            }
+        } else {
+            StepOutcome::default()
+        };
+        times.contour = t_contour.elapsed();
 
         let d = decide(
             &rules,
             &FrameSteps {
                 it,
                 kf,
+                contour,
                 first_frame,
                 it_only_streak: self.it_only_streak,
             },
@@ -488,6 +536,10 @@ impl Tracker {
         if d.status == Status::Tracking {
             self.pose = d.pose.unwrap_or(start_pose);
             self.lost_streak = 0;
+            if self.config.modalities.contour {
+                let pose = self.pose;
+                self.learn_colours(rgb, &pose);
+            }
         } else {
             // Keep the last good pose: never report a pose that failed.
             self.lost_streak += 1;

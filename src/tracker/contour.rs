@@ -1,0 +1,733 @@
+//! The contour modality (beyond the paper; DESIGN.md section 3, "Contour
+//! residuals"): the object's silhouette, splatted at the predicted pose, is
+//! searched for along its normals in the live frame, and each contour point
+//! gives one residual row that joins the texture rows in one robust solve.
+//!
+//! How it works, per iteration (coarse to fine: long lines first, then
+//! shorter ones, each iteration re-rendered at the newest estimate):
+//! 1. The model is splatted at the pose (coverage, depth, predictors); the
+//!    covered pixels with an uncovered 4-neighbour are the silhouette. One
+//!    point per `spacing_px` cell is kept ([`extract_contour`]); its outward
+//!    normal is the gradient of the coverage over an 11x11 window, and its edge
+//!    position is moved off the pixel centre by the covered fraction of
+//!    that window (a straight edge through the window cuts it in proportion
+//!    to its offset), so the contour is sub-pixel.
+//! 2. Along each normal, the frame is sampled every pixel and each sample's
+//!    colour turned into the probability that it shows the object
+//!    ([`ColourModel`]: foreground and background colour histograms learnt
+//!    online at the tracked pose, as region trackers such as RBOT, SRT3D
+//!    and M3T do). The boundary position `d` along the line is the mean of
+//!    its posterior under a smooth-step model of the line ([`search_line`]).
+//! 3. A twist `a` moves the contour point by `L(x_c) a` (the splatted motion
+//!    predictors gathered at the contour pixel), of which the normal part
+//!    is observable: the residual is `n^T L(x_c) a - d`, one row of 6
+//!    ([`contour_row`]). The rows are solved with the texture matches of
+//!    the frame (re-projected at the current estimate) by
+//!    [`crate::pose::irls_grouped`], each modality with its own robust
+//!    scale.
+
+use super::{ConfigError, Estimate, StepError, StepOutcome, Tracker};
+use crate::geometry::Pose;
+use crate::pose::{Anchor, Observation, SolveError, irls_grouped};
+use crate::splat::{Attribute, Attributes};
+use nalgebra::{Matrix2x6, Vector2, Vector6};
+
+/// Settings of the contour modality.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct ContourConfig {
+    /// Half-length of the search lines, pixels, one entry per iteration
+    /// (coarse to fine).
+    pub search_px: Vec<f32>,
+    /// Lines are this many times longer when the contour starts without a
+    /// trusted texture estimate (contour alone, a failed texture step, or
+    /// recovering).
+    pub long_factor: f32,
+    /// One contour point per cell of this side, pixels.
+    pub spacing_px: u32,
+    /// Colour histogram bins per channel.
+    pub bins: u32,
+    /// Weight of the newest frame in the online colour histograms.
+    pub learning_rate: f32,
+    /// Width of the smooth step of the line model, pixels.
+    pub slope_px: f32,
+    /// Fewer usable contour points than this: the step fails.
+    pub min_points: usize,
+    /// Renders per frame: the first searches every line length of
+    /// `search_px`, later ones (at the newest estimate) the finest only.
+    pub rounds: usize,
+    /// Levenberg-Marquardt damping of each solve, as a fraction of the
+    /// normal matrix's diagonal: it keeps a motion the silhouette hardly
+    /// sees (a rotation of a nearly symmetric outline) from jumping.
+    pub damping: f64,
+    /// Fewer contour inliers than this fraction of the usable points: the
+    /// step fails (the silhouette does not fit the frame).
+    pub min_inlier_fraction: f64,
+}
+
+impl Default for ContourConfig {
+    fn default() -> Self {
+        Self {
+            search_px: vec![16.0, 8.0, 5.0],
+            long_factor: 2.0,
+            spacing_px: 4,
+            bins: 16,
+            learning_rate: 0.2,
+            slope_px: 1.0,
+            min_points: 24,
+            rounds: 2,
+            damping: 0.01,
+            min_inlier_fraction: 0.5,
+        }
+    }
+}
+
+impl ContourConfig {
+    /// Checks the ranges (part of [`super::TrackerConfig::validate`]).
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let bad = |field, value: String, rule| Err(ConfigError::OutOfRange { field, value, rule });
+        if self.search_px.is_empty()
+            || self
+                .search_px
+                .iter()
+                .any(|v| !(v.is_finite() && *v >= 2.0 && *v <= 200.0))
+        {
+            return bad(
+                "contour.search_px",
+                format!("{:?}", self.search_px),
+                "a non-empty list of half-lengths in [2, 200]",
+            );
+        }
+        if !(self.long_factor.is_finite() && (1.0..=10.0).contains(&self.long_factor)) {
+            return bad(
+                "contour.long_factor",
+                self.long_factor.to_string(),
+                "in [1, 10]",
+            );
+        }
+        if !(1..=256).contains(&self.spacing_px) {
+            return bad(
+                "contour.spacing_px",
+                self.spacing_px.to_string(),
+                "in [1, 256]",
+            );
+        }
+        if !(2..=64).contains(&self.bins) {
+            return bad("contour.bins", self.bins.to_string(), "in [2, 64]");
+        }
+        if !(self.learning_rate > 0.0 && self.learning_rate <= 1.0) {
+            return bad(
+                "contour.learning_rate",
+                self.learning_rate.to_string(),
+                "in (0, 1]",
+            );
+        }
+        if !(self.slope_px.is_finite() && self.slope_px > 0.0) {
+            return bad("contour.slope_px", self.slope_px.to_string(), "> 0");
+        }
+        if !(1..=10).contains(&self.rounds) {
+            return bad("contour.rounds", self.rounds.to_string(), "in [1, 10]");
+        }
+        if !(self.damping.is_finite() && self.damping >= 0.0) {
+            return bad("contour.damping", self.damping.to_string(), ">= 0");
+        }
+        if !(0.0..=1.0).contains(&self.min_inlier_fraction) {
+            return bad(
+                "contour.min_inlier_fraction",
+                self.min_inlier_fraction.to_string(),
+                "in [0, 1]",
+            );
+        }
+        Ok(())
+    }
+}
+
+/// A point of the splatted silhouette.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContourPoint {
+    /// The covered pixel on the silhouette (where the predictors are read).
+    pub pixel: [u32; 2],
+    /// The sub-pixel edge position, OpenCV pixel coordinates.
+    pub position: Vector2<f64>,
+    /// The unit image normal, pointing out of the object.
+    pub normal: Vector2<f64>,
+}
+
+/// Half-width of the window giving a contour point's normal and offset.
+const WINDOW: i64 = 5;
+
+/// The silhouette of a coverage mask (`width x height`, row-major), one
+/// point per `spacing x spacing` cell (the first silhouette pixel of the
+/// cell in raster order). Pixels beyond the image count as covered, so an
+/// object cut by the image border has no contour there (that edge is not
+/// the object's).
+pub fn extract_contour(
+    coverage: &[bool],
+    width: usize,
+    height: usize,
+    spacing: usize,
+) -> Vec<ContourPoint> {
+    assert_eq!(coverage.len(), width * height, "coverage size");
+    let spacing = spacing.max(1);
+    let at = |x: i64, y: i64| -> bool {
+        if x < 0 || y < 0 || x >= width as i64 || y >= height as i64 {
+            true
+        } else {
+            coverage[y as usize * width + x as usize]
+        }
+    };
+    let (cw, ch) = (width.div_ceil(spacing), height.div_ceil(spacing));
+    let mut taken = vec![false; cw * ch];
+    let mut out = Vec::new();
+    let n_window = ((2 * WINDOW + 1) * (2 * WINDOW + 1)) as f64;
+    for y in 0..height as i64 {
+        for x in 0..width as i64 {
+            if !at(x, y) || (at(x - 1, y) && at(x + 1, y) && at(x, y - 1) && at(x, y + 1)) {
+                continue;
+            }
+            let cell = (y as usize / spacing) * cw + x as usize / spacing;
+            if taken[cell] {
+                continue;
+            }
+            let (mut gx, mut gy, mut covered) = (0.0, 0.0, 0.0);
+            for dy in -WINDOW..=WINDOW {
+                for dx in -WINDOW..=WINDOW {
+                    if at(x + dx, y + dy) {
+                        gx += dx as f64;
+                        gy += dy as f64;
+                        covered += 1.0;
+                    }
+                }
+            }
+            let g = (gx * gx + gy * gy).sqrt();
+            // A straight edge through the centre gives |g| = 330 (11x11);
+            // thin parts and corners give less: their normal is unreliable.
+            if g < 120.0 {
+                continue;
+            }
+            let normal = Vector2::new(-gx / g, -gy / g);
+            // The covered fraction of the window locates a straight edge:
+            // its chord at the centre is side / max(|nx|, |ny|).
+            let side = (2 * WINDOW + 1) as f64;
+            let offset = (covered / n_window - 0.5) * side * normal.x.abs().max(normal.y.abs());
+            taken[cell] = true;
+            out.push(ContourPoint {
+                pixel: [x as u32, y as u32],
+                position: Vector2::new(x as f64, y as f64) + normal * offset,
+                normal,
+            });
+        }
+    }
+    out
+}
+
+/// Foreground (object) and background colour histograms, learnt online
+/// from frames at their tracked poses.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ColourModel {
+    bins: u32,
+    foreground: Vec<f32>,
+    background: Vec<f32>,
+    learned: bool,
+}
+
+impl ColourModel {
+    /// Empty histograms of `bins` bins per channel.
+    pub fn new(bins: u32) -> Self {
+        let n = (bins * bins * bins) as usize;
+        Self {
+            bins,
+            foreground: vec![0.0; n],
+            background: vec![0.0; n],
+            learned: false,
+        }
+    }
+
+    /// Whether any frame has been learnt.
+    pub fn is_learned(&self) -> bool {
+        self.learned
+    }
+
+    fn bin(&self, c: [u8; 3]) -> usize {
+        let q = |v: u8| (v as u32 * self.bins / 256) as usize;
+        let b = self.bins as usize;
+        (q(c[0]) * b + q(c[1])) * b + q(c[2])
+    }
+
+    /// Learns from `frame` with the object covering `coverage` (row-major,
+    /// the frame's size): covered pixels are foreground, uncovered ones
+    /// inside `rect` (x0, y0, x1, y1, inclusive) background. The first call
+    /// sets the histograms, later ones blend in with weight `rate`.
+    pub fn learn(
+        &mut self,
+        frame: &image::RgbImage,
+        coverage: &[bool],
+        rect: (usize, usize, usize, usize),
+        rate: f32,
+    ) {
+        let w = frame.width() as usize;
+        let mut fg = vec![0.0f32; self.foreground.len()];
+        let mut bg = vec![0.0f32; self.background.len()];
+        let (x0, y0, x1, y1) = rect;
+        for y in y0..=y1.min(frame.height() as usize - 1) {
+            for x in x0..=x1.min(w - 1) {
+                let b = self.bin(frame.get_pixel(x as u32, y as u32).0);
+                if coverage[y * w + x] {
+                    fg[b] += 1.0;
+                } else {
+                    bg[b] += 1.0;
+                }
+            }
+        }
+        let (nf, nb) = (fg.iter().sum::<f32>(), bg.iter().sum::<f32>());
+        if nf == 0.0 || nb == 0.0 {
+            return;
+        }
+        let rate = if self.learned { rate } else { 1.0 };
+        for (h, v) in self.foreground.iter_mut().zip(&fg) {
+            *h = (1.0 - rate) * *h + rate * v / nf;
+        }
+        for (h, v) in self.background.iter_mut().zip(&bg) {
+            *h = (1.0 - rate) * *h + rate * v / nb;
+        }
+        self.learned = true;
+    }
+
+    /// The probability that a pixel of colour `c` shows the object (equal
+    /// priors), kept within [0.02, 0.98] so that one pixel cannot veto a
+    /// boundary position; 0.5 for a colour never seen.
+    pub fn foreground_probability(&self, c: [u8; 3]) -> f32 {
+        let b = self.bin(c);
+        let (f, g) = (self.foreground[b], self.background[b]);
+        if f + g <= 0.0 {
+            0.5
+        } else {
+            (f / (f + g)).clamp(0.02, 0.98)
+        }
+    }
+}
+
+/// The boundary along one line: from `position` along the outward `normal`,
+/// samples every pixel within `half_len`; returns the offset `d` (pixels,
+/// positive outward) where the object ends, the mean of its posterior
+/// under a smooth step of width `slope` (the object's probability
+/// `hf(o - d) = (1 - tanh((o - d) / slope)) / 2` at offset `o`), or `None`
+/// when the line leaves the image, shows no boundary (a flat posterior) or
+/// puts it at the line's ends.
+pub fn search_line(
+    frame: &image::RgbImage,
+    colours: &ColourModel,
+    position: Vector2<f64>,
+    normal: Vector2<f64>,
+    half_len: f32,
+    slope: f32,
+) -> Option<f64> {
+    let l = half_len.round().max(2.0) as i64;
+    let n = (2 * l + 1) as usize;
+    let mut pf = Vec::with_capacity(n);
+    for k in -l..=l {
+        let p = position + normal * k as f64;
+        let c = crate::geometry::sample_bilinear_rgb(frame, p.x as f32, p.y as f32)?;
+        pf.push(colours.foreground_probability(c.0) as f64);
+    }
+    // Beyond 4 slopes the step is 0 or 1 to within 3e-4: those samples
+    // count as plainly inside (ln pf) or outside (ln (1 - pf)), summed by
+    // prefix sums; only the samples near `d` need the smooth step.
+    let slope = slope as f64;
+    let reach = (4.0 * slope).ceil() as i64;
+    let mut inside = vec![0.0; n + 1];
+    let mut outside = vec![0.0; n + 1];
+    for (i, p) in pf.iter().enumerate() {
+        inside[i + 1] = inside[i] + p.ln();
+        outside[i + 1] = outside[i] + (1.0 - p).ln();
+    }
+    let loglik = |d: f64| {
+        // Samples i with offset o = i - l: plainly inside when o < d - reach.
+        let lo = ((d - reach as f64).ceil() as i64 + l).clamp(0, n as i64) as usize;
+        let hi = ((d + reach as f64).floor() as i64 + l + 1).clamp(0, n as i64) as usize;
+        let mut v = inside[lo] + (outside[n] - outside[hi]);
+        for (i, p) in pf.iter().enumerate().take(hi).skip(lo) {
+            let o = (i as i64 - l) as f64;
+            let hf = 0.5 * (1.0 - ((o - d) / slope).tanh());
+            v += (hf * p + (1.0 - hf) * (1.0 - p)).ln();
+        }
+        v
+    };
+    // Candidates every half pixel, away from the line's ends.
+    let candidates: Vec<f64> = (-(2 * l - 2)..=(2 * l - 2))
+        .map(|h| h as f64 * 0.5)
+        .collect();
+    let ll: Vec<f64> = candidates.iter().map(|&d| loglik(d)).collect();
+    let (k, best) = ll
+        .iter()
+        .copied()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(&b.1))?;
+    // A boundary the line cannot place (a flat posterior: no transition,
+    // or several alike) is no evidence.
+    let w: Vec<f64> = ll.iter().map(|v| (v - best).exp()).collect();
+    let sw: f64 = w.iter().sum();
+    let mean = w.iter().zip(&candidates).map(|(w, d)| w * d).sum::<f64>() / sw;
+    let var = w
+        .iter()
+        .zip(&candidates)
+        .map(|(w, d)| w * (d - mean).powi(2))
+        .sum::<f64>()
+        / sw;
+    if var.sqrt() > (0.15 * l as f64).max(1.5) || k == 0 || k + 1 == ll.len() {
+        return None;
+    }
+    // Sub-pixel: the vertex of the parabola through the best three.
+    let (a, b, c) = (ll[k - 1], ll[k], ll[k + 1]);
+    let curv = a - 2.0 * b + c;
+    let shift = if curv < 0.0 {
+        (0.5 * (a - c) / curv).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    Some(candidates[k] + 0.5 * shift)
+}
+
+/// The residual row of a contour point whose predictors are `l` and
+/// normal `n`, with the boundary found `d` pixels along the normal: the
+/// first predictor row is `n^T L`, the second zero, so that
+/// [`crate::pose::irls`] sees the scalar residual `n^T L a - d`.
+pub fn contour_row(l: &Matrix2x6<f64>, n: &Vector2<f64>, d: f64) -> Observation {
+    let row = n.transpose() * l;
+    let mut predictors = Matrix2x6::zeros();
+    predictors.set_row(0, &row);
+    Observation {
+        predictors,
+        displacement: Vector2::new(d, 0.0),
+    }
+}
+
+/// Replaces the coverage-gradient normal of each point on an occluding
+/// contour (a limb: the splatted surface normal `N` there is nearly
+/// perpendicular to the viewing ray) by the exact one: the surface's
+/// tangent plane there contains the ray, so it projects onto the contour's
+/// tangent line, whose image normal is `(N_x / f_x, N_y / f_y)`. Crease
+/// outlines (a box's edges, where `N` faces the camera) keep theirs.
+/// `normals`: the splatted normals (3 channels, NaN where empty).
+pub fn limb_normals(
+    cam: &crate::geometry::Intrinsics,
+    normals: &crate::splat::SplatImage,
+    points: &mut [ContourPoint],
+) {
+    for p in points {
+        let nv = normals.pixel(p.pixel[0], p.pixel[1]);
+        let n3 = nalgebra::Vector3::new(nv[0] as f64, nv[1] as f64, nv[2] as f64);
+        if !n3.iter().all(|v| v.is_finite()) || n3.norm() < 0.5 {
+            continue;
+        }
+        let ray = cam
+            .unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), 1.0)
+            .normalize();
+        if n3.normalize().dot(&ray).abs() > 0.3 {
+            continue;
+        }
+        let img = Vector2::new(n3.x / cam.fx, n3.y / cam.fy);
+        if img.norm() < 1e-12 {
+            continue;
+        }
+        let img = img.normalize();
+        // Only a refinement: a normal far from the outline's is a sign of
+        // a mixed pixel, keep the coverage's then.
+        if img.dot(&p.normal) > 0.9 {
+            p.normal = img;
+        }
+    }
+}
+
+/// The rows of `points` with `d = 0` ([`contour_row`]), their predictors
+/// `L` from the splatted depth `depth` (one channel, NaN where empty) at
+/// each point's pixel, lifted to the camera-space point: the projection's
+/// Jacobian that the splatter's motion targets hold there (DESIGN.md
+/// section 3), without rendering them.
+pub fn contour_predictors(
+    cam: &crate::geometry::Intrinsics,
+    depth: &crate::splat::SplatImage,
+    points: &[ContourPoint],
+) -> Vec<Observation> {
+    points
+        .iter()
+        .map(|p| {
+            let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
+            let xc = cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z);
+            contour_row(&cam.motion_predictors(&xc), &p.normal, 0.0)
+        })
+        .collect()
+}
+
+/// The robust-scale groups of the fused solve.
+const GROUP_TEXTURE: u8 = 0;
+const GROUP_CONTOUR: u8 = 1;
+
+impl Tracker {
+    /// The contour step from `pose`: the iterations of the module docs,
+    /// fused with `anchors` (texture matches of this frame, object point
+    /// and live-frame position). `long`: no trusted texture estimate, so
+    /// the lines reach farther. Leaves the last coverage mask in
+    /// `self.contour_mask` for learning the colours.
+    pub(super) fn contour_stage(
+        &mut self,
+        frame: &image::RgbImage,
+        pose: &Pose,
+        long: bool,
+        anchors: &[Anchor],
+    ) -> StepOutcome {
+        StepOutcome::from_result(self.contour_step(frame, pose, long, anchors))
+    }
+
+    fn contour_step(
+        &mut self,
+        frame: &image::RgbImage,
+        start: &Pose,
+        long: bool,
+        anchors: &[Anchor],
+    ) -> Result<Estimate, StepError> {
+        let cfg = self.config.contour.clone();
+        let mut pose = *start;
+        let mut last = None;
+        for round in 0..cfg.rounds.max(1) {
+            // The first round goes coarse to fine; later ones (re-rendered
+            // at the newest estimate) use the finest lines only.
+            let levels = if round == 0 {
+                &cfg.search_px[..]
+            } else {
+                &cfg.search_px[cfg.search_px.len() - 1..]
+            };
+            let step = self.contour_round(frame, &pose, levels, long && round == 0, anchors)?;
+            pose = step.pose;
+            last = Some(step);
+        }
+        last.ok_or(StepError::Solve(SolveError::TooFewMatches {
+            got: 0,
+            need: cfg.min_points,
+        }))
+    }
+
+    /// One render at `pose`, then one search and solve per line length of
+    /// `levels`, each searching where the previous solve moved the contour
+    /// (to first order: by `n^T L a`), all linearised at `pose`.
+    fn contour_round(
+        &mut self,
+        frame: &image::RgbImage,
+        pose: &Pose,
+        levels: &[f32],
+        long: bool,
+        anchors: &[Anchor],
+    ) -> Result<Estimate, StepError> {
+        let cfg = &self.config.contour;
+        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
+        let t0 = std::time::Instant::now();
+        self.splatter.render(
+            &self.ctx,
+            &self.geometry,
+            &self.cam,
+            pose,
+            Attributes::GEOMETRY,
+            &mut self.targets,
+        )?;
+        // The splatted depth gives the coverage (NaN: empty) and, lifted
+        // to the camera-space point, the motion predictors L there: the
+        // projection's Jacobian of DESIGN.md section 3, what the motion
+        // targets would hold, without rendering them.
+        let depth = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Depth)?;
+        let coverage: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
+        if !self.colours.is_learned()
+            && let Some(rect) = self.roi(pose)
+        {
+            self.colours
+                .learn(frame, &coverage, rect, cfg.learning_rate);
+        }
+        let mut points = extract_contour(&coverage, w, h, cfg.spacing_px as usize);
+        let normals = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Normal)?;
+        limb_normals(&self.cam, &normals, &mut points);
+        let found: Vec<(ContourPoint, Observation)> = points
+            .iter()
+            .copied()
+            .zip(contour_predictors(&self.cam, &depth, &points))
+            .collect();
+        self.contour_mask = Some(coverage);
+        log::debug!(
+            "contour: render, read, extract, gather {:.1} ms",
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        let t0 = std::time::Instant::now();
+        let texture: Vec<Observation> = anchors
+            .iter()
+            .filter_map(|a| {
+                let xc = pose.transform_point(&a.point);
+                let uv = self.cam.project(&xc)?;
+                Some(Observation {
+                    predictors: self.cam.motion_predictors(&xc),
+                    displacement: a.target - uv,
+                })
+            })
+            .collect();
+        let mut twist = Vector6::zeros();
+        let mut last = None;
+        for &half in levels {
+            let half = if long { half * cfg.long_factor } else { half };
+            let mut obs = Vec::with_capacity(found.len() + texture.len());
+            for (p, row) in &found {
+                // Where the contour point is at the current twist.
+                let moved = (row.predictors * twist)[0];
+                if let Some(d) = search_line(
+                    frame,
+                    &self.colours,
+                    p.position + p.normal * moved,
+                    p.normal,
+                    half,
+                    cfg.slope_px,
+                ) {
+                    obs.push(Observation {
+                        displacement: Vector2::new(moved + d, 0.0),
+                        ..*row
+                    });
+                }
+            }
+            let n_contour = obs.len();
+            log::debug!(
+                "contour: {n_contour} of {} points, half-length {half} px, {:.1} ms",
+                points.len(),
+                t0.elapsed().as_secs_f64() * 1e3
+            );
+            if n_contour < cfg.min_points {
+                return Err(StepError::Solve(SolveError::TooFewMatches {
+                    got: n_contour,
+                    need: cfg.min_points,
+                }));
+            }
+            obs.extend_from_slice(&texture);
+            let mut groups = vec![GROUP_CONTOUR; n_contour];
+            groups.resize(obs.len(), GROUP_TEXTURE);
+            let s = irls_grouped(&obs, &groups, cfg.damping, &self.config.irls)?;
+            let contour_inliers = s.inliers[..n_contour].iter().filter(|&&i| i).count();
+            let need = (cfg.min_inlier_fraction * n_contour as f64).ceil() as usize;
+            if contour_inliers < need {
+                return Err(StepError::Solve(SolveError::TooFewInliers {
+                    got: contour_inliers,
+                    total: n_contour,
+                    need,
+                }));
+            }
+            twist = s.twist;
+            last = Some(Estimate {
+                pose: pose.apply_twist(&twist).orthonormalized(),
+                inliers: s.inlier_count,
+                residual_px: s.residual_rms_px,
+                scale_px: s.scale_px,
+            });
+        }
+        last.ok_or(StepError::Solve(SolveError::TooFewMatches {
+            got: 0,
+            need: cfg.min_points,
+        }))
+    }
+
+    /// Learns the colours of `frame` at the last contour render (after a
+    /// tracked frame).
+    pub(super) fn learn_colours(&mut self, frame: &image::RgbImage, pose: &Pose) {
+        if let (Some(mask), Some(rect)) = (self.contour_mask.take(), self.roi(pose)) {
+            let rate = self.config.contour.learning_rate;
+            self.colours.learn(frame, &mask, rect, rate);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A disc of radius 40 centred at (60.3, 50.7) in a 128x100 mask.
+    fn disc() -> (Vec<bool>, usize, usize, Vector2<f64>, f64) {
+        let (w, h) = (128, 100);
+        let c = Vector2::new(60.3, 50.7);
+        let r = 40.0;
+        let m = (0..w * h)
+            .map(|i| (Vector2::new((i % w) as f64, (i / w) as f64) - c).norm() <= r)
+            .collect();
+        (m, w, h, c, r)
+    }
+
+    #[test]
+    fn contour_of_a_disc_lies_on_its_circle_with_radial_normals() {
+        let (m, w, h, c, r) = disc();
+        let pts = extract_contour(&m, w, h, 6);
+        assert!(pts.len() > 30, "{} points", pts.len());
+        let mut err = 0.0f64;
+        let mut worst_angle = 0.0f64;
+        for p in &pts {
+            let radial = (p.position - c).normalize();
+            worst_angle = worst_angle.max(radial.dot(&p.normal).clamp(-1.0, 1.0).acos());
+            err += ((p.position - c).norm() - r).abs();
+        }
+        err /= pts.len() as f64;
+        assert!(err < 0.3, "mean distance to the circle {err:.3} px");
+        assert!(worst_angle < 0.2, "normal off by {worst_angle:.3} rad");
+    }
+
+    #[test]
+    fn the_image_border_is_not_a_contour() {
+        let (w, h) = (40, 40);
+        // The object covers the left half, cut by the image's left border.
+        let m: Vec<bool> = (0..w * h).map(|i| i % w < 20).collect();
+        let pts = extract_contour(&m, w, h, 1);
+        assert!(!pts.is_empty());
+        assert!(pts.iter().all(|p| p.pixel[0] == 19), "{pts:?}");
+        // Away from the corners, the normal is +x and the edge lies half-way
+        // between the last covered pixel and the first empty one.
+        let inner: Vec<_> = pts
+            .iter()
+            .filter(|p| p.pixel[1] > 5 && p.pixel[1] < 34)
+            .collect();
+        assert!(!inner.is_empty());
+        assert!(
+            inner
+                .iter()
+                .all(|p| (p.normal - Vector2::new(1.0, 0.0)).norm() < 1e-9)
+        );
+        assert!(inner.iter().all(|p| (p.position.x - 19.5).abs() < 1e-9));
+    }
+
+    #[test]
+    fn contour_row_is_the_normal_part_of_the_motion() {
+        let l = Matrix2x6::from_fn(|r, c| (r * 6 + c) as f64 - 3.0);
+        let n = Vector2::new(0.6, -0.8);
+        let o = contour_row(&l, &n, 1.5);
+        let a = nalgebra::Vector6::new(0.1, -0.2, 0.3, 0.01, 0.02, -0.03);
+        let r = (o.predictors * a - o.displacement).norm();
+        assert!((r - (n.dot(&(l * a)) - 1.5).abs()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn config_rules_name_their_field() {
+        ContourConfig::default().validate().unwrap();
+        let c = ContourConfig {
+            search_px: vec![],
+            ..Default::default()
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("contour.search_px")
+        );
+        let c = ContourConfig {
+            bins: 1,
+            ..Default::default()
+        };
+        assert!(
+            c.validate()
+                .unwrap_err()
+                .to_string()
+                .contains("contour.bins")
+        );
+    }
+}
