@@ -367,19 +367,10 @@ impl Tracker {
     /// The textured view (grey) and coverage (0/1) at `pose`, full size;
     /// `None` without any texture.
     fn template_view(&mut self, pose: &Pose) -> Result<Option<ViewAndCover>, TrackError> {
-        let Some(store) = self.store.as_ref() else {
+        if self.store.is_none() {
             return Ok(None);
-        };
-        let k = store.closest(pose);
-        let gm = self.textured.get(&self.ctx, store, &self.model, k)?;
-        self.splatter.render(
-            &self.ctx,
-            gm,
-            &self.cam,
-            pose,
-            Attributes::COLOR,
-            &mut self.targets,
-        )?;
+        }
+        self.render_view(pose, Attributes::COLOR)?;
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;

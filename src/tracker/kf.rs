@@ -75,17 +75,12 @@ impl Tracker {
         search: Search,
         anchors: &[Anchor],
     ) -> Result<(Refined, usize), StepError> {
-        let store = self.store.as_ref().ok_or(StepError::NoKeyframes)?;
-        let k = store.closest(pose);
-        let gm = self.textured.get(&self.ctx, store, &self.model, k)?;
-        self.splatter.render(
-            &self.ctx,
-            gm,
-            &self.cam,
-            pose,
-            Attributes::ALL,
-            &mut self.targets,
-        )?;
+        if self.store.is_none() {
+            return Err(StepError::NoKeyframes);
+        }
+        let k = self
+            .render_view(pose, Attributes::ALL)?
+            .ok_or(StepError::NoKeyframes)?;
         let colour = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Color)?;

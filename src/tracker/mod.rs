@@ -576,9 +576,32 @@ impl Tracker {
     }
 }
 
-/// What the steps share: turning a match into a correspondence, and the
-/// robust solve.
+/// What the steps share: the view of the model at a pose, turning a match
+/// into a correspondence, and the robust solve.
 impl Tracker {
+    /// Splats `attrs` of the model at `pose` into the tracker's targets,
+    /// textured by the keyframe closest to `pose` (its index is returned),
+    /// or untextured when there is no keyframe store (`None`).
+    fn render_view(
+        &mut self,
+        pose: &Pose,
+        attrs: Attributes,
+    ) -> Result<Option<usize>, crate::splat::SplatError> {
+        let (gm, k) = match self.store.as_ref() {
+            Some(store) => {
+                let k = store.closest(pose);
+                (
+                    self.textured.get(&self.ctx, store, &self.model, k)?,
+                    Some(k),
+                )
+            }
+            None => (&self.geometry, None),
+        };
+        self.splatter
+            .render(&self.ctx, gm, &self.cam, pose, attrs, &mut self.targets)?;
+        Ok(k)
+    }
+
     /// The match of pixel `from` of the view splatted at `pose` (`s`: its
     /// predictors and depth there) with `to` in the live frame: its row of
     /// the linear solve, and the object point seen at `from` (lifted with

@@ -326,22 +326,7 @@ impl super::Tracker {
                 ..Default::default()
             });
         }
-        let textured = self.store.is_some();
-        let gm = match self.store.as_ref() {
-            Some(store) => {
-                let k = store.closest(pose);
-                self.textured.get(&self.ctx, store, &self.model, k)?
-            }
-            None => &self.geometry,
-        };
-        self.splatter.render(
-            &self.ctx,
-            gm,
-            &self.cam,
-            pose,
-            Attributes::COLOR,
-            &mut self.targets,
-        )?;
+        let textured = self.render_view(pose, Attributes::COLOR)?.is_some();
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;
