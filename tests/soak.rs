@@ -99,11 +99,13 @@ fn ten_thousand_frames_with_flat_memory() {
             samples.push((rss, m));
         }
     }
-    assert!(samples.len() >= 2, "run at least 2,000 frames");
-    // Flat: from the first sample (warm caches) to the last, GPU buffers
-    // and textures unchanged and host memory within 5 % + 16 MB (allocator
-    // slack), not growing with the frame count.
-    let (rss0, m0) = samples[0];
+    assert!(samples.len() >= 4, "run at least 4,000 frames");
+    // Flat: from the sample at a quarter of the run (caches warm, buffers
+    // grown to the largest corner counts of the sequence) to the last, GPU
+    // objects unchanged, GPU bytes within 1 MB (a grow-only buffer meeting
+    // a slightly larger corner count) and host memory within 5 % + 16 MB
+    // (allocator slack), not growing with the frame count.
+    let (rss0, m0) = samples[samples.len() / 4];
     let (rss1, m1) = *samples.last().unwrap();
     assert_eq!(
         (m1.buffers, m1.textures),
@@ -111,7 +113,7 @@ fn ten_thousand_frames_with_flat_memory() {
         "GPU objects grew"
     );
     assert!(
-        m1.buffer_bytes <= m0.buffer_bytes && m1.texture_bytes <= m0.texture_bytes,
+        m1.buffer_bytes <= m0.buffer_bytes + (1 << 20) && m1.texture_bytes <= m0.texture_bytes,
         "GPU memory grew: {m0:?} -> {m1:?}"
     );
     assert!(

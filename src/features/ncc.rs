@@ -148,7 +148,8 @@ const ENTRIES: [&str; 5] = [
 impl NccMatcher {
     pub fn new(ctx: &GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
         config.validate()?;
-        let mut entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
+        // Parameters in a storage buffer, not a uniform: see shaders/ncc.wgsl.
+        let mut entries = vec![compute_entry(0, storage(true))];
         entries.push(compute_entry(1, storage(true)));
         entries.push(compute_entry(2, storage(true)));
         entries.extend((3..7).map(|b| compute_entry(b, storage(false))));
@@ -165,7 +166,7 @@ impl NccMatcher {
             params: ctx.buffer(
                 "ncc params",
                 std::mem::size_of::<NccParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
             ),
             pixels: GrowBuffer::new("ncc pixels", STORAGE_IN),
             positions: GrowBuffer::new("ncc positions", STORAGE_IN),
