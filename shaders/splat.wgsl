@@ -14,11 +14,13 @@
 struct SplatGpu {
     pos_radius: vec4<f32>,
     normal: vec4<f32>,
-    color: vec4<f32>,
 }
 
 @group(0) @binding(0) var<uniform> cam: CameraUniform;
 @group(0) @binding(1) var<storage, read> splats: array<SplatGpu>;
+// One RGBA8 colour per splat (`pack_color`), a buffer of its own so that
+// models textured by different keyframes share the geometry.
+@group(0) @binding(2) var<storage, read> colors: array<u32>;
 
 struct VsOut {
     @builtin(position) position: vec4<f32>,
@@ -67,7 +69,7 @@ fn vs_splat(@builtin(vertex_index) vi: u32, @builtin(instance_index) ii: u32) ->
     out.center = c;
     out.radius = r;
     out.normal = m;
-    out.color = s.color.xyz;
+    out.color = unpack4x8unorm(colors[ii]).xyz;
     let near = cam.size.z;
     // Culled: centre not in front of the near plane, or back-facing.
     if c.z <= near || dot(m, c) >= 0.0 || !(r > 0.0) {

@@ -562,17 +562,19 @@ pub fn load_keyframe_images(
     Ok(out)
 }
 
-/// Default GPU memory for the textured models of [`TexturedCache`]: 256 MB.
+/// Default GPU memory for the keyframe colours of [`TexturedCache`]:
+/// 256 MB (64 keyframes of a million points).
 pub const DEFAULT_TEXTURED_BUDGET: u64 = 256 << 20;
 
-/// Bytes of one splat on the GPU (position and radius, normal, colour).
-const SPLAT_BYTES: u64 = 48;
+/// GPU bytes of one point's colour (RGBA8); the geometry is shared.
+const COLOR_BYTES: u64 = 4;
 
-/// The GPU copies of the model textured by each keyframe, uploaded on
-/// first use and kept within a memory budget: when one more would exceed
-/// it, the least recently used is dropped (and uploaded again if needed),
-/// so a store of any size holds a bounded amount of GPU memory. At least
-/// one is always kept.
+/// The model textured by each keyframe on the GPU: the model's geometry
+/// uploaded once and shared, and one colour buffer (4 bytes a point) per
+/// keyframe, uploaded on first use and kept within a memory budget: when
+/// one more would exceed it, the least recently used is dropped (and
+/// uploaded again if needed), so a store of any size holds a bounded
+/// amount of GPU memory. At least one is always kept.
 pub struct TexturedCache {
     slots: Vec<Option<(GpuModel, u64)>>,
     clock: u64,
@@ -582,9 +584,9 @@ pub struct TexturedCache {
 
 impl TexturedCache {
     /// A cache for `keyframes` keyframes of a model of `points` points
-    /// holding at most `budget_bytes` of textured models.
+    /// holding at most `budget_bytes` of keyframe colours.
     pub fn new(keyframes: usize, points: usize, budget_bytes: u64) -> Self {
-        let per_model = (points as u64).max(1) * SPLAT_BYTES;
+        let per_model = (points as u64).max(1) * COLOR_BYTES;
         Self {
             slots: (0..keyframes).map(|_| None).collect(),
             clock: 0,
@@ -593,12 +595,14 @@ impl TexturedCache {
         }
     }
 
-    /// The model textured by keyframe `k` of `store`, uploaded when absent.
+    /// The model textured by keyframe `k` of `store`: `geometry` (the
+    /// model on the GPU, shared) with keyframe `k`'s colours, uploaded when
+    /// absent.
     pub fn get(
         &mut self,
         ctx: &GpuContext,
         store: &KeyframeStore,
-        model: &PointModel,
+        geometry: &GpuModel,
         k: usize,
     ) -> Result<&GpuModel, SplatError> {
         self.clock += 1;
@@ -617,7 +621,8 @@ impl TexturedCache {
                     None => break,
                 }
             }
-            self.slots[k] = Some((GpuModel::new(ctx, &store.textured(model, k))?, now));
+            let colors = &store.keyframes[k].colors;
+            self.slots[k] = Some((geometry.with_colors(ctx, colors)?, now));
             self.uploads += 1;
         }
         let (gm, stamp) = self.slots[k].as_mut().expect("filled above");

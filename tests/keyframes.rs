@@ -568,8 +568,9 @@ fn the_textured_cache_stays_within_its_budget_and_renders_the_same() {
     let f = fixture();
     let ctx = shared_test_context();
     let model = &f.scene.model;
-    // Room for two textured models of this size.
-    let budget = 2 * 48 * model.len() as u64 + 100;
+    // Room for the colours of two keyframes (4 bytes a point; the
+    // geometry is shared and not counted).
+    let budget = 2 * 4 * model.len() as u64 + 100;
     let mut cache = TexturedCache::new(f.store.keyframes.len(), model.len(), budget);
     assert_eq!(cache.max_resident(), 2);
     let splatter = Splatter::new(ctx).unwrap();
@@ -581,10 +582,15 @@ fn the_textured_cache_stays_within_its_budget_and_renders_the_same() {
             .unwrap();
         splatter.read(ctx, &targets, Attribute::Color).unwrap().data
     };
+    let geometry = GpuModel::new(ctx, model).unwrap();
     let mut uploads = Vec::new();
     for k in [0, 1, 0, 2, 1, 1, 3] {
         let pose = f.poses[k];
-        let got = colour(cache.get(ctx, &f.store, model, k).unwrap(), &pose);
+        let got = colour(cache.get(ctx, &f.store, &geometry, k).unwrap(), &pose);
+        // Only the colours are per keyframe.
+        let cached = cache.get(ctx, &f.store, &geometry, k).unwrap();
+        assert_eq!(cached.color_bytes(), 4 * model.len() as u64);
+        assert_eq!(cached.geometry_bytes(), 32 * model.len() as u64);
         assert!(cache.resident() <= 2, "{} resident", cache.resident());
         uploads.push(cache.uploads());
         // The cached model is keyframe k's texture: the same picture as a

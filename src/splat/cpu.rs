@@ -3,10 +3,10 @@
 //! [`CameraUniform`], so that tests can compare the GPU with it pixel by
 //! pixel. Slow (one thread); meant for tests and for the CPU/GPU ratio.
 
-use super::gpu_data::{CameraUniform, SplatGpu};
+use super::gpu_data::{CameraUniform, SplatGpu, unpack_color};
 use super::{
-    Attribute, GATHER_STRIDE, GatherMode, GatherSample, ModelBounds, SplatError, SplatImage,
-    SplatParams, pack_model,
+    Attribute, GATHER_STRIDE, GatherMode, GatherSample, ModelBounds, PackedModel, SplatError,
+    SplatImage, SplatParams, pack_model,
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::model::PointModel;
@@ -91,7 +91,7 @@ fn tangent(n: Vec3) -> Vec3 {
     n.cross(axis).normalize()
 }
 
-fn setup(v: &View, s: &SplatGpu) -> Option<Setup> {
+fn setup(v: &View, s: &SplatGpu, color: u32) -> Option<Setup> {
     let p = Vec3::new(s.pos_radius[0], s.pos_radius[1], s.pos_radius[2]);
     let r = s.pos_radius[3];
     let c = v.apply(p) + v.trans;
@@ -127,7 +127,7 @@ fn setup(v: &View, s: &SplatGpu) -> Option<Setup> {
         m,
         r,
         proj: pc,
-        color: Vec3::new(s.color[0], s.color[1], s.color[2]),
+        color: Vec3::from(unpack_color(color)),
         lo,
         hi,
     })
@@ -198,11 +198,16 @@ fn motion(v: &View, x: Vec3) -> [f32; 12] {
     out
 }
 
-/// Splats packed splats with a view uniform: passes 1 and 2.
-pub fn splat_packed(splats: &[SplatGpu], uniform: &CameraUniform) -> Accumulators {
+/// Splats a packed model with a view uniform: passes 1 and 2.
+pub fn splat_packed(model: &PackedModel, uniform: &CameraUniform) -> Accumulators {
     let v = View::new(uniform);
     let (w, h) = (v.w as usize, v.h as usize);
-    let setups: Vec<Setup> = splats.iter().filter_map(|s| setup(&v, s)).collect();
+    let setups: Vec<Setup> = model
+        .splats
+        .iter()
+        .zip(&model.colors)
+        .filter_map(|(s, &c)| setup(&v, s, c))
+        .collect();
     let uv = |x: u32, y: u32| Vec2::new(x as f32, y as f32);
     // Pass 1: visibility.
     let mut depth = vec![1.0f32; w * h];

@@ -8,16 +8,29 @@ use crate::geometry::{Intrinsics, Pose};
 use crate::wgsl_struct;
 
 wgsl_struct! {
-    /// One splat as the vertex shader reads it.
+    /// One splat's geometry as the vertex shader reads it. Its colour is
+    /// in a buffer of its own (one `u32` per splat, see [`pack_color`]), so
+    /// that models textured by different keyframes share this buffer.
     #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
     pub struct SplatGpu {
         /// Object-space centre, then the radius.
         pub pos_radius: [f32; 4],
         /// Object-space unit normal, w unused.
         pub normal: [f32; 4],
-        /// Linear RGB, w unused.
-        pub color: [f32; 4],
     }
+}
+
+/// A linear RGB colour (0..1) as the splat shader reads it: 8 bits per
+/// channel, red in the low byte, alpha 255 (WGSL's `unpack4x8unorm`). The
+/// keyframe store keeps colours at this precision too.
+pub fn pack_color(c: [f32; 3]) -> u32 {
+    let q = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u32;
+    q(c[0]) | q(c[1]) << 8 | q(c[2]) << 16 | 255 << 24
+}
+
+/// The inverse of [`pack_color`] (WGSL's `unpack4x8unorm`).
+pub fn unpack_color(c: u32) -> [f32; 3] {
+    [c & 255, (c >> 8) & 255, (c >> 16) & 255].map(|v| v as f32 / 255.0)
 }
 
 wgsl_struct! {

@@ -67,7 +67,7 @@ pub use bounds::{ModelBounds, bounding_sphere};
 pub use error::SplatError;
 pub use gather::{GatherMode, GatherSample};
 pub use gpu_data::GATHER_STRIDE;
-pub use model::{GpuModel, pack_model};
+pub use model::{GpuModel, PackedModel, pack_model};
 pub use splatter::Splatter;
 pub use targets::{SplatImage, SplatTargets};
 

@@ -57,6 +57,7 @@ impl Splatter {
                     wgpu::BufferBindingType::Uniform,
                 ),
                 buffer_entry(1, wgpu::ShaderStages::VERTEX, storage(true)),
+                buffer_entry(2, wgpu::ShaderStages::VERTEX, storage(true)),
             ],
         );
         let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -215,7 +216,11 @@ impl Splatter {
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: model.buffer.as_entire_binding(),
+                    resource: model.geometry.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: model.colors.as_entire_binding(),
                 },
             ],
         });

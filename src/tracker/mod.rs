@@ -591,7 +591,7 @@ impl Tracker {
             Some(store) => {
                 let k = store.closest(pose);
                 (
-                    self.textured.get(&self.ctx, store, &self.model, k)?,
+                    self.textured.get(&self.ctx, store, &self.geometry, k)?,
                     Some(k),
                 )
             }
