@@ -7,8 +7,14 @@
 //!    keyframes' median distance (else the distance at which the object
 //!    spans a third of the image), the object centred.
 //! 2. Templates: each viewpoint splatted with the closest keyframe's
-//!    texture; view and coverage shrunk so the object spans about
-//!    [`InitConfig::template_px`] pixels.
+//!    texture at twice the coarse resolution (the object spans about
+//!    2 x [`InitConfig::template_px`] pixels), then view and coverage
+//!    shrunk by 2 so the object spans about [`InitConfig::template_px`]
+//!    pixels (the full-size render the frame is shrunk from would cost
+//!    the square of the shrink factor more), from the model thinned to
+//!    about [`TEMPLATE_POINTS`] points with radii grown to cover the same
+//!    surface (the object is a few dozen pixels wide there; splatting every
+//!    point would cost the search most of its time).
 //! 3. Search: masked ZNCC of each template, at three scales, over every
 //!    position of the frame shrunk alike ([`best_positions`], pure CPU).
 //! 4. The best [`InitConfig::candidates`] hits become poses (the template's
@@ -20,8 +26,40 @@
 use super::{Frame, StepError, TrackError, Tracker};
 use crate::features::GreyImage;
 use crate::geometry::{Pose, look_at, rotation_exp};
-use crate::splat::{Attribute, Attributes};
+use crate::model::PointModel;
+use crate::splat::{Attribute, Attributes, GpuModel, SplatTargets};
 use nalgebra::{Matrix3, Vector3};
+use std::collections::HashMap;
+
+/// Points of the model the templates are splatted from.
+pub const TEMPLATE_POINTS: usize = 4000;
+
+/// `model` thinned to about `target` points (every n-th), radii grown by
+/// the square root of n so the splats still cover the surface; also the
+/// indices kept.
+pub fn thinned(model: &PointModel, target: usize) -> (PointModel, Vec<usize>) {
+    let step = (model.len() / target.max(1)).max(1);
+    let idx: Vec<usize> = (0..model.len()).step_by(step).collect();
+    let grow = (step as f32).sqrt();
+    let thin = PointModel {
+        positions: idx.iter().map(|&i| model.positions[i]).collect(),
+        normals: idx.iter().map(|&i| model.normals[i]).collect(),
+        radii: idx.iter().map(|&i| model.radii[i] * grow).collect(),
+        colors: model
+            .colors
+            .as_ref()
+            .map(|c| idx.iter().map(|&i| c[i]).collect()),
+        provenance: model.provenance.clone(),
+    };
+    (thin, idx)
+}
+
+/// The thinned model on the GPU and its copies textured by keyframes.
+struct TemplateModels {
+    geometry: GpuModel,
+    idx: Vec<usize>,
+    textured: HashMap<usize, GpuModel>,
+}
 
 /// Settings of the search.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -285,15 +323,29 @@ impl Tracker {
         let cfg = self.config.init.clone();
         let f = ((diam_px / cfg.template_px).floor() as usize).clamp(1, 16);
         let (coarse, cw, ch) = shrink(&frame.grey.data, w, h, f);
+        // Templates rendered at twice the coarse size, then shrunk by 2:
+        // pixel (i, j) of the result is centred where coarse pixel (i, j)
+        // of the frame is ((u + 0.5) s - 0.5 with s = 1 / f).
+        let small = self.cam.scaled(2.0 / f as f64);
+        let mut targets = SplatTargets::new(&self.ctx, small.width, small.height);
+        let (thin, idx) = thinned(&self.model, TEMPLATE_POINTS);
+        let mut models = TemplateModels {
+            geometry: GpuModel::new(&self.ctx, &thin)?,
+            idx,
+            textured: HashMap::new(),
+        };
         let mut hits: Vec<Hit> = Vec::new();
         for (vi, pose) in views.iter().enumerate() {
-            let Some((view, cover)) = self.template_view(pose)? else {
+            let Some((view, cover)) =
+                self.template_view(pose, &small, &mut targets, &mut models)?
+            else {
                 continue;
             };
-            let (v, _, _) = shrink(&view, w, h, f);
-            let (c, _, _) = shrink(&cover, w, h, f);
+            let (sw, sh) = (small.width as usize, small.height as usize);
+            let (v, vw, vh) = shrink(&view, sw, sh, 2);
+            let (c, _, _) = shrink(&cover, sw, sh, 2);
             for scale in [0.8, 1.0, 1.25] {
-                let Some((t, origin)) = Template::new(&v, &c, cw, ch, scale) else {
+                let Some((t, origin)) = Template::new(&v, &c, vw, vh, scale) else {
                     continue;
                 };
                 for (x, y, score) in best_positions(&t, &coarse, cw, ch, 2) {
@@ -313,10 +365,16 @@ impl Tracker {
         for hit in hits.iter().take(cfg.candidates) {
             let pose = &views[hit.view];
             let (x0, y0) = hit.origin;
-            // Where the template's centre (the principal point) lands.
-            let (pu, pv) = (self.cam.cx / f as f64, self.cam.cy / f as f64);
-            let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale) * f as f64;
-            let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale) * f as f64;
+            // Where the template's centre (the principal point) lands, in
+            // coarse pixels, then full-size ones (a coarse pixel centre u
+            // is full-size (u + 0.5) f - 0.5).
+            let ff = f as f64;
+            let (pu, pv) = (
+                (self.cam.cx + 0.5) / ff - 0.5,
+                (self.cam.cy + 0.5) / ff - 0.5,
+            );
+            let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
+            let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
             let ray = Vector3::new(
                 (u - self.cam.cx) / self.cam.fx,
                 (vv - self.cam.cy) / self.cam.fy,
@@ -364,19 +422,36 @@ impl Tracker {
         Ok(Some(pose))
     }
 
-    /// The textured view (grey) and coverage (0/1) at `pose`, full size;
-    /// `None` without any texture.
-    fn template_view(&mut self, pose: &Pose) -> Result<Option<ViewAndCover>, TrackError> {
-        if self.store.is_none() {
+    /// The textured view (grey) and coverage (0/1) at `pose` of the
+    /// thinned model seen by `cam` (a scaled copy of the tracker's camera)
+    /// in `targets` (its size), textured by the closest keyframe; `None`
+    /// without any texture.
+    fn template_view(
+        &mut self,
+        pose: &Pose,
+        cam: &crate::geometry::Intrinsics,
+        targets: &mut SplatTargets,
+        models: &mut TemplateModels,
+    ) -> Result<Option<ViewAndCover>, TrackError> {
+        let Some(store) = self.store.as_ref() else {
             return Ok(None);
-        }
-        self.render_view(pose, Attributes::COLOR)?;
-        let weight = self
-            .splatter
-            .read(&self.ctx, &self.targets, Attribute::Weight)?;
-        let c = self
-            .splatter
-            .read(&self.ctx, &self.targets, Attribute::Color)?;
+        };
+        let k = store.closest(pose);
+        let gm = match models.textured.entry(k) {
+            std::collections::hash_map::Entry::Occupied(e) => e.into_mut(),
+            std::collections::hash_map::Entry::Vacant(e) => {
+                let colors: Vec<[f32; 3]> = models
+                    .idx
+                    .iter()
+                    .map(|&i| store.keyframes[k].colors[i])
+                    .collect();
+                e.insert(models.geometry.with_colors(&self.ctx, &colors)?)
+            }
+        };
+        self.splatter
+            .render(&self.ctx, gm, cam, pose, Attributes::COLOR, targets)?;
+        let weight = self.splatter.read(&self.ctx, targets, Attribute::Weight)?;
+        let c = self.splatter.read(&self.ctx, targets, Attribute::Color)?;
         let grey = GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)?;
         let cover: Vec<f32> = weight
             .data
@@ -394,7 +469,7 @@ impl Tracker {
     }
 }
 
-/// A view's grey levels and coverage (0/1), full size.
+/// A view's grey levels and coverage (0/1).
 type ViewAndCover = (Vec<f32>, Vec<f32>);
 
 /// The pose with rotation `r` and the object's centre `c` at distance `d`
@@ -447,6 +522,42 @@ mod tests {
             let r = axis_to(ray);
             assert!((r * Vector3::z() - ray).norm() < 1e-9);
         }
+    }
+
+    #[test]
+    fn thinning_keeps_every_nth_point_and_grows_radii() {
+        let n = 10_000;
+        use crate::model::{AttributeSource, Provenance};
+        let model = PointModel {
+            positions: (0..n)
+                .map(|i| glam::Vec3::new(i as f32, 0.0, 1.0))
+                .collect(),
+            normals: vec![glam::Vec3::Z; n],
+            radii: vec![0.5; n],
+            colors: Some((0..n).map(|i| [i as f32 / n as f32, 0.0, 0.0]).collect()),
+            provenance: Provenance {
+                path: None,
+                normals: AttributeSource::FromMesh,
+                radii: AttributeSource::FromMesh,
+                colors: AttributeSource::FromMesh,
+                dropped_non_finite: 0,
+                normals_reestimated: 0,
+            },
+        };
+        let (thin, idx) = thinned(&model, 2500);
+        assert_eq!(idx.len(), 2500);
+        assert_eq!(thin.len(), 2500);
+        assert_eq!(idx[1], 4);
+        assert_eq!(thin.positions[1], model.positions[4]);
+        assert_eq!(
+            thin.colors.as_ref().unwrap()[1],
+            model.colors.as_ref().unwrap()[4]
+        );
+        // Four times fewer points, each covering four times the area.
+        assert!((thin.radii[1] - 1.0).abs() < 1e-6);
+        // A small model is kept whole.
+        let (same, _) = thinned(&model, 20_000);
+        assert_eq!(same.radii, model.radii);
     }
 
     #[test]
