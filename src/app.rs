@@ -273,6 +273,8 @@ pub struct RunStats {
     pub contour_ms: f64,
     /// Median total milliseconds per frame.
     pub median_ms: f64,
+    /// Mean time per frame of every stage and sub-stage.
+    pub mean_stages: crate::tracker::StageTimes,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -422,6 +424,7 @@ impl<'a> TrackRun<'a> {
                 *acc += ms(d) / n as f64;
             }
             stats.contour_ms += ms(t.contour) / n as f64;
+            stats.mean_stages.add_scaled(t, 1.0 / n as f64);
             totals.push(ms(t.total));
             if let Some(w) = &mut bop {
                 let score = if r.status == Status::Tracking {

@@ -217,6 +217,10 @@ pub struct TrackerConfig {
     pub modalities: Modalities,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
+    /// Confine renders, reads, corner detection and NCC matching to the
+    /// object's projected region (issue 13; the same results, measured in
+    /// tests/tracker.rs). Off: the whole image every time.
+    pub windows: bool,
 }
 
 impl Default for TrackerConfig {
@@ -248,6 +252,7 @@ impl Default for TrackerConfig {
             init: Default::default(),
             modalities: Modalities::default(),
             contour: super::contour::ContourConfig::default(),
+            windows: true,
         }
     }
 }

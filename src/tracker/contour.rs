@@ -518,13 +518,14 @@ impl Tracker {
         long: bool,
         anchors: &[Anchor],
     ) -> Result<Estimate, StepError> {
+        let cam = self.use_window(crate::splat::Window::full(&self.cam));
         let cfg = &self.config.contour;
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let t0 = std::time::Instant::now();
         self.splatter.render(
             &self.ctx,
             &self.geometry,
-            &self.cam,
+            &cam,
             pose,
             Attributes::GEOMETRY,
             &mut self.targets,
