@@ -162,15 +162,19 @@ impl Tracker {
         // The low-pass filter spreads a splat by up to 3 x 0.75 px beyond
         // its radius (shaders/splat.wgsl); 4 px more for rounding.
         let margin = self.window_margin() + 4.0;
-        Window::of_box(
-            &self.cam,
-            pose,
-            &self.box_lo,
-            &self.box_hi,
-            margin,
-            self.config.harris.grid_cell,
-        )
-        .unwrap_or(full)
+        // Origins on the Harris grid and on the contour's cells.
+        let (a, b) = (
+            self.config.harris.grid_cell.max(1),
+            self.config.contour.spacing_px.max(1),
+        );
+        let gcd = |mut x: u32, mut y: u32| {
+            while y != 0 {
+                (x, y) = (y, x % y);
+            }
+            x
+        };
+        let align = (a / gcd(a, b)).saturating_mul(b);
+        Window::of_box(&self.cam, pose, &self.box_lo, &self.box_hi, margin, align).unwrap_or(full)
     }
 
     /// The margin around what a step looks at that keeps Harris supports,
