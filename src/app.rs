@@ -291,6 +291,7 @@ pub struct TrackRun<'a> {
     overlays: Option<(PathBuf, usize)>,
     bop: Option<(PathBuf, u32)>,
     progress: Option<ProgressFn>,
+    gpu_timing: bool,
 }
 
 impl<'a> TrackRun<'a> {
@@ -306,7 +307,16 @@ impl<'a> TrackRun<'a> {
             overlays: None,
             bop: None,
             progress: None,
+            gpu_timing: false,
         }
+    }
+
+    /// Times every GPU pass with timestamp queries
+    /// ([`Tracker::enable_gpu_timing`]; the means land in
+    /// [`RunStats::mean_stages`]).
+    pub fn gpu_timing(mut self, on: bool) -> Self {
+        self.gpu_timing = on;
+        self
     }
 
     /// Tracks only the first `n` frames (`None`: all).
@@ -371,6 +381,9 @@ impl<'a> TrackRun<'a> {
             sequence: seq.dir.clone(),
             source: Box::new(source),
         })?;
+        if self.gpu_timing {
+            tracker.enable_gpu_timing();
+        }
         let mut poses = match &self.poses {
             Some(p) => Some(PoseWriter::create(p, &RESULT_COLUMNS)?),
             None => None,

@@ -39,7 +39,8 @@ pub struct Args {
     /// Write each frame with the model's outline at the tracked pose here.
     #[arg(long)]
     pub overlay: Option<PathBuf>,
-    /// Print the time per stage.
+    /// Print the time per stage and its parts, and the GPU time of every
+    /// pass (timestamp queries, where the adapter has them).
     #[arg(long)]
     pub profile: bool,
     /// Also write a BOP-style results CSV (t in mm, assuming metre models).
@@ -239,6 +240,9 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if let Some(path) = &args.bop {
         run = run.bop(path, args.obj_id);
     }
+    if args.profile {
+        run = run.gpu_timing(true);
+    }
     let stats = run.run(|_, _| {})?;
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
@@ -289,6 +293,12 @@ fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
     let mut out = String::from("per frame (mean):\n");
     for (name, v) in rows {
         out += &format!("  {name:<26} {v:8.1} ms\n");
+    }
+    if !t.gpu.is_empty() {
+        out += "GPU passes per frame (mean, timestamp queries):\n";
+        for (name, v) in &t.gpu {
+            out += &format!("  {name:<26} {v:8.1} ms\n");
+        }
     }
     out
 }

@@ -522,17 +522,16 @@ impl Tracker {
         // wider than the contour's normal window).
         let window = self.view_window(pose);
         let cam = self.use_window(window);
-        let cfg = &self.config.contour;
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let t0 = std::time::Instant::now();
-        self.splatter.render(
-            &self.ctx,
-            &self.geometry,
+        self.splat(
+            super::profile::Texture::None,
             &cam,
             pose,
             Attributes::GEOMETRY,
-            &mut self.targets,
+            "contour",
         )?;
+        let cfg = &self.config.contour;
         // The splatted depth gives the coverage (NaN: empty) and, lifted
         // to the camera-space point, the motion predictors L there: the
         // projection's Jacobian of DESIGN.md section 3, what the motion

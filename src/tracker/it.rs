@@ -3,6 +3,7 @@
 //! that land on the object matched to the new ones by NCC; the predictors at
 //! the old positions and the displacements solved for the update.
 
+use super::profile::Texture;
 use super::view::{Placed, match_near};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
@@ -59,14 +60,7 @@ impl Tracker {
         // The check of the previous frame rendered this view already.
         if !self.reuse_render(pose, window) {
             let cam = self.use_window(window);
-            self.splatter.render(
-                &self.ctx,
-                &self.geometry,
-                &cam,
-                pose,
-                Attributes::ALL,
-                &mut self.targets,
-            )?;
+            self.splat(Texture::None, &cam, pose, Attributes::ALL, "IT")?;
         }
         let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
         let samples = self.gather_frame(&pts)?;
@@ -103,6 +97,8 @@ impl Tracker {
             &frame.corners,
             margin,
         )?;
+        let timings = self.it_matcher.last_timings().clone();
+        self.note_ncc("IT", timings);
         self.stages.it_ncc += t.elapsed();
         let obs: Vec<Correspondence> = matches
             .iter()

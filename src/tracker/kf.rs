@@ -82,7 +82,7 @@ impl Tracker {
         let t = std::time::Instant::now();
         let window = self.view_window(pose);
         let k = self
-            .render_view_in(pose, Attributes::ALL, window)?
+            .render_view_in(pose, Attributes::ALL, window, "KF")?
             .ok_or(StepError::NoKeyframes)?;
         // The novel view of the window only (its corners in window
         // coordinates, then in the frame's).
@@ -104,6 +104,7 @@ impl Tracker {
                 score: c.score,
             })
             .collect();
+        self.note_harris("KF");
         self.stages.kf_harris += t.elapsed();
         let t = std::time::Instant::now();
         let margin = self.match_margin(match search {
@@ -132,6 +133,14 @@ impl Tracker {
             .iter()
             .map(|m| [view_corners[m.a].x, view_corners[m.a].y])
             .collect();
+        let timings = match search {
+            Search::Recover => &self.recover_matcher,
+            Search::Motion => &self.it_matcher,
+            Search::Refine => &self.kf_matcher,
+        }
+        .last_timings()
+        .clone();
+        self.note_ncc("KF", timings);
         let samples = self.gather_frame(&pts)?;
         let mo = mw.origin();
         let local = |c: &Corner| Corner {

@@ -41,6 +41,7 @@ mod decision;
 pub mod init;
 mod it;
 mod kf;
+mod profile;
 pub mod verify;
 mod view;
 
@@ -97,6 +98,10 @@ pub struct StageTimes {
     /// Within KF: NCC matching, the gathers and the sub-pixel refinement.
     #[serde(default)]
     pub kf_ncc: Duration,
+    /// GPU time of each pass, milliseconds, as "stage kernel pass" (from
+    /// timestamp queries; empty unless [`Tracker::enable_gpu_timing`]).
+    #[serde(default)]
+    pub gpu: Vec<(String, f64)>,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -120,6 +125,9 @@ impl StageTimes {
         ];
         for (acc, d) in pairs {
             *acc += d.mul_f64(k);
+        }
+        for (label, ms) in &other.gpu {
+            profile::add(&mut self.gpu, label, ms * k);
         }
     }
 }
@@ -303,6 +311,8 @@ pub struct Tracker {
     kf_anchors: Vec<Anchor>,
     /// The sub-stage times of the frame being tracked.
     stages: StageTimes,
+    /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
+    gpu_timer: Option<crate::gpu::GpuTimer>,
 }
 
 impl Tracker {
@@ -392,6 +402,7 @@ impl Tracker {
             contour_mask: None,
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
+            gpu_timer: None,
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -623,6 +634,7 @@ impl Tracker {
         times.kf_render = sub.kf_render;
         times.kf_harris = sub.kf_harris;
         times.kf_ncc = sub.kf_ncc;
+        times.gpu = sub.gpu;
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
@@ -667,29 +679,22 @@ impl Tracker {
         pose: &Pose,
         attrs: Attributes,
     ) -> Result<Option<usize>, crate::splat::SplatError> {
-        self.render_view_in(pose, attrs, Window::full(&self.cam))
+        self.render_view_in(pose, attrs, Window::full(&self.cam), "search")
     }
 
-    /// [`Tracker::render_view`] into window `w` of the image only.
+    /// [`Tracker::render_view`] into window `w` of the image only (its
+    /// GPU passes timed under `stage`).
     fn render_view_in(
         &mut self,
         pose: &Pose,
         attrs: Attributes,
         w: Window,
+        stage: &str,
     ) -> Result<Option<usize>, crate::splat::SplatError> {
         let cam = self.use_window(w);
-        let (gm, k) = match self.store.as_ref() {
-            Some(store) => {
-                let k = store.closest(pose);
-                (
-                    self.textured.get(&self.ctx, store, &self.model, k)?,
-                    Some(k),
-                )
-            }
-            None => (&self.geometry, None),
-        };
-        self.splatter
-            .render(&self.ctx, gm, &cam, pose, attrs, &mut self.targets)?;
+        let k = self.store.as_ref().map(|s| s.closest(pose));
+        let texture = k.map_or(profile::Texture::None, profile::Texture::Keyframe);
+        self.splat(texture, &cam, pose, attrs, stage)?;
         Ok(k)
     }
 

@@ -332,7 +332,7 @@ impl super::Tracker {
         // Every attribute: the next frame's IT step needs this very
         // render (at its previous pose), and takes it over.
         let textured = self
-            .render_view_in(pose, Attributes::ALL, window)?
+            .render_view_in(pose, Attributes::ALL, window, "check")?
             .is_some();
         let weight = self
             .splatter

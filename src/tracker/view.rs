@@ -301,9 +301,9 @@ impl Tracker {
         }
         let crop = Placed::full(grey).crop(&w);
         let o = w.origin();
-        Ok(self
-            .harris
-            .detect(&crop, Some(&mask))?
+        let corners = self.harris.detect(&crop, Some(&mask))?;
+        self.note_harris("features");
+        Ok(corners
             .into_iter()
             .map(|c| Corner {
                 x: c.x + o[0],
