@@ -120,9 +120,11 @@ pub struct Tuning {
     /// (default 0.01).
     #[arg(long)]
     pub contour_damping: Option<f64>,
-    /// Render, detect and match over the whole image every time instead of
-    /// the object's projected region (the same poses, slower; for
-    /// comparison).
+    /// The frame loop as it was before issue 13, for comparison: render,
+    /// detect and match over the whole image every time instead of the
+    /// object's projected region, and render the IT step's view anew
+    /// instead of taking the previous check's (the same poses up to f32
+    /// rounding, slower).
     #[arg(long)]
     pub full_frame: bool,
 }

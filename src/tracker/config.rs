@@ -218,8 +218,10 @@ pub struct TrackerConfig {
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
     /// Confine renders, reads, corner detection and NCC matching to the
-    /// object's projected region (issue 13; the same results, measured in
-    /// tests/tracker.rs). Off: the whole image every time.
+    /// object's projected region, and let the check's render serve the
+    /// next frame's IT step (issue 13; the same results up to f32
+    /// rounding, tests/tracker.rs). Off: the loop as it was before, the
+    /// whole image every time and every render made anew (for comparison).
     pub windows: bool,
 }
 

@@ -331,9 +331,12 @@ impl super::Tracker {
         let window = self.view_window(pose);
         // Every attribute: the next frame's IT step needs this very
         // render (at its previous pose), and takes it over.
-        let textured = self
-            .render_view_in(pose, Attributes::ALL, window, "check")?
-            .is_some();
+        let attrs = if self.config.windows {
+            Attributes::ALL
+        } else {
+            Attributes::COLOR
+        };
+        let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;

@@ -226,6 +226,9 @@ impl Tracker {
     /// Keeps the last render (made at `pose` with every attribute and the
     /// model's geometry) for [`Tracker::reuse_render`].
     pub(super) fn keep_render(&mut self, pose: Pose) {
+        if !self.config.windows {
+            return;
+        }
         let fresh = self.spare_targets(self.window);
         let targets = std::mem::replace(&mut self.targets, fresh);
         let kept = Kept {
