@@ -116,6 +116,14 @@ pub(super) fn match_near(
     margin: Option<f64>,
 ) -> Result<(Vec<Match>, Window, GreyImage, GreyImage), FeatureError> {
     let full = Placed::full(img_b).at;
+    if a.is_empty() || b.is_empty() {
+        return Ok((
+            Vec::new(),
+            full,
+            GreyImage::filled(0, 0, 0.0),
+            GreyImage::filled(0, 0, 0.0),
+        ));
+    }
     let (x0, y0, x1, y1) = a.iter().fold(
         (
             f64::INFINITY,
