@@ -273,6 +273,8 @@ pub struct RunStats {
     pub contour_ms: f64,
     /// Median total milliseconds per frame.
     pub median_ms: f64,
+    /// Mean time per frame of every stage and sub-stage.
+    pub mean_stages: crate::tracker::StageTimes,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -289,6 +291,7 @@ pub struct TrackRun<'a> {
     overlays: Option<(PathBuf, usize)>,
     bop: Option<(PathBuf, u32)>,
     progress: Option<ProgressFn>,
+    gpu_timing: bool,
 }
 
 impl<'a> TrackRun<'a> {
@@ -304,7 +307,16 @@ impl<'a> TrackRun<'a> {
             overlays: None,
             bop: None,
             progress: None,
+            gpu_timing: false,
         }
+    }
+
+    /// Times every GPU pass with timestamp queries
+    /// ([`Tracker::enable_gpu_timing`]; the means land in
+    /// [`RunStats::mean_stages`]).
+    pub fn gpu_timing(mut self, on: bool) -> Self {
+        self.gpu_timing = on;
+        self
     }
 
     /// Tracks only the first `n` frames (`None`: all).
@@ -369,6 +381,9 @@ impl<'a> TrackRun<'a> {
             sequence: seq.dir.clone(),
             source: Box::new(source),
         })?;
+        if self.gpu_timing {
+            tracker.enable_gpu_timing();
+        }
         let mut poses = match &self.poses {
             Some(p) => Some(PoseWriter::create(p, &RESULT_COLUMNS)?),
             None => None,
@@ -422,6 +437,7 @@ impl<'a> TrackRun<'a> {
                 *acc += ms(d) / n as f64;
             }
             stats.contour_ms += ms(t.contour) / n as f64;
+            stats.mean_stages.add_scaled(t, 1.0 / n as f64);
             totals.push(ms(t.total));
             if let Some(w) = &mut bop {
                 let score = if r.status == Status::Tracking {

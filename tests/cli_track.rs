@@ -231,7 +231,7 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
     let d = workdir("track_dir");
     let out = d.join("poses.csv");
     // No --keyframes: SEQUENCE/keyframes; --mode it as well.
-    ok(&[
+    let stdout = ok(&[
         "track",
         "--model",
         s(&f.model),
@@ -239,8 +239,35 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
         s(&f.seq),
         "--out",
         s(&out),
+        "--profile",
     ]);
     let rows = check_tracker_csv(&out);
+    // --profile: every stage of the step and its parts, then the GPU
+    // passes by stage where the adapter has timestamp queries.
+    for stage in [
+        "features (frame Harris)",
+        "IT",
+        "render + gather",
+        "KF",
+        "render + read",
+        "Harris",
+        "NCC + gather + refine",
+        "contour",
+        "pose check",
+        "search",
+        "total",
+    ] {
+        assert!(stdout.contains(stage), "no {stage:?} in {stdout}");
+    }
+    if splattrack::gpu::shared_test_context().has_timestamps() {
+        for pass in [
+            "KF splat visibility",
+            "check splat attributes",
+            "features harris",
+        ] {
+            assert!(stdout.contains(pass), "no {pass:?} in {stdout}");
+        }
+    }
     let it = d.join("it.csv");
     ok(&[
         "track",

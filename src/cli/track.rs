@@ -39,7 +39,8 @@ pub struct Args {
     /// Write each frame with the model's outline at the tracked pose here.
     #[arg(long)]
     pub overlay: Option<PathBuf>,
-    /// Print the time per stage.
+    /// Print the time per stage and its parts, and the GPU time of every
+    /// pass (timestamp queries, where the adapter has them).
     #[arg(long)]
     pub profile: bool,
     /// Also write a BOP-style results CSV (t in mm, assuming metre models).
@@ -119,6 +120,13 @@ pub struct Tuning {
     /// (default 0.01).
     #[arg(long)]
     pub contour_damping: Option<f64>,
+    /// The frame loop as it was before issue 13, for comparison: render,
+    /// detect and match over the whole image every time instead of the
+    /// object's projected region, and render the IT step's view anew
+    /// instead of taking the previous check's (the same poses up to f32
+    /// rounding, slower).
+    #[arg(long)]
+    pub full_frame: bool,
 }
 
 impl Tuning {
@@ -148,6 +156,9 @@ impl Tuning {
         set(&mut c.contour.rounds, self.contour_rounds);
         set(&mut c.contour.spacing_px, self.contour_spacing);
         set(&mut c.contour.damping, self.contour_damping);
+        if self.full_frame {
+            c.windows = false;
+        }
         if let Some(n) = self.max_corners {
             if !(1..=MAX_CORNERS).contains(&n) {
                 bail!("--max-corners {n}: must be 1..={MAX_CORNERS}");
@@ -231,6 +242,9 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if let Some(path) = &args.bop {
         run = run.bop(path, args.obj_id);
     }
+    if args.profile {
+        run = run.gpu_timing(true);
+    }
     let stats = run.run(|_, _| {})?;
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
@@ -243,13 +257,52 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         args.out.display()
     );
     if args.profile {
-        let m = stats.mean_ms;
-        println!(
-            "per frame (mean): features {:.1} ms, IT {:.1} ms, KF {:.1} ms, contour {:.1} ms, total {:.1} ms",
-            m[0], m[1], m[2], stats.contour_ms, m[3]
-        );
+        print!("{}", profile_table(&stats.mean_stages));
     }
     Ok(())
+}
+
+/// The `--profile` table: every stage of the step, its parts, and what
+/// the stages leave over (grey conversion, decisions, bookkeeping).
+fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
+    let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
+    let rest = |whole: std::time::Duration, parts: &[std::time::Duration]| {
+        ms(whole) - parts.iter().map(|d| ms(*d)).sum::<f64>()
+    };
+    let rows = [
+        ("features (frame Harris)", ms(t.features)),
+        ("IT", ms(t.it)),
+        ("  render + gather", ms(t.it_render)),
+        ("  NCC", ms(t.it_ncc)),
+        ("  solve", rest(t.it, &[t.it_render, t.it_ncc])),
+        ("KF", ms(t.kf)),
+        ("  render + read", ms(t.kf_render)),
+        ("  Harris", ms(t.kf_harris)),
+        ("  NCC + gather + refine", ms(t.kf_ncc)),
+        ("  solve", rest(t.kf, &[t.kf_render, t.kf_harris, t.kf_ncc])),
+        ("contour", ms(t.contour)),
+        ("pose check", ms(t.verify)),
+        ("search", ms(t.search)),
+        (
+            "other",
+            rest(
+                t.total,
+                &[t.features, t.it, t.kf, t.contour, t.verify, t.search],
+            ),
+        ),
+        ("total", ms(t.total)),
+    ];
+    let mut out = String::from("per frame (mean):\n");
+    for (name, v) in rows {
+        out += &format!("  {name:<26} {v:8.1} ms\n");
+    }
+    if !t.gpu.is_empty() {
+        out += "GPU passes per frame (mean, timestamp queries):\n";
+        for (name, v) in &t.gpu {
+            out += &format!("  {name:<26} {v:8.1} ms\n");
+        }
+    }
+    out
 }
 
 #[cfg(test)]

@@ -61,6 +61,7 @@ mod model;
 mod splatter;
 mod targets;
 pub mod viz;
+mod window;
 
 pub use attributes::{Attribute, Attributes};
 pub use bounds::{ModelBounds, bounding_sphere};
@@ -70,6 +71,7 @@ pub use gpu_data::GATHER_STRIDE;
 pub use model::{GpuModel, PackedModel, pack_model};
 pub use splatter::Splatter;
 pub use targets::{SplatImage, SplatTargets};
+pub use window::Window;
 
 /// Which splatting implementation renders. Only the render-pass path exists
 /// now; DESIGN.md section 5 measured a compute path (fixed-point atomics)

@@ -217,6 +217,12 @@ pub struct TrackerConfig {
     pub modalities: Modalities,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
+    /// Confine renders, reads, corner detection and NCC matching to the
+    /// object's projected region, and let the check's render serve the
+    /// next frame's IT step (issue 13; the same results up to f32
+    /// rounding, tests/tracker.rs). Off: the loop as it was before, the
+    /// whole image every time and every render made anew (for comparison).
+    pub windows: bool,
 }
 
 impl Default for TrackerConfig {
@@ -248,6 +254,7 @@ impl Default for TrackerConfig {
             init: Default::default(),
             modalities: Modalities::default(),
             contour: super::contour::ContourConfig::default(),
+            windows: true,
         }
     }
 }

@@ -518,17 +518,20 @@ impl Tracker {
         long: bool,
         anchors: &[Anchor],
     ) -> Result<Estimate, StepError> {
-        let cfg = &self.config.contour;
+        // The object's window only (every covered pixel, with a margin
+        // wider than the contour's normal window).
+        let window = self.view_window(pose);
+        let cam = self.use_window(window);
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let t0 = std::time::Instant::now();
-        self.splatter.render(
-            &self.ctx,
-            &self.geometry,
-            &self.cam,
+        self.splat(
+            super::profile::Texture::None,
+            &cam,
             pose,
             Attributes::GEOMETRY,
-            &mut self.targets,
+            "contour",
         )?;
+        let cfg = &self.config.contour;
         // The splatted depth gives the coverage (NaN: empty) and, lifted
         // to the camera-space point, the motion predictors L there: the
         // projection's Jacobian of DESIGN.md section 3, what the motion
@@ -536,23 +539,34 @@ impl Tracker {
         let depth = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Depth)?;
-        let coverage: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
+        let local: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
+        let (ww, wh) = (window.width as usize, window.height as usize);
+        let (x0, y0) = (window.x0 as usize, window.y0 as usize);
+        let mut coverage = vec![false; w * h];
+        for y in 0..wh {
+            coverage[(y0 + y) * w + x0..(y0 + y) * w + x0 + ww]
+                .copy_from_slice(&local[y * ww..(y + 1) * ww]);
+        }
         if !self.colours.is_learned()
             && let Some(rect) = self.roi(pose)
         {
             self.colours
                 .learn(frame, &coverage, rect, cfg.learning_rate);
         }
-        let mut points = extract_contour(&coverage, w, h, cfg.spacing_px as usize);
+        // Window coordinates (the window's origin is a multiple of the
+        // spacing: the same cells as the whole image), then the frame's.
+        let mut points = extract_contour(&local, ww, wh, cfg.spacing_px as usize);
         let normals = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Normal)?;
-        limb_normals(&self.cam, &normals, &mut points);
-        let found: Vec<(ContourPoint, Observation)> = points
-            .iter()
-            .copied()
-            .zip(contour_predictors(&self.cam, &depth, &points))
-            .collect();
+        limb_normals(&cam, &normals, &mut points);
+        let rows = contour_predictors(&cam, &depth, &points);
+        let origin = Vector2::new(x0 as f64, y0 as f64);
+        for p in &mut points {
+            p.pixel = [p.pixel[0] + x0 as u32, p.pixel[1] + y0 as u32];
+            p.position += origin;
+        }
+        let found: Vec<(ContourPoint, Observation)> = points.iter().copied().zip(rows).collect();
         self.contour_mask = Some(coverage);
         log::debug!(
             "contour: render, read, extract, gather {:.1} ms",

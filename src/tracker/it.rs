@@ -3,11 +3,13 @@
 //! that land on the object matched to the new ones by NCC; the predictors at
 //! the old positions and the displacements solved for the update.
 
+use super::profile::Texture;
+use super::view::{Placed, match_near};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::{Attributes, GatherMode};
+use crate::splat::Attributes;
 use nalgebra::Vector2;
 
 /// Where `it_interior_px` probes around a corner, in units of that distance.
@@ -53,18 +55,15 @@ impl Tracker {
 
     /// Frame-to-frame step from the previous frame's corners.
     fn it_step(&mut self, prev: &Frame, frame: &Frame, pose: &Pose) -> Result<Refined, StepError> {
-        self.splatter.render(
-            &self.ctx,
-            &self.geometry,
-            &self.cam,
-            pose,
-            Attributes::ALL,
-            &mut self.targets,
-        )?;
+        let t = std::time::Instant::now();
+        let window = self.view_window(pose);
+        // The check of the previous frame rendered this view already.
+        if !self.reuse_render(pose, window) {
+            let cam = self.use_window(window);
+            self.splat(Texture::None, &cam, pose, Attributes::ALL, "IT")?;
+        }
         let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
-        let samples = self
-            .splatter
-            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        let samples = self.gather_frame(&pts)?;
         // Only corners on the object take part; with `it_interior_px`, only
         // those whose surroundings are on the object too (see the field).
         let mut on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
@@ -78,9 +77,7 @@ impl Tracker {
                         .map(move |(dx, dy)| [c.x + dx * r, c.y + dy * r])
                 })
                 .collect();
-            let ring =
-                self.splatter
-                    .gather(&self.ctx, &self.targets, &probes, GatherMode::Bilinear)?;
+            let ring = self.gather_frame(&probes)?;
             on_object = on_object
                 .iter()
                 .zip(ring.chunks(RING.len()))
@@ -88,10 +85,21 @@ impl Tracker {
                 .map(|(&i, _)| i)
                 .collect();
         }
+        self.stages.it_render += t.elapsed();
+        let t = std::time::Instant::now();
         let src: Vec<Corner> = on_object.iter().map(|&i| prev.corners[i]).collect();
-        let matches =
-            self.it_matcher
-                .match_features(&prev.grey, &src, &frame.grey, &frame.corners)?;
+        let margin = self.match_margin(self.config.it_search_px);
+        let (matches, ..) = match_near(
+            &mut self.it_matcher,
+            Placed::full(&prev.grey),
+            &src,
+            &frame.grey,
+            &frame.corners,
+            margin,
+        )?;
+        let timings = self.it_matcher.last_timings().clone();
+        self.note_ncc("IT", timings);
+        self.stages.it_ncc += t.elapsed();
         let obs: Vec<Correspondence> = matches
             .iter()
             .map(|m| {

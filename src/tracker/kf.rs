@@ -3,11 +3,12 @@
 //! motion predictors are splatted in one pass; corners of the novel view
 //! matched to the frame's are solved for the correction.
 
+use super::view::{Placed, match_near};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::{Corner, GreyImage, Match, refine_match};
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::{Attribute, Attributes, GatherMode};
+use crate::splat::{Attribute, Attributes};
 use nalgebra::Vector2;
 
 /// How far the KF step searches for matches.
@@ -78,38 +79,88 @@ impl Tracker {
         if self.store.is_none() {
             return Err(StepError::NoKeyframes);
         }
+        let t = std::time::Instant::now();
+        let window = self.view_window(pose);
         let k = self
-            .render_view(pose, Attributes::ALL)?
+            .render_view_in(pose, Attributes::ALL, window, "KF")?
             .ok_or(StepError::NoKeyframes)?;
+        // The novel view of the window only (its corners in window
+        // coordinates, then in the frame's).
         let colour = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Color)?;
         let view =
             GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)?;
-        let view_corners = self.harris.detect(&view, None)?;
+        self.stages.kf_render += t.elapsed();
+        let t = std::time::Instant::now();
+        let o = window.origin();
+        let view_corners: Vec<Corner> = self
+            .harris
+            .detect(&view, None)?
+            .into_iter()
+            .map(|c| Corner {
+                x: c.x + o[0],
+                y: c.y + o[1],
+                score: c.score,
+            })
+            .collect();
+        self.note_harris("KF");
+        self.stages.kf_harris += t.elapsed();
+        let t = std::time::Instant::now();
+        let margin = self.match_margin(match search {
+            Search::Recover => self.config.recover_search_px,
+            Search::Motion => self.config.it_search_px,
+            Search::Refine => self.config.kf_search_px,
+        });
         let matcher = match search {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
             Search::Refine => &mut self.kf_matcher,
         };
-        let matches = matcher.match_features(&view, &view_corners, &frame.grey, &frame.corners)?;
+        let placed = Placed {
+            img: &view,
+            at: window,
+        };
+        let (matches, mw, view_m, frame_m) = match_near(
+            matcher,
+            placed,
+            &view_corners,
+            &frame.grey,
+            &frame.corners,
+            margin,
+        )?;
         let pts: Vec<[f32; 2]> = matches
             .iter()
             .map(|m| [view_corners[m.a].x, view_corners[m.a].y])
             .collect();
-        let samples = self
-            .splatter
-            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        let timings = match search {
+            Search::Recover => &self.recover_matcher,
+            Search::Motion => &self.it_matcher,
+            Search::Refine => &self.kf_matcher,
+        }
+        .last_timings()
+        .clone();
+        self.note_ncc("KF", timings);
+        let samples = self.gather_frame(&pts)?;
+        let mo = mw.origin();
+        let local = |c: &Corner| Corner {
+            x: c.x - mo[0],
+            y: c.y - mo[1],
+            score: c.score,
+        };
         let obs: Vec<Correspondence> = matches
             .iter()
             .zip(&samples)
             .filter(|(_, s)| s.valid)
             .filter_map(|(m, s): (&Match, _)| {
                 let a = &view_corners[m.a];
-                let to = self.match_target(&view, a, &frame.grey, &frame.corners[m.b])?;
+                let to =
+                    self.match_target(&view_m, &local(a), &frame_m, &local(&frame.corners[m.b]))?
+                        + Vector2::new(mo[0] as f64, mo[1] as f64);
                 Some(self.correspondence(s, Vector2::new(a.x as f64, a.y as f64), to, pose))
             })
             .collect();
+        self.stages.kf_ncc += t.elapsed();
         self.refine(&obs, pose, anchors).map(|s| (s, k))
     }
 

@@ -41,7 +41,9 @@ mod decision;
 pub mod init;
 mod it;
 mod kf;
+mod profile;
 pub mod verify;
+mod view;
 
 pub use config::{ConfigError, Modalities, Mode, TrackerConfig};
 pub use contour::ContourConfig;
@@ -58,7 +60,7 @@ use crate::gpu::GpuContext;
 use crate::keyframes::KeyframeStore;
 use crate::model::PointModel;
 use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
-use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter};
+use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter, Window};
 use nalgebra::{Matrix3, Vector2, Vector3};
 use std::time::{Duration, Instant};
 
@@ -75,8 +77,59 @@ pub struct StageTimes {
     /// The contour step (its iterations).
     #[serde(default)]
     pub contour: Duration,
+    /// The check of the reported pose against the image.
+    #[serde(default)]
+    pub verify: Duration,
+    /// The whole-frame search for the object (initialisation, re-detection).
+    #[serde(default)]
+    pub search: Duration,
+    /// Within IT: the render at the previous pose and the gathers.
+    #[serde(default)]
+    pub it_render: Duration,
+    /// Within IT: NCC matching.
+    #[serde(default)]
+    pub it_ncc: Duration,
+    /// Within KF: the novel view's render and read-back.
+    #[serde(default)]
+    pub kf_render: Duration,
+    /// Within KF: Harris corners of the novel view.
+    #[serde(default)]
+    pub kf_harris: Duration,
+    /// Within KF: NCC matching, the gathers and the sub-pixel refinement.
+    #[serde(default)]
+    pub kf_ncc: Duration,
+    /// GPU time of each pass, milliseconds, as "stage kernel pass" (from
+    /// timestamp queries; empty unless [`Tracker::enable_gpu_timing`]).
+    #[serde(default)]
+    pub gpu: Vec<(String, f64)>,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
+}
+
+impl StageTimes {
+    /// Adds `other`'s times multiplied by `k` (for means over frames).
+    pub fn add_scaled(&mut self, other: &StageTimes, k: f64) {
+        let pairs = [
+            (&mut self.features, other.features),
+            (&mut self.it, other.it),
+            (&mut self.kf, other.kf),
+            (&mut self.contour, other.contour),
+            (&mut self.verify, other.verify),
+            (&mut self.search, other.search),
+            (&mut self.it_render, other.it_render),
+            (&mut self.it_ncc, other.it_ncc),
+            (&mut self.kf_render, other.kf_render),
+            (&mut self.kf_harris, other.kf_harris),
+            (&mut self.kf_ncc, other.kf_ncc),
+            (&mut self.total, other.total),
+        ];
+        for (acc, d) in pairs {
+            *acc += d.mul_f64(k);
+        }
+        for (label, ms) in &other.gpu {
+            profile::add(&mut self.gpu, label, ms * k);
+        }
+    }
 }
 
 /// What [`Tracker::track`] says about a frame. Serialised field by field
@@ -223,7 +276,18 @@ pub struct Tracker {
     splatter: Splatter,
     geometry: GpuModel,
     textured: crate::keyframes::TexturedCache,
+    /// The targets of the last render, the size of [`Tracker::window`].
     targets: SplatTargets,
+    /// The window of the last render (frame coordinates).
+    window: Window,
+    /// Targets of other window sizes, for reuse.
+    spare: Vec<SplatTargets>,
+    /// The check's render of the last reported pose, for the next IT step.
+    kept: Option<view::Kept>,
+    /// The model's bounding box grown by its largest splat (where renders
+    /// can cover pixels).
+    box_lo: Vector3<f64>,
+    box_hi: Vector3<f64>,
     harris: Harris,
     it_matcher: NccMatcher,
     kf_matcher: NccMatcher,
@@ -245,6 +309,10 @@ pub struct Tracker {
     contour_mask: Option<Vec<bool>>,
     /// The inliers of this frame's last KF step (for the fused solve).
     kf_anchors: Vec<Anchor>,
+    /// The sub-stage times of the frame being tracked.
+    stages: StageTimes,
+    /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
+    gpu_timer: Option<crate::gpu::GpuTimer>,
 }
 
 impl Tracker {
@@ -281,6 +349,20 @@ impl Tracker {
         let splatter = Splatter::new(gpu)?;
         let geometry = GpuModel::new(gpu, &model)?;
         let targets = SplatTargets::new(gpu, cam.width, cam.height);
+        let (box_lo, box_hi) = {
+            let pad = Vector3::repeat(model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64)));
+            let (lo, hi) = model.positions.iter().fold(
+                (
+                    Vector3::repeat(f64::INFINITY),
+                    Vector3::repeat(f64::NEG_INFINITY),
+                ),
+                |(lo, hi), p| {
+                    let p = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+                    (lo.inf(&p), hi.sup(&p))
+                },
+            );
+            (lo - pad, hi + pad)
+        };
         let harris = Harris::new(gpu, config.harris.clone())?;
         let matcher = |r: f32| NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)));
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
@@ -302,6 +384,11 @@ impl Tracker {
                 crate::keyframes::DEFAULT_TEXTURED_BUDGET,
             ),
             targets,
+            window: Window::full(&cam),
+            spare: Vec::new(),
+            kept: None,
+            box_lo,
+            box_hi,
             harris,
             center,
             radius,
@@ -314,6 +401,8 @@ impl Tracker {
             colours: contour::ColourModel::new(config_bins),
             contour_mask: None,
             kf_anchors: Vec::new(),
+            stages: StageTimes::default(),
+            gpu_timer: None,
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -398,17 +487,6 @@ impl Tracker {
         (x0 <= x1 && y0 <= y1).then_some((x0 as usize, y0 as usize, x1 as usize, y1 as usize))
     }
 
-    fn roi_mask(&self, pose: &Pose) -> Vec<bool> {
-        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
-        let mut mask = vec![false; w * h];
-        if let Some((x0, y0, x1, y1)) = self.roi(pose) {
-            for y in y0..=y1 {
-                mask[y * w + x0..=y * w + x1].fill(true);
-            }
-        }
-        mask
-    }
-
     /// Tracks one frame (RGB, undistorted, the camera's size): Harris
     /// corners, the IT step, the KF step(s), then [`decide`].
     pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
@@ -423,12 +501,15 @@ impl Tracker {
         }
         let t0 = Instant::now();
         let mut times = StageTimes::default();
+        self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
         let every = self.config.init.redetect_after_lost;
         if self.searching
             || (every > 0 && self.lost_streak >= every && self.lost_streak.is_multiple_of(every))
         {
-            match self.find(frame)? {
+            let found = self.find(frame)?;
+            times.search = t0.elapsed();
+            match found {
                 Some(p) => {
                     log::info!("object found by search");
                     self.pose = p;
@@ -453,18 +534,18 @@ impl Tracker {
                 None => {}
             }
         }
+        let t_features = Instant::now();
         let grey = GreyImage::from_rgb8(frame);
         let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let texture = self.config.modalities.texture;
         let corners = if texture {
-            let mask = self.roi_mask(&start_pose);
-            self.harris.detect(&grey, Some(&mask))?
+            self.frame_corners(&grey, &start_pose)?
         } else {
             Vec::new()
         };
         let frame = Frame { grey, corners };
-        times.features = t0.elapsed();
+        times.features = t_features.elapsed();
 
         let rules = Rules::of(&self.config);
         let recovering = self.lost_streak > 0;
@@ -516,6 +597,7 @@ impl Tracker {
         );
         // Every pose reported `tracking` is checked against the image.
         let mut scores = None;
+        let t_verify = Instant::now();
         let d = if d.status == Status::Tracking && self.config.verify.enabled {
             let check = if frozen {
                 Err(Unverified::FrozenFrame)
@@ -529,6 +611,7 @@ impl Tracker {
         } else {
             d
         };
+        times.verify = t_verify.elapsed();
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -545,6 +628,13 @@ impl Tracker {
             self.lost_streak += 1;
         }
         self.prev = Some(frame);
+        let sub = std::mem::take(&mut self.stages);
+        times.it_render = sub.it_render;
+        times.it_ncc = sub.it_ncc;
+        times.kf_render = sub.kf_render;
+        times.kf_harris = sub.kf_harris;
+        times.kf_ncc = sub.kf_ncc;
+        times.gpu = sub.gpu;
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
@@ -561,10 +651,11 @@ impl Tracker {
     /// Renders the model at `pose` and returns its coverage mask (for
     /// overlays): one flag per pixel.
     pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
+        let cam = self.use_window(Window::full(&self.cam));
         self.splatter.render(
             &self.ctx,
             &self.geometry,
-            &self.cam,
+            &cam,
             pose,
             Attributes::COLOR,
             &mut self.targets,
@@ -579,26 +670,22 @@ impl Tracker {
 /// What the steps share: the view of the model at a pose, turning a match
 /// into a correspondence, and the robust solve.
 impl Tracker {
-    /// Splats `attrs` of the model at `pose` into the tracker's targets,
-    /// textured by the keyframe closest to `pose` (its index is returned),
-    /// or untextured when there is no keyframe store (`None`).
-    fn render_view(
+    /// Splats `attrs` of the model at `pose` into window `w` of the image
+    /// (the tracker's targets for that size), textured by the keyframe
+    /// closest to `pose` (its index is returned), or untextured when there
+    /// is no keyframe store (`None`); its GPU passes are timed under
+    /// `stage`.
+    fn render_view_in(
         &mut self,
         pose: &Pose,
         attrs: Attributes,
+        w: Window,
+        stage: &str,
     ) -> Result<Option<usize>, crate::splat::SplatError> {
-        let (gm, k) = match self.store.as_ref() {
-            Some(store) => {
-                let k = store.closest(pose);
-                (
-                    self.textured.get(&self.ctx, store, &self.geometry, k)?,
-                    Some(k),
-                )
-            }
-            None => (&self.geometry, None),
-        };
-        self.splatter
-            .render(&self.ctx, gm, &self.cam, pose, attrs, &mut self.targets)?;
+        let cam = self.use_window(w);
+        let k = self.store.as_ref().map(|s| s.closest(pose));
+        let texture = k.map_or(profile::Texture::None, profile::Texture::Keyframe);
+        self.splat(texture, &cam, pose, attrs, stage)?;
         Ok(k)
     }
 

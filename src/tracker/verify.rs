@@ -326,7 +326,17 @@ impl super::Tracker {
                 ..Default::default()
             });
         }
-        let textured = self.render_view(pose, Attributes::COLOR)?.is_some();
+        // The window holds every covered pixel with a margin wider than
+        // the edge search, so the scores are those of the whole image.
+        let window = self.view_window(pose);
+        // Every attribute: the next frame's IT step needs this very
+        // render (at its previous pose), and takes it over.
+        let attrs = if self.config.windows {
+            Attributes::ALL
+        } else {
+            Attributes::COLOR
+        };
+        let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;
@@ -343,8 +353,10 @@ impl super::Tracker {
         } else {
             None
         };
+        let frame = super::view::Placed::full(frame).crop(&window);
+        self.keep_render(*pose);
         Ok(score(
-            frame,
+            &frame,
             &covered,
             view.as_deref(),
             visible,

@@ -1,0 +1,100 @@
+//! GPU time per pass for `track --profile` (issue 13, Deliver 3): with
+//! timing on, every splat pass, Harris pass and NCC pass of a frame is
+//! timed by GPU timestamp queries and reported by stage in
+//! [`super::StageTimes::gpu`]. Off by default: reading the timestamps back
+//! waits for each submission.
+
+use super::Tracker;
+use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::{GpuTimer, TimerReport};
+use crate::splat::{Attributes, SplatError};
+
+/// Which model a render splats.
+#[derive(Debug, Clone, Copy)]
+pub(super) enum Texture {
+    /// The geometry only (colours of the model, if any).
+    None,
+    /// Coloured by keyframe `k`.
+    Keyframe(usize),
+}
+
+impl Tracker {
+    /// Times every GPU pass of every frame from now on (where the adapter
+    /// supports timestamp queries): [`super::StageTimes::gpu`].
+    pub fn enable_gpu_timing(&mut self) {
+        self.gpu_timer = Some(GpuTimer::new(&self.ctx, 2));
+        self.harris.enable_timing();
+        for m in [
+            &mut self.it_matcher,
+            &mut self.kf_matcher,
+            &mut self.recover_matcher,
+        ] {
+            m.enable_timing();
+        }
+    }
+
+    /// Splats the model at `pose` into the current targets (sized by
+    /// [`Tracker::use_window`], whose camera `cam` is), timing its passes
+    /// under `stage` when timing is on.
+    pub(super) fn splat(
+        &mut self,
+        texture: Texture,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        stage: &str,
+    ) -> Result<(), SplatError> {
+        let gm = match (texture, self.store.as_ref()) {
+            (Texture::Keyframe(k), Some(store)) => {
+                self.textured.get(&self.ctx, store, &self.geometry, k)?
+            }
+            _ => &self.geometry,
+        };
+        self.splatter.render_timed(
+            &self.ctx,
+            gm,
+            cam,
+            pose,
+            attrs,
+            &mut self.targets,
+            self.gpu_timer.as_mut(),
+        )?;
+        if let Some(t) = self.gpu_timer.as_mut() {
+            match t.read(&self.ctx) {
+                Ok(r) => note(&mut self.stages.gpu, &format!("{stage} splat"), &r),
+                Err(e) => log::warn!("GPU timer: {e}"),
+            }
+        }
+        Ok(())
+    }
+
+    /// Notes the last Harris run's passes under `stage`.
+    pub(super) fn note_harris(&mut self, stage: &str) {
+        if self.gpu_timer.is_some() {
+            let r = self.harris.last_timings().clone();
+            note(&mut self.stages.gpu, &format!("{stage} harris"), &r);
+        }
+    }
+
+    /// Notes a matcher's last passes under `stage`.
+    pub(super) fn note_ncc(&mut self, stage: &str, r: TimerReport) {
+        if self.gpu_timer.is_some() {
+            note(&mut self.stages.gpu, &format!("{stage} ncc"), &r);
+        }
+    }
+}
+
+/// Adds the passes of `r` to `acc` as "`prefix` pass" (summing repeats).
+pub(super) fn note(acc: &mut Vec<(String, f64)>, prefix: &str, r: &TimerReport) {
+    for (label, ms) in &r.passes {
+        add(acc, &format!("{prefix} {label}"), *ms);
+    }
+}
+
+/// Adds `ms` to the entry `label` of `acc` (a new one at the end).
+pub(super) fn add(acc: &mut Vec<(String, f64)>, label: &str, ms: f64) {
+    match acc.iter_mut().find(|(l, _)| l == label) {
+        Some((_, v)) => *v += ms,
+        None => acc.push((label.to_owned(), ms)),
+    }
+}

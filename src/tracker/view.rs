@@ -1,0 +1,326 @@
+//! Where the steps work (issue 13): renders, reads, corners and NCC
+//! windows are confined to the object's projected region instead of the
+//! whole image, with the results the full image gives.
+//!
+//! - Renders go into a [`Window`] holding the projection of the model's
+//!   bounding box (grown by its largest splat) plus a margin wider than a
+//!   Harris support and an NCC window: every pixel the full render covers
+//!   lies inside it, so reads and gathers there give the full render's
+//!   values, and the empty margin keeps the novel view's corners and the
+//!   check's contour away from the window's border. Window origins are
+//!   aligned to the Harris grid cell so that corner selection picks the
+//!   same corners. Targets are kept per window size (few sizes occur,
+//!   since sizes are rounded up too) and reused.
+//! - Harris on the live frame runs on the region of interest grown by the
+//!   corners' support (the corners of the masked full frame).
+//! - NCC matching runs on crops of both images around the features: the
+//!   features of the first image grown by the search radius and the
+//!   windows; no feature of the second image outside can be within the
+//!   search radius, and mutual best matches only ever compare features
+//!   within it.
+
+use super::Tracker;
+use crate::features::{Corner, FeatureError, GreyImage, Match, NccMatcher};
+use crate::geometry::{Intrinsics, Pose};
+use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
+
+/// Spare render targets kept (one per recent window size).
+const SPARE_TARGETS: usize = 3;
+
+/// A render kept for a later step: the check's render of the reported
+/// pose (colour, geometry and predictors) is the render the next frame's
+/// IT step needs (its previous pose), so the next frame does not render it
+/// again.
+pub(super) struct Kept {
+    pose: Pose,
+    window: Window,
+    targets: SplatTargets,
+}
+
+/// An image placed in the frame: its pixel (0, 0) is pixel `at.x0, at.y0`
+/// of the frame.
+#[derive(Clone, Copy)]
+pub(super) struct Placed<'a> {
+    pub img: &'a GreyImage,
+    pub at: Window,
+}
+
+impl<'a> Placed<'a> {
+    /// A whole frame.
+    pub fn full(img: &'a GreyImage) -> Self {
+        Self {
+            img,
+            at: Window {
+                x0: 0,
+                y0: 0,
+                width: img.width as u32,
+                height: img.height as u32,
+            },
+        }
+    }
+
+    /// The pixels of window `w` (frame coordinates); NaN (invalid) where
+    /// this image has none.
+    pub fn crop(&self, w: &Window) -> GreyImage {
+        if *w == self.at {
+            return self.img.clone();
+        }
+        let (ww, wh) = (w.width as usize, w.height as usize);
+        let mut data = vec![f32::NAN; ww * wh];
+        let (ax0, ay0) = (self.at.x0 as i64, self.at.y0 as i64);
+        let (aw, ah) = (self.img.width as i64, self.img.height as i64);
+        for y in 0..wh {
+            let sy = w.y0 as i64 + y as i64 - ay0;
+            if !(0..ah).contains(&sy) {
+                continue;
+            }
+            let sx0 = (w.x0 as i64 - ax0).max(0);
+            let sx1 = (w.x0 as i64 + ww as i64 - ax0).min(aw);
+            if sx0 >= sx1 {
+                continue;
+            }
+            let dx0 = (sx0 + ax0 - w.x0 as i64) as usize;
+            let row = sy as usize * self.img.width;
+            data[y * ww + dx0..y * ww + dx0 + (sx1 - sx0) as usize]
+                .copy_from_slice(&self.img.data[row + sx0 as usize..row + sx1 as usize]);
+        }
+        GreyImage {
+            width: ww,
+            height: wh,
+            data,
+        }
+    }
+}
+
+/// Moves a corner by `-origin`.
+fn shifted(c: &Corner, origin: [f32; 2]) -> Corner {
+    Corner {
+        x: c.x - origin[0],
+        y: c.y - origin[1],
+        score: c.score,
+    }
+}
+
+/// Mutual NCC matches of the features `a` of `img_a` with `b` of the
+/// frame `img_b` (all in frame coordinates), computed on crops around `a`
+/// grown by `margin` (at least the search radius plus a window): the
+/// matches `matcher` gives on the whole images. `None`: on the whole
+/// images. Also returns the two crops
+/// and their window (for refinements that work near the matches).
+pub(super) fn match_near(
+    matcher: &mut NccMatcher,
+    img_a: Placed,
+    a: &[Corner],
+    img_b: &GreyImage,
+    b: &[Corner],
+    margin: Option<f64>,
+) -> Result<(Vec<Match>, Window, GreyImage, GreyImage), FeatureError> {
+    let full = Placed::full(img_b).at;
+    if a.is_empty() || b.is_empty() {
+        return Ok((
+            Vec::new(),
+            full,
+            GreyImage::filled(0, 0, 0.0),
+            GreyImage::filled(0, 0, 0.0),
+        ));
+    }
+    let (x0, y0, x1, y1) = a.iter().fold(
+        (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |(x0, y0, x1, y1), c| {
+            let (x, y) = (c.x as f64, c.y as f64);
+            (x0.min(x), y0.min(y), x1.max(x), y1.max(y))
+        },
+    );
+    let w = match (matcher.config().search_radius, margin) {
+        (Some(_), Some(m)) => {
+            Window::around([x0, y0, x1, y1], m, 1, full.width, full.height).unwrap_or(full)
+        }
+        _ => full,
+    };
+    let o = w.origin();
+    let inside = |c: &Corner| {
+        c.x >= o[0] && c.y >= o[1] && c.x < o[0] + w.width as f32 && c.y < o[1] + w.height as f32
+    };
+    let a_w: Vec<Corner> = a.iter().map(|c| shifted(c, o)).collect();
+    let b_idx: Vec<usize> = (0..b.len()).filter(|&i| inside(&b[i])).collect();
+    let b_w: Vec<Corner> = b_idx.iter().map(|&i| shifted(&b[i], o)).collect();
+    let crop_a = img_a.crop(&w);
+    let crop_b = Placed::full(img_b).crop(&w);
+    let matches = matcher
+        .match_features(&crop_a, &a_w, &crop_b, &b_w)?
+        .into_iter()
+        .map(|m| Match { b: b_idx[m.b], ..m })
+        .collect();
+    Ok((matches, w, crop_a, crop_b))
+}
+
+impl Tracker {
+    /// The window a render of the model at `pose` needs: every pixel it
+    /// can cover, plus `margin` pixels.
+    pub(super) fn view_window(&self, pose: &Pose) -> Window {
+        let full = Window::full(&self.cam);
+        if !self.config.windows {
+            return full;
+        }
+        // The low-pass filter spreads a splat by up to 3 x 0.75 px beyond
+        // its radius (shaders/splat.wgsl); 4 px more for rounding.
+        let margin = self.window_margin() + 4.0;
+        // Origins on the Harris grid and on the contour's cells.
+        let (a, b) = (
+            self.config.harris.grid_cell.max(1),
+            self.config.contour.spacing_px.max(1),
+        );
+        let gcd = |mut x: u32, mut y: u32| {
+            while y != 0 {
+                (x, y) = (y, x % y);
+            }
+            x
+        };
+        let align = (a / gcd(a, b)).saturating_mul(b);
+        Window::of_box(&self.cam, pose, &self.box_lo, &self.box_hi, margin, align).unwrap_or(full)
+    }
+
+    /// The margin around what a step looks at that keeps Harris supports,
+    /// sub-pixel refinements and the check's edge search inside a window.
+    pub(super) fn window_margin(&self) -> f64 {
+        let h = &self.config.harris;
+        (h.support_radius() + h.refine_radius as usize + 4) as f64
+            + self.config.verify.edge_search_px as f64
+    }
+
+    /// The margin of the NCC crops for a search radius `r` (`None`: no
+    /// crops, windows off).
+    pub(super) fn match_margin(&self, r: f32) -> Option<f64> {
+        self.config.windows.then_some(
+            (r + self.config.ncc.window as f32 + self.config.refine_window as f32 + 4.0) as f64,
+        )
+    }
+
+    /// Makes the tracker's targets the size of `w` (reusing spare ones)
+    /// and records `w` as the window of the next render; returns the
+    /// window's camera.
+    pub(super) fn use_window(&mut self, w: Window) -> Intrinsics {
+        if (self.targets.width(), self.targets.height()) != (w.width, w.height) {
+            let fresh = self.spare_targets(w);
+            let old = std::mem::replace(&mut self.targets, fresh);
+            self.put_spare(old);
+        }
+        self.window = w;
+        w.camera(&self.cam)
+    }
+
+    /// Targets of `w`'s size: a spare one, else new ones.
+    fn spare_targets(&mut self, w: Window) -> SplatTargets {
+        match self
+            .spare
+            .iter()
+            .position(|t| (t.width(), t.height()) == (w.width, w.height))
+        {
+            Some(i) => self.spare.remove(i),
+            None => SplatTargets::new(&self.ctx, w.width, w.height),
+        }
+    }
+
+    fn put_spare(&mut self, t: SplatTargets) {
+        self.spare.insert(0, t);
+        self.spare.truncate(SPARE_TARGETS);
+    }
+
+    /// Keeps the last render (made at `pose` with every attribute and the
+    /// model's geometry) for [`Tracker::reuse_render`].
+    pub(super) fn keep_render(&mut self, pose: Pose) {
+        if !self.config.windows {
+            return;
+        }
+        let fresh = self.spare_targets(self.window);
+        let targets = std::mem::replace(&mut self.targets, fresh);
+        let kept = Kept {
+            pose,
+            window: self.window,
+            targets,
+        };
+        if let Some(old) = self.kept.replace(kept) {
+            self.put_spare(old.targets);
+        }
+    }
+
+    /// Makes the kept render current when it was made at `pose` in window
+    /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
+    /// give); whether it was.
+    pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window) -> bool {
+        match self.kept.take() {
+            Some(k) if k.pose == *pose && k.window == w => {
+                let old = std::mem::replace(&mut self.targets, k.targets);
+                self.put_spare(old);
+                self.window = w;
+                true
+            }
+            Some(k) => {
+                self.put_spare(k.targets);
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// Predictors and depth of the last render at `points` (frame
+    /// coordinates).
+    pub(super) fn gather_frame(
+        &self,
+        points: &[[f32; 2]],
+    ) -> Result<Vec<GatherSample>, SplatError> {
+        let o = self.window.origin();
+        let local: Vec<[f32; 2]> = points.iter().map(|p| [p[0] - o[0], p[1] - o[1]]).collect();
+        self.splatter
+            .gather(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
+    }
+
+    /// Harris corners of the frame `grey` within the region of interest at
+    /// `pose` (frame coordinates), detected on the region grown by the
+    /// corners' support only.
+    pub(super) fn frame_corners(
+        &mut self,
+        grey: &GreyImage,
+        pose: &Pose,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let Some((x0, y0, x1, y1)) = self.roi(pose) else {
+            return Ok(Vec::new());
+        };
+        let full = Placed::full(grey).at;
+        let w = if self.config.windows {
+            Window::around(
+                [x0 as f64, y0 as f64, x1 as f64, y1 as f64],
+                self.window_margin(),
+                self.config.harris.grid_cell,
+                full.width,
+                full.height,
+            )
+            .unwrap_or(full)
+        } else {
+            full
+        };
+        let (ww, wh) = (w.width as usize, w.height as usize);
+        let mut mask = vec![false; ww * wh];
+        for y in y0..=y1 {
+            let row = (y - w.y0 as usize) * ww;
+            mask[row + x0 - w.x0 as usize..=row + x1 - w.x0 as usize].fill(true);
+        }
+        let crop = Placed::full(grey).crop(&w);
+        let o = w.origin();
+        let corners = self.harris.detect(&crop, Some(&mask))?;
+        self.note_harris("features");
+        Ok(corners
+            .into_iter()
+            .map(|c| Corner {
+                x: c.x + o[0],
+                y: c.y + o[1],
+                score: c.score,
+            })
+            .collect())
+    }
+}
