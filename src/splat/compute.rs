@@ -1,0 +1,203 @@
+//! The compute-shader back end of the splatter ([`super::Backend::Compute`]):
+//! the passes of the render pass (visibility, attributes) as compute
+//! kernels with atomics (shaders/splat_compute.wgsl says how), writing the
+//! same accumulation targets, so that normalisation, gather and every
+//! consumer of [`super::SplatTargets`] work on either back end.
+//!
+//! Why: a GPU with weak raster units (NVIDIA's compute parts, H100/H200)
+//! splats far faster with atomics in a compute shader than through a render
+//! pass (DESIGN.md section 5 measured ~14x on an H100); a CPU adapter
+//! (lavapipe) is faster through the render pass (BENCHMARKS.md).
+//!
+//! A crop (splatting only the object's region) needs no change to the
+//! kernels' maths: the pixel range of each splat is clipped to the image
+//! in `setup`; clipping it to a rectangle instead (an origin and size in
+//! `ComputeParams`, pixel indices relative to the origin) and dispatching
+//! `finish` over the rectangle only is all it takes.
+
+use super::gpu_data::{
+    ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
+};
+use super::targets::TARGETS;
+use super::{Attributes, GpuModel, SplatError, SplatTargets};
+use crate::gpu::{
+    GpuContext, GpuTimer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass, storage,
+    workgroups,
+};
+
+/// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
+/// the depth keys, the fixed-point sums and the parameters.
+pub(super) struct Scratch {
+    depth: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    params: wgpu::Buffer,
+}
+
+impl Scratch {
+    fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, SplatError> {
+        let pixels = width as u64 * height as u64;
+        let acc_bytes = pixels * ACC_STRIDE as u64 * 4;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        ctx.check_buffer_size("compute splatter sums", acc_bytes, usage)?;
+        Ok(Self {
+            depth: ctx.buffer("compute splat depth", pixels * 4, usage),
+            acc: ctx.buffer("compute splat sums", acc_bytes, usage),
+            params: ctx.buffer(
+                "compute splat params",
+                std::mem::size_of::<ComputeParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+        })
+    }
+}
+
+/// The pipelines of the compute back end.
+pub(super) struct ComputeSplatter {
+    layout: wgpu::BindGroupLayout,
+    visibility: wgpu::ComputePipeline,
+    accumulate: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+}
+
+impl ComputeSplatter {
+    pub(super) fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
+        if ctx.limits.max_storage_textures_per_shader_stage < TARGETS as u32 {
+            return Err(SplatError::Unsupported(format!(
+                "the compute splatter writes {TARGETS} storage textures, the adapter allows {}",
+                ctx.limits.max_storage_textures_per_shader_stage
+            )));
+        }
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: super::targets::ACC_FORMAT,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let layout = ctx.bind_group_layout(
+            "splat compute",
+            &[
+                buffer_entry(0, wgpu::ShaderStages::COMPUTE, uniform),
+                compute_entry(1, uniform),
+                compute_entry(2, storage(true)),
+                compute_entry(3, storage(false)),
+                compute_entry(4, storage(false)),
+                texture(5),
+                texture(6),
+                texture(7),
+                texture(8),
+                texture(9),
+            ],
+        );
+        let [visibility, accumulate, finish]: [wgpu::ComputePipeline; 3] = ctx
+            .compute_pipelines(
+                "splat_compute",
+                &layout,
+                &["visibility", "accumulate", "finish"],
+            )?
+            .try_into()
+            .expect("three pipelines");
+        Ok(Self {
+            layout,
+            visibility,
+            accumulate,
+            finish,
+        })
+    }
+
+    /// Passes 1 and 2 into `targets` (checked by the caller to be the
+    /// camera's size), timed as "visibility" and "attributes" like the
+    /// render pass (the conversion into the targets counts as attributes).
+    pub(super) fn render(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        uniform: &CameraUniform,
+        attrs: Attributes,
+        targets: &mut SplatTargets,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<(), SplatError> {
+        if targets.compute.is_none() {
+            targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
+        }
+        let scratch = targets.compute.as_ref().expect("just made");
+        let params = ComputeParams {
+            width: targets.width,
+            height: targets.height,
+            count: model.count,
+            flags: if attrs.geometry { COMPUTE_GEOMETRY } else { 0 }
+                | if attrs.motion { COMPUTE_MOTION } else { 0 },
+        };
+        ctx.queue
+            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.queue
+            .write_buffer(&scratch.params, 0, bytemuck::bytes_of(&params));
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: targets.uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: scratch.params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: model.buffer.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: scratch.depth.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: scratch.acc.as_entire_binding(),
+            },
+        ];
+        for (i, v) in targets.acc_views.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 5 + i as u32,
+                resource: wgpu::BindingResource::TextureView(v),
+            });
+        }
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat compute"),
+            layout: &self.layout,
+            entries: &entries,
+        });
+        // Splats per dispatch row: at most 65535 workgroups in x.
+        let groups = workgroups(model.count, WORKGROUP_1D);
+        let gx = groups.clamp(1, 65_535);
+        let gy = groups.div_ceil(gx);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&scratch.depth, 0, None);
+        enc.clear_buffer(&scratch.acc, 0, None);
+        {
+            let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
+            pass.set_pipeline(&self.visibility);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        {
+            let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(&self.accumulate);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.finish);
+            pass.dispatch_workgroups(
+                workgroups(targets.width, RESOLVE_WORKGROUP),
+                workgroups(targets.height, RESOLVE_WORKGROUP),
+                1,
+            );
+        }
+        if let Some(t) = timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+}
