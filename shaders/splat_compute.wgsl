@@ -20,8 +20,9 @@
 //    are (predictor at d) / z and the rotation predictors do not depend on z
 //    (eq. 5); their weighted sum is rebuilt exactly from sum(w / z) and
 //    sum(w) (9 atomics per fragment instead of 16).
-// 3. `finish`: one thread per pixel converts the sums into the render
-//    pass's RGBA32F accumulation targets (layout in src/splat/mod.rs), so
+// 3. `finish`: one thread per pixel of the splats' bounding box (found in
+//    pass 1, dispatched indirectly) converts the sums into the render
+//    pass's RGBA32F accumulation targets (cleared beforehand) (layout in src/splat/mod.rs), so
 //    the normalisation and gather kernels (splat_resolve.wgsl) serve both
 //    back ends unchanged.
 //
@@ -58,6 +59,13 @@ struct ComputeParams {
 @group(0) @binding(7) var t2: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(8) var t3: texture_storage_2d<rgba32float, write>;
 @group(0) @binding(9) var t4: texture_storage_2d<rgba32float, write>;
+// The pixels any splat may touch: COMPUTE_BOUNDS_* (the minima stored as
+// 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
+// max serves both), then the indirect dispatch of `finish` over them.
+@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 4>;
+@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 4>;
+
+var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
 // Bits of 1.0f: the cleared depth.
 const DEPTH_ONE: u32 = 0x3f800000u;
@@ -192,23 +200,62 @@ fn splat_index(id: vec3<u32>, groups: vec3<u32>) -> u32 {
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
-fn visibility(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = splat_index(id, groups);
-    if i >= params.count {
-        return;
+fn visibility(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    if li < 4u {
+        atomicStore(&wg_bounds[li], 0u);
     }
-    let s = setup(i);
-    for (var y = s.lo.y; y <= s.hi.y; y++) {
-        for (var x = s.lo.x; x <= s.hi.x; x++) {
-            let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-            if hit.w <= 0.0 {
-                continue;
+    workgroupBarrier();
+    let i = splat_index(id, groups);
+    if i < params.count {
+        let s = setup(i);
+        if s.lo.x <= s.hi.x && s.lo.y <= s.hi.y {
+            atomicMax(&wg_bounds[0], 0xffffffffu - u32(s.lo.x));
+            atomicMax(&wg_bounds[1], 0xffffffffu - u32(s.lo.y));
+            atomicMax(&wg_bounds[2], u32(s.hi.x) + 1u);
+            atomicMax(&wg_bounds[3], u32(s.hi.y) + 1u);
+        }
+        for (var y = s.lo.y; y <= s.hi.y; y++) {
+            for (var x = s.lo.x; x <= s.hi.x; x++) {
+                let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+                if hit.w <= 0.0 {
+                    continue;
+                }
+                let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
+                let pixel = u32(y) * params.width + u32(x);
+                atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
             }
-            let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
-            let pixel = u32(y) * params.width + u32(x);
-            atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
         }
     }
+    // One global atomic per workgroup and bound, not one per splat.
+    workgroupBarrier();
+    if li < 4u {
+        let b = atomicLoad(&wg_bounds[li]);
+        if b != 0u {
+            atomicMax(&bounds[li], b);
+        }
+    }
+}
+
+// The workgroups of `finish`: the bounding box of the splats' pixels.
+@compute @workgroup_size(1)
+fn finish_dispatch() {
+    let x1 = atomicLoad(&bounds[2]);
+    let y1 = atomicLoad(&bounds[3]);
+    if x1 == 0u || y1 == 0u {
+        finish_args[0] = 0u;
+        finish_args[1] = 0u;
+        finish_args[2] = 0u;
+        return;
+    }
+    let x0 = 0xffffffffu - atomicLoad(&bounds[0]);
+    let y0 = 0xffffffffu - atomicLoad(&bounds[1]);
+    finish_args[0] = (x1 - x0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
+    finish_args[1] = (y1 - y0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
+    finish_args[2] = 1u;
 }
 
 fn fixed(v: f32) -> i32 {
@@ -277,17 +324,21 @@ fn sum(base: u32, k: u32) -> f32 {
 }
 
 @compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
-fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
-    if id.x >= params.width || id.y >= params.height {
+fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
+    // Dispatched over the splats' bounding box only (`finish_dispatch`);
+    // the targets were cleared to zero elsewhere, as the render pass does.
+    let id = gid.xy + vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
+    if id.x >= min(params.width, atomicLoad(&bounds[2])) || id.y >= min(params.height, atomicLoad(&bounds[3])) {
         return;
     }
     let p = vec2<i32>(id.xy);
-    let base = (id.y * params.width + id.x) * ACC_STRIDE;
+    let pixel = id.y * params.width + id.x;
+    let base = pixel * ACC_STRIDE;
     let w = sum(base, 0u);
     let empty = atomicLoad(&acc[base]) <= 0;
     let zero = vec4<f32>(0.0, 0.0, 0.0, 0.0);
     textureStore(t0, p, select(vec4<f32>(sum(base, 1u), sum(base, 2u), sum(base, 3u), w), zero, empty));
-    let zv = visible_z(DEPTH_ONE - atomicLoad(&depth_key[id.y * params.width + id.x]));
+    let zv = visible_z(DEPTH_ONE - atomicLoad(&depth_key[pixel]));
     if (params.flags & COMPUTE_GEOMETRY) != 0u {
         let g = vec4<f32>(zv * sum(base, 4u), sum(base, 5u), sum(base, 6u), sum(base, 7u));
         textureStore(t1, p, select(g, zero, empty));
@@ -306,5 +357,11 @@ fn finish(@builtin(global_invocation_id) id: vec3<u32>) {
         textureStore(t2, p, select(vec4<f32>(tx, ty), zero, empty));
         textureStore(t3, p, select(vec4<f32>(tz, rx), zero, empty));
         textureStore(t4, p, select(vec4<f32>(ry, rz), zero, empty));
+    }
+    // Leave the scratch cleared for the next render: every pixel a splat
+    // touched is in this box, so no full-image clear is needed.
+    atomicStore(&depth_key[pixel], 0u);
+    for (var k = 0u; k < ACC_STRIDE; k++) {
+        atomicStore(&acc[base + k], 0);
     }
 }

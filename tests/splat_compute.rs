@@ -246,6 +246,53 @@ fn gather_and_partial_renders_agree_between_back_ends() {
 }
 
 #[test]
+fn reused_targets_keep_nothing_of_the_previous_render() {
+    // The compute back end clears only what it touched: a large view, then
+    // a small one elsewhere into the same targets, must equal the small
+    // one rendered alone (and the CPU reference).
+    let model = shapes::sphere(Vec3::ZERO, 0.5, 4000, 1.2);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let cam = Intrinsics::new(120, 90, 110.0, 110.0, 59.5, 44.5);
+    let near = look_at(
+        &Vector3::new(0.0, 0.2, -1.3),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let far = look_at(
+        &Vector3::new(1.5, 0.3, -5.0),
+        &Vector3::new(0.4, 0.0, 0.0),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let s = splatter(Backend::Compute);
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    s.render(ctx(), &gm, &cam, &near, Attributes::ALL, &mut t)
+        .unwrap();
+    s.render(ctx(), &gm, &cam, &far, Attributes::ALL, &mut t)
+        .unwrap();
+    let reused: Vec<SplatImage> = READ
+        .iter()
+        .map(|&a| s.read(ctx(), &t, a).unwrap())
+        .collect();
+    let fresh = images(&s, &model, &cam, &far);
+    // Integer sums do not depend on the order of the atomics: bit for bit.
+    for (k, (a, b)) in reused.iter().zip(&fresh).enumerate() {
+        let differ = a
+            .data
+            .iter()
+            .zip(&b.data)
+            .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
+            .count();
+        assert_eq!(differ, 0, "{:?}: {differ} values differ", READ[k]);
+    }
+    let (covered, bad) = disagreement(&reused, &cpu_images(&model, &cam, &far));
+    assert!(covered > 50 && bad as f64 <= 0.005 * covered as f64);
+    assert!(
+        covered < (cam.width * cam.height / 2) as usize,
+        "the far view is small"
+    );
+}
+
+#[test]
 fn compute_passes_are_timed_like_the_render_pass() {
     let model = shapes::sphere(Vec3::ZERO, 0.5, 2000, 1.2);
     let gm = GpuModel::new(ctx(), &model).unwrap();

@@ -6,6 +6,7 @@
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::io::guard::{check_output, check_output_dir};
+use splattrack::splat::Backend;
 use splattrack::tracker::{ConfigError, Modalities, Mode, TrackerConfig};
 use std::path::PathBuf;
 
@@ -51,6 +52,11 @@ pub struct Args {
     /// Track only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    /// The splatter: render (render pass), compute (compute shader with
+    /// atomics) or auto (the faster on the adapter: render on CPU adapters,
+    /// compute on GPUs; $SPLATTRACK_SPLATTER overrides auto).
+    #[arg(long, default_value = "auto")]
+    pub splatter: Backend,
     #[command(flatten)]
     pub tuning: Tuning,
 }
@@ -191,6 +197,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = TrackerConfig {
         mode: args.mode,
         modalities: args.modalities,
+        splatter: args.splatter,
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {

@@ -15,10 +15,8 @@
 //! `ComputeParams`, pixel indices relative to the origin) and dispatching
 //! `finish` over the rectangle only is all it takes.
 
-use super::gpu_data::{
-    ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
-};
-use super::targets::TARGETS;
+use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams};
+use super::targets::{TARGETS, target_slots};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
     GpuContext, GpuTimer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass, storage,
@@ -31,6 +29,11 @@ pub(super) struct Scratch {
     depth: wgpu::Buffer,
     acc: wgpu::Buffer,
     params: wgpu::Buffer,
+    /// The splats' pixel bounding box (4 u32).
+    bounds: wgpu::Buffer,
+    /// The indirect dispatch of `finish` (bound alone in group 1).
+    finish_args: wgpu::Buffer,
+    finish_bind: Option<wgpu::BindGroup>,
 }
 
 impl Scratch {
@@ -47,6 +50,13 @@ impl Scratch {
                 std::mem::size_of::<ComputeParams>() as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
+            bounds: ctx.buffer("compute splat bounds", 16, usage),
+            finish_args: ctx.buffer(
+                "compute splat finish dispatch",
+                16,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            ),
+            finish_bind: None,
         })
     }
 }
@@ -54,8 +64,10 @@ impl Scratch {
 /// The pipelines of the compute back end.
 pub(super) struct ComputeSplatter {
     layout: wgpu::BindGroupLayout,
+    args_layout: wgpu::BindGroupLayout,
     visibility: wgpu::ComputePipeline,
     accumulate: wgpu::ComputePipeline,
+    finish_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
 }
 
@@ -91,21 +103,42 @@ impl ComputeSplatter {
                 texture(7),
                 texture(8),
                 texture(9),
+                compute_entry(10, storage(false)),
             ],
         );
-        let [visibility, accumulate, finish]: [wgpu::ComputePipeline; 3] = ctx
-            .compute_pipelines(
-                "splat_compute",
-                &layout,
-                &["visibility", "accumulate", "finish"],
-            )?
-            .try_into()
-            .expect("three pipelines");
+        let args_layout = ctx.bind_group_layout(
+            "splat compute finish dispatch",
+            &[compute_entry(0, storage(false))],
+        );
+        let module = ctx.shader("splat_compute")?;
+        let pipeline = |entry: &str, layouts: &[Option<&wgpu::BindGroupLayout>]| {
+            ctx.catch(&format!("splat_compute::{entry}"), || {
+                let pl = ctx
+                    .device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some(entry),
+                        bind_group_layouts: layouts,
+                        immediate_size: 0,
+                    });
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&pl),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            })
+        };
+        let one = [Some(&layout)];
         Ok(Self {
+            visibility: pipeline("visibility", &one)?,
+            accumulate: pipeline("accumulate", &one)?,
+            finish: pipeline("finish", &one)?,
+            finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
-            visibility,
-            accumulate,
-            finish,
+            args_layout,
         })
     }
 
@@ -124,6 +157,22 @@ impl ComputeSplatter {
         if targets.compute.is_none() {
             targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
         }
+        let scratch = targets.compute.as_mut().expect("just made");
+        let args_layout = &self.args_layout;
+        let finish_args = &scratch.finish_args;
+        let finish_bind = scratch
+            .finish_bind
+            .get_or_insert_with(|| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("splat compute finish dispatch"),
+                    layout: args_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: finish_args.as_entire_binding(),
+                    }],
+                })
+            })
+            .clone();
         let scratch = targets.compute.as_ref().expect("just made");
         let params = ComputeParams {
             width: targets.width,
@@ -164,6 +213,10 @@ impl ComputeSplatter {
                 resource: wgpu::BindingResource::TextureView(v),
             });
         }
+        entries.push(wgpu::BindGroupEntry {
+            binding: 10,
+            resource: scratch.bounds.as_entire_binding(),
+        });
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat compute"),
             layout: &self.layout,
@@ -174,13 +227,44 @@ impl ComputeSplatter {
         let gx = groups.clamp(1, 65_535);
         let gy = groups.div_ceil(gx);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        enc.clear_buffer(&scratch.depth, 0, None);
-        enc.clear_buffer(&scratch.acc, 0, None);
+        // The depth keys and sums are zero: made so (wgpu zeroes new
+        // buffers), and `finish` clears every pixel it reads.
+        enc.clear_buffer(&scratch.bounds, 0, None);
+        {
+            // The targets start at zero, as the render pass's clear does;
+            // `finish` writes only the splats' bounding box.
+            let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = target_slots(attrs)
+                .iter()
+                .zip(&targets.acc_views)
+                .map(|(&on, view)| {
+                    on.then_some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })
+                })
+                .collect();
+            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splat compute clear"),
+                color_attachments: &colors,
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+        }
         {
             let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
             pass.set_pipeline(&self.visibility);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.finish_dispatch);
+            pass.set_bind_group(1, &finish_bind, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
         }
         {
             let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
@@ -188,11 +272,7 @@ impl ComputeSplatter {
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
             pass.set_pipeline(&self.finish);
-            pass.dispatch_workgroups(
-                workgroups(targets.width, RESOLVE_WORKGROUP),
-                workgroups(targets.height, RESOLVE_WORKGROUP),
-                1,
-            );
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
         }
         if let Some(t) = timer {
             t.resolve(&mut enc);

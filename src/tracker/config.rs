@@ -217,6 +217,9 @@ pub struct TrackerConfig {
     pub modalities: Modalities,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
+    /// Which splatter renders ([`crate::splat::Backend`]; `Auto`: the
+    /// fastest measured on the adapter, or `$SPLATTRACK_SPLATTER`).
+    pub splatter: crate::splat::Backend,
 }
 
 impl Default for TrackerConfig {
@@ -248,6 +251,7 @@ impl Default for TrackerConfig {
             init: Default::default(),
             modalities: Modalities::default(),
             contour: super::contour::ContourConfig::default(),
+            splatter: crate::splat::Backend::Auto,
         }
     }
 }
