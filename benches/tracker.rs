@@ -41,10 +41,12 @@ fn model_sizes() -> Vec<usize> {
 struct Scene {
     cfg: SynthConfig,
     frames: Vec<splattrack::synth::SynthFrame>,
-    store: KeyframeStore,
+    keyframes: Vec<(String, image::RgbImage, splattrack::geometry::Pose)>,
 }
 
-fn scene(ctx: &GpuContext, w: u32, h: u32, object: &SynthObject, model: &PointModel) -> Scene {
+/// The frames and keyframe images at one image size (the same field of
+/// view at every size).
+fn scene(w: u32, h: u32, object: &SynthObject) -> Scene {
     let f = 600.0 * w as f64 / 640.0;
     let cfg = SynthConfig {
         frames: 120,
@@ -55,18 +57,25 @@ fn scene(ctx: &GpuContext, w: u32, h: u32, object: &SynthObject, model: &PointMo
     let frames: Vec<_> = (0..FRAMES)
         .map(|i| render_frame(&cfg, object, &bg, i))
         .collect();
-    let kfs = keyframe_images(&cfg, object, &bg);
+    let keyframes = keyframe_images(&cfg, object, &bg);
+    Scene {
+        cfg,
+        frames,
+        keyframes,
+    }
+}
+
+fn store(ctx: &GpuContext, scene: &Scene, model: &PointModel) -> KeyframeStore {
     let splatter = Splatter::new(ctx).unwrap();
-    let store = KeyframeStore::build(
+    KeyframeStore::build(
         ctx,
         &splatter,
         model,
-        &cfg.camera,
-        &kfs,
+        &scene.cfg.camera,
+        &scene.keyframes,
         &KeyframeConfig::default(),
     )
-    .unwrap();
-    Scene { cfg, frames, store }
+    .unwrap()
 }
 
 fn case(
@@ -74,6 +83,7 @@ fn case(
     ctx: &GpuContext,
     scene: &Scene,
     model: &PointModel,
+    store: &KeyframeStore,
     config: TrackerConfig,
     id: String,
 ) {
@@ -82,7 +92,7 @@ fn case(
             ctx,
             model.clone(),
             scene.cfg.camera,
-            Some(scene.store.clone()),
+            Some(store.clone()),
             config.clone(),
             scene.frames[0].pose,
         )
@@ -133,9 +143,10 @@ fn bench(c: &mut Criterion) {
         .measurement_time(Duration::from_secs(5));
     let seed = SynthConfig::default().seed;
     for (w, h) in [(640u32, 480u32), (1280, 720)] {
+        let scene = scene(w, h, &object);
         for n in model_sizes() {
             let model = sample_model(&object, n, seed).unwrap();
-            let scene = scene(&ctx, w, h, &object, &model);
+            let store = store(&ctx, &scene, &model);
             if (w, n) == (640, 100_000) {
                 for mode in [Mode::It, Mode::Kf] {
                     let config = TrackerConfig {
@@ -143,7 +154,7 @@ fn bench(c: &mut Criterion) {
                         ..Default::default()
                     };
                     let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
-                    case(&mut group, &ctx, &scene, &model, config, id);
+                    case(&mut group, &ctx, &scene, &model, &store, config, id);
                 }
             }
             for backend in [Backend::RenderPass, Backend::Compute] {
@@ -153,7 +164,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it/{backend}/{w}x{h}/{n}");
-                case(&mut group, &ctx, &scene, &model, config, id);
+                case(&mut group, &ctx, &scene, &model, &store, config, id);
             }
         }
     }
