@@ -31,7 +31,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let backend = splattrack::splat::Backend::Auto
         .resolve(&ctx)
         .context("--splatter")?;
-    println!("splatter:  {backend} (auto on this adapter; --splatter render|compute overrides)");
+    println!("splatter:  {backend} (what --splatter auto picks here)");
     if let Some(path) = args.model {
         let m = super::load_model(&path)?;
         let (lo, hi) = m.bounds();

@@ -53,8 +53,8 @@ pub struct Args {
     #[arg(long)]
     pub frames: Option<usize>,
     /// The splatter: render (render pass), compute (compute shader with
-    /// atomics) or auto (the faster on the adapter: render on CPU adapters,
-    /// compute on GPUs; $SPLATTRACK_SPLATTER overrides auto).
+    /// atomics) or auto ($SPLATTRACK_SPLATTER when set, else compute where
+    /// the adapter supports it: the faster measured, BENCHMARKS.md).
     #[arg(long, default_value = "auto")]
     pub splatter: Backend,
     #[command(flatten)]

@@ -6,8 +6,9 @@
 //!
 //! Why: a GPU with weak raster units (NVIDIA's compute parts, H100/H200)
 //! splats far faster with atomics in a compute shader than through a render
-//! pass (DESIGN.md section 5 measured ~14x on an H100); a CPU adapter
-//! (lavapipe) is faster through the render pass (BENCHMARKS.md).
+//! pass (DESIGN.md section 5 measured ~14x on an H100); on lavapipe this
+//! kernel halves a tracked frame with a 100k-point model, though the render
+//! pass stays faster for sparse models of large splats (BENCHMARKS.md).
 //!
 //! A crop (splatting only the object's region) needs no change to the
 //! kernels' maths: the pixel range of each splat is clipped to the image
@@ -61,6 +62,12 @@ impl Scratch {
     }
 }
 
+/// Whether the adapter can run the compute back end (it writes the five
+/// accumulation targets as storage textures in one pass).
+pub(super) fn supported(ctx: &GpuContext) -> bool {
+    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
+}
+
 /// The pipelines of the compute back end.
 pub(super) struct ComputeSplatter {
     layout: wgpu::BindGroupLayout,
@@ -73,7 +80,7 @@ pub(super) struct ComputeSplatter {
 
 impl ComputeSplatter {
     pub(super) fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
-        if ctx.limits.max_storage_textures_per_shader_stage < TARGETS as u32 {
+        if !supported(ctx) {
             return Err(SplatError::Unsupported(format!(
                 "the compute splatter writes {TARGETS} storage textures, the adapter allows {}",
                 ctx.limits.max_storage_textures_per_shader_stage

@@ -78,10 +78,13 @@ pub use targets::{SplatImage, SplatTargets};
 /// other (tests/splat_compute.rs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Backend {
-    /// [`SPLATTER_ENV`] when set, else by adapter: [`Backend::RenderPass`]
-    /// on CPU adapters (lavapipe: the rasteriser is the faster there),
-    /// [`Backend::Compute`] on GPUs (DESIGN.md section 5: ~14x faster on an
-    /// H100). BENCHMARKS.md has the measurements behind the rule.
+    /// [`SPLATTER_ENV`] when set, else [`Backend::Compute`] wherever the
+    /// adapter supports it (five storage textures per stage), else
+    /// [`Backend::RenderPass`]. Measured (BENCHMARKS.md): on lavapipe a
+    /// KF+IT frame with a 100k-point model takes half the time with the
+    /// compute splatter (the render pass is faster only for sparse models
+    /// of large splats); on an H100 DESIGN.md section 5 measured a compute
+    /// splat ~14x faster than the render pass.
     #[default]
     Auto,
     /// Instanced quads through the rasteriser, additive blending.
@@ -118,7 +121,7 @@ impl Backend {
 
     /// The back end that renders on `ctx`: `self` unless it is
     /// [`Backend::Auto`], which takes [`SPLATTER_ENV`] when set, else the
-    /// adapter rule.
+    /// compute splatter where the adapter supports it.
     pub fn resolve(self, ctx: &crate::gpu::GpuContext) -> Result<Self, SplatError> {
         if self != Self::Auto {
             return Ok(self);
@@ -135,10 +138,10 @@ impl Backend {
                 }
             }
         }
-        Ok(if ctx.is_cpu() {
-            Self::RenderPass
-        } else {
+        Ok(if compute::supported(ctx) {
             Self::Compute
+        } else {
+            Self::RenderPass
         })
     }
 }

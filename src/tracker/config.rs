@@ -217,8 +217,8 @@ pub struct TrackerConfig {
     pub modalities: Modalities,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
-    /// Which splatter renders ([`crate::splat::Backend`]; `Auto`: the
-    /// fastest measured on the adapter, or `$SPLATTRACK_SPLATTER`).
+    /// Which splatter renders ([`crate::splat::Backend`]; `Auto`:
+    /// `$SPLATTRACK_SPLATTER`, else the compute splatter where supported).
     pub splatter: crate::splat::Backend,
 }
 
