@@ -62,8 +62,12 @@ struct ComputeParams {
 // The pixels any splat may touch: COMPUTE_BOUNDS_* (the minima stored as
 // 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
 // max serves both), then the indirect dispatch of `finish` over them.
-@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 4>;
-@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 4>;
+// [4]: the number of large splats listed in `big`.
+@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
+// Splats whose footprint exceeds BIG_SPLAT_PIXELS: a workgroup shares each.
+@group(0) @binding(11) var<storage, read_write> big: array<u32>;
+// The indirect dispatches of `finish` ([0..3]) and of the large splats ([4..7]).
+@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 8>;
 
 var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
@@ -199,6 +203,43 @@ fn splat_index(id: vec3<u32>, groups: vec3<u32>) -> u32 {
     return id.y * groups.x * WORKGROUP_1D + id.x;
 }
 
+// Pixels in a splat's range.
+fn footprint(s: Setup) -> u32 {
+    if s.lo.x > s.hi.x || s.lo.y > s.hi.y {
+        return 0u;
+    }
+    return u32(s.hi.x - s.lo.x + 1) * u32(s.hi.y - s.lo.y + 1);
+}
+
+fn visibility_pixel(s: Setup, x: i32, y: i32) {
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 {
+        return;
+    }
+    let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
+    let pixel = u32(y) * params.width + u32(x);
+    atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
+}
+
+// The large splats of `big`, one workgroup per splat at a time, its
+// threads striding over the footprint.
+@compute @workgroup_size(WORKGROUP_1D)
+fn visibility_big(
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = atomicLoad(&bounds[4]);
+    for (var j = wg.x; j < n; j += groups.x) {
+        let s = setup(big[j]);
+        let wx = u32(s.hi.x - s.lo.x + 1);
+        let total = footprint(s);
+        for (var p = li; p < total; p += WORKGROUP_1D) {
+            visibility_pixel(s, s.lo.x + i32(p % wx), s.lo.y + i32(p / wx));
+        }
+    }
+}
+
 @compute @workgroup_size(WORKGROUP_1D)
 fn visibility(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -218,15 +259,14 @@ fn visibility(
             atomicMax(&wg_bounds[2], u32(s.hi.x) + 1u);
             atomicMax(&wg_bounds[3], u32(s.hi.y) + 1u);
         }
-        for (var y = s.lo.y; y <= s.hi.y; y++) {
-            for (var x = s.lo.x; x <= s.hi.x; x++) {
-                let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-                if hit.w <= 0.0 {
-                    continue;
+        if footprint(s) > BIG_SPLAT_PIXELS {
+            // Too long a walk for one thread: a workgroup shares it.
+            big[atomicAdd(&bounds[4], 1u)] = i;
+        } else {
+            for (var y = s.lo.y; y <= s.hi.y; y++) {
+                for (var x = s.lo.x; x <= s.hi.x; x++) {
+                    visibility_pixel(s, x, y);
                 }
-                let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
-                let pixel = u32(y) * params.width + u32(x);
-                atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
             }
         }
     }
@@ -246,9 +286,9 @@ fn finish_dispatch() {
     let x1 = atomicLoad(&bounds[2]);
     let y1 = atomicLoad(&bounds[3]);
     if x1 == 0u || y1 == 0u {
-        finish_args[0] = 0u;
-        finish_args[1] = 0u;
-        finish_args[2] = 0u;
+        for (var k = 0u; k < 8u; k++) {
+            finish_args[k] = 0u;
+        }
         return;
     }
     let x0 = 0xffffffffu - atomicLoad(&bounds[0]);
@@ -256,10 +296,50 @@ fn finish_dispatch() {
     finish_args[0] = (x1 - x0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
     finish_args[1] = (y1 - y0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
     finish_args[2] = 1u;
+    let nbig = atomicLoad(&bounds[4]);
+    finish_args[4] = min(nbig, 65535u);
+    finish_args[5] = select(0u, 1u, nbig > 0u);
+    finish_args[6] = select(0u, 1u, nbig > 0u);
 }
 
 fn fixed(v: f32) -> i32 {
     return i32(round(v * FIXED_SCALE));
+}
+
+fn accumulate_pixel(s: Setup, x: i32, y: i32) {
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 {
+        return;
+    }
+    let pixel = u32(y) * params.width + u32(x);
+    // The render pass's less-or-equal test against pass 1's depth.
+    let vis = DEPTH_ONE - atomicLoad(&depth_key[pixel]);
+    if bitcast<u32>(depth_of(hit.x.z)) > vis {
+        return;
+    }
+    let w = hit.w;
+    let base = pixel * ACC_STRIDE;
+    atomicAdd(&acc[base], fixed(w));
+    atomicAdd(&acc[base + 1u], fixed(w * s.color.x));
+    atomicAdd(&acc[base + 2u], fixed(w * s.color.y));
+    atomicAdd(&acc[base + 3u], fixed(w * s.color.z));
+    let geometry = (params.flags & COMPUTE_GEOMETRY) != 0u;
+    let motion = (params.flags & COMPUTE_MOTION) != 0u;
+    if geometry || motion {
+        // Depths relative to the pixel's visibility depth zv: every
+        // fragment passing the test lies within the push-back in front of
+        // it, so z / zv is about 1 at any distance.
+        let zv = visible_z(vis);
+        if geometry {
+            atomicAdd(&acc[base + 4u], fixed(w * hit.x.z / zv));
+            atomicAdd(&acc[base + 5u], fixed(w * s.normal.x));
+            atomicAdd(&acc[base + 6u], fixed(w * s.normal.y));
+            atomicAdd(&acc[base + 7u], fixed(w * s.normal.z));
+        }
+        if motion {
+            atomicAdd(&acc[base + 8u], fixed(w * zv / hit.x.z));
+        }
+    }
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -269,41 +349,29 @@ fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         return;
     }
     let s = setup(i);
-    let geometry = (params.flags & COMPUTE_GEOMETRY) != 0u;
-    let motion = (params.flags & COMPUTE_MOTION) != 0u;
+    if footprint(s) > BIG_SPLAT_PIXELS {
+        return; // accumulate_big
+    }
     for (var y = s.lo.y; y <= s.hi.y; y++) {
         for (var x = s.lo.x; x <= s.hi.x; x++) {
-            let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-            if hit.w <= 0.0 {
-                continue;
-            }
-            let pixel = u32(y) * params.width + u32(x);
-            // The render pass's less-or-equal test against pass 1's depth.
-            let vis = DEPTH_ONE - atomicLoad(&depth_key[pixel]);
-            if bitcast<u32>(depth_of(hit.x.z)) > vis {
-                continue;
-            }
-            let w = hit.w;
-            let base = pixel * ACC_STRIDE;
-            atomicAdd(&acc[base], fixed(w));
-            atomicAdd(&acc[base + 1u], fixed(w * s.color.x));
-            atomicAdd(&acc[base + 2u], fixed(w * s.color.y));
-            atomicAdd(&acc[base + 3u], fixed(w * s.color.z));
-            if geometry || motion {
-                // Depths relative to the pixel's visibility depth zv: every
-                // fragment passing the test lies within the push-back in
-                // front of it, so z / zv is about 1 at any distance.
-                let zv = visible_z(vis);
-                if geometry {
-                    atomicAdd(&acc[base + 4u], fixed(w * hit.x.z / zv));
-                    atomicAdd(&acc[base + 5u], fixed(w * s.normal.x));
-                    atomicAdd(&acc[base + 6u], fixed(w * s.normal.y));
-                    atomicAdd(&acc[base + 7u], fixed(w * s.normal.z));
-                }
-                if motion {
-                    atomicAdd(&acc[base + 8u], fixed(w * zv / hit.x.z));
-                }
-            }
+            accumulate_pixel(s, x, y);
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn accumulate_big(
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = atomicLoad(&bounds[4]);
+    for (var j = wg.x; j < n; j += groups.x) {
+        let s = setup(big[j]);
+        let wx = u32(s.hi.x - s.lo.x + 1);
+        let total = footprint(s);
+        for (var p = li; p < total; p += WORKGROUP_1D) {
+            accumulate_pixel(s, s.lo.x + i32(p % wx), s.lo.y + i32(p / wx));
         }
     }
 }

@@ -20,8 +20,8 @@ use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUnifor
 use super::targets::{TARGETS, target_slots};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
-    GpuContext, GpuTimer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass, storage,
-    workgroups,
+    GpuContext, GpuTimer, GrowBuffer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass,
+    storage, workgroups,
 };
 
 /// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
@@ -32,8 +32,11 @@ pub(super) struct Scratch {
     params: wgpu::Buffer,
     /// The splats' pixel bounding box (4 u32).
     bounds: wgpu::Buffer,
-    /// The indirect dispatch of `finish` (bound alone in group 1).
+    /// The indirect dispatches of `finish` and of the large splats (bound
+    /// alone in group 1).
     finish_args: wgpu::Buffer,
+    /// The list of large splats (one u32 per splat of the largest model).
+    big: GrowBuffer,
     finish_bind: Option<wgpu::BindGroup>,
 }
 
@@ -51,10 +54,11 @@ impl Scratch {
                 std::mem::size_of::<ComputeParams>() as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
-            bounds: ctx.buffer("compute splat bounds", 16, usage),
+            bounds: ctx.buffer("compute splat bounds", 32, usage),
+            big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
             finish_args: ctx.buffer(
                 "compute splat finish dispatch",
-                16,
+                32,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             ),
             finish_bind: None,
@@ -74,6 +78,8 @@ pub(super) struct ComputeSplatter {
     args_layout: wgpu::BindGroupLayout,
     visibility: wgpu::ComputePipeline,
     accumulate: wgpu::ComputePipeline,
+    visibility_big: wgpu::ComputePipeline,
+    accumulate_big: wgpu::ComputePipeline,
     finish_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
 }
@@ -111,6 +117,7 @@ impl ComputeSplatter {
                 texture(8),
                 texture(9),
                 compute_entry(10, storage(false)),
+                compute_entry(11, storage(false)),
             ],
         );
         let args_layout = ctx.bind_group_layout(
@@ -142,6 +149,8 @@ impl ComputeSplatter {
         Ok(Self {
             visibility: pipeline("visibility", &one)?,
             accumulate: pipeline("accumulate", &one)?,
+            visibility_big: pipeline("visibility_big", &one)?,
+            accumulate_big: pipeline("accumulate_big", &one)?,
             finish: pipeline("finish", &one)?,
             finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
@@ -165,6 +174,12 @@ impl ComputeSplatter {
             targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
         }
         let scratch = targets.compute.as_mut().expect("just made");
+        ctx.check_buffer_size(
+            "compute splatter list of large splats",
+            model.count as u64 * 4,
+            wgpu::BufferUsages::STORAGE,
+        )?;
+        scratch.big.ensure(ctx, model.count as u64 * 4);
         let args_layout = &self.args_layout;
         let finish_args = &scratch.finish_args;
         let finish_bind = scratch
@@ -224,6 +239,10 @@ impl ComputeSplatter {
             binding: 10,
             resource: scratch.bounds.as_entire_binding(),
         });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 11,
+            resource: scratch.big.get().as_entire_binding(),
+        });
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat compute"),
             layout: &self.layout,
@@ -274,10 +293,17 @@ impl ComputeSplatter {
             pass.dispatch_workgroups(1, 1, 1);
         }
         {
+            // The large splats' visibility opens this pass: their dispatch
+            // reads arguments that `finish_dispatch` wrote through group 1,
+            // which is not bound here.
             let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(&self.visibility_big);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.accumulate_big);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
             pass.set_pipeline(&self.finish);
             pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
         }

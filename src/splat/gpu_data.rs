@@ -117,3 +117,7 @@ pub const ACC_STRIDE: u32 = 9;
 /// Units per 1.0 of the compute splatter's fixed-point sums (2^20): a
 /// resolution of 1e-6 and room for 2048 full-weight contributions.
 pub const FIXED_SCALE: f32 = 1_048_576.0;
+
+/// Footprints above this many pixels are walked by a whole workgroup
+/// (`visibility_big`, `accumulate_big`), not by one thread.
+pub const BIG_SPLAT_PIXELS: u32 = 64;
