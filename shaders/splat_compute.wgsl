@@ -3,7 +3,10 @@
 // and less-or-equal depth test), written with atomics instead of the
 // rasteriser and blending (Dehais et al. 2010, sections 2.3 and 3.2;
 // Botsch et al. 2005). One thread per splat walks the pixels of its
-// screen-space bounding box (the quad the render pass would rasterise):
+// screen-space bounding box (the quad the render pass would rasterise);
+// footprints of more than BIG_SPLAT_PIXELS are listed instead and walked by
+// a whole workgroup (`visibility_big`, `accumulate_big`), so a large or
+// near-plane splat does not serialise on one thread:
 //
 // 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
 //    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders

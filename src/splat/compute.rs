@@ -1,4 +1,6 @@
 //! The compute-shader back end of the splatter ([`super::Backend::Compute`]):
+//! one thread per splat, or a workgroup per splat for footprints over
+//! [`BIG_SPLAT_PIXELS`](super::gpu_data::BIG_SPLAT_PIXELS) pixels;
 //! the passes of the render pass (visibility, attributes) as compute
 //! kernels with atomics (shaders/splat_compute.wgsl says how), writing the
 //! same accumulation targets, so that normalisation, gather and every
