@@ -235,10 +235,16 @@ fn visibility_big(
     let n = atomicLoad(&bounds[4]);
     for (var j = wg.x; j < n; j += groups.x) {
         let s = setup(big[j]);
-        let wx = u32(s.hi.x - s.lo.x + 1);
-        let total = footprint(s);
-        for (var p = li; p < total; p += WORKGROUP_1D) {
-            visibility_pixel(s, s.lo.x + i32(p % wx), s.lo.y + i32(p / wx));
+        // 8x8 blocks of lanes over the footprint (no integer division:
+        // it is scalarised on CPU adapters).
+        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    visibility_pixel(s, q.x, q.y);
+                }
+            }
         }
     }
 }
@@ -371,10 +377,14 @@ fn accumulate_big(
     let n = atomicLoad(&bounds[4]);
     for (var j = wg.x; j < n; j += groups.x) {
         let s = setup(big[j]);
-        let wx = u32(s.hi.x - s.lo.x + 1);
-        let total = footprint(s);
-        for (var p = li; p < total; p += WORKGROUP_1D) {
-            accumulate_pixel(s, s.lo.x + i32(p % wx), s.lo.y + i32(p / wx));
+        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    accumulate_pixel(s, q.x, q.y);
+                }
+            }
         }
     }
 }

@@ -166,6 +166,23 @@ fn compute_matches_cpu_and_render_pass_on_a_dense_sphere() {
 }
 
 #[test]
+fn large_footprints_shared_by_a_workgroup_agree() {
+    // Splats hundreds to thousands of pixels wide (over BIG_SPLAT_PIXELS:
+    // walked by a workgroup), mixed with small ones (one thread each).
+    let mut rng = Rng::new(99);
+    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
+    let small = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
+    model.positions.extend(&small.positions);
+    model.normals.extend(&small.normals);
+    model.radii.extend(&small.radii);
+    if let (Some(c), Some(d)) = (&mut model.colors, &small.colors) {
+        c.extend(d);
+    }
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
+    check(&model, &cam, &pose, "large and small splats");
+}
+
+#[test]
 fn a_splat_crossing_the_near_plane_covers_the_image_on_both_back_ends() {
     // One big disc, tilted towards the camera so that it reaches behind the
     // near plane: the whole-image footprint of vs_splat / setup, and a near

@@ -68,6 +68,9 @@ impl Scratch {
     }
 }
 
+// `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
+const _: () = assert!(WORKGROUP_1D == 64);
+
 /// Whether the adapter can run the compute back end (it writes the five
 /// accumulation targets as storage textures in one pass).
 pub(super) fn supported(ctx: &GpuContext) -> bool {
