@@ -1,11 +1,15 @@
-//! Splatting throughput at 640x480: colour only (novel views) and colour +
-//! depth/normal + motion predictors (the tracker's pass), for sphere models
-//! of 10k, 100k and 1M points on whichever adapter is present
-//! (`SPLATTRACK_ADAPTER`), plus the CPU reference at 10k for the CPU/GPU
-//! ratio. Wall time per render (submit + wait) by criterion; GPU time per
-//! pass from timestamp queries, printed as medians of 5 renders.
+//! Splatting time per render, both back ends (`render`: the render pass,
+//! `compute`: the compute shader with atomics), colour only (novel views)
+//! and colour + depth/normal + motion predictors (the tracker's render),
+//! for sphere models of 10k and 100k points (and 1M with
+//! `SPLATTRACK_BENCH_1M=1`) at 640x480 and 1280x720, on whichever adapter
+//! is present (`SPLATTRACK_ADAPTER`); the CPU reference (`cpu`, one
+//! thread) at 10k and 100k points for the GPU/CPU ratio. Wall time per
+//! render (submit + wait) by criterion; GPU time per pass from timestamp
+//! queries (median of 5), printed when the adapter has them.
 //!
-//! `cargo bench --bench splat`
+//! `cargo bench --bench splat` (ids `splat/BACKEND/ATTRS/WxH/POINTS`;
+//! `cargo run --release --example bench_report` tabulates the medians).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
@@ -13,71 +17,100 @@ use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, look_at};
 use splattrack::gpu::{GpuContext, GpuTimer};
 use splattrack::model::shapes;
-use splattrack::splat::{Attributes, GpuModel, SplatParams, SplatTargets, Splatter, cpu};
+use splattrack::splat::{Attributes, Backend, GpuModel, SplatParams, SplatTargets, Splatter, cpu};
 use std::time::Duration;
+
+/// Model sizes: 10k and 100k, plus 1M when `SPLATTRACK_BENCH_1M` is set
+/// (about 1.5 s per render on lavapipe).
+fn model_sizes() -> Vec<usize> {
+    let mut n = vec![10_000, 100_000];
+    if std::env::var("SPLATTRACK_BENCH_1M").is_ok_and(|v| v != "0") {
+        n.push(1_000_000);
+    }
+    n
+}
 
 fn bench(c: &mut Criterion) {
     let ctx = GpuContext::from_env().expect("a GPU adapter (lavapipe will do)");
     eprintln!("adapter: {}", ctx.describe());
-    let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
     let pose = look_at(
         &Vector3::new(0.3, -0.4, -1.9),
         &Vector3::zeros(),
         &Vector3::new(0.0, -1.0, 0.0),
     );
-    let splatter = Splatter::new(&ctx).unwrap();
-    let mut targets = SplatTargets::new(&ctx, cam.width, cam.height);
-    let mut group = c.benchmark_group("splat_640x480");
+    let mut group = c.benchmark_group("splat");
     group
         .sample_size(10)
-        .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(3));
-    for n in [10_000usize, 100_000, 1_000_000] {
-        let model = shapes::sphere(Vec3::ZERO, 0.5, n, 1.2);
-        let gm = GpuModel::new(&ctx, &model).unwrap();
-        for (name, attrs) in [
-            ("color", Attributes::COLOR),
-            ("color+predictors", Attributes::ALL),
-        ] {
-            let mut timer = GpuTimer::new(&ctx, 2);
-            let mut runs = Vec::new();
-            for _ in 0..5 {
-                splatter
-                    .render_timed(
-                        &ctx,
-                        &gm,
-                        &cam,
-                        &pose,
-                        attrs,
-                        &mut targets,
-                        Some(&mut timer),
-                    )
-                    .unwrap();
-                let r = timer.read(&ctx).unwrap();
-                runs.push((
-                    r.get("visibility").unwrap_or(f64::NAN),
-                    r.get("attributes").unwrap_or(f64::NAN),
-                ));
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(2));
+    let sizes = model_sizes();
+    let models: Vec<_> = sizes
+        .iter()
+        .map(|&n| (n, shapes::sphere(Vec3::ZERO, 0.5, n, 1.2)))
+        .collect();
+    for (w, h) in [(640u32, 480u32), (1280, 720)] {
+        // The same field of view at both sizes.
+        let f = 600.0 * w as f64 / 640.0;
+        let cam = Intrinsics::new(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
+        let mut targets = SplatTargets::new(&ctx, w, h);
+        for backend in [Backend::RenderPass, Backend::Compute] {
+            let params = SplatParams {
+                backend,
+                ..Default::default()
+            };
+            let splatter = Splatter::with_params(&ctx, params).unwrap();
+            for (n, model) in &models {
+                let gm = GpuModel::new(&ctx, model).unwrap();
+                for (name, attrs) in [
+                    ("color", Attributes::COLOR),
+                    ("color+predictors", Attributes::ALL),
+                ] {
+                    let mut timer = GpuTimer::new(&ctx, 2);
+                    if timer.enabled() {
+                        let mut runs = Vec::new();
+                        for _ in 0..5 {
+                            splatter
+                                .render_timed(
+                                    &ctx,
+                                    &gm,
+                                    &cam,
+                                    &pose,
+                                    attrs,
+                                    &mut targets,
+                                    Some(&mut timer),
+                                )
+                                .unwrap();
+                            let r = timer.read(&ctx).unwrap();
+                            runs.push((
+                                r.get("visibility").unwrap_or(f64::NAN),
+                                r.get("attributes").unwrap_or(f64::NAN),
+                            ));
+                        }
+                        runs.sort_by(|a, b| (a.0 + a.1).total_cmp(&(b.0 + b.1)));
+                        let (v, a) = runs[2];
+                        eprintln!(
+                            "gpu timestamps {backend} {name} {w}x{h} n={n}: visibility {v:.3} ms, attributes {a:.3} ms (median of 5)"
+                        );
+                    }
+                    group.bench_function(format!("{backend}/{name}/{w}x{h}/{n}"), |b| {
+                        b.iter(|| {
+                            splatter
+                                .render(&ctx, &gm, &cam, &pose, attrs, &mut targets)
+                                .unwrap();
+                            ctx.wait().unwrap();
+                        })
+                    });
+                }
             }
-            runs.sort_by(|a, b| (a.0 + a.1).total_cmp(&(b.0 + b.1)));
-            let (v, a) = runs[2];
-            eprintln!(
-                "gpu timestamps {name} n={n}: visibility {v:.2} ms, attributes {a:.2} ms (median of 5)"
-            );
-            group.bench_function(format!("{name}/{n}"), |b| {
-                b.iter(|| {
-                    splatter
-                        .render(&ctx, &gm, &cam, &pose, attrs, &mut targets)
-                        .unwrap();
-                    ctx.wait().unwrap();
-                })
-            });
+        }
+        if w == 640 {
+            for (n, model) in models.iter().filter(|(n, _)| *n <= 100_000) {
+                group.bench_function(format!("cpu/color+predictors/{w}x{h}/{n}"), |b| {
+                    b.iter(|| cpu::splat(model, &cam, &pose, &SplatParams::default()).unwrap())
+                });
+            }
         }
     }
-    let model = shapes::sphere(Vec3::ZERO, 0.5, 10_000, 1.2);
-    group.bench_function("cpu_reference/10000", |b| {
-        b.iter(|| cpu::splat(&model, &cam, &pose, &SplatParams::default()).unwrap())
-    });
     group.finish();
 }
 

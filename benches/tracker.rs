@@ -1,102 +1,172 @@
-//! Time per tracked frame, per mode, at 640x480 on whichever adapter is
-//! present (`SPLATTRACK_ADAPTER`): a synthetic blob sequence (60k-point
-//! model, 12 keyframes) rendered by the CPU rasteriser; each iteration
-//! tracks the next frame (cycling through 30). Also prints the mean time
-//! per stage (features, IT, KF) from `TrackResult::times`.
+//! Time per tracked frame (the whole `Tracker::track` step, read-backs
+//! included) on whichever adapter is present (`SPLATTRACK_ADAPTER`): a
+//! synthetic blob sequence rendered by the CPU rasteriser (12 keyframes);
+//! each iteration tracks the next frame, cycling through 16 and restarting
+//! from frame 0's true pose.
+//!
+//! - `track/MODE/auto/640x480/100000`: the three modes (IT, KF, KF+IT) with
+//!   the adapter's default splatter;
+//! - `track/kf+it/BACKEND/WxH/POINTS`: KF+IT with either splatter, models of
+//!   10k and 100k points (1M with `SPLATTRACK_BENCH_1M=1`), at 640x480 and
+//!   1280x720.
+//!
+//! Each case also prints the mean time per stage (features, IT, KF, contour,
+//! the rest: the check of the pose and bookkeeping) from
+//! `TrackResult::times`: the paper's Fig. 9.
 //!
 //! `cargo bench --bench tracker`
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use splattrack::geometry::Intrinsics;
 use splattrack::gpu::GpuContext;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-use splattrack::splat::Splatter;
+use splattrack::model::PointModel;
+use splattrack::splat::{Backend, Splatter};
 use splattrack::synth::{
     SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
 use splattrack::tracker::{Mode, Tracker, TrackerConfig};
 use std::time::Duration;
 
+const FRAMES: usize = 16;
+
+fn model_sizes() -> Vec<usize> {
+    let mut n = vec![10_000, 100_000];
+    if std::env::var("SPLATTRACK_BENCH_1M").is_ok_and(|v| v != "0") {
+        n.push(1_000_000);
+    }
+    n
+}
+
+struct Scene {
+    cfg: SynthConfig,
+    frames: Vec<splattrack::synth::SynthFrame>,
+    keyframes: Vec<(String, image::RgbImage, splattrack::geometry::Pose)>,
+}
+
+/// The frames and keyframe images at one image size (the same field of
+/// view at every size).
+fn scene(w: u32, h: u32, object: &SynthObject) -> Scene {
+    let f = 600.0 * w as f64 / 640.0;
+    let cfg = SynthConfig {
+        frames: 120,
+        camera: Intrinsics::new(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0),
+        ..Default::default()
+    };
+    let bg = background(&cfg.camera, cfg.seed);
+    let frames: Vec<_> = (0..FRAMES)
+        .map(|i| render_frame(&cfg, object, &bg, i))
+        .collect();
+    let keyframes = keyframe_images(&cfg, object, &bg);
+    Scene {
+        cfg,
+        frames,
+        keyframes,
+    }
+}
+
+fn store(ctx: &GpuContext, scene: &Scene, model: &PointModel) -> KeyframeStore {
+    let splatter = Splatter::new(ctx).unwrap();
+    KeyframeStore::build(
+        ctx,
+        &splatter,
+        model,
+        &scene.cfg.camera,
+        &scene.keyframes,
+        &KeyframeConfig::default(),
+    )
+    .unwrap()
+}
+
+fn case(
+    group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
+    ctx: &GpuContext,
+    scene: &Scene,
+    model: &PointModel,
+    store: &KeyframeStore,
+    config: TrackerConfig,
+    id: String,
+) {
+    let new = || {
+        Tracker::new(
+            ctx,
+            model.clone(),
+            scene.cfg.camera,
+            Some(store.clone()),
+            config.clone(),
+            scene.frames[0].pose,
+        )
+        .unwrap()
+    };
+    let mut tracker = new();
+    let mut i = 0usize;
+    // features, IT, KF, contour, total (ms, summed).
+    let mut stages = [0.0f64; 5];
+    let mut n = 0usize;
+    group.bench_function(&id, |b| {
+        b.iter(|| {
+            if i > 0 && i.is_multiple_of(FRAMES) {
+                tracker = new();
+            }
+            let r = tracker.track(&scene.frames[i % FRAMES].image).unwrap();
+            i += 1;
+            n += 1;
+            let t = r.times;
+            for (s, d) in stages
+                .iter_mut()
+                .zip([t.features, t.it, t.kf, t.contour, t.total])
+            {
+                *s += d.as_secs_f64() * 1e3;
+            }
+        })
+    });
+    let m = stages.map(|s| s / n.max(1) as f64);
+    eprintln!(
+        "stages {id}: features {:.1} ms, IT {:.1} ms, KF {:.1} ms, contour {:.1} ms, rest {:.1} ms, total {:.1} ms (mean of {n} frames)",
+        m[0],
+        m[1],
+        m[2],
+        m[3],
+        m[4] - m[0] - m[1] - m[2] - m[3],
+        m[4]
+    );
+}
+
 fn bench(c: &mut Criterion) {
     let ctx = GpuContext::from_env().expect("a GPU adapter (lavapipe will do)");
     eprintln!("adapter: {}", ctx.describe());
-    let cfg = SynthConfig {
-        frames: 120,
-        ..Default::default()
-    };
     let object = SynthObject::blob();
-    let model = sample_model(&object, 60_000, cfg.seed).unwrap();
-    let bg = background(&cfg.camera, cfg.seed);
-    let frames: Vec<_> = (0..30)
-        .map(|i| render_frame(&cfg, &object, &bg, i))
-        .collect();
-    let kfs = keyframe_images(&cfg, &object, &bg);
-    let splatter = Splatter::new(&ctx).unwrap();
-    let store = KeyframeStore::build(
-        &ctx,
-        &splatter,
-        &model,
-        &cfg.camera,
-        &kfs,
-        &KeyframeConfig::default(),
-    )
-    .unwrap();
-    let mut group = c.benchmark_group("track_640x480");
+    let mut group = c.benchmark_group("track");
     group
         .sample_size(10)
         .warm_up_time(Duration::from_millis(500))
-        .measurement_time(Duration::from_secs(8));
-    for mode in Mode::ALL {
-        let config = TrackerConfig {
-            mode,
-            ..Default::default()
-        };
-        let mut tracker = Tracker::new(
-            &ctx,
-            model.clone(),
-            cfg.camera,
-            Some(store.clone()),
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
-        let mut i = 0usize;
-        let mut stages = [0.0f64; 3];
-        let mut n = 0usize;
-        group.bench_function(mode.name(), |b| {
-            b.iter(|| {
-                // Restart at frame 0 after the 30 frames, from its true pose.
-                if i.is_multiple_of(frames.len()) {
-                    tracker = Tracker::new(
-                        &ctx,
-                        model.clone(),
-                        cfg.camera,
-                        Some(store.clone()),
-                        TrackerConfig {
-                            mode,
-                            ..Default::default()
-                        },
-                        frames[0].pose,
-                    )
-                    .unwrap();
+        .measurement_time(Duration::from_secs(5));
+    let seed = SynthConfig::default().seed;
+    for (w, h) in [(640u32, 480u32), (1280, 720)] {
+        let scene = scene(w, h, &object);
+        for n in model_sizes() {
+            let model = sample_model(&object, n, seed).unwrap();
+            let store = store(&ctx, &scene, &model);
+            if (w, n) == (640, 100_000) {
+                for mode in [Mode::It, Mode::Kf] {
+                    let config = TrackerConfig {
+                        mode,
+                        ..Default::default()
+                    };
+                    let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
+                    case(&mut group, &ctx, &scene, &model, &store, config, id);
                 }
-                let r = tracker.track(&frames[i % frames.len()].image).unwrap();
-                i += 1;
-                n += 1;
-                for (s, d) in stages
-                    .iter_mut()
-                    .zip([r.times.features, r.times.it, r.times.kf])
-                {
-                    *s += d.as_secs_f64() * 1e3;
-                }
-            })
-        });
-        eprintln!(
-            "{}: mean per frame: features {:.1} ms, IT {:.1} ms, KF {:.1} ms",
-            mode.name(),
-            stages[0] / n as f64,
-            stages[1] / n as f64,
-            stages[2] / n as f64
-        );
+            }
+            for backend in [Backend::RenderPass, Backend::Compute] {
+                let config = TrackerConfig {
+                    mode: Mode::KfIt,
+                    splatter: backend,
+                    ..Default::default()
+                };
+                let id = format!("kf+it/{backend}/{w}x{h}/{n}");
+                case(&mut group, &ctx, &scene, &model, &store, config, id);
+            }
+        }
     }
     group.finish();
 }

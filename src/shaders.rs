@@ -30,6 +30,10 @@ pub const ALL: &[(&str, &str)] = &[
         "splat_resolve",
         include_str!("../shaders/splat_resolve.wgsl"),
     ),
+    (
+        "splat_compute",
+        include_str!("../shaders/splat_compute.wgsl"),
+    ),
     ("harris", include_str!("../shaders/harris.wgsl")),
     ("ncc", include_str!("../shaders/ncc.wgsl")),
 ];
@@ -71,6 +75,11 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("RESOLVE_WEIGHT", U32(s::RESOLVE_WEIGHT)),
         ("GATHER_NEAREST", U32(s::GATHER_NEAREST)),
         ("GATHER_BILINEAR", U32(s::GATHER_BILINEAR)),
+        ("COMPUTE_GEOMETRY", U32(s::COMPUTE_GEOMETRY)),
+        ("COMPUTE_MOTION", U32(s::COMPUTE_MOTION)),
+        ("ACC_STRIDE", U32(s::ACC_STRIDE)),
+        ("FIXED_SCALE", F32(s::FIXED_SCALE)),
+        ("BIG_SPLAT_PIXELS", U32(s::BIG_SPLAT_PIXELS)),
     ]
 };
 
@@ -197,6 +206,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<s::SplatGpu>(),
         RustLayout::of::<s::CameraUniform>(),
         RustLayout::of::<s::ResolveParams>(),
+        RustLayout::of::<s::ComputeParams>(),
         RustLayout::of::<f::Pixel>(),
         RustLayout::of::<f::HarrisParams>(),
         RustLayout::of::<f::Candidate>(),

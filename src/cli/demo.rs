@@ -7,6 +7,7 @@ use super::synth;
 use anyhow::Context;
 use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::eval::{self, EvalOptions};
+use splattrack::splat::Backend;
 use splattrack::tracker::{Mode, TrackerConfig};
 use std::path::PathBuf;
 
@@ -28,6 +29,9 @@ pub struct Args {
     pub width: u32,
     #[arg(long, default_value_t = 480)]
     pub height: u32,
+    /// The splatter: render, compute or auto (see `track --help`).
+    #[arg(long, default_value = "auto")]
+    pub splatter: Backend,
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
@@ -77,6 +81,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         let overlay = args.out.join(format!("overlay_{name}"));
         let config = TrackerConfig {
             mode,
+            splatter: args.splatter,
             ..Default::default()
         };
         let label = format!("3. track {:>5} ", mode.name());

@@ -28,6 +28,10 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         "GPU self-test: results differ from the CPU by {err} eps"
     );
     println!("self-test: ok (compute dispatch and readback agree with the CPU)");
+    let backend = splattrack::splat::Backend::Auto
+        .resolve(&ctx)
+        .context("--splatter")?;
+    println!("splatter:  {backend} (what --splatter auto picks here)");
     if let Some(path) = args.model {
         let m = super::load_model(&path)?;
         let (lo, hi) = m.bounds();

@@ -4,7 +4,7 @@
 use anyhow::{Context, bail};
 use nalgebra::{Matrix3, Vector3};
 use splattrack::geometry::{Intrinsics, Pose};
-use splattrack::splat::{Attribute, GpuModel, SplatImage, Splatter, viz};
+use splattrack::splat::{Attribute, Backend, GpuModel, SplatImage, SplatParams, Splatter, viz};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::ValueEnum, Clone, Copy, Debug)]
@@ -39,6 +39,9 @@ pub struct Args {
     /// What to render.
     #[arg(long, value_enum, default_value = "color")]
     pub attribute: AttributeArg,
+    /// The splatter: render, compute or auto (see `track --help`).
+    #[arg(long, default_value = "auto")]
+    pub splatter: Backend,
 }
 
 /// Parses "r11,r12,...,r33,tx,ty,tz".
@@ -125,7 +128,13 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let pose = pick_pose(&args)?;
     let model = super::load_model(&args.model)?;
     let ctx = super::gpu(adapter)?;
-    let splatter = Splatter::new(&ctx)?;
+    let splatter = Splatter::with_params(
+        &ctx,
+        SplatParams {
+            backend: args.splatter,
+            ..Default::default()
+        },
+    )?;
     let gm = GpuModel::new(&ctx, &model).with_context(|| args.model.display().to_string())?;
     let attr = attribute(args.attribute);
     let img = splatter

@@ -6,6 +6,7 @@
 use anyhow::bail;
 use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::io::guard::{check_output, check_output_dir};
+use splattrack::splat::Backend;
 use splattrack::tracker::{ConfigError, Modalities, Mode, TrackerConfig};
 use std::path::PathBuf;
 
@@ -52,6 +53,11 @@ pub struct Args {
     /// Track only the first N frames.
     #[arg(long)]
     pub frames: Option<usize>,
+    /// The splatter: render (render pass), compute (compute shader with
+    /// atomics) or auto ($SPLATTRACK_SPLATTER when set, else compute where
+    /// the adapter supports it: the faster measured, BENCHMARKS.md).
+    #[arg(long, default_value = "auto")]
+    pub splatter: Backend,
     #[command(flatten)]
     pub tuning: Tuning,
 }
@@ -202,6 +208,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = TrackerConfig {
         mode: args.mode,
         modalities: args.modalities,
+        splatter: args.splatter,
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {

@@ -106,3 +106,34 @@ pub const GATHER_BILINEAR: u32 = 1;
 
 /// Workgroup edge of `resolve` (8x8 pixels per workgroup).
 pub const RESOLVE_WORKGROUP: u32 = 8;
+
+wgsl_struct! {
+    /// Parameters of the compute splatter (shaders/splat_compute.wgsl).
+    #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    pub struct ComputeParams {
+        pub width: u32,
+        pub height: u32,
+        /// Number of splats.
+        pub count: u32,
+        /// [`COMPUTE_GEOMETRY`] | [`COMPUTE_MOTION`].
+        pub flags: u32,
+    }
+}
+
+/// `ComputeParams.flags`: accumulate depth and normal.
+pub const COMPUTE_GEOMETRY: u32 = 1;
+/// `ComputeParams.flags`: accumulate what the motion predictors need.
+pub const COMPUTE_MOTION: u32 = 2;
+/// Fixed-point sums per pixel of the compute splatter: w, w r, w g, w b,
+/// w z / zv, w nx, w ny, w nz, w zv / z (zv: the pixel's visibility depth).
+pub const ACC_STRIDE: u32 = 9;
+/// Units per 1.0 of the compute splatter's fixed-point sums (2^20): a
+/// resolution of 1e-6 and room for 2048 full-weight contributions.
+pub const FIXED_SCALE: f32 = 1_048_576.0;
+
+/// Footprints above this many pixels (32 x 32) are walked by a whole
+/// workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`), not by one
+/// thread: splats of a dense model stay one per thread, a huge or
+/// near-plane splat no longer serialises on one. (At 64 px, the ~15 px
+/// splats of a 10k-point sphere took about twice as long on lavapipe.)
+pub const BIG_SPLAT_PIXELS: u32 = 1024;

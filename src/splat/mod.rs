@@ -53,6 +53,7 @@
 
 mod attributes;
 mod bounds;
+mod compute;
 pub mod cpu;
 mod error;
 mod gather;
@@ -73,14 +74,91 @@ pub use splatter::Splatter;
 pub use targets::{SplatImage, SplatTargets};
 pub use window::Window;
 
-/// Which splatting implementation renders. Only the render-pass path exists
-/// now; DESIGN.md section 5 measured a compute path (fixed-point atomics)
-/// ~14x faster on an H100, which would be a second variant writing the same
-/// accumulation targets, tested against [`cpu`] like this one.
+/// Which splatting implementation renders. Both write the same
+/// accumulation targets (so [`Splatter::read`], [`Splatter::gather`] and
+/// every consumer work on either) and are tested against [`cpu`] and each
+/// other (tests/splat_compute.rs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 pub enum Backend {
+    /// [`SPLATTER_ENV`] when set, else [`Backend::Compute`] wherever the
+    /// adapter supports it (five storage textures per stage), else
+    /// [`Backend::RenderPass`]. Measured (BENCHMARKS.md): on lavapipe a
+    /// KF+IT frame with a 100k-point model takes half the time with the
+    /// compute splatter (the render pass is faster only for sparse models
+    /// of large splats); on an H100 DESIGN.md section 5 measured a compute
+    /// splat ~14x faster than the render pass.
     #[default]
+    Auto,
+    /// Instanced quads through the rasteriser, additive blending.
     RenderPass,
+    /// Compute kernels: depth by atomic max on inverted depth bits,
+    /// attributes by fixed-point atomic adds (module docs of
+    /// shaders/splat_compute.wgsl).
+    Compute,
+}
+
+/// Environment variable that overrides [`Backend::Auto`]:
+/// `render`, `compute` or `auto`.
+pub const SPLATTER_ENV: &str = "SPLATTRACK_SPLATTER";
+
+impl Backend {
+    /// Parses `render`, `compute` or `auto` (the `--splatter` flag).
+    pub fn parse(s: &str) -> Option<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "auto" => Some(Self::Auto),
+            "render" | "render-pass" | "renderpass" => Some(Self::RenderPass),
+            "compute" => Some(Self::Compute),
+            _ => None,
+        }
+    }
+
+    /// The name the `--splatter` flag takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Auto => "auto",
+            Self::RenderPass => "render",
+            Self::Compute => "compute",
+        }
+    }
+
+    /// The back end that renders on `ctx`: `self` unless it is
+    /// [`Backend::Auto`], which takes [`SPLATTER_ENV`] when set, else the
+    /// compute splatter where the adapter supports it.
+    pub fn resolve(self, ctx: &crate::gpu::GpuContext) -> Result<Self, SplatError> {
+        if self != Self::Auto {
+            return Ok(self);
+        }
+        if let Ok(v) = std::env::var(SPLATTER_ENV) {
+            if !v.trim().is_empty() {
+                let b = Self::parse(&v).ok_or_else(|| {
+                    SplatError::Unsupported(format!(
+                        "{SPLATTER_ENV}={v:?}: expected render, compute or auto"
+                    ))
+                })?;
+                if b != Self::Auto {
+                    return Ok(b);
+                }
+            }
+        }
+        Ok(if compute::supported(ctx) {
+            Self::Compute
+        } else {
+            Self::RenderPass
+        })
+    }
+}
+
+impl std::fmt::Display for Backend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Backend {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        Self::parse(s).ok_or_else(|| format!("{s:?}: expected render, compute or auto"))
+    }
 }
 
 /// Tunable constants of the splatting maths (shared with [`cpu`]).
@@ -101,7 +179,7 @@ impl Default for SplatParams {
             epsilon: 1.0,
             lowpass_px: 0.75,
             default_color: [0.75, 0.75, 0.75],
-            backend: Backend::RenderPass,
+            backend: Backend::Auto,
         }
     }
 }

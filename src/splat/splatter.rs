@@ -1,13 +1,14 @@
 //! The GPU splatter: pipelines for the three passes and the gather kernel
 //! (the module docs of [`super`] say how it works).
 
+use super::compute::ComputeSplatter;
 use super::gpu_data::{
     GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
 };
 use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, target_slots};
 use super::{
-    Attribute, Attributes, GatherMode, GatherSample, GpuModel, SplatError, SplatImage, SplatParams,
-    SplatTargets,
+    Attribute, Attributes, Backend, GatherMode, GatherSample, GpuModel, SplatError, SplatImage,
+    SplatParams, SplatTargets,
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{
@@ -28,6 +29,10 @@ pub struct Splatter {
     gather: wgpu::ComputePipeline,
     /// Bound where an entry point has no points to read.
     dummy_points: wgpu::Buffer,
+    /// The back end that renders (never [`Backend::Auto`]).
+    backend: Backend,
+    /// The compute back end's pipelines, when it renders.
+    compute: Option<ComputeSplatter>,
 }
 
 impl Splatter {
@@ -36,6 +41,11 @@ impl Splatter {
     }
 
     pub fn with_params(ctx: &GpuContext, params: SplatParams) -> Result<Self, SplatError> {
+        let backend = params.backend.resolve(ctx)?;
+        let compute = match backend {
+            Backend::Compute => Some(ComputeSplatter::new(ctx)?),
+            _ => None,
+        };
         let need = TARGETS as u32 * 16;
         if ctx.limits.max_color_attachments < TARGETS as u32
             || ctx.limits.max_color_attachment_bytes_per_sample < need
@@ -161,11 +171,19 @@ impl Splatter {
             resolve,
             gather,
             dummy_points,
+            backend,
+            compute,
         })
     }
 
     pub fn params(&self) -> &SplatParams {
         &self.params
+    }
+
+    /// The back end that renders: [`Backend::RenderPass`] or
+    /// [`Backend::Compute`] (what [`Backend::Auto`] chose on this adapter).
+    pub fn backend(&self) -> Backend {
+        self.backend
     }
 
     /// Splats `model` at `pose` into `targets` (whose size must be the
@@ -204,6 +222,11 @@ impl Splatter {
             });
         }
         let uniform = model.bounds.view(cam, pose, &self.params)?;
+        if let Some(compute) = &self.compute {
+            compute.render(ctx, model, &uniform, attrs, targets, timer)?;
+            targets.rendered = Some(attrs);
+            return Ok(());
+        }
         ctx.queue
             .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(&uniform));
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -19,6 +19,8 @@ pub struct SplatTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) uniform: wgpu::Buffer,
     pub(super) rendered: Option<Attributes>,
+    /// Scratch of the compute back end, made on its first render here.
+    pub(super) compute: Option<super::compute::Scratch>,
 }
 
 impl SplatTargets {
@@ -47,7 +49,9 @@ impl SplatTargets {
                     ACC_FORMAT,
                     wgpu::TextureUsages::RENDER_ATTACHMENT
                         | wgpu::TextureUsages::TEXTURE_BINDING
-                        | wgpu::TextureUsages::COPY_SRC,
+                        | wgpu::TextureUsages::COPY_SRC
+                        // Written by the compute back end.
+                        | wgpu::TextureUsages::STORAGE_BINDING,
                 )
             })
             .collect();
@@ -74,6 +78,7 @@ impl SplatTargets {
             depth_view,
             uniform,
             rendered: None,
+            compute: None,
         }
     }
 

@@ -223,6 +223,9 @@ pub struct TrackerConfig {
     /// rounding, tests/tracker.rs). Off: the loop as it was before, the
     /// whole image every time and every render made anew (for comparison).
     pub windows: bool,
+    /// Which splatter renders ([`crate::splat::Backend`]; `Auto`:
+    /// `$SPLATTRACK_SPLATTER`, else the compute splatter where supported).
+    pub splatter: crate::splat::Backend,
 }
 
 impl Default for TrackerConfig {
@@ -255,6 +258,7 @@ impl Default for TrackerConfig {
             modalities: Modalities::default(),
             contour: super::contour::ContourConfig::default(),
             windows: true,
+            splatter: crate::splat::Backend::Auto,
         }
     }
 }

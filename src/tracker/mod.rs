@@ -346,7 +346,13 @@ impl Tracker {
             model.radii.iter_mut().for_each(|r| *r = r.max(floor));
         }
         let gpu = ctx;
-        let splatter = Splatter::new(gpu)?;
+        let splatter = Splatter::with_params(
+            gpu,
+            crate::splat::SplatParams {
+                backend: config.splatter,
+                ..Default::default()
+            },
+        )?;
         let geometry = GpuModel::new(gpu, &model)?;
         let targets = SplatTargets::new(gpu, cam.width, cam.height);
         let (box_lo, box_hi) = {

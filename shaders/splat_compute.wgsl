@@ -1,0 +1,450 @@
+// The compute-shader splatter: the same EWA splatting as splat.wgsl (same
+// footprint, kernel, ray-splat intersection, culling, visibility push-back
+// and less-or-equal depth test), written with atomics instead of the
+// rasteriser and blending (Dehais et al. 2010, sections 2.3 and 3.2;
+// Botsch et al. 2005). One thread per splat walks the pixels of its
+// screen-space bounding box (the quad the render pass would rasterise);
+// footprints of more than BIG_SPLAT_PIXELS are listed instead and walked by
+// a whole workgroup (`visibility_big`, `accumulate_big`), so a large or
+// near-plane splat does not serialise on one thread:
+//
+// 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
+//    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders
+//    like its bits; the key is 0 for the cleared depth 1.0, so the buffer
+//    is cleared with zeros);
+// 2. `accumulate`: fragments passing the depth test add w * attribute as
+//    fixed point (FIXED_SCALE units) with atomicAdd on i32. Every value
+//    added is about [-1, 1] times w: colour, the normal, and the depth as
+//    z / zv and zv / z, with zv the pixel's visibility depth (a fragment
+//    passes only within the push-back in front of it, so both are close to
+//    1 and keep six digits at any distance or depth range). The twelve motion
+//    predictors are not accumulated: the surface point seen through a pixel
+//    is always on that pixel's ray, X = z d, so the translation predictors
+//    are (predictor at d) / z and the rotation predictors do not depend on z
+//    (eq. 5); their weighted sum is rebuilt exactly from sum(w / z) and
+//    sum(w) (9 atomics per fragment instead of 16).
+// 3. `finish`: one thread per pixel of the splats' bounding box (found in
+//    pass 1, dispatched indirectly) converts the sums into the render
+//    pass's RGBA32F accumulation targets (cleared beforehand) (layout in src/splat/mod.rs), so
+//    the normalisation and gather kernels (splat_resolve.wgsl) serve both
+//    back ends unchanged.
+//
+// Headroom: sums are i32 in units of 2^-20, so a pixel holds up to 2048
+// full-weight contributions of the visible surface (weights are at most 1
+// and at least exp(-2); a pixel of a dense model sees tens).
+// Functions marked "twin" are copies of splat.wgsl's; change both together
+// (tests/splat_compute.rs compares the two back ends pixel by pixel).
+
+// Twin: `SplatGpu` in src/splat/gpu_data.rs.
+struct SplatGpu {
+    pos_radius: vec4<f32>,
+    normal: vec4<f32>,
+}
+
+// Twin: `ComputeParams` in src/splat/gpu_data.rs.
+struct ComputeParams {
+    width: u32,
+    height: u32,
+    // Number of splats.
+    count: u32,
+    // COMPUTE_GEOMETRY | COMPUTE_MOTION: which groups to accumulate.
+    flags: u32,
+}
+
+@group(0) @binding(0) var<uniform> cam: CameraUniform;
+@group(0) @binding(1) var<uniform> params: ComputeParams;
+@group(0) @binding(2) var<storage, read> splats: array<SplatGpu>;
+@group(0) @binding(3) var<storage, read_write> depth_key: array<atomic<u32>>;
+@group(0) @binding(4) var<storage, read_write> acc: array<atomic<i32>>;
+@group(0) @binding(5) var t0: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(6) var t1: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(7) var t2: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(8) var t3: texture_storage_2d<rgba32float, write>;
+@group(0) @binding(9) var t4: texture_storage_2d<rgba32float, write>;
+// The pixels any splat may touch: COMPUTE_BOUNDS_* (the minima stored as
+// 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
+// max serves both), then the indirect dispatch of `finish` over them.
+// [4]: the number of large splats listed in `big`.
+@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
+// Splats whose footprint exceeds BIG_SPLAT_PIXELS: a workgroup shares each.
+@group(0) @binding(11) var<storage, read_write> big: array<u32>;
+// One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
+// models textured by different keyframes share the geometry).
+@group(0) @binding(12) var<storage, read> colors: array<u32>;
+// The indirect dispatches of `finish` ([0..3]) and of the large splats ([4..7]).
+@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 8>;
+
+var<workgroup> wg_bounds: array<atomic<u32>, 4>;
+
+// Bits of 1.0f: the cleared depth.
+const DEPTH_ONE: u32 = 0x3f800000u;
+
+fn project(x: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(cam.intr.x * x.x / x.z + cam.intr.z, cam.intr.y * x.y / x.z + cam.intr.w);
+}
+
+// Twin of splat.wgsl's `tangent`.
+fn tangent(n: vec3<f32>) -> vec3<f32> {
+    let a = abs(n);
+    var axis = vec3<f32>(1.0, 0.0, 0.0);
+    if a.y <= a.x && a.y <= a.z {
+        axis = vec3<f32>(0.0, 1.0, 0.0);
+    } else if a.z <= a.x && a.z <= a.y {
+        axis = vec3<f32>(0.0, 0.0, 1.0);
+    }
+    return normalize(cross(n, axis));
+}
+
+// A splat after the vertex stage of splat.wgsl: camera-space centre,
+// normal, radius, projected centre, colour, and the pixels whose centres
+// its quad covers (lo..=hi, clipped to the image; empty when culled).
+struct Setup {
+    center: vec3<f32>,
+    normal: vec3<f32>,
+    radius: f32,
+    proj: vec2<f32>,
+    color: vec3<f32>,
+    lo: vec2<i32>,
+    hi: vec2<i32>,
+}
+
+// Twin of `vs_splat`: culling and the quad's bounds, then the pixel range
+// as the rasteriser samples it (centres inside [lo, hi], OpenCV pixels).
+fn setup(i: u32) -> Setup {
+    var out: Setup;
+    out.lo = vec2<i32>(0, 0);
+    out.hi = vec2<i32>(-1, -1);
+    let s = splats[i];
+    let p = s.pos_radius.xyz;
+    let r = s.pos_radius.w;
+    let c = to_camera(cam, p);
+    let m = normalize(rotate(cam, s.normal.xyz));
+    out.center = c;
+    out.radius = r;
+    out.normal = m;
+    out.color = unpack4x8unorm(colors[i]).xyz;
+    let near = cam.size.z;
+    if c.z <= near || dot(m, c) >= 0.0 || !(r > 0.0) {
+        return out;
+    }
+    let pc = project(c);
+    out.proj = pc;
+    let h = cam.params.y;
+    var lo = pc - vec2<f32>(h, h);
+    var hi = pc + vec2<f32>(h, h);
+    let tu = tangent(m) * r;
+    let tv = cross(m, tangent(m)) * r;
+    let k0 = c + tu + tv;
+    let k1 = c + tu - tv;
+    let k2 = c - tu + tv;
+    let k3 = c - tu - tv;
+    if min(min(k0.z, k1.z), min(k2.z, k3.z)) <= near {
+        lo = vec2<f32>(-1.0, -1.0);
+        hi = cam.size.xy;
+    } else {
+        let q0 = project(k0);
+        let q1 = project(k1);
+        let q2 = project(k2);
+        let q3 = project(k3);
+        lo = min(lo, min(min(q0, q1), min(q2, q3)));
+        hi = max(hi, max(max(q0, q1), max(q2, q3)));
+    }
+    lo = clamp(lo - vec2<f32>(0.5, 0.5), vec2<f32>(-1.0, -1.0), cam.size.xy);
+    hi = clamp(hi + vec2<f32>(0.5, 0.5), vec2<f32>(-1.0, -1.0), cam.size.xy);
+    out.lo = vec2<i32>(max(ceil(lo), vec2<f32>(0.0, 0.0)));
+    out.hi = vec2<i32>(min(floor(hi), cam.size.xy - vec2<f32>(1.0, 1.0)));
+    return out;
+}
+
+struct Hit {
+    x: vec3<f32>,
+    w: f32,
+    ray_len: f32,
+}
+
+// Twin of splat.wgsl's `intersect`, at the pixel centre `uv` (OpenCV).
+fn intersect(s: Setup, uv: vec2<f32>) -> Hit {
+    var hit: Hit;
+    hit.w = 0.0;
+    let d = vec3<f32>((uv.x - cam.intr.z) / cam.intr.x, (uv.y - cam.intr.w) / cam.intr.y, 1.0);
+    hit.ray_len = length(d);
+    let near = cam.size.z;
+    let c = s.center;
+    let m = s.normal;
+    let denom = dot(m, d);
+    var rho_obj2 = 1e30;
+    var x = d * c.z;
+    if abs(denom) > 1e-12 {
+        let t = dot(m, c) / denom;
+        if t > near {
+            let xi = d * t;
+            let q = xi - c;
+            rho_obj2 = dot(q, q) / (s.radius * s.radius);
+            let reach = s.radius + 3.0 * cam.params.y * c.z / min(cam.intr.x, cam.intr.y);
+            if rho_obj2 <= 1.0 || dot(q, q) <= reach * reach {
+                x = xi;
+            }
+        }
+    }
+    let e = (uv - s.proj) / cam.params.y;
+    let rho_scr2 = dot(e, e);
+    let rho2 = min(rho_obj2, rho_scr2);
+    if rho2 > 1.0 || x.z <= near {
+        return hit;
+    }
+    hit.x = x;
+    hit.w = exp(-2.0 * rho2);
+    return hit;
+}
+
+// Twin of splat.wgsl's `depth_of`.
+fn depth_of(z: f32) -> f32 {
+    return clamp((z - cam.size.z) / (cam.size.w - cam.size.z), 0.0, 1.0);
+}
+
+// The splat of this invocation: dispatches are 2-D when a model needs more
+// than 65535 workgroups in x.
+fn splat_index(id: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return id.y * groups.x * WORKGROUP_1D + id.x;
+}
+
+// Pixels in a splat's range.
+fn footprint(s: Setup) -> u32 {
+    if s.lo.x > s.hi.x || s.lo.y > s.hi.y {
+        return 0u;
+    }
+    return u32(s.hi.x - s.lo.x + 1) * u32(s.hi.y - s.lo.y + 1);
+}
+
+fn visibility_pixel(s: Setup, x: i32, y: i32) {
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 {
+        return;
+    }
+    let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
+    let pixel = u32(y) * params.width + u32(x);
+    atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
+}
+
+// The large splats of `big`, one workgroup per splat at a time, its
+// threads striding over the footprint.
+@compute @workgroup_size(WORKGROUP_1D)
+fn visibility_big(
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = atomicLoad(&bounds[4]);
+    for (var j = wg.x; j < n; j += groups.x) {
+        let s = setup(big[j]);
+        // 8x8 blocks of lanes over the footprint (no integer division:
+        // it is scalarised on CPU adapters).
+        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    visibility_pixel(s, q.x, q.y);
+                }
+            }
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn visibility(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) li: u32,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    if li < 4u {
+        atomicStore(&wg_bounds[li], 0u);
+    }
+    workgroupBarrier();
+    let i = splat_index(id, groups);
+    if i < params.count {
+        let s = setup(i);
+        if s.lo.x <= s.hi.x && s.lo.y <= s.hi.y {
+            atomicMax(&wg_bounds[0], 0xffffffffu - u32(s.lo.x));
+            atomicMax(&wg_bounds[1], 0xffffffffu - u32(s.lo.y));
+            atomicMax(&wg_bounds[2], u32(s.hi.x) + 1u);
+            atomicMax(&wg_bounds[3], u32(s.hi.y) + 1u);
+        }
+        if footprint(s) > BIG_SPLAT_PIXELS {
+            // Too long a walk for one thread: a workgroup shares it.
+            big[atomicAdd(&bounds[4], 1u)] = i;
+        } else {
+            for (var y = s.lo.y; y <= s.hi.y; y++) {
+                for (var x = s.lo.x; x <= s.hi.x; x++) {
+                    visibility_pixel(s, x, y);
+                }
+            }
+        }
+    }
+    // One global atomic per workgroup and bound, not one per splat.
+    workgroupBarrier();
+    if li < 4u {
+        let b = atomicLoad(&wg_bounds[li]);
+        if b != 0u {
+            atomicMax(&bounds[li], b);
+        }
+    }
+}
+
+// The workgroups of `finish`: the bounding box of the splats' pixels.
+@compute @workgroup_size(1)
+fn finish_dispatch() {
+    let x1 = atomicLoad(&bounds[2]);
+    let y1 = atomicLoad(&bounds[3]);
+    if x1 == 0u || y1 == 0u {
+        for (var k = 0u; k < 8u; k++) {
+            finish_args[k] = 0u;
+        }
+        return;
+    }
+    let x0 = 0xffffffffu - atomicLoad(&bounds[0]);
+    let y0 = 0xffffffffu - atomicLoad(&bounds[1]);
+    finish_args[0] = (x1 - x0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
+    finish_args[1] = (y1 - y0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
+    finish_args[2] = 1u;
+    let nbig = atomicLoad(&bounds[4]);
+    finish_args[4] = min(nbig, 65535u);
+    finish_args[5] = select(0u, 1u, nbig > 0u);
+    finish_args[6] = select(0u, 1u, nbig > 0u);
+}
+
+fn fixed(v: f32) -> i32 {
+    return i32(round(v * FIXED_SCALE));
+}
+
+fn accumulate_pixel(s: Setup, x: i32, y: i32) {
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 {
+        return;
+    }
+    let pixel = u32(y) * params.width + u32(x);
+    // The render pass's less-or-equal test against pass 1's depth.
+    let vis = DEPTH_ONE - atomicLoad(&depth_key[pixel]);
+    if bitcast<u32>(depth_of(hit.x.z)) > vis {
+        return;
+    }
+    let w = hit.w;
+    let base = pixel * ACC_STRIDE;
+    atomicAdd(&acc[base], fixed(w));
+    atomicAdd(&acc[base + 1u], fixed(w * s.color.x));
+    atomicAdd(&acc[base + 2u], fixed(w * s.color.y));
+    atomicAdd(&acc[base + 3u], fixed(w * s.color.z));
+    let geometry = (params.flags & COMPUTE_GEOMETRY) != 0u;
+    let motion = (params.flags & COMPUTE_MOTION) != 0u;
+    if geometry || motion {
+        // Depths relative to the pixel's visibility depth zv: every
+        // fragment passing the test lies within the push-back in front of
+        // it, so z / zv is about 1 at any distance.
+        let zv = visible_z(vis);
+        if geometry {
+            atomicAdd(&acc[base + 4u], fixed(w * hit.x.z / zv));
+            atomicAdd(&acc[base + 5u], fixed(w * s.normal.x));
+            atomicAdd(&acc[base + 6u], fixed(w * s.normal.y));
+            atomicAdd(&acc[base + 7u], fixed(w * s.normal.z));
+        }
+        if motion {
+            atomicAdd(&acc[base + 8u], fixed(w * zv / hit.x.z));
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let i = splat_index(id, groups);
+    if i >= params.count {
+        return;
+    }
+    let s = setup(i);
+    if footprint(s) > BIG_SPLAT_PIXELS {
+        return; // accumulate_big
+    }
+    for (var y = s.lo.y; y <= s.hi.y; y++) {
+        for (var x = s.lo.x; x <= s.hi.x; x++) {
+            accumulate_pixel(s, x, y);
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn accumulate_big(
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = atomicLoad(&bounds[4]);
+    for (var j = wg.x; j < n; j += groups.x) {
+        let s = setup(big[j]);
+        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    accumulate_pixel(s, q.x, q.y);
+                }
+            }
+        }
+    }
+}
+
+// Camera-space z of a visibility depth (bits of the [0, 1] depth): the
+// inverse of depth_of, the same in `accumulate` and `finish`.
+fn visible_z(bits: u32) -> f32 {
+    return cam.size.z + bitcast<f32>(bits) * (cam.size.w - cam.size.z);
+}
+
+// J(X) v at X = d (z = 1): splat.wgsl's `jac` with the 1 / z factored out.
+fn jac1(d: vec3<f32>, v: vec3<f32>) -> vec2<f32> {
+    return vec2<f32>(cam.intr.x * (v.x - d.x * v.z), cam.intr.y * (v.y - d.y * v.z));
+}
+
+fn sum(base: u32, k: u32) -> f32 {
+    return f32(atomicLoad(&acc[base + k])) / FIXED_SCALE;
+}
+
+@compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
+fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
+    // Dispatched over the splats' bounding box only (`finish_dispatch`);
+    // the targets were cleared to zero elsewhere, as the render pass does.
+    let id = gid.xy + vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
+    if id.x >= min(params.width, atomicLoad(&bounds[2])) || id.y >= min(params.height, atomicLoad(&bounds[3])) {
+        return;
+    }
+    let p = vec2<i32>(id.xy);
+    let pixel = id.y * params.width + id.x;
+    let base = pixel * ACC_STRIDE;
+    let w = sum(base, 0u);
+    let empty = atomicLoad(&acc[base]) <= 0;
+    let zero = vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    textureStore(t0, p, select(vec4<f32>(sum(base, 1u), sum(base, 2u), sum(base, 3u), w), zero, empty));
+    let zv = visible_z(DEPTH_ONE - atomicLoad(&depth_key[pixel]));
+    if (params.flags & COMPUTE_GEOMETRY) != 0u {
+        let g = vec4<f32>(zv * sum(base, 4u), sum(base, 5u), sum(base, 6u), sum(base, 7u));
+        textureStore(t1, p, select(g, zero, empty));
+    }
+    if (params.flags & COMPUTE_MOTION) != 0u {
+        // sum(w l) = sum(w / z) * (translation predictors at d)
+        //          + sum(w) * (rotation predictors at d).
+        let d = vec3<f32>((f32(id.x) - cam.intr.z) / cam.intr.x, (f32(id.y) - cam.intr.w) / cam.intr.y, 1.0);
+        let wiz = sum(base, 8u) / zv;
+        let tx = jac1(d, vec3<f32>(1.0, 0.0, 0.0)) * wiz;
+        let ty = jac1(d, vec3<f32>(0.0, 1.0, 0.0)) * wiz;
+        let tz = jac1(d, vec3<f32>(0.0, 0.0, 1.0)) * wiz;
+        let rx = jac1(d, vec3<f32>(0.0, -d.z, d.y)) * w;
+        let ry = jac1(d, vec3<f32>(d.z, 0.0, -d.x)) * w;
+        let rz = jac1(d, vec3<f32>(-d.y, d.x, 0.0)) * w;
+        textureStore(t2, p, select(vec4<f32>(tx, ty), zero, empty));
+        textureStore(t3, p, select(vec4<f32>(tz, rx), zero, empty));
+        textureStore(t4, p, select(vec4<f32>(ry, rz), zero, empty));
+    }
+    // Leave the scratch cleared for the next render: every pixel a splat
+    // touched is in this box, so no full-image clear is needed.
+    atomicStore(&depth_key[pixel], 0u);
+    for (var k = 0u; k < ACC_STRIDE; k++) {
+        atomicStore(&acc[base + k], 0);
+    }
+}

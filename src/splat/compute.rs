@@ -1,0 +1,326 @@
+//! The compute-shader back end of the splatter ([`super::Backend::Compute`]):
+//! one thread per splat, or a workgroup per splat for footprints over
+//! [`BIG_SPLAT_PIXELS`](super::gpu_data::BIG_SPLAT_PIXELS) pixels;
+//! the passes of the render pass (visibility, attributes) as compute
+//! kernels with atomics (shaders/splat_compute.wgsl says how), writing the
+//! same accumulation targets, so that normalisation, gather and every
+//! consumer of [`super::SplatTargets`] work on either back end.
+//!
+//! Why: a GPU with weak raster units (NVIDIA's compute parts, H100/H200)
+//! splats far faster with atomics in a compute shader than through a render
+//! pass (DESIGN.md section 5 measured ~14x on an H100); on lavapipe this
+//! kernel halves a tracked frame with a 100k-point model, though the render
+//! pass stays faster for sparse models of large splats (BENCHMARKS.md).
+//!
+//! A crop (splatting only the object's region) needs no change to the
+//! kernels' maths: the pixel range of each splat is clipped to the image
+//! in `setup`; clipping it to a rectangle instead (an origin and size in
+//! `ComputeParams`, pixel indices relative to the origin) and dispatching
+//! `finish` over the rectangle only is all it takes.
+
+use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams};
+use super::targets::{TARGETS, target_slots};
+use super::{Attributes, GpuModel, SplatError, SplatTargets};
+use crate::gpu::{
+    GpuContext, GpuTimer, GrowBuffer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass,
+    storage, workgroups,
+};
+
+/// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
+/// the depth keys, the fixed-point sums and the parameters.
+pub(super) struct Scratch {
+    depth: wgpu::Buffer,
+    acc: wgpu::Buffer,
+    params: wgpu::Buffer,
+    /// The splats' pixel bounding box (4 u32).
+    bounds: wgpu::Buffer,
+    /// The indirect dispatches of `finish` and of the large splats (bound
+    /// alone in group 1).
+    finish_args: wgpu::Buffer,
+    /// The list of large splats (one u32 per splat of the largest model).
+    big: GrowBuffer,
+    finish_bind: Option<wgpu::BindGroup>,
+}
+
+impl Scratch {
+    fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, SplatError> {
+        let pixels = width as u64 * height as u64;
+        let acc_bytes = pixels * ACC_STRIDE as u64 * 4;
+        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
+        ctx.check_buffer_size("compute splatter sums", acc_bytes, usage)?;
+        Ok(Self {
+            depth: ctx.buffer("compute splat depth", pixels * 4, usage),
+            acc: ctx.buffer("compute splat sums", acc_bytes, usage),
+            params: ctx.buffer(
+                "compute splat params",
+                std::mem::size_of::<ComputeParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            bounds: ctx.buffer("compute splat bounds", 32, usage),
+            big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
+            finish_args: ctx.buffer(
+                "compute splat finish dispatch",
+                32,
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
+            ),
+            finish_bind: None,
+        })
+    }
+}
+
+// `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
+const _: () = assert!(WORKGROUP_1D == 64);
+
+/// Whether the adapter can run the compute back end (it writes the five
+/// accumulation targets as storage textures in one pass).
+pub(super) fn supported(ctx: &GpuContext) -> bool {
+    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
+}
+
+/// The pipelines of the compute back end.
+pub(super) struct ComputeSplatter {
+    layout: wgpu::BindGroupLayout,
+    args_layout: wgpu::BindGroupLayout,
+    visibility: wgpu::ComputePipeline,
+    accumulate: wgpu::ComputePipeline,
+    visibility_big: wgpu::ComputePipeline,
+    accumulate_big: wgpu::ComputePipeline,
+    finish_dispatch: wgpu::ComputePipeline,
+    finish: wgpu::ComputePipeline,
+}
+
+impl ComputeSplatter {
+    pub(super) fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
+        if !supported(ctx) {
+            return Err(SplatError::Unsupported(format!(
+                "the compute splatter writes {TARGETS} storage textures, the adapter allows {}",
+                ctx.limits.max_storage_textures_per_shader_stage
+            )));
+        }
+        let texture = |binding| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: wgpu::ShaderStages::COMPUTE,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: super::targets::ACC_FORMAT,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        };
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let layout = ctx.bind_group_layout(
+            "splat compute",
+            &[
+                buffer_entry(0, wgpu::ShaderStages::COMPUTE, uniform),
+                compute_entry(1, uniform),
+                compute_entry(2, storage(true)),
+                compute_entry(3, storage(false)),
+                compute_entry(4, storage(false)),
+                texture(5),
+                texture(6),
+                texture(7),
+                texture(8),
+                texture(9),
+                compute_entry(10, storage(false)),
+                compute_entry(11, storage(false)),
+                compute_entry(12, storage(true)),
+            ],
+        );
+        let args_layout = ctx.bind_group_layout(
+            "splat compute finish dispatch",
+            &[compute_entry(0, storage(false))],
+        );
+        let module = ctx.shader("splat_compute")?;
+        let pipeline = |entry: &str, layouts: &[Option<&wgpu::BindGroupLayout>]| {
+            ctx.catch(&format!("splat_compute::{entry}"), || {
+                let pl = ctx
+                    .device
+                    .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                        label: Some(entry),
+                        bind_group_layouts: layouts,
+                        immediate_size: 0,
+                    });
+                ctx.device
+                    .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry),
+                        layout: Some(&pl),
+                        module: &module,
+                        entry_point: Some(entry),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+            })
+        };
+        let one = [Some(&layout)];
+        Ok(Self {
+            visibility: pipeline("visibility", &one)?,
+            accumulate: pipeline("accumulate", &one)?,
+            visibility_big: pipeline("visibility_big", &one)?,
+            accumulate_big: pipeline("accumulate_big", &one)?,
+            finish: pipeline("finish", &one)?,
+            finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
+            layout,
+            args_layout,
+        })
+    }
+
+    /// Passes 1 and 2 into `targets` (checked by the caller to be the
+    /// camera's size), timed as "visibility" and "attributes" like the
+    /// render pass (the conversion into the targets counts as attributes).
+    pub(super) fn render(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        uniform: &CameraUniform,
+        attrs: Attributes,
+        targets: &mut SplatTargets,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<(), SplatError> {
+        if targets.compute.is_none() {
+            targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
+        }
+        let scratch = targets.compute.as_mut().expect("just made");
+        ctx.check_buffer_size(
+            "compute splatter list of large splats",
+            model.count as u64 * 4,
+            wgpu::BufferUsages::STORAGE,
+        )?;
+        scratch.big.ensure(ctx, model.count as u64 * 4);
+        let args_layout = &self.args_layout;
+        let finish_args = &scratch.finish_args;
+        let finish_bind = scratch
+            .finish_bind
+            .get_or_insert_with(|| {
+                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("splat compute finish dispatch"),
+                    layout: args_layout,
+                    entries: &[wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: finish_args.as_entire_binding(),
+                    }],
+                })
+            })
+            .clone();
+        let scratch = targets.compute.as_ref().expect("just made");
+        let params = ComputeParams {
+            width: targets.width,
+            height: targets.height,
+            count: model.count,
+            flags: if attrs.geometry { COMPUTE_GEOMETRY } else { 0 }
+                | if attrs.motion { COMPUTE_MOTION } else { 0 },
+        };
+        ctx.queue
+            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.queue
+            .write_buffer(&scratch.params, 0, bytemuck::bytes_of(&params));
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: targets.uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: scratch.params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: model.geometry.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: scratch.depth.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: scratch.acc.as_entire_binding(),
+            },
+        ];
+        for (i, v) in targets.acc_views.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 5 + i as u32,
+                resource: wgpu::BindingResource::TextureView(v),
+            });
+        }
+        entries.push(wgpu::BindGroupEntry {
+            binding: 10,
+            resource: scratch.bounds.as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 11,
+            resource: scratch.big.get().as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 12,
+            resource: model.colors.as_entire_binding(),
+        });
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat compute"),
+            layout: &self.layout,
+            entries: &entries,
+        });
+        // Splats per dispatch row: at most 65535 workgroups in x.
+        let groups = workgroups(model.count, WORKGROUP_1D);
+        let gx = groups.clamp(1, 65_535);
+        let gy = groups.div_ceil(gx);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        // The depth keys and sums are zero: made so (wgpu zeroes new
+        // buffers), and `finish` clears every pixel it reads.
+        enc.clear_buffer(&scratch.bounds, 0, None);
+        {
+            // The targets start at zero, as the render pass's clear does;
+            // `finish` writes only the splats' bounding box.
+            let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = target_slots(attrs)
+                .iter()
+                .zip(&targets.acc_views)
+                .map(|(&on, view)| {
+                    on.then_some(wgpu::RenderPassColorAttachment {
+                        view,
+                        depth_slice: None,
+                        resolve_target: None,
+                        ops: wgpu::Operations {
+                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                            store: wgpu::StoreOp::Store,
+                        },
+                    })
+                })
+                .collect();
+            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splat compute clear"),
+                color_attachments: &colors,
+                depth_stencil_attachment: None,
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+        }
+        {
+            let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
+            pass.set_pipeline(&self.visibility);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.finish_dispatch);
+            pass.set_bind_group(1, &finish_bind, &[]);
+            pass.dispatch_workgroups(1, 1, 1);
+        }
+        {
+            // The large splats' visibility opens this pass: their dispatch
+            // reads arguments that `finish_dispatch` wrote through group 1,
+            // which is not bound here.
+            let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(&self.visibility_big);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.set_pipeline(&self.accumulate);
+            pass.dispatch_workgroups(gx, gy, 1);
+            pass.set_pipeline(&self.accumulate_big);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.set_pipeline(&self.finish);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
+        }
+        if let Some(t) = timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+}

@@ -1,0 +1,466 @@
+//! The compute back end of the splatter (`Backend::Compute`,
+//! shaders/splat_compute.wgsl) against the CPU reference (src/splat/cpu.rs),
+//! against the render-pass back end, and against an independent triangle
+//! rasterisation of a mesh (synth's CPU rasteriser), so that every consumer
+//! of the splatter gets the same images from either back end.
+//!
+//! Tolerances. The compute path sums fixed-point values (2^-20 units of
+//! normalised quantities) where the render pass blends f32, and rebuilds the
+//! predictors from sum(w / z) (exact algebra, different rounding): where
+//! both cover a pixel colour agrees to 1e-4, depth to 1e-5 relative and the
+//! predictors to 1e-4 relative (to the pixel's largest predictor), as in
+//! tests/splat_reference.rs; as there, rounding may flip a depth or
+//! truncation test sitting on its threshold, so at most 0.5% of the covered
+//! pixels may disagree. Against the mesh: the criteria of
+//! tests/splat_mesh.rs (IoU >= 0.97, depth median <= 0.2% and p99 <= 1.5%
+//! of the diameter, predictors median <= 1% and p95 <= 5%).
+
+use glam::Vec3;
+use nalgebra::{Vector2, Vector3};
+use splattrack::geometry::{Intrinsics, Pose, look_at};
+use splattrack::gpu::{self, GpuContext, GpuTimer};
+use splattrack::model::{AttributeSource, PointModel, TriangleMesh, shapes};
+use splattrack::rng::Rng;
+use splattrack::splat::{
+    Attribute, Attributes, Backend, GatherMode, GpuModel, SplatImage, SplatParams, SplatTargets,
+    Splatter, cpu,
+};
+use splattrack::synth::raster;
+
+fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+fn splatter(backend: Backend) -> Splatter {
+    let s = Splatter::with_params(
+        ctx(),
+        SplatParams {
+            backend,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(s.backend(), backend);
+    s
+}
+
+fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsics, Pose) {
+    let w = 80 + rng.below(120) as u32;
+    let h = 60 + rng.below(100) as u32;
+    let f = rng.uniform(0.8, 1.6) * w as f64;
+    let cam = Intrinsics::new(
+        w,
+        h,
+        f,
+        f * rng.uniform(0.9, 1.1),
+        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+    );
+    let eye = target + rng.unit_vector() * dist;
+    let pose = look_at(&eye, &target, &rng.unit_vector());
+    (cam, pose)
+}
+
+const READ: [Attribute; 5] = [
+    Attribute::Color,
+    Attribute::Depth,
+    Attribute::Normal,
+    Attribute::Motion,
+    Attribute::Weight,
+];
+
+fn images(s: &Splatter, model: &PointModel, cam: &Intrinsics, pose: &Pose) -> Vec<SplatImage> {
+    let gm = GpuModel::new(ctx(), model).unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    s.render(ctx(), &gm, cam, pose, Attributes::ALL, &mut t)
+        .unwrap();
+    READ.iter()
+        .map(|&a| s.read(ctx(), &t, a).unwrap())
+        .collect()
+}
+
+fn cpu_images(model: &PointModel, cam: &Intrinsics, pose: &Pose) -> Vec<SplatImage> {
+    let acc = cpu::splat(model, cam, pose, &SplatParams::default()).unwrap();
+    READ.iter().map(|&a| acc.resolve(a)).collect()
+}
+
+/// Covered pixels, and those whose coverage or values disagree.
+fn disagreement(a: &[SplatImage], b: &[SplatImage]) -> (usize, usize) {
+    let (w, h) = (a[0].width, a[0].height);
+    let (mut covered, mut bad) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let (va, vb) = (a[1].is_valid(x, y), b[1].is_valid(x, y));
+            covered += (va || vb) as usize;
+            if va != vb {
+                bad += 1;
+                continue;
+            }
+            if !va {
+                continue;
+            }
+            let maxdiff = |k: usize| {
+                a[k].pixel(x, y)
+                    .iter()
+                    .zip(b[k].pixel(x, y))
+                    .map(|(p, q)| (p - q).abs())
+                    .fold(0.0f32, f32::max)
+            };
+            let z = b[1].pixel(x, y)[0];
+            let scale = b[3]
+                .pixel(x, y)
+                .iter()
+                .map(|v| v.abs())
+                .fold(1e-6, f32::max);
+            let ok = maxdiff(0) <= 1e-4
+                && maxdiff(1) <= 1e-5 * z
+                && maxdiff(2) <= 1e-4
+                && maxdiff(3) <= 1e-4 * scale
+                && maxdiff(4) <= 1e-4 * b[4].pixel(x, y)[0].max(1.0);
+            bad += !ok as usize;
+        }
+    }
+    (covered, bad)
+}
+
+fn check(model: &PointModel, cam: &Intrinsics, pose: &Pose, label: &str) {
+    let compute = images(&splatter(Backend::Compute), model, cam, pose);
+    let render = images(&splatter(Backend::RenderPass), model, cam, pose);
+    let reference = cpu_images(model, cam, pose);
+    // The render pass against the reference too: the other tests of the
+    // suite splat with `auto`, the compute splatter on lavapipe.
+    for (one, other, name) in [
+        (&compute, &reference, "compute vs CPU reference"),
+        (&compute, &render, "compute vs render pass"),
+        (&render, &reference, "render pass vs CPU reference"),
+    ] {
+        let (covered, bad) = disagreement(one, other);
+        eprintln!("{label}: {name}: {bad} of {covered} covered pixels disagree");
+        assert!(covered > 100, "{label}: only {covered} pixels covered");
+        assert!(
+            bad as f64 <= 0.005 * covered as f64,
+            "{label}: {name}: {bad} of {covered} covered pixels disagree"
+        );
+    }
+}
+
+#[test]
+fn compute_matches_cpu_and_render_pass_on_random_clouds() {
+    let mut rng = Rng::new(4242);
+    for trial in 0..5 {
+        let n = 300 + rng.below(3000) as usize;
+        // Radii from sub-pixel to tens of pixels.
+        let model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, n, 0.005, 0.25);
+        let dist = rng.uniform(2.5, 6.0);
+        let (cam, pose) = random_view(&mut rng, Vector3::zeros(), dist);
+        check(&model, &cam, &pose, &format!("cloud {trial} ({n} splats)"));
+    }
+}
+
+#[test]
+fn compute_matches_cpu_and_render_pass_on_a_dense_sphere() {
+    let mut rng = Rng::new(8);
+    let model = shapes::sphere(Vec3::new(0.1, -0.2, 0.3), 1.0, 8000, 1.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::new(0.1, -0.2, 0.3), 3.5);
+    check(&model, &cam, &pose, "sphere");
+}
+
+#[test]
+fn large_footprints_shared_by_a_workgroup_agree() {
+    // Splats hundreds to thousands of pixels wide (over BIG_SPLAT_PIXELS:
+    // walked by a workgroup), mixed with small ones (one thread each).
+    let mut rng = Rng::new(99);
+    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
+    let small = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
+    model.positions.extend(&small.positions);
+    model.normals.extend(&small.normals);
+    model.radii.extend(&small.radii);
+    if let (Some(c), Some(d)) = (&mut model.colors, &small.colors) {
+        c.extend(d);
+    }
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
+    check(&model, &cam, &pose, "large and small splats");
+}
+
+#[test]
+fn a_splat_crossing_the_near_plane_covers_the_image_on_both_back_ends() {
+    // One big disc, tilted towards the camera so that it reaches behind the
+    // near plane: the whole-image footprint of vs_splat / setup, and a near
+    // plane a thousandth of the depth (the bounding sphere holds the camera).
+    let mut model = shapes::random_cloud(&mut Rng::new(1), Vec3::ZERO, 0.3, 200, 0.01, 0.05);
+    model.positions.push(Vec3::new(0.0, 0.0, 0.0));
+    model.normals.push(Vec3::new(0.0, 0.6, -0.8));
+    model.radii.push(3.0);
+    if let Some(c) = &mut model.colors {
+        c.push([0.2, 0.4, 0.6]);
+    }
+    let cam = Intrinsics::new(64, 48, 60.0, 60.0, 31.5, 23.5);
+    let pose = look_at(
+        &Vector3::new(0.0, 0.0, -1.0),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    check(&model, &cam, &pose, "near plane");
+}
+
+#[test]
+fn gather_and_partial_renders_agree_between_back_ends() {
+    let mut rng = Rng::new(5);
+    let model = shapes::sphere(Vec3::ZERO, 1.0, 6000, 1.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let points: Vec<[f32; 2]> = (0..400)
+        .map(|_| {
+            [
+                rng.uniform(-2.0, cam.width as f64 + 1.0) as f32,
+                rng.uniform(-2.0, cam.height as f64 + 1.0) as f32,
+            ]
+        })
+        .collect();
+    let run = |b: Backend| {
+        let s = splatter(b);
+        let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+        s.render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut t)
+            .unwrap();
+        let g = s.gather(ctx(), &t, &points, GatherMode::Bilinear).unwrap();
+        // A colour-only render: colour and weight only, then motion is a
+        // typed error; a geometry render has normals.
+        s.render(ctx(), &gm, &cam, &pose, Attributes::COLOR, &mut t)
+            .unwrap();
+        let c = s.read(ctx(), &t, Attribute::Color).unwrap();
+        assert!(s.read(ctx(), &t, Attribute::Motion).is_err());
+        s.render(ctx(), &gm, &cam, &pose, Attributes::GEOMETRY, &mut t)
+            .unwrap();
+        let n = s.read(ctx(), &t, Attribute::Normal).unwrap();
+        (g, c, n)
+    };
+    let (gc, cc, nc) = run(Backend::Compute);
+    let (gr, cr, nr) = run(Backend::RenderPass);
+    let mut valid = 0;
+    for (i, (a, b)) in gc.iter().zip(&gr).enumerate() {
+        assert_eq!(a.valid, b.valid, "point {i} {:?}", points[i]);
+        if !a.valid {
+            continue;
+        }
+        valid += 1;
+        let scale = b.motion.iter().map(|v| v.abs()).fold(1e-6, f32::max);
+        for k in 0..12 {
+            assert!(
+                (a.motion[k] - b.motion[k]).abs() <= 1e-4 * scale,
+                "point {i}"
+            );
+        }
+        assert!((a.depth - b.depth).abs() <= 1e-5 * b.depth, "point {i}");
+    }
+    assert!(valid > 50, "only {valid} valid samples");
+    for (a, b, what) in [(&cc, &cr, "colour"), (&nc, &nr, "normal")] {
+        let bad = a
+            .data
+            .iter()
+            .zip(&b.data)
+            .filter(|(p, q)| !((p.is_nan() && q.is_nan()) || (*p - *q).abs() <= 1e-4))
+            .count();
+        assert!(
+            bad as f64 <= 0.005 * a.data.len() as f64,
+            "{what}: {bad} of {} values differ",
+            a.data.len()
+        );
+    }
+}
+
+#[test]
+fn reused_targets_keep_nothing_of_the_previous_render() {
+    // The compute back end clears only what it touched: a large view, then
+    // a small one elsewhere into the same targets, must equal the small
+    // one rendered alone (and the CPU reference).
+    let model = shapes::sphere(Vec3::ZERO, 0.5, 4000, 1.2);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let cam = Intrinsics::new(120, 90, 110.0, 110.0, 59.5, 44.5);
+    let near = look_at(
+        &Vector3::new(0.0, 0.2, -1.3),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let far = look_at(
+        &Vector3::new(1.5, 0.3, -5.0),
+        &Vector3::new(0.4, 0.0, 0.0),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let s = splatter(Backend::Compute);
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    s.render(ctx(), &gm, &cam, &near, Attributes::ALL, &mut t)
+        .unwrap();
+    s.render(ctx(), &gm, &cam, &far, Attributes::ALL, &mut t)
+        .unwrap();
+    let reused: Vec<SplatImage> = READ
+        .iter()
+        .map(|&a| s.read(ctx(), &t, a).unwrap())
+        .collect();
+    let fresh = images(&s, &model, &cam, &far);
+    // Integer sums do not depend on the order of the atomics: bit for bit.
+    for (k, (a, b)) in reused.iter().zip(&fresh).enumerate() {
+        let differ = a
+            .data
+            .iter()
+            .zip(&b.data)
+            .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
+            .count();
+        assert_eq!(differ, 0, "{:?}: {differ} values differ", READ[k]);
+    }
+    let (covered, bad) = disagreement(&reused, &cpu_images(&model, &cam, &far));
+    assert!(covered > 50 && bad as f64 <= 0.005 * covered as f64);
+    assert!(
+        covered < (cam.width * cam.height / 2) as usize,
+        "the far view is small"
+    );
+}
+
+#[test]
+fn compute_passes_are_timed_like_the_render_pass() {
+    let model = shapes::sphere(Vec3::ZERO, 0.5, 2000, 1.2);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let cam = Intrinsics::new(96, 72, 90.0, 90.0, 47.5, 35.5);
+    let pose = look_at(
+        &Vector3::new(0.0, 0.0, -2.0),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let s = splatter(Backend::Compute);
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    let mut timer = GpuTimer::new(ctx(), 2);
+    s.render_timed(
+        ctx(),
+        &gm,
+        &cam,
+        &pose,
+        Attributes::ALL,
+        &mut t,
+        Some(&mut timer),
+    )
+    .unwrap();
+    let r = timer.read(ctx()).unwrap();
+    if ctx().has_timestamps() {
+        for pass in ["visibility", "attributes"] {
+            let ms = r.get(pass).unwrap_or_else(|| panic!("{pass} not timed"));
+            assert!(ms.is_finite() && ms >= 0.0, "{pass}: {ms} ms");
+        }
+    }
+}
+
+#[test]
+fn auto_picks_the_compute_splatter_where_supported_and_the_flag_names_parse() {
+    for (s, b) in [
+        ("render", Backend::RenderPass),
+        ("compute", Backend::Compute),
+        ("auto", Backend::Auto),
+        (" Compute ", Backend::Compute),
+    ] {
+        assert_eq!(Backend::parse(s), Some(b));
+        assert_eq!(s.parse::<Backend>().unwrap(), b);
+    }
+    assert!(Backend::parse("raster").is_none());
+    assert!("gpu".parse::<Backend>().is_err());
+    for b in [Backend::Auto, Backend::RenderPass, Backend::Compute] {
+        assert_eq!(Backend::parse(b.name()), Some(b));
+    }
+    // The rule (the environment variable, when a run sets it, wins).
+    if std::env::var(splattrack::splat::SPLATTER_ENV).is_err() {
+        // Five storage textures per stage: lavapipe and every desktop GPU.
+        let want = if ctx().limits.max_storage_textures_per_shader_stage >= 5 {
+            Backend::Compute
+        } else {
+            Backend::RenderPass
+        };
+        assert_eq!(Backend::Auto.resolve(ctx()).unwrap(), want);
+        assert_eq!(Splatter::new(ctx()).unwrap().backend(), want);
+    }
+}
+
+/// tests/splat_mesh.rs's check, on the compute back end, at 320x240.
+fn against_mesh(mesh: &TriangleMesh, n: usize, diameter: f64, dist: f64, label: &str) {
+    let cam = Intrinsics::new(320, 240, 300.0, 301.0, 159.2, 120.4);
+    let mut model = mesh.sample(n, 17).unwrap();
+    let r = 2.0 * (mesh.area() / n as f64).sqrt();
+    model.radii.fill(r as f32);
+    model.provenance.radii = AttributeSource::Estimated;
+    let s = splatter(Backend::Compute);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let mut targets = SplatTargets::new(ctx(), cam.width, cam.height);
+    for k in 0..2 {
+        let a = 2.1 * k as f64 + 0.4;
+        let eye = Vector3::new(a.cos(), a.sin(), 0.6 - 0.5 * k as f64).normalize() * dist;
+        let pose = look_at(&eye, &Vector3::zeros(), &Vector3::new(0.0, 0.0, 1.0));
+        s.render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut targets)
+            .unwrap();
+        let depth = s.read(ctx(), &targets, Attribute::Depth).unwrap();
+        let motion = s.read(ctx(), &targets, Attribute::Motion).unwrap();
+        let mesh_depth = raster::depth(mesh, &pose, &cam);
+        let (w, h) = (cam.width, cam.height);
+        let covered = |x: u32, y: u32| !mesh_depth[(y * w + x) as usize].is_nan();
+        let (mut inter, mut union) = (0usize, 0usize);
+        let (mut dz, mut dl) = (Vec::new(), Vec::new());
+        for y in 2..h - 2 {
+            for x in 2..w - 2 {
+                let (sv, mv) = (depth.is_valid(x, y), covered(x, y));
+                inter += (sv && mv) as usize;
+                union += (sv || mv) as usize;
+                let interior = (-2..=2i32).all(|j| {
+                    (-2..=2i32).all(|i| covered((x as i32 + i) as u32, (y as i32 + j) as u32))
+                });
+                if !sv || !interior {
+                    continue;
+                }
+                let zm = mesh_depth[(y * w + x) as usize] as f64;
+                dz.push((depth.pixel(x, y)[0] as f64 - zm).abs() / diameter);
+                let l =
+                    cam.motion_predictors(&cam.unproject(&Vector2::new(x as f64, y as f64), zm));
+                let mp = motion.pixel(x, y);
+                let err = (0..12)
+                    .map(|k| (mp[k] as f64 - l[(k % 2, k / 2)]).powi(2))
+                    .sum::<f64>()
+                    .sqrt();
+                dl.push(err / l.norm());
+            }
+        }
+        assert!(
+            dz.len() > 500,
+            "{label} pose {k}: {} interior pixels",
+            dz.len()
+        );
+        let pct = |v: &mut Vec<f64>, p: f64| {
+            v.sort_by(|a, b| a.total_cmp(b));
+            v[((v.len() - 1) as f64 * p).round() as usize]
+        };
+        let iou = inter as f64 / union as f64;
+        let (zm, z99) = (pct(&mut dz, 0.5), pct(&mut dz, 0.99));
+        let (lm, l95) = (pct(&mut dl, 0.5), pct(&mut dl, 0.95));
+        eprintln!(
+            "{label} pose {k} (compute): IoU {iou:.4}, depth/diameter median {:.3}% p99 {:.3}%, predictors median {:.3}% p95 {:.3}%",
+            100.0 * zm,
+            100.0 * z99,
+            100.0 * lm,
+            100.0 * l95
+        );
+        assert!(iou >= 0.97, "{label} pose {k}: IoU {iou}");
+        assert!(zm <= 0.002 && z99 <= 0.015, "{label} pose {k}: depth");
+        assert!(lm <= 0.01 && l95 <= 0.05, "{label} pose {k}: predictors");
+    }
+}
+
+#[test]
+fn compute_splatted_sphere_and_torus_match_their_meshes() {
+    against_mesh(
+        &TriangleMesh::sphere(0.5, 48, 96),
+        60_000,
+        1.0,
+        2.0,
+        "sphere",
+    );
+    against_mesh(
+        &TriangleMesh::torus(0.45, 0.18, 96, 48),
+        80_000,
+        2.0 * 0.63,
+        2.2,
+        "torus",
+    );
+}
