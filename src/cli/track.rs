@@ -99,6 +99,10 @@ pub struct Tuning {
     /// the model's radii).
     #[arg(long)]
     pub min_splat_px: Option<f32>,
+    /// Keep the model's splat radii where they leave gaps between splats
+    /// (default: those radii grow just enough to close the gaps).
+    #[arg(long)]
+    pub keep_radii: bool,
     /// KF+IT: frames in a row that IT alone may track when the KF step
     /// fails (default 5).
     #[arg(long)]
@@ -143,6 +147,9 @@ impl Tuning {
         set(&mut c.min_inliers, self.min_inliers);
         set(&mut c.max_residual_px, self.max_residual);
         set(&mut c.min_splat_radius_px, self.min_splat_px);
+        if self.keep_radii {
+            c.close_gaps = false;
+        }
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
         set(&mut c.contour.rounds, self.contour_rounds);
@@ -272,9 +279,12 @@ mod tests {
             min_splat_px: Some(0.0),
             max_it_only: Some(0),
             it_interior: Some(4.0),
+            keep_radii: true,
             ..Default::default()
         };
+        assert!(same.close_gaps);
         let c = t.apply(base).unwrap();
+        assert!(!c.close_gaps);
         assert_eq!(c.harris.relative_threshold, 0.001);
         assert_eq!(c.kf_search_px, 16.0);
         assert_eq!(c.kf_iterations, 2);

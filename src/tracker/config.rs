@@ -194,6 +194,11 @@ pub struct TrackerConfig {
     /// scattered empty pixels in the splatted views, and each one voids every
     /// Harris corner and NCC window that touches it. 0: the radii as given.
     pub min_splat_radius_px: f32,
+    /// Grow the splat radii that leave gaps between splats, and only those
+    /// ([`PointModel::close_gaps`](crate::model::PointModel::close_gaps)),
+    /// after the pixel floor: novel views and predictor images without
+    /// holes whatever radii the model came with. Default true.
+    pub close_gaps: bool,
     /// KF+IT: consecutive frames whose KF step may fail while a sound IT
     /// estimate stands in for it (IT alone drifts); beyond that the frame
     /// is `lost`.
@@ -242,6 +247,7 @@ impl Default for TrackerConfig {
             fuse_weight: 0.5,
             refine_window: 15,
             min_splat_radius_px: 1.0,
+            close_gaps: true,
             max_it_only_frames: 5,
             it_interior_px: 0.0,
             verify: Default::default(),

@@ -277,6 +277,17 @@ impl Tracker {
         if floor > 0.0 && floor.is_finite() {
             model.radii.iter_mut().for_each(|r| *r = r.max(floor));
         }
+        if config.close_gaps {
+            // A failure (points that all coincide) keeps the radii as given.
+            match model.close_gaps() {
+                Ok(c) => log::debug!(
+                    "{} of {} splat radii grown to close gaps",
+                    c.grown,
+                    c.points
+                ),
+                Err(e) => log::warn!("splat radii kept as given: {e}"),
+            }
+        }
         let gpu = ctx;
         let splatter = Splatter::new(gpu)?;
         let geometry = GpuModel::new(gpu, &model)?;
