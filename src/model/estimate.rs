@@ -395,8 +395,19 @@ pub(crate) fn close_gaps(
             if j == i || r.distance <= 0.0 || normals[j].dot(ni) < -0.5 {
                 continue;
             }
+            // Unfolded into the tangent plane: the projected direction at the
+            // 3-D distance. On a plane this is the projection; across a
+            // crease it lays the other face out beyond the crease instead of
+            // squeezing it onto the crease line (which would pretend that
+            // its discs cover this face up to the crease).
             let d = Vec3::from_array(pts[j]) - pi;
-            near.push(([d.dot(u), d.dot(v)], radii[j]));
+            let (x, y) = (d.dot(u), d.dot(v));
+            let flat = (x * x + y * y).sqrt();
+            if !(flat > 1e-3 * d.length()) {
+                continue;
+            }
+            let s = d.length() / flat;
+            near.push(([x * s, y * s], radii[j]));
             reach = reach.max(r.distance.sqrt());
         }
         if near.len() < 3 || !(reach > 0.0) {
