@@ -68,7 +68,9 @@ wgsl_struct! {
         pub refine_inv_2s2: f32,
         pub n_corners: u32,
         pub max_shift: f32,
-        pub _pad0: u32,
+        /// Smallest valid fraction of the structure tensor's Gaussian
+        /// weight ([`super::HarrisConfig::min_valid_weight`]).
+        pub min_weight: f32,
         pub _pad1: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -128,7 +130,9 @@ wgsl_struct! {
         /// Squared search radius in pixels; negative: no limit.
         pub radius2: f32,
         pub min_std: f32,
-        pub _pad: u32,
+        /// Smallest fraction of a window's samples that must be valid
+        /// ([`super::NccConfig::min_valid`]).
+        pub min_valid: f32,
     }
 }
 
