@@ -14,14 +14,16 @@
 // corner: gradient-orthogonality sub-pixel refinement).
 //
 // The derivative passes carry a validity flag, the minimum over their
-// support: 1 valid, 0 an invalid pixel in it, -1 it leaves the image. The
+// support: 1 valid, 0 a pinhole in it (PIXEL_HOLE: an isolated invalid
+// pixel), -1 it leaves the image or touches another invalid pixel (the
+// empty surroundings of an object). The
 // integration passes weight each gradient by its validity (1 or 0) and
 // also sum the weights, so the structure tensor is the Gaussian-weighted
 // mean of the valid gradients of its window; a window leaving the image
-// (weight -1) stays invalid. A response is valid where its own pixel is
-// valid and at least min_weight of its window's weight is (the odd
-// invalid pixel then voids only the gradients that touch it, not every
-// corner within the tensor's support).
+// or touching hard invalid pixels (weight -1) stays invalid. A response is
+// valid where its own pixel is valid and at least min_weight of its
+// window's weight is (a pinhole then voids only the gradients that touch
+// it, not every corner within the tensor's support).
 
 // Twin: HarrisParams in src/features/gpu_data.rs.
 struct HarrisParams {
@@ -143,7 +145,15 @@ fn derive(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
         var s: vec3<f32>;
         if (horizontal) {
             let p = pixels[j];
-            s = vec3<f32>(p.value, p.value, select(0.0, 1.0, pixel_valid(p)));
+            // 1 valid, 0 a pinhole (tolerated), -1 hard invalid (as if
+            // outside the image).
+            var v = -1.0;
+            if (pixel_valid(p)) {
+                v = 1.0;
+            } else if (pixel_hole(p)) {
+                v = 0.0;
+            }
+            s = vec3<f32>(p.value, p.value, v);
         } else {
             s = tmp[j].xyz;
         }

@@ -74,9 +74,10 @@ fn desc_set(i: u32, v: f32) {
 // Best per row of S (na entries), then per column (nb entries).
 @group(0) @binding(6) var<storage, read_write> best: array<Best>;
 
-// Bilinear sample (value, 1) at (x, y); (0, 0) if any of the four pixels
-// is invalid, (0, -1) if (x, y) is outside the image. Mirrors
-// GreyImage::bilinear.
+// Bilinear sample (value, 1) at (x, y); (0, 0) if one of the four pixels
+// is a pinhole (PIXEL_HOLE) and the others valid; (0, -1) if (x, y) is
+// outside the image or one of the four is another invalid pixel (the
+// window is then void). Mirrors GreyImage::bilinear.
 fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     if (w < 2u || h < 2u || !(x >= 0.0 && y >= 0.0) || x > f32(w - 1u) || y > f32(h - 1u)) {
         return vec2<f32>(0.0, -1.0);
@@ -91,7 +92,9 @@ fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     let p01 = pixels[i + w];
     let p11 = pixels[i + w + 1u];
     if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
-        return vec2<f32>(0.0, 0.0);
+        let hard = !(pixel_valid(p00) || pixel_hole(p00)) || !(pixel_valid(p10) || pixel_hole(p10))
+            || !(pixel_valid(p01) || pixel_hole(p01)) || !(pixel_valid(p11) || pixel_hole(p11));
+        return vec2<f32>(0.0, select(0.0, -1.0, hard));
     }
     let top = p00.value + fx * (p10.value - p00.value);
     let bottom = p01.value + fx * (p11.value - p01.value);

@@ -2,7 +2,7 @@
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
 use super::FeatureError;
-use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel};
+use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use crate::gpu::{
@@ -296,12 +296,8 @@ impl NccMatcher {
         };
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let pixels: Vec<Pixel> = img_a
-            .data
-            .iter()
-            .chain(&img_b.data)
-            .map(|&v| Pixel::new(v, false))
-            .collect();
+        let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
+        pixels.extend(pack_with_holes(img_b, None, false));
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();

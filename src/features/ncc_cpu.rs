@@ -4,7 +4,7 @@
 //! of a pair (see [`NccConfig::min_valid`]).
 
 use super::FeatureError;
-use super::gpu_data::{Best, NO_INDEX, NO_SCORE};
+use super::gpu_data::{Best, NO_INDEX, NO_SCORE, pinholes};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::ncc::{Match, NccConfig, mutual, sanitize};
@@ -24,19 +24,35 @@ fn min_count(min_valid: f32, d: usize) -> usize {
     (min_valid * d as f32).ceil() as usize
 }
 
-/// The sample at (x, y): `Some(None)` where it touches an invalid pixel,
-/// `None` outside the image (the shader's `sample`).
-fn sample(img: &GreyImage, x: f32, y: f32) -> Option<Option<f32>> {
+/// The sample at (x, y): `Some(None)` where it touches a pinhole (and
+/// otherwise valid pixels), `None` outside the image or where it touches
+/// another invalid pixel (the shader's `sample`).
+fn sample(img: &GreyImage, holes: &[bool], x: f32, y: f32) -> Option<Option<f32>> {
     let (w, h) = (img.width, img.height);
     if w < 2 || h < 2 || !(x >= 0.0 && y >= 0.0) || x > (w - 1) as f32 || y > (h - 1) as f32 {
         return None;
     }
-    Some(img.bilinear(x, y))
+    if let Some(v) = img.bilinear(x, y) {
+        return Some(Some(v));
+    }
+    let x0 = (x.floor() as usize).min(w - 2);
+    let y0 = (y.floor() as usize).min(h - 2);
+    let i = y0 * w + x0;
+    let tolerated = [i, i + 1, i + w, i + w + 1]
+        .iter()
+        .all(|&j| img.data[j].is_finite() || holes[j]);
+    tolerated.then_some(None)
 }
 
 /// The window of `p`, or `None` if it leaves the image, has fewer valid
 /// samples than `cfg.min_valid` allows, or is flat. The `vectorize` kernel.
-fn vectorize(img: &GreyImage, p: [f32; 2], cfg: &NccConfig, stride: usize) -> Option<Window> {
+fn vectorize(
+    img: &GreyImage,
+    holes: &[bool],
+    p: [f32; 2],
+    cfg: &NccConfig,
+    stride: usize,
+) -> Option<Window> {
     let win = cfg.window;
     let half = (win / 2) as f32;
     let d = (win * win) as usize;
@@ -45,7 +61,7 @@ fn vectorize(img: &GreyImage, p: [f32; 2], cfg: &NccConfig, stride: usize) -> Op
     for k in 0..d as u32 {
         let u = (k % win) as f32 - half;
         let v = (k / win) as f32 - half;
-        let s = sample(img, p[0] + u, p[1] + v)?;
+        let s = sample(img, holes, p[0] + u, p[1] + v)?;
         if let Some(s) = s {
             raw[k as usize] = Some(s);
             sum += s;
@@ -146,13 +162,14 @@ pub fn ncc_match_cpu(
             })
             .collect()
     };
+    let (holes_a, holes_b) = (pinholes(img_a), pinholes(img_b));
     let da: Vec<Option<Window>> = pa
         .iter()
-        .map(|p| vectorize(img_a, *p, cfg, stride))
+        .map(|p| vectorize(img_a, &holes_a, *p, cfg, stride))
         .collect();
     let db: Vec<Option<Window>> = pb
         .iter()
-        .map(|p| vectorize(img_b, *p, cfg, stride))
+        .map(|p| vectorize(img_b, &holes_b, *p, cfg, stride))
         .collect();
     let radius2 = cfg.search_radius.map(|r| r * r);
     let none = Best {

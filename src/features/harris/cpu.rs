@@ -4,7 +4,9 @@
 
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
 use crate::features::FeatureError;
-use crate::features::gpu_data::{Candidate, INVALID_RESPONSE, PIXEL_ALLOWED, PIXEL_VALID, Pixel};
+use crate::features::gpu_data::{
+    Candidate, INVALID_RESPONSE, PIXEL_ALLOWED, PIXEL_HOLE, PIXEL_VALID, Pixel,
+};
 use crate::features::image::{GreyImage, check_mask};
 
 struct Maps {
@@ -33,7 +35,8 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
                 }
                 let p = pixels[(y * wi + xx) as usize];
                 if p.flags & PIXEL_VALID == 0 {
-                    ok = ok.min(0.0);
+                    // A pinhole is tolerated, other invalid pixels are not.
+                    ok = ok.min(if p.flags & PIXEL_HOLE != 0 { 0.0 } else { -1.0 });
                 }
                 let k = (t + rd) as usize;
                 a += p.value * dd[k];

@@ -216,11 +216,7 @@ impl HarrisConfig {
 /// The image and mask as the GPU sees them: NaN (invalid) pixels become 0
 /// with the valid flag cleared.
 pub(crate) fn pack_pixels(img: &GreyImage, mask: Option<&[bool]>) -> Vec<Pixel> {
-    img.data
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| Pixel::new(v, mask.is_none_or(|m| m[i])))
-        .collect()
+    super::gpu_data::pack_with_holes(img, mask, true)
 }
 
 /// The best `max_corners` candidates, spread over the image: each is ranked
