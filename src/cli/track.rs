@@ -103,6 +103,10 @@ pub struct Tuning {
     /// (default: those radii grow just enough to close the gaps).
     #[arg(long)]
     pub keep_radii: bool,
+    /// Harris and NCC: the fraction of a window that must be valid where it
+    /// has pinholes (default 0.8; 1: any invalid pixel voids the window).
+    #[arg(long)]
+    pub min_valid: Option<f32>,
     /// KF+IT: frames in a row that IT alone may track when the KF step
     /// fails (default 5).
     #[arg(long)]
@@ -149,6 +153,13 @@ impl Tuning {
         set(&mut c.min_splat_radius_px, self.min_splat_px);
         if self.keep_radii {
             c.close_gaps = false;
+        }
+        if let Some(v) = self.min_valid {
+            if !(v > 0.0 && v <= 1.0) {
+                bail!("--min-valid {v}: must be in (0, 1]");
+            }
+            c.harris.min_valid_weight = v;
+            c.ncc.min_valid = v;
         }
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
