@@ -403,14 +403,14 @@ pub(crate) fn close_gaps(
             let d = Vec3::from_array(pts[j]) - pi;
             let (x, y) = (d.dot(u), d.dot(v));
             let flat = (x * x + y * y).sqrt();
-            if !(flat > 1e-3 * d.length()) {
+            if flat <= 1e-3 * d.length() {
                 continue;
             }
             let s = d.length() / flat;
             near.push(([x * s, y * s], radii[j]));
             reach = reach.max(r.distance.sqrt());
         }
-        if near.len() < 3 || !(reach > 0.0) {
+        if near.len() < 3 || reach <= 0.0 {
             continue;
         }
         let l = 2.0 * reach;
