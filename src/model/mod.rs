@@ -33,7 +33,7 @@ mod schema;
 pub mod shapes;
 
 pub use error::ModelError;
-pub use estimate::{GAP_NEIGHBOURS, GapClosure};
+pub use estimate::{GAP_MODEL_FRACTION, GAP_NEIGHBOURS, GapClosure};
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};
 
 use crate::progress::{ProgressEvent, ProgressFn};

@@ -279,9 +279,18 @@ impl Tracker {
         }
         if config.close_gaps {
             // A failure (points that all coincide) keeps the radii as given.
-            match model.close_gaps() {
+            let mut closed = model.clone();
+            match closed.close_gaps() {
+                Ok(c) if c.grown as f64 >= crate::model::GAP_MODEL_FRACTION * c.points as f64 => {
+                    log::debug!(
+                        "{} of {} splat radii grown to close gaps",
+                        c.grown,
+                        c.points
+                    );
+                    model = closed;
+                }
                 Ok(c) => log::debug!(
-                    "{} of {} splat radii grown to close gaps",
+                    "splat radii kept: only {} of {} leave a gap (pinholes at most)",
                     c.grown,
                     c.points
                 ),
