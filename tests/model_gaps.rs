@@ -119,3 +119,20 @@ fn random_samplings_grow_only_around_their_gaps_and_end_covered() {
         assert!(c.mean_after < 0.8 * rmax, "{c:?}, largest {rmax}");
     }
 }
+
+#[test]
+fn tiny_and_degenerate_models_are_left_as_they_are() {
+    let mut two = shapes::plane(Vec3::ZERO, Vec3::Z, 1.0, 2, 0.1);
+    two.positions.truncate(2);
+    two.normals.truncate(2);
+    two.radii.truncate(2);
+    let before = two.radii.clone();
+    assert_eq!(two.close_gaps().unwrap().grown, 0);
+    assert_eq!(two.radii, before);
+    // All points at one position: no neighbour at a positive distance.
+    let mut same = shapes::plane(Vec3::ZERO, Vec3::Z, 1.0, 4, 0.1);
+    same.positions.fill(Vec3::new(0.5, 0.5, 0.5));
+    let before = same.radii.clone();
+    assert_eq!(same.close_gaps().unwrap().grown, 0);
+    assert_eq!(same.radii, before);
+}

@@ -23,7 +23,7 @@ use glam::DVec3;
 use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, Pose, look_at};
 use splattrack::gpu::{self, GpuContext};
-use splattrack::model::{PointModel, TriangleMesh};
+use splattrack::model::{GAP_MODEL_FRACTION, PointModel, TriangleMesh};
 use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets, Splatter};
 use splattrack::synth::raster;
 use std::path::Path;
@@ -147,9 +147,11 @@ fn stratified_samplings_with_default_radii_come_out_nearly_unchanged() {
             100.0 * (c.mean_after / c.mean_before - 1.0)
         );
         // Measured: 3% (blob) to 6% (box, along its creases) of the radii
-        // grow, the mean radius by 0.2% to 0.6%.
+        // grow, the mean radius by 0.2% to 0.6%: below the tracker's gate,
+        // so it keeps these radii.
         assert!(
-            c.grown * 10 <= c.points && c.mean_after <= 1.01 * c.mean_before,
+            (c.grown as f64) < GAP_MODEL_FRACTION * c.points as f64
+                && c.mean_after <= 1.01 * c.mean_before,
             "{name}: {c:?}"
         );
     }

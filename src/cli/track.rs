@@ -291,11 +291,13 @@ mod tests {
             max_it_only: Some(0),
             it_interior: Some(4.0),
             keep_radii: true,
+            min_valid: Some(0.8),
             ..Default::default()
         };
         assert!(same.close_gaps);
         let c = t.apply(base).unwrap();
         assert!(!c.close_gaps);
+        assert_eq!((c.ncc.min_valid, c.harris.min_valid_weight), (0.8, 0.8));
         assert_eq!(c.harris.relative_threshold, 0.001);
         assert_eq!(c.kf_search_px, 16.0);
         assert_eq!(c.kf_iterations, 2);
@@ -329,6 +331,14 @@ mod tests {
             },
             Tuning {
                 min_splat_px: Some(f32::INFINITY),
+                ..Default::default()
+            },
+            Tuning {
+                min_valid: Some(0.0),
+                ..Default::default()
+            },
+            Tuning {
+                min_valid: Some(f32::NAN),
                 ..Default::default()
             },
         ];
