@@ -44,6 +44,11 @@ fn pixel_valid(p: Pixel) -> bool {
     return (p.flags & PIXEL_VALID) != 0u;
 }
 
+// An invalid pixel that is a pinhole (tolerated by Harris and NCC).
+fn pixel_hole(p: Pixel) -> bool {
+    return (p.flags & PIXEL_HOLE) != 0u;
+}
+
 // A corner may be reported here (inside the mask).
 fn pixel_allowed(p: Pixel) -> bool {
     return (p.flags & PIXEL_ALLOWED) != 0u;

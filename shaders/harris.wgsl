@@ -13,9 +13,17 @@
 // compaction into `candidates`), and refine (one thread per selected
 // corner: gradient-orthogonality sub-pixel refinement).
 //
-// Every convolution pass carries a validity flag: the minimum over its
-// support, with pixels outside the image counting as invalid. So a response
-// is valid only if its whole support lies on valid pixels inside the image.
+// The derivative passes carry a validity flag, the minimum over their
+// support: 1 valid, 0 a pinhole in it (PIXEL_HOLE: an isolated invalid
+// pixel), -1 it leaves the image or touches another invalid pixel (the
+// empty surroundings of an object). The
+// integration passes weight each gradient by its validity (1 or 0) and
+// also sum the weights, so the structure tensor is the Gaussian-weighted
+// mean of the valid gradients of its window; a window leaving the image
+// or touching hard invalid pixels (weight -1) stays invalid. A response is
+// valid where its own pixel is valid and at least min_weight of its
+// window's weight is (a pinhole then voids only the gradients that touch
+// it, not every corner within the tensor's support).
 
 // Twin: HarrisParams in src/features/gpu_data.rs.
 struct HarrisParams {
@@ -32,7 +40,7 @@ struct HarrisParams {
     refine_inv_2s2: f32,
     n_corners: u32,
     max_shift: f32,
-    pad0: u32,
+    min_weight: f32,
     pad1: u32,
     pad2: u32,
     // g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -131,13 +139,21 @@ fn derive(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     for (var t = -rd; t <= rd; t++) {
         let j = tap(id, t, horizontal);
         if (j < 0) {
-            ok = 0.0;
+            ok = -1.0;
             continue;
         }
         var s: vec3<f32>;
         if (horizontal) {
             let p = pixels[j];
-            s = vec3<f32>(p.value, p.value, select(0.0, 1.0, pixel_valid(p)));
+            // 1 valid, 0 a pinhole (tolerated), -1 hard invalid (as if
+            // outside the image).
+            var v = -1.0;
+            if (pixel_valid(p)) {
+                v = 1.0;
+            } else if (pixel_hole(p)) {
+                v = 0.0;
+            }
+            s = vec3<f32>(p.value, p.value, v);
         } else {
             s = tmp[j].xyz;
         }
@@ -159,27 +175,31 @@ fn integrate(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
     var sxx = 0.0;
     var syy = 0.0;
     var sxy = 0.0;
-    var ok = 1.0;
+    var wsum = 0.0;
+    var outside_image = false;
     for (var t = -ri; t <= ri; t++) {
         let j = tap(id, t, horizontal);
         if (j < 0) {
-            ok = 0.0;
+            outside_image = true;
             continue;
         }
         var s: vec4<f32>;
         if (horizontal) {
             let g = grad[j];
-            s = vec4<f32>(g.x * g.x, g.y * g.y, g.x * g.y, g.z);
+            let v = select(0.0, 1.0, g.z > 0.5);
+            outside_image = outside_image || g.z < -0.5;
+            s = vec4<f32>(g.x * g.x * v, g.y * g.y * v, g.x * g.y * v, v);
         } else {
             s = tmp[j];
+            outside_image = outside_image || s.w < 0.0;
         }
-        ok = min(ok, s.w);
         let c = weight(base + u32(t + ri));
         sxx = sxx + s.x * c;
         syy = syy + s.y * c;
         sxy = sxy + s.z * c;
+        wsum = wsum + s.w * c;
     }
-    return vec4<f32>(sxx, syy, sxy, ok);
+    return vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
 }
 
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
@@ -209,15 +229,20 @@ fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let st = integrate(id, false);
-    let sxx = st.x;
-    let syy = st.y;
-    let sxy = st.z;
-    let ok = st.w;
+    let wsum = st.w;
     let i = index(id);
-    if (ok < 0.5) {
+    // The taps sum to 1: a full window's weight is 1 up to rounding.
+    if (!(wsum >= params.min_weight * (1.0 - 1.0e-5)) || !pixel_valid(pixels[i])) {
         response[i] = INVALID_RESPONSE;
         return;
     }
+    var scale = 1.0;
+    if (wsum < 1.0 - 1.0e-5) {
+        scale = 1.0 / wsum;
+    }
+    let sxx = st.x * scale;
+    let syy = st.y * scale;
+    let sxy = st.z * scale;
     let tr = sxx + syy;
     let r = (sxx * syy - sxy * sxy) - params.k * (tr * tr);
     response[i] = r;

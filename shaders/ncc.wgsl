@@ -7,7 +7,15 @@
 // vectorize: one thread per feature of A then B; samples the w x w window
 //   bilinearly at the feature's sub-pixel position into one row of the
 //   (na + nb) x stride descriptor buffer (the paper's n x w^2 layout, rows
-//   zero-padded to a multiple of NCC_TILE), zero-mean and unit-norm.
+//   zero-padded to a multiple of NCC_TILE), zero-mean and unit-norm. The
+//   raw samples go to a second block of the same shape (INVALID_SAMPLE
+//   where a sample touches an invalid pixel). ok: 0 no match (the window
+//   leaves the image, has fewer than min_valid of its samples valid, or is
+//   flat), 1 every sample valid, 2 some invalid.
+// Pairs of windows with ok 1 score the dot product of their unit rows;
+//   pairs where one has holes score the NCC over the samples valid in
+//   both (their common set), from the raw rows, when that set holds at
+//   least min_valid of the window and is textured in both.
 // score_tiled / score_direct: S = A B^T, as a tiled matrix product
 //   (NCC_TILE x NCC_TILE tiles in workgroup memory, for GPUs) or one thread per entry reading
 //   the rows directly (for CPU adapters such as lavapipe, where workgroup
@@ -30,7 +38,14 @@ struct NccParams {
     offset_b: u32,
     radius2: f32,
     min_std: f32,
-    pad: u32,
+    min_valid: f32,
+}
+
+// A raw sample that touches an invalid pixel (grey values are in 0..1).
+const INVALID_SAMPLE: f32 = -1.0e30;
+
+fn is_valid_sample(v: f32) -> bool {
+    return v > -1.0e29;
 }
 
 // Twin: Best in src/features/gpu_data.rs.
@@ -62,11 +77,13 @@ fn desc_set(i: u32, v: f32) {
 // Best per row of S (na entries), then per column (nb entries).
 @group(0) @binding(6) var<storage, read_write> best: array<Best>;
 
-// Bilinear sample (value, 1) at (x, y), or (0, 0) if any of the four
-// pixels is outside the image or invalid. Mirrors GreyImage::bilinear.
+// Bilinear sample (value, 1) at (x, y); (0, 0) if one of the four pixels
+// is a pinhole (PIXEL_HOLE) and the others valid; (0, -1) if (x, y) is
+// outside the image or one of the four is another invalid pixel (the
+// window is then void). Mirrors GreyImage::bilinear.
 fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     if (w < 2u || h < 2u || !(x >= 0.0 && y >= 0.0) || x > f32(w - 1u) || y > f32(h - 1u)) {
-        return vec2<f32>(0.0, 0.0);
+        return vec2<f32>(0.0, -1.0);
     }
     let x0 = min(u32(floor(x)), w - 2u);
     let y0 = min(u32(floor(y)), h - 2u);
@@ -78,11 +95,24 @@ fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     let p01 = pixels[i + w];
     let p11 = pixels[i + w + 1u];
     if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
-        return vec2<f32>(0.0, 0.0);
+        let hard = !(pixel_valid(p00) || pixel_hole(p00)) || !(pixel_valid(p10) || pixel_hole(p10))
+            || !(pixel_valid(p01) || pixel_hole(p01)) || !(pixel_valid(p11) || pixel_hole(p11));
+        return vec2<f32>(0.0, select(0.0, -1.0, hard));
     }
     let top = p00.value + fx * (p10.value - p00.value);
     let bottom = p01.value + fx * (p11.value - p01.value);
     return vec2<f32>(top + fy * (bottom - top), 1.0);
+}
+
+// Offset of the raw block of the descriptor buffer.
+fn raw_base() -> u32 {
+    return (params.na + params.nb) * params.stride;
+}
+
+// The smallest number of valid samples a window (or a pair's common set)
+// of d samples needs.
+fn min_count(d: u32) -> u32 {
+    return u32(ceil(params.min_valid * f32(d)));
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -104,63 +134,131 @@ fn vectorize(@builtin(global_invocation_id) id: vec3<u32>) {
     let half = f32(win / 2u);
     let d = win * win;
     let row = t * params.stride;
-    var valid = true;
+    let raw = raw_base() + row;
+    var inside = true;
+    var n = 0u;
     var sum = 0.0;
     for (var k = 0u; k < d; k++) {
         let u = f32(k % win) - half;
         let v = f32(k / win) - half;
         let s = sample(offset, w, h, p.x + u, p.y + v);
-        if (s.y < 0.5) {
-            valid = false;
+        if (s.y < -0.5) {
+            inside = false;
             break;
         }
-        desc_set(row + k, s.x);
-        sum = sum + s.x;
+        if (s.y > 0.5) {
+            desc_set(raw + k, s.x);
+            sum = sum + s.x;
+            n = n + 1u;
+        } else {
+            desc_set(raw + k, INVALID_SAMPLE);
+        }
     }
-    var ss = 0.0;
-    var mean = 0.0;
-    if (valid) {
-        mean = sum / f32(d);
+    var state = 0u;
+    if (inside && n >= min_count(d) && n > 0u) {
+        let mean = sum / f32(n);
+        var ss = 0.0;
         for (var k = 0u; k < d; k++) {
-            let c = desc_get(row + k) - mean;
-            ss = ss + c * c;
+            let r = desc_get(raw + k);
+            if (is_valid_sample(r)) {
+                let c = r - mean;
+                ss = ss + c * c;
+            }
         }
         // Flat windows correlate noise with noise: no match.
-        if (!(sqrt(ss / f32(d)) >= params.min_std)) {
-            valid = false;
+        if (sqrt(ss / f32(n)) >= params.min_std) {
+            state = select(2u, 1u, n == d);
+        }
+        if (state == 1u) {
+            let inv = 1.0 / sqrt(ss);
+            for (var k = 0u; k < d; k++) {
+                desc_set(row + k, (desc_get(raw + k) - mean) * inv);
+            }
         }
     }
-    if (valid) {
-        let inv = 1.0 / sqrt(ss);
-        for (var k = 0u; k < d; k++) {
-            desc_set(row + k, (desc_get(row + k) - mean) * inv);
-        }
-    } else {
+    if (state != 1u) {
         for (var k = 0u; k < d; k++) {
             desc_set(row + k, 0.0);
         }
     }
+    if (!inside) {
+        for (var k = 0u; k < d; k++) {
+            desc_set(raw + k, INVALID_SAMPLE);
+        }
+    }
     for (var k = d; k < params.stride; k++) {
         desc_set(row + k, 0.0);
+        desc_set(raw + k, INVALID_SAMPLE);
     }
-    ok[t] = select(0u, 1u, valid);
+    ok[t] = state;
+}
+
+// The NCC of the raw windows of A's feature i and B's feature j over the
+// samples valid in both; NO_SCORE when that common set holds fewer than
+// min_valid of the window or is flat in either. Two passes (means, then
+// centred sums), in sample order, as the CPU reference.
+fn partial_score(i: u32, j: u32) -> f32 {
+    let d = params.window * params.window;
+    let ra = raw_base() + i * params.stride;
+    let rb = raw_base() + (params.na + j) * params.stride;
+    var n = 0u;
+    var sa = 0.0;
+    var sb = 0.0;
+    for (var k = 0u; k < d; k++) {
+        let a = desc_get(ra + k);
+        let b = desc_get(rb + k);
+        if (is_valid_sample(a) && is_valid_sample(b)) {
+            n = n + 1u;
+            sa = sa + a;
+            sb = sb + b;
+        }
+    }
+    if (n < min_count(d) || n == 0u) {
+        return NO_SCORE;
+    }
+    let ma = sa / f32(n);
+    let mb = sb / f32(n);
+    var caa = 0.0;
+    var cbb = 0.0;
+    var cab = 0.0;
+    for (var k = 0u; k < d; k++) {
+        let a = desc_get(ra + k);
+        let b = desc_get(rb + k);
+        if (is_valid_sample(a) && is_valid_sample(b)) {
+            let x = a - ma;
+            let y = b - mb;
+            caa = caa + x * x;
+            cbb = cbb + y * y;
+            cab = cab + x * y;
+        }
+    }
+    let nf = f32(n);
+    if (!(sqrt(caa / nf) >= params.min_std && sqrt(cbb / nf) >= params.min_std)) {
+        return NO_SCORE;
+    }
+    return cab / sqrt(caa * cbb);
 }
 
 var<workgroup> tile_a: array<array<f32, NCC_TILE>, NCC_TILE>;
 var<workgroup> tile_b: array<array<f32, NCC_TILE>, NCC_TILE>;
 
 // The entry (i, j) of S from the dot product `acc`: NO_SCORE for an
-// invalid window or a pair beyond the search radius.
+// invalid window or a pair beyond the search radius; the NCC over the
+// common valid samples where a window has holes.
 fn finish_score(i: u32, j: u32, acc: f32) {
     let na = params.na;
     var s = acc;
-    if (ok[i] == 0u || ok[na + j] == 0u) {
-        s = NO_SCORE;
-    } else if (params.radius2 >= 0.0) {
+    let oa = ok[i];
+    let ob = ok[na + j];
+    var near = true;
+    if (params.radius2 >= 0.0) {
         let dp = positions[na + j] - positions[i];
-        if (dp.x * dp.x + dp.y * dp.y > params.radius2) {
-            s = NO_SCORE;
-        }
+        near = dp.x * dp.x + dp.y * dp.y <= params.radius2;
+    }
+    if (oa == 0u || ob == 0u || !near) {
+        s = NO_SCORE;
+    } else if (oa == 2u || ob == 2u) {
+        s = partial_score(i, j);
     }
     scores[i * params.nb + j] = s;
 }

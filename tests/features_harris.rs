@@ -212,8 +212,14 @@ fn mask_and_invalid_pixels_keep_corners_out() {
     assert!(gpu.iter().all(|c| c.x < 60.0), "{gpu:?}");
     assert_same_corners("mask", &gpu, &cpu);
 
-    // NaN disc (an empty region of a rendered view): no corner's support
-    // may touch it, so every corner is farther than the support radius.
+    // NaN disc (an empty region of a rendered view): with
+    // min_valid_weight 1 no corner's support may touch it, so every corner
+    // is farther than the support radius.
+    let cfg = HarrisConfig {
+        min_valid_weight: 1.0,
+        ..cfg
+    };
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
     let mut holed = img.clone();
     for y in 0..90 {
         for x in 0..120 {

@@ -106,6 +106,14 @@ pub struct Tuning {
     /// the model's radii).
     #[arg(long)]
     pub min_splat_px: Option<f32>,
+    /// Keep the model's splat radii where they leave gaps between splats
+    /// (default: those radii grow just enough to close the gaps).
+    #[arg(long)]
+    pub keep_radii: bool,
+    /// Harris and NCC: the fraction of a window that must be valid where it
+    /// has pinholes (default 0.8; 1: any invalid pixel voids the window).
+    #[arg(long)]
+    pub min_valid: Option<f32>,
     /// KF+IT: frames in a row that IT alone may track when the KF step
     /// fails (default 5).
     #[arg(long)]
@@ -157,6 +165,16 @@ impl Tuning {
         set(&mut c.min_inliers, self.min_inliers);
         set(&mut c.max_residual_px, self.max_residual);
         set(&mut c.min_splat_radius_px, self.min_splat_px);
+        if self.keep_radii {
+            c.close_gaps = false;
+        }
+        if let Some(v) = self.min_valid {
+            if !(v > 0.0 && v <= 1.0) {
+                bail!("--min-valid {v}: must be in (0, 1]");
+            }
+            c.harris.min_valid_weight = v;
+            c.ncc.min_valid = v;
+        }
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
         set(&mut c.contour.rounds, self.contour_rounds);
@@ -332,9 +350,14 @@ mod tests {
             min_splat_px: Some(0.0),
             max_it_only: Some(0),
             it_interior: Some(4.0),
+            keep_radii: true,
+            min_valid: Some(0.8),
             ..Default::default()
         };
+        assert!(same.close_gaps);
         let c = t.apply(base).unwrap();
+        assert!(!c.close_gaps);
+        assert_eq!((c.ncc.min_valid, c.harris.min_valid_weight), (0.8, 0.8));
         assert_eq!(c.harris.relative_threshold, 0.001);
         assert_eq!(c.kf_search_px, 16.0);
         assert_eq!(c.kf_iterations, 2);
@@ -368,6 +391,14 @@ mod tests {
             },
             Tuning {
                 min_splat_px: Some(f32::INFINITY),
+                ..Default::default()
+            },
+            Tuning {
+                min_valid: Some(0.0),
+                ..Default::default()
+            },
+            Tuning {
+                min_valid: Some(f32::NAN),
                 ..Default::default()
             },
         ];

@@ -39,6 +39,69 @@ wgsl_struct! {
     }
 }
 
+/// ...or, for an invalid pixel, it is a pinhole: the odd empty pixel of a
+/// splatted view, which Harris and NCC tolerate (see [`pinholes`]).
+pub const PIXEL_HOLE: u32 = 4;
+
+/// Valid 8-neighbours an invalid pixel needs to count as a pinhole: one or
+/// two empty pixels inside a surface have 7 or 8; the empty pixels around
+/// an object, along its outline, have at most 5 (3 along a straight edge),
+/// and stay hard invalid, so that windows across the outline stay void as
+/// before.
+pub const PINHOLE_NEIGHBOURS: usize = 6;
+
+/// Per pixel of `img`: invalid (NaN) and a pinhole (at least
+/// [`PINHOLE_NEIGHBOURS`] of its 8 neighbours valid, not on the image
+/// border).
+pub fn pinholes(img: &crate::features::GreyImage) -> Vec<bool> {
+    let (w, h) = (img.width, img.height);
+    let valid = |x: usize, y: usize| img.data[y * w + x].is_finite();
+    (0..w * h)
+        .map(|i| {
+            let (x, y) = (i % w, i / w);
+            if img.data[i].is_finite() || x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+                return false;
+            }
+            let n = [
+                (x - 1, y - 1),
+                (x, y - 1),
+                (x + 1, y - 1),
+                (x - 1, y),
+                (x + 1, y),
+                (x - 1, y + 1),
+                (x, y + 1),
+                (x + 1, y + 1),
+            ]
+            .iter()
+            .filter(|&&(a, b)| valid(a, b))
+            .count();
+            n >= PINHOLE_NEIGHBOURS
+        })
+        .collect()
+}
+
+/// The pixels of `img` as the kernels read them ([`Pixel::new`]), with
+/// [`PIXEL_HOLE`] set on its pinholes; [`PIXEL_ALLOWED`] where `allow` and
+/// `mask` (all pixels when `None`) say so.
+pub fn pack_with_holes(
+    img: &crate::features::GreyImage,
+    mask: Option<&[bool]>,
+    allow: bool,
+) -> Vec<Pixel> {
+    let holes = pinholes(img);
+    img.data
+        .iter()
+        .enumerate()
+        .map(|(i, &v)| {
+            let mut p = Pixel::new(v, allow && mask.is_none_or(|m| m[i]));
+            if holes[i] {
+                p.flags |= PIXEL_HOLE;
+            }
+            p
+        })
+        .collect()
+}
+
 impl Pixel {
     /// A grey value as the kernels read it: a non-finite (invalid) value
     /// becomes 0 with [`PIXEL_VALID`] cleared; `allowed` sets
@@ -68,7 +131,9 @@ wgsl_struct! {
         pub refine_inv_2s2: f32,
         pub n_corners: u32,
         pub max_shift: f32,
-        pub _pad0: u32,
+        /// Smallest valid fraction of the structure tensor's Gaussian
+        /// weight ([`super::HarrisConfig::min_valid_weight`]).
+        pub min_weight: f32,
         pub _pad1: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -128,7 +193,9 @@ wgsl_struct! {
         /// Squared search radius in pixels; negative: no limit.
         pub radius2: f32,
         pub min_std: f32,
-        pub _pad: u32,
+        /// Smallest fraction of a window's samples that must be valid
+        /// ([`super::NccConfig::min_valid`]).
+        pub min_valid: f32,
     }
 }
 

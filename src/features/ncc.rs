@@ -2,7 +2,7 @@
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
 use super::FeatureError;
-use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel};
+use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use crate::gpu::{
@@ -32,6 +32,17 @@ pub struct NccConfig {
     /// Windows whose standard deviation (grey 0..1) is below this are flat
     /// and get no match. Default 0.005 (about 1.3 grey levels of 255).
     pub min_std: f32,
+    /// A window may have invalid (NaN) pixels: it matches when at least
+    /// this fraction of its samples are valid, the NCC of a pair then being
+    /// taken over the samples valid in both windows (which must hold this
+    /// fraction too). 1: any invalid pixel voids the window. Windows that
+    /// leave the image get no match either way. Default 0.8.
+    #[serde(default = "default_min_valid")]
+    pub min_valid: f32,
+}
+
+fn default_min_valid() -> f32 {
+    0.8
 }
 
 impl Default for NccConfig {
@@ -41,6 +52,7 @@ impl Default for NccConfig {
             min_score: 0.8,
             search_radius: None,
             min_std: 0.005,
+            min_valid: default_min_valid(),
         }
     }
 }
@@ -75,6 +87,9 @@ impl NccConfig {
         }
         if !(self.min_std >= 0.0 && self.min_std.is_finite()) {
             return bad(format!("min_std = {} is not >= 0", self.min_std));
+        }
+        if !(self.min_valid > 0.0 && self.min_valid <= 1.0) {
+            return bad(format!("min_valid = {} is not in (0, 1]", self.min_valid));
         }
         Ok(())
     }
@@ -204,8 +219,8 @@ impl NccMatcher {
 
     /// Mutual best NCC matches between the features `a` of `img_a` and `b`
     /// of `img_b` (images may differ in size), sorted by `a`. A feature
-    /// whose window leaves its image, touches an invalid (NaN) pixel, or is
-    /// flat gets no match.
+    /// whose window leaves its image, has too few valid samples
+    /// ([`NccConfig::min_valid`]), or is flat gets no match.
     pub fn match_features(
         &mut self,
         img_a: &GreyImage,
@@ -247,7 +262,8 @@ impl NccMatcher {
         let stride = self.config.stride() as usize;
         let mut changed = self.pixels.ensure(ctx, (n_pix * 8) as u64);
         changed |= self.positions.ensure(ctx, ((na + nb) * 8) as u64);
-        changed |= self.desc.ensure(ctx, ((na + nb) * stride * 4) as u64);
+        // Unit rows, then raw rows (windows with holes).
+        changed |= self.desc.ensure(ctx, ((na + nb) * stride * 8) as u64);
         changed |= self.ok.ensure(ctx, ((na + nb) * 4) as u64);
         changed |= self.scores.ensure(ctx, (na * nb * 4) as u64);
         changed |= self.best.ensure(ctx, ((na + nb) * 8) as u64);
@@ -277,16 +293,12 @@ impl NccMatcher {
             offset_b: img_a.data.len() as u32,
             radius2: c.search_radius.map_or(-1.0, |r| r * r),
             min_std: c.min_std,
-            _pad: 0,
+            min_valid: c.min_valid,
         };
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let pixels: Vec<Pixel> = img_a
-            .data
-            .iter()
-            .chain(&img_b.data)
-            .map(|&v| Pixel::new(v, false))
-            .collect();
+        let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
+        pixels.extend(pack_with_holes(img_b, None, false));
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();

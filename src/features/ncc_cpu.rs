@@ -1,44 +1,133 @@
 //! CPU reference of NCC matching: `shaders/ncc.wgsl` operation for
-//! operation in `f32` (same sampling, same summation order).
+//! operation in `f32` (same sampling, same summation order). Windows with
+//! a few invalid samples are scored over the samples valid in both windows
+//! of a pair (see [`NccConfig::min_valid`]).
 
 use super::FeatureError;
-use super::gpu_data::{Best, NO_INDEX, NO_SCORE};
+use super::gpu_data::{Best, NO_INDEX, NO_SCORE, pinholes};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::ncc::{Match, NccConfig, mutual, sanitize};
 
-/// The zero-mean unit-norm window of `p` (w² values, padded with zeros to
-/// `stride`), or `None` if it leaves the image, touches an invalid pixel,
-/// or is flat. The `vectorize` kernel.
-fn vectorize(img: &GreyImage, p: [f32; 2], cfg: &NccConfig, stride: usize) -> Option<Vec<f32>> {
+/// A feature's window as `vectorize` leaves it.
+enum Window {
+    /// Every sample valid: the zero-mean unit-norm row (w² values, padded
+    /// with zeros to `stride`).
+    Full(Vec<f32>),
+    /// Some samples invalid (`None`), enough valid: the raw samples.
+    Partial(Vec<Option<f32>>),
+}
+
+/// The smallest number of valid samples of `d` that `min_valid` allows, in
+/// f32 as the shader computes it.
+fn min_count(min_valid: f32, d: usize) -> usize {
+    (min_valid * d as f32).ceil() as usize
+}
+
+/// The sample at (x, y): `Some(None)` where it touches a pinhole (and
+/// otherwise valid pixels), `None` outside the image or where it touches
+/// another invalid pixel (the shader's `sample`).
+fn sample(img: &GreyImage, holes: &[bool], x: f32, y: f32) -> Option<Option<f32>> {
+    let (w, h) = (img.width, img.height);
+    if w < 2 || h < 2 || !(x >= 0.0 && y >= 0.0) || x > (w - 1) as f32 || y > (h - 1) as f32 {
+        return None;
+    }
+    if let Some(v) = img.bilinear(x, y) {
+        return Some(Some(v));
+    }
+    let x0 = (x.floor() as usize).min(w - 2);
+    let y0 = (y.floor() as usize).min(h - 2);
+    let i = y0 * w + x0;
+    let tolerated = [i, i + 1, i + w, i + w + 1]
+        .iter()
+        .all(|&j| img.data[j].is_finite() || holes[j]);
+    tolerated.then_some(None)
+}
+
+/// The window of `p`, or `None` if it leaves the image, has fewer valid
+/// samples than `cfg.min_valid` allows, or is flat. The `vectorize` kernel.
+fn vectorize(
+    img: &GreyImage,
+    holes: &[bool],
+    p: [f32; 2],
+    cfg: &NccConfig,
+    stride: usize,
+) -> Option<Window> {
     let win = cfg.window;
     let half = (win / 2) as f32;
     let d = (win * win) as usize;
-    let mut row = vec![0f32; stride];
-    let mut sum = 0f32;
+    let mut raw = vec![None; d];
+    let (mut sum, mut n) = (0f32, 0usize);
     for k in 0..d as u32 {
         let u = (k % win) as f32 - half;
         let v = (k / win) as f32 - half;
-        let s = img.bilinear(p[0] + u, p[1] + v)?;
-        row[k as usize] = s;
-        sum += s;
+        let s = sample(img, holes, p[0] + u, p[1] + v)?;
+        if let Some(s) = s {
+            raw[k as usize] = Some(s);
+            sum += s;
+            n += 1;
+        }
     }
-    let mean = sum / d as f32;
+    if n < min_count(cfg.min_valid, d) || n == 0 {
+        return None;
+    }
+    let mean = sum / n as f32;
     let mut ss = 0f32;
-    for v in &row[..d] {
+    for v in raw.iter().flatten() {
         let c = v - mean;
         ss += c * c;
     }
     // Flat windows correlate noise with noise; NaN fails too.
-    let textured = (ss / d as f32).sqrt() >= cfg.min_std;
+    let textured = (ss / n as f32).sqrt() >= cfg.min_std;
     if !textured {
         return None;
     }
-    let inv = 1.0 / ss.sqrt();
-    for v in &mut row[..d] {
-        *v = (*v - mean) * inv;
+    if n < d {
+        return Some(Window::Partial(raw));
     }
-    Some(row)
+    let inv = 1.0 / ss.sqrt();
+    let mut row = vec![0f32; stride];
+    for (r, v) in row.iter_mut().zip(raw.iter().flatten()) {
+        *r = (v - mean) * inv;
+    }
+    Some(Window::Full(row))
+}
+
+/// The raw samples of a window (a full one's are not kept: its unit row is
+/// an affine map of them, and NCC is invariant to those).
+fn raw_of(w: &Window) -> Option<&[Option<f32>]> {
+    match w {
+        Window::Partial(r) => Some(r),
+        Window::Full(_) => None,
+    }
+}
+
+/// NCC over the samples valid in both windows: the shader's
+/// `partial_score`, in the same order. `None` (no score) when that common
+/// set is too small or flat in either window.
+fn partial_score(a: &[Option<f32>], b: &[Option<f32>], cfg: &NccConfig) -> Option<f32> {
+    let d = a.len();
+    let both = || a.iter().zip(b).filter_map(|(x, y)| Some(((*x)?, (*y)?)));
+    let (mut n, mut sa, mut sb) = (0usize, 0f32, 0f32);
+    for (x, y) in both() {
+        n += 1;
+        sa += x;
+        sb += y;
+    }
+    if n < min_count(cfg.min_valid, d) || n == 0 {
+        return None;
+    }
+    let (ma, mb) = (sa / n as f32, sb / n as f32);
+    let (mut caa, mut cbb, mut cab) = (0f32, 0f32, 0f32);
+    for (x, y) in both() {
+        let (x, y) = (x - ma, y - mb);
+        caa += x * x;
+        cbb += y * y;
+        cab += x * y;
+    }
+    let nf = n as f32;
+    let textured = (caa / nf).sqrt() >= cfg.min_std && (cbb / nf).sqrt() >= cfg.min_std;
+    textured.then(|| cab / (caa * cbb).sqrt())
 }
 
 /// Mutual best NCC matches on the CPU: the reference of
@@ -59,13 +148,28 @@ pub fn ncc_match_cpu(
     let stride = cfg.stride() as usize;
     let pa: Vec<[f32; 2]> = a.iter().map(sanitize).collect();
     let pb: Vec<[f32; 2]> = b.iter().map(sanitize).collect();
-    let da: Vec<Option<Vec<f32>>> = pa
+    // Windows with holes keep their raw samples; full windows that meet
+    // one are re-sampled raw (the shader keeps every window's raw samples).
+    let raw_full = |img: &GreyImage, p: [f32; 2]| -> Vec<Option<f32>> {
+        let win = cfg.window;
+        let half = (win / 2) as f32;
+        (0..win * win)
+            .map(|k| {
+                img.bilinear(
+                    p[0] + (k % win) as f32 - half,
+                    p[1] + (k / win) as f32 - half,
+                )
+            })
+            .collect()
+    };
+    let (holes_a, holes_b) = (pinholes(img_a), pinholes(img_b));
+    let da: Vec<Option<Window>> = pa
         .iter()
-        .map(|p| vectorize(img_a, *p, cfg, stride))
+        .map(|p| vectorize(img_a, &holes_a, *p, cfg, stride))
         .collect();
-    let db: Vec<Option<Vec<f32>>> = pb
+    let db: Vec<Option<Window>> = pb
         .iter()
-        .map(|p| vectorize(img_b, *p, cfg, stride))
+        .map(|p| vectorize(img_b, &holes_b, *p, cfg, stride))
         .collect();
     let radius2 = cfg.search_radius.map(|r| r * r);
     let none = Best {
@@ -78,18 +182,20 @@ pub fn ncc_match_cpu(
     // go to the lower index, as in the GPU reduction.
     for (i, (ra, pi)) in da.iter().zip(&pa).enumerate() {
         for (j, (rb, pj)) in db.iter().zip(&pb).enumerate() {
+            let (dx, dy) = (pj[0] - pi[0], pj[1] - pi[1]);
+            let near = radius2.is_none_or(|r2| dx * dx + dy * dy <= r2);
             let s = match (ra, rb) {
-                (Some(ra), Some(rb)) => {
-                    let (dx, dy) = (pj[0] - pi[0], pj[1] - pi[1]);
-                    if radius2.is_some_and(|r2| dx * dx + dy * dy > r2) {
-                        NO_SCORE
-                    } else {
-                        let mut acc = 0f32;
-                        for (x, y) in ra.iter().zip(rb) {
-                            acc += x * y;
-                        }
-                        acc
+                (Some(Window::Full(ra)), Some(Window::Full(rb))) if near => {
+                    let mut acc = 0f32;
+                    for (x, y) in ra.iter().zip(rb) {
+                        acc += x * y;
                     }
+                    acc
+                }
+                (Some(wa), Some(wb)) if near => {
+                    let ra = raw_of(wa).map_or_else(|| raw_full(img_a, *pi), <[_]>::to_vec);
+                    let rb = raw_of(wb).map_or_else(|| raw_full(img_b, *pj), <[_]>::to_vec);
+                    partial_score(&ra, &rb, cfg).unwrap_or(NO_SCORE)
                 }
                 _ => NO_SCORE,
             };

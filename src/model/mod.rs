@@ -33,6 +33,7 @@ mod schema;
 pub mod shapes;
 
 pub use error::ModelError;
+pub use estimate::{GAP_MODEL_FRACTION, GAP_NEIGHBOURS, GapClosure};
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};
 
 use crate::progress::{ProgressEvent, ProgressFn};
@@ -488,6 +489,25 @@ impl PointModel {
         )?;
         self.provenance.radii = AttributeSource::Estimated;
         Ok(())
+    }
+
+    /// Grows the radii that leave gaps between splats, and only those,
+    /// never shrinking one: each point's radius becomes large enough to
+    /// cover the farthest vertex of its Voronoi cell (in its tangent plane,
+    /// among its [`GAP_NEIGHBOURS`] nearest neighbours) that no disc of the
+    /// point or its neighbours covers. A model whose discs already cover its
+    /// surface comes out unchanged. The method is in the `estimate` module.
+    /// Models of fewer than 3 points are left as they are.
+    pub fn close_gaps(&mut self) -> Result<GapClosure, ModelError> {
+        let path = self.provenance.path.clone().unwrap_or_else(memory_path);
+        estimate::close_gaps(
+            &self.positions,
+            &self.normals,
+            &mut self.radii,
+            GAP_NEIGHBOURS,
+            &path,
+            &Stage::silent(),
+        )
     }
 
     /// Writes the model as a binary little-endian PLY: float x y z nx ny nz,

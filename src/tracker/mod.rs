@@ -345,6 +345,26 @@ impl Tracker {
         if floor > 0.0 && floor.is_finite() {
             model.radii.iter_mut().for_each(|r| *r = r.max(floor));
         }
+        if config.close_gaps {
+            // A failure (points that all coincide) keeps the radii as given.
+            let mut closed = model.clone();
+            match closed.close_gaps() {
+                Ok(c) if c.grown as f64 >= crate::model::GAP_MODEL_FRACTION * c.points as f64 => {
+                    log::debug!(
+                        "{} of {} splat radii grown to close gaps",
+                        c.grown,
+                        c.points
+                    );
+                    model = closed;
+                }
+                Ok(c) => log::debug!(
+                    "splat radii kept: only {} of {} leave a gap (pinholes at most)",
+                    c.grown,
+                    c.points
+                ),
+                Err(e) => log::warn!("splat radii kept as given: {e}"),
+            }
+        }
         let gpu = ctx;
         let splatter = Splatter::with_params(
             gpu,

@@ -6,7 +6,7 @@
 use splattrack::geometry::{Intrinsics, Pose};
 use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-use splattrack::model::PointModel;
+use splattrack::model::{AttributeSource, PointModel, Provenance, TriangleMesh};
 use splattrack::rng::Rng;
 use splattrack::splat::Splatter;
 use splattrack::synth::raster::{self, Rendering};
@@ -92,6 +92,55 @@ impl Scene {
             &KeyframeConfig::default(),
         )
         .expect("build keyframe store")
+    }
+}
+
+/// Points drawn uniformly at random over the mesh's surface (triangle by
+/// area, then uniform barycentric coordinates), face normals, one radius.
+pub fn random_sample(mesh: &TriangleMesh, n: usize, radius: f32, seed: u64) -> PointModel {
+    let tri = |t: &[u32; 3]| {
+        let v = |i: u32| mesh.vertices[i as usize];
+        (v(t[0]), v(t[1]), v(t[2]))
+    };
+    let areas: Vec<f64> = mesh
+        .triangles
+        .iter()
+        .map(|t| {
+            let (a, b, c) = tri(t);
+            0.5 * (b - a).cross(c - a).length()
+        })
+        .collect();
+    let total: f64 = areas.iter().sum();
+    let mut rng = Rng::new(seed);
+    let (mut positions, mut normals) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for _ in 0..n {
+        let mut target = rng.next_f64() * total;
+        let mut k = 0;
+        while k + 1 < areas.len() && target >= areas[k] {
+            target -= areas[k];
+            k += 1;
+        }
+        let (a, b, c) = tri(&mesh.triangles[k]);
+        let (mut u, mut v) = (rng.next_f64(), rng.next_f64());
+        if u + v > 1.0 {
+            (u, v) = (1.0 - u, 1.0 - v);
+        }
+        positions.push((a + (b - a) * u + (c - a) * v).as_vec3());
+        normals.push((b - a).cross(c - a).normalize().as_vec3());
+    }
+    PointModel {
+        radii: vec![radius; n],
+        positions,
+        normals,
+        colors: None,
+        provenance: Provenance {
+            path: None,
+            normals: AttributeSource::FromMesh,
+            radii: AttributeSource::Loaded,
+            colors: AttributeSource::Absent,
+            dropped_non_finite: 0,
+            normals_reestimated: 0,
+        },
     }
 }
 

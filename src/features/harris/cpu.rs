@@ -4,7 +4,9 @@
 
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
 use crate::features::FeatureError;
-use crate::features::gpu_data::{Candidate, INVALID_RESPONSE, PIXEL_ALLOWED, PIXEL_VALID, Pixel};
+use crate::features::gpu_data::{
+    Candidate, INVALID_RESPONSE, PIXEL_ALLOWED, PIXEL_HOLE, PIXEL_VALID, Pixel,
+};
 use crate::features::image::{GreyImage, check_mask};
 
 struct Maps {
@@ -28,12 +30,13 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
             for t in -rd..=rd {
                 let xx = x + t;
                 if xx < 0 || xx >= wi {
-                    ok = 0.0;
+                    ok = -1.0;
                     continue;
                 }
                 let p = pixels[(y * wi + xx) as usize];
                 if p.flags & PIXEL_VALID == 0 {
-                    ok = 0.0;
+                    // A pinhole is tolerated, other invalid pixels are not.
+                    ok = ok.min(if p.flags & PIXEL_HOLE != 0 { 0.0 } else { -1.0 });
                 }
                 let k = (t + rd) as usize;
                 a += p.value * dd[k];
@@ -50,7 +53,7 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
             for t in -rd..=rd {
                 let yy = y + t;
                 if yy < 0 || yy >= hi {
-                    ok = 0.0;
+                    ok = -1.0;
                     continue;
                 }
                 let s = tmp[(yy * wi + x) as usize];
@@ -62,48 +65,62 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
             grad[(y * wi + x) as usize] = [ix, iy, ok];
         }
     }
-    // integrate_h: (Sxx, Syy, Sxy, valid)
+    // integrate_h: (Sxx, Syy, Sxy, weight of the valid gradients; -1 when
+    // the window leaves the image)
     for y in 0..hi {
         for x in 0..wi {
-            let (mut sxx, mut syy, mut sxy, mut ok) = (0f32, 0f32, 0f32, 1f32);
+            let (mut sxx, mut syy, mut sxy, mut ws) = (0f32, 0f32, 0f32, 0f32);
+            let mut outside = false;
             for t in -ri..=ri {
                 let xx = x + t;
                 if xx < 0 || xx >= wi {
-                    ok = 0.0;
+                    outside = true;
                     continue;
                 }
                 let g = grad[(y * wi + xx) as usize];
-                ok = ok.min(g[2]);
+                let v = if g[2] > 0.5 { 1.0 } else { 0.0 };
+                outside |= g[2] < -0.5;
                 let c = gi[(t + ri) as usize];
-                sxx += g[0] * g[0] * c;
-                syy += g[1] * g[1] * c;
-                sxy += g[0] * g[1] * c;
+                sxx += g[0] * g[0] * v * c;
+                syy += g[1] * g[1] * v * c;
+                sxy += g[0] * g[1] * v * c;
+                ws += v * c;
             }
-            tmp[(y * wi + x) as usize] = [sxx, syy, sxy, ok];
+            tmp[(y * wi + x) as usize] = [sxx, syy, sxy, if outside { -1.0 } else { ws }];
         }
     }
     // integrate_v + response
     let mut response = vec![0f32; n];
     for y in 0..hi {
         for x in 0..wi {
-            let (mut sxx, mut syy, mut sxy, mut ok) = (0f32, 0f32, 0f32, 1f32);
+            let (mut sxx, mut syy, mut sxy, mut ws) = (0f32, 0f32, 0f32, 0f32);
+            let mut outside = false;
             for t in -ri..=ri {
                 let yy = y + t;
                 if yy < 0 || yy >= hi {
-                    ok = 0.0;
+                    outside = true;
                     continue;
                 }
                 let s = tmp[(yy * wi + x) as usize];
-                ok = ok.min(s[3]);
+                outside |= s[3] < 0.0;
                 let c = gi[(t + ri) as usize];
                 sxx += s[0] * c;
                 syy += s[1] * c;
                 sxy += s[2] * c;
+                ws += s[3] * c;
             }
-            let tr = sxx + syy;
-            response[(y * wi + x) as usize] = if ok < 0.5 {
+            let i = (y * wi + x) as usize;
+            let ws = if outside { -1.0 } else { ws };
+            let valid =
+                ws >= cfg.min_valid_weight * (1.0 - 1.0e-5) && pixels[i].flags & PIXEL_VALID != 0;
+            response[i] = if !valid {
                 INVALID_RESPONSE
             } else {
+                // The taps sum to 1: a full window's weight is 1 up to
+                // rounding, and keeps the plain sums.
+                let scale = if ws < 1.0 - 1.0e-5 { 1.0 / ws } else { 1.0 };
+                let (sxx, syy, sxy) = (sxx * scale, syy * scale, sxy * scale);
+                let tr = sxx + syy;
                 (sxx * syy - sxy * sxy) - cfg.k * (tr * tr)
             };
         }

@@ -120,7 +120,7 @@ impl Harris {
             refine_inv_2s2: c.refine_inv_2s2(),
             n_corners,
             max_shift: c.max_shift(),
-            _pad0: 0,
+            min_weight: c.min_valid_weight,
             _pad1: 0,
             _pad2: 0,
             weights,

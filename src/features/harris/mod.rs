@@ -55,6 +55,18 @@ pub struct HarrisConfig {
     pub refine_iterations: u32,
     /// Refined corners closer than this (pixels) are one corner. Default 1.5.
     pub merge_radius: f32,
+    /// The structure tensor is the Gaussian-weighted mean of the valid
+    /// gradients of its window (a gradient is valid when its derivative
+    /// support holds no invalid pixel); a response needs at least this
+    /// fraction of the window's weight valid, its own pixel valid, and its
+    /// window inside the image. 1: any invalid gradient voids the response
+    /// (up to weights below 1e-5). Default 0.8.
+    #[serde(default = "default_min_valid_weight")]
+    pub min_valid_weight: f32,
+}
+
+fn default_min_valid_weight() -> f32 {
+    0.8
 }
 
 impl Default for HarrisConfig {
@@ -71,6 +83,7 @@ impl Default for HarrisConfig {
             refine_radius: 4,
             refine_iterations: 10,
             merge_radius: 1.5,
+            min_valid_weight: default_min_valid_weight(),
         }
     }
 }
@@ -172,6 +185,12 @@ impl HarrisConfig {
         if !(self.merge_radius >= 0.0 && self.merge_radius.is_finite()) {
             return bad(format!("merge_radius = {} is not >= 0", self.merge_radius));
         }
+        if !(self.min_valid_weight > 0.0 && self.min_valid_weight <= 1.0) {
+            return bad(format!(
+                "min_valid_weight = {} is not in (0, 1]",
+                self.min_valid_weight
+            ));
+        }
         Ok(())
     }
 
@@ -197,11 +216,7 @@ impl HarrisConfig {
 /// The image and mask as the GPU sees them: NaN (invalid) pixels become 0
 /// with the valid flag cleared.
 pub(crate) fn pack_pixels(img: &GreyImage, mask: Option<&[bool]>) -> Vec<Pixel> {
-    img.data
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| Pixel::new(v, mask.is_none_or(|m| m[i])))
-        .collect()
+    super::gpu_data::pack_with_holes(img, mask, true)
 }
 
 /// The best `max_corners` candidates, spread over the image: each is ranked
