@@ -32,14 +32,9 @@
 // Headroom: sums are i32 in units of 2^-20, so a pixel holds up to 2048
 // full-weight contributions of the visible surface (weights are at most 1
 // and at least exp(-2); a pixel of a dense model sees tens).
-// Functions marked "twin" are copies of splat.wgsl's; change both together
-// (tests/splat_compute.rs compares the two back ends pixel by pixel).
-
-// Twin: `SplatGpu` in src/splat/gpu_data.rs.
-struct SplatGpu {
-    pos_radius: vec4<f32>,
-    normal: vec4<f32>,
-}
+// The culling, screen bounds and ray-splat intersection are splat.wgsl's,
+// from splat_common.wgsl (tests/splat_compute.rs compares the two back
+// ends pixel by pixel).
 
 // Twin: `ComputeParams` in src/splat/gpu_data.rs.
 struct ComputeParams {
@@ -51,7 +46,7 @@ struct ComputeParams {
     flags: u32,
 }
 
-@group(0) @binding(0) var<uniform> cam: CameraUniform;
+// @group(0) @binding(0): `cam`, in splat_common.wgsl.
 @group(0) @binding(1) var<uniform> params: ComputeParams;
 @group(0) @binding(2) var<storage, read> splats: array<SplatGpu>;
 @group(0) @binding(3) var<storage, read_write> depth_key: array<atomic<u32>>;
@@ -79,22 +74,6 @@ var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 // Bits of 1.0f: the cleared depth.
 const DEPTH_ONE: u32 = 0x3f800000u;
 
-fn project(x: vec3<f32>) -> vec2<f32> {
-    return vec2<f32>(cam.intr.x * x.x / x.z + cam.intr.z, cam.intr.y * x.y / x.z + cam.intr.w);
-}
-
-// Twin of splat.wgsl's `tangent`.
-fn tangent(n: vec3<f32>) -> vec3<f32> {
-    let a = abs(n);
-    var axis = vec3<f32>(1.0, 0.0, 0.0);
-    if a.y <= a.x && a.y <= a.z {
-        axis = vec3<f32>(0.0, 1.0, 0.0);
-    } else if a.z <= a.x && a.z <= a.y {
-        axis = vec3<f32>(0.0, 0.0, 1.0);
-    }
-    return normalize(cross(n, axis));
-}
-
 // A splat after the vertex stage of splat.wgsl: camera-space centre,
 // normal, radius, projected centre, colour, and the pixels whose centres
 // its quad covers (lo..=hi, clipped to the image; empty when culled).
@@ -114,92 +93,28 @@ fn setup(i: u32) -> Setup {
     var out: Setup;
     out.lo = vec2<i32>(0, 0);
     out.hi = vec2<i32>(-1, -1);
-    let s = splats[i];
-    let p = s.pos_radius.xyz;
-    let r = s.pos_radius.w;
-    let c = to_camera(cam, p);
-    let m = normalize(rotate(cam, s.normal.xyz));
-    out.center = c;
-    out.radius = r;
-    out.normal = m;
+    let v = view_splat(splats[i]);
+    out.center = v.center;
+    out.radius = v.radius;
+    out.normal = v.normal;
     out.color = unpack4x8unorm(colors[i]).xyz;
-    let near = cam.size.z;
-    if c.z <= near || dot(m, c) >= 0.0 || !(r > 0.0) {
+    if !v.visible {
         return out;
     }
-    let pc = project(c);
-    out.proj = pc;
-    let h = cam.params.y;
-    var lo = pc - vec2<f32>(h, h);
-    var hi = pc + vec2<f32>(h, h);
-    let tu = tangent(m) * r;
-    let tv = cross(m, tangent(m)) * r;
-    let k0 = c + tu + tv;
-    let k1 = c + tu - tv;
-    let k2 = c - tu + tv;
-    let k3 = c - tu - tv;
-    if min(min(k0.z, k1.z), min(k2.z, k3.z)) <= near {
-        lo = vec2<f32>(-1.0, -1.0);
-        hi = cam.size.xy;
-    } else {
-        let q0 = project(k0);
-        let q1 = project(k1);
-        let q2 = project(k2);
-        let q3 = project(k3);
-        lo = min(lo, min(min(q0, q1), min(q2, q3)));
-        hi = max(hi, max(max(q0, q1), max(q2, q3)));
-    }
-    lo = clamp(lo - vec2<f32>(0.5, 0.5), vec2<f32>(-1.0, -1.0), cam.size.xy);
-    hi = clamp(hi + vec2<f32>(0.5, 0.5), vec2<f32>(-1.0, -1.0), cam.size.xy);
-    out.lo = vec2<i32>(max(ceil(lo), vec2<f32>(0.0, 0.0)));
-    out.hi = vec2<i32>(min(floor(hi), cam.size.xy - vec2<f32>(1.0, 1.0)));
+    out.proj = v.proj;
+    out.lo = vec2<i32>(max(ceil(v.lo), vec2<f32>(0.0, 0.0)));
+    out.hi = vec2<i32>(min(floor(v.hi), cam.size.xy - vec2<f32>(1.0, 1.0)));
     return out;
 }
 
-struct Hit {
-    x: vec3<f32>,
-    w: f32,
-    ray_len: f32,
-}
-
-// Twin of splat.wgsl's `intersect`, at the pixel centre `uv` (OpenCV).
+// `ray_hit` at the pixel centre `uv` (OpenCV).
 fn intersect(s: Setup, uv: vec2<f32>) -> Hit {
-    var hit: Hit;
-    hit.w = 0.0;
-    let d = vec3<f32>((uv.x - cam.intr.z) / cam.intr.x, (uv.y - cam.intr.w) / cam.intr.y, 1.0);
-    hit.ray_len = length(d);
-    let near = cam.size.z;
-    let c = s.center;
-    let m = s.normal;
-    let denom = dot(m, d);
-    var rho_obj2 = 1e30;
-    var x = d * c.z;
-    if abs(denom) > 1e-12 {
-        let t = dot(m, c) / denom;
-        if t > near {
-            let xi = d * t;
-            let q = xi - c;
-            rho_obj2 = dot(q, q) / (s.radius * s.radius);
-            let reach = s.radius + 3.0 * cam.params.y * c.z / min(cam.intr.x, cam.intr.y);
-            if rho_obj2 <= 1.0 || dot(q, q) <= reach * reach {
-                x = xi;
-            }
-        }
-    }
-    let e = (uv - s.proj) / cam.params.y;
-    let rho_scr2 = dot(e, e);
-    let rho2 = min(rho_obj2, rho_scr2);
-    if rho2 > 1.0 || x.z <= near {
-        return hit;
-    }
-    hit.x = x;
-    hit.w = exp(-2.0 * rho2);
-    return hit;
-}
-
-// Twin of splat.wgsl's `depth_of`.
-fn depth_of(z: f32) -> f32 {
-    return clamp((z - cam.size.z) / (cam.size.w - cam.size.z), 0.0, 1.0);
+    var v: SplatView;
+    v.center = s.center;
+    v.normal = s.normal;
+    v.radius = s.radius;
+    v.proj = s.proj;
+    return ray_hit(v, uv);
 }
 
 // The splat of this invocation: dispatches are 2-D when a model needs more

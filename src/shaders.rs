@@ -10,7 +10,10 @@
 //!    second definition does not compile);
 //! 2. `shaders/common.wgsl`: the structs several shaders share
 //!    (`CameraUniform`, `Pixel`) and their helpers;
-//! 3. the shader's own file.
+//! 3. for the two splatters (`splat`, `splat_compute`),
+//!    `shaders/splat_common.wgsl`: the splat, the view uniform, culling,
+//!    screen bounds and the ray-splat intersection;
+//! 4. the shader's own file.
 //!
 //! Every struct the host shares with WGSL is declared with [`wgsl_struct!`](crate::wgsl_struct),
 //! which records its members' names, offsets and sizes; the tests compare
@@ -21,8 +24,9 @@
 use std::fmt::Write;
 use std::sync::OnceLock;
 
-/// Every shader under `shaders/` (except `common.wgsl`, composed into
-/// each), by file stem. Add new files here.
+/// Every shader under `shaders/` (except `common.wgsl` and
+/// `splat_common.wgsl`, composed into others), by file stem. Add new files
+/// here.
 pub const ALL: &[(&str, &str)] = &[
     ("selftest", include_str!("../shaders/selftest.wgsl")),
     ("splat", include_str!("../shaders/splat.wgsl")),
@@ -41,6 +45,14 @@ pub const ALL: &[(&str, &str)] = &[
 /// What every shader shares: structs and helpers (composed after the
 /// prelude).
 pub const COMMON: &str = include_str!("../shaders/common.wgsl");
+
+/// What the two splatters share (`splat` and `splat_compute`): the splat
+/// struct, the view uniform, culling, screen bounds and the ray-splat
+/// intersection (composed after common.wgsl).
+pub const SPLAT_COMMON: &str = include_str!("../shaders/splat_common.wgsl");
+
+/// The shaders [`SPLAT_COMMON`] is composed into.
+const SPLATTERS: [&str; 2] = ["splat", "splat_compute"];
 
 /// The value of a constant shared with WGSL.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -99,10 +111,16 @@ pub fn prelude() -> String {
     out
 }
 
-/// The composed source of `file`: prelude, common.wgsl, then the file.
-fn compose(file: &str) -> String {
+/// The composed source of shader `name` (`file`: its text): prelude,
+/// common.wgsl, splat_common.wgsl for the splatters, then the file.
+fn compose(name: &str, file: &str) -> String {
+    let splat = if SPLATTERS.contains(&name) {
+        format!("// ---- shaders/splat_common.wgsl\n{SPLAT_COMMON}\n")
+    } else {
+        String::new()
+    };
     format!(
-        "{}\n// ---- shaders/common.wgsl\n{COMMON}\n// ---- the shader\n{file}",
+        "{}\n// ---- shaders/common.wgsl\n{COMMON}\n{splat}// ---- the shader\n{file}",
         prelude()
     )
 }
@@ -112,7 +130,7 @@ fn compose(file: &str) -> String {
 pub fn source(name: &str) -> Option<&'static str> {
     static COMPOSED: OnceLock<Vec<(&'static str, String)>> = OnceLock::new();
     COMPOSED
-        .get_or_init(|| ALL.iter().map(|(n, s)| (*n, compose(s))).collect())
+        .get_or_init(|| ALL.iter().map(|(n, s)| (*n, compose(n, s))).collect())
         .iter()
         .find(|(n, _)| *n == name)
         .map(|(_, s)| s.as_str())
@@ -322,7 +340,7 @@ mod tests {
             if path.extension().is_some_and(|e| e == "wgsl") {
                 let stem = path.file_stem().unwrap().to_str().unwrap().to_owned();
                 assert!(
-                    stem == "common" || source(&stem).is_some(),
+                    ["common", "splat_common"].contains(&stem.as_str()) || source(&stem).is_some(),
                     "shaders/{stem}.wgsl is not in shaders::ALL"
                 );
             }
