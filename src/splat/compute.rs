@@ -19,7 +19,7 @@
 //! `finish` over the rectangle only is all it takes.
 
 use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams};
-use super::targets::{TARGETS, target_slots};
+use super::targets::{TARGETS, cleared_attachments};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
     GpuContext, GpuTimer, GrowBuffer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass,
@@ -269,21 +269,7 @@ impl ComputeSplatter {
         {
             // The targets start at zero, as the render pass's clear does;
             // `finish` writes only the splats' bounding box.
-            let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = target_slots(attrs)
-                .iter()
-                .zip(&targets.acc_views)
-                .map(|(&on, view)| {
-                    on.then_some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })
-                })
-                .collect();
+            let colors = cleared_attachments(targets, attrs);
             enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("splat compute clear"),
                 color_attachments: &colors,

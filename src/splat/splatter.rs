@@ -5,7 +5,7 @@ use super::compute::ComputeSplatter;
 use super::gpu_data::{
     GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
 };
-use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, target_slots};
+use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, cleared_attachments, target_slots};
 use super::{
     Attribute, Attributes, Backend, GatherMode, GatherSample, GpuModel, SplatError, SplatImage,
     SplatParams, SplatTargets,
@@ -271,22 +271,7 @@ impl Splatter {
             pass.draw(0..4, 0..model.count);
         }
         {
-            let slots = target_slots(attrs);
-            let colors: Vec<Option<wgpu::RenderPassColorAttachment>> = slots
-                .iter()
-                .zip(&targets.acc_views)
-                .map(|(&on, view)| {
-                    on.then_some(wgpu::RenderPassColorAttachment {
-                        view,
-                        depth_slice: None,
-                        resolve_target: None,
-                        ops: wgpu::Operations {
-                            load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
-                            store: wgpu::StoreOp::Store,
-                        },
-                    })
-                })
-                .collect();
+            let colors = cleared_attachments(targets, attrs);
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
                 label: Some("splat attributes"),
                 color_attachments: &colors,

@@ -140,6 +140,29 @@ impl SplatImage {
     }
 }
 
+/// The colour attachments of a pass that clears (and then adds to) the
+/// accumulation targets `attrs` writes; `None` for the others.
+pub(super) fn cleared_attachments(
+    targets: &SplatTargets,
+    attrs: Attributes,
+) -> Vec<Option<wgpu::RenderPassColorAttachment<'_>>> {
+    target_slots(attrs)
+        .iter()
+        .zip(&targets.acc_views)
+        .map(|(&on, view)| {
+            on.then_some(wgpu::RenderPassColorAttachment {
+                view,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color::TRANSPARENT),
+                    store: wgpu::StoreOp::Store,
+                },
+            })
+        })
+        .collect()
+}
+
 /// Which of the five accumulation targets a render writes.
 pub(super) fn target_slots(attrs: Attributes) -> [bool; TARGETS] {
     [
