@@ -63,6 +63,36 @@ pub(crate) struct Bars<'a> {
     pub orient: Stage<'a>,
 }
 
+/// The points relative to their centroid, as f32 arrays for the k-d
+/// tree (precise near the model even far from the origin); refuses
+/// coordinates spanning more than [`MAX_COORDINATE`] (or NaN).
+fn centred_points(
+    positions: &[Vec3],
+    path: &Path,
+    what: &'static str,
+) -> Result<Vec<[f32; 3]>, ModelError> {
+    let centroid = positions
+        .iter()
+        .fold(DVec3::ZERO, |acc, p| acc + p.as_dvec3())
+        / positions.len().max(1) as f64;
+    let centre = centroid.as_vec3();
+    positions
+        .iter()
+        .map(|p| {
+            let q = *p - centre;
+            let extent = q.abs().max_element();
+            if extent.is_nan() || extent > MAX_COORDINATE {
+                return Err(err(
+                    path,
+                    what,
+                    format!("coordinates span more than {MAX_COORDINATE:e} model units"),
+                ));
+            }
+            Ok(q.to_array())
+        })
+        .collect()
+}
+
 fn err(path: &Path, what: &'static str, reason: impl Into<String>) -> ModelError {
     ModelError::Estimation {
         path: path.to_path_buf(),
@@ -111,24 +141,7 @@ pub(crate) fn estimate(
         ));
     }
 
-    let centroid = positions
-        .iter()
-        .fold(DVec3::ZERO, |acc, p| acc + p.as_dvec3())
-        / n as f64;
-    let centre = centroid.as_vec3();
-    let mut pts: Vec<[f32; 3]> = Vec::with_capacity(n);
-    for p in positions {
-        let q = *p - centre;
-        let extent = q.abs().max_element();
-        if extent.is_nan() || extent > MAX_COORDINATE {
-            return Err(err(
-                path,
-                what,
-                format!("coordinates span more than {MAX_COORDINATE:e} model units"),
-            ));
-        }
-        pts.push(q.to_array());
-    }
+    let pts = centred_points(positions, path, what)?;
     // Work in the leaf order of a first tree: neighbours in space are then
     // neighbours in memory, for the queries, the PCA and the orientation
     // alike (about twice as fast on a million points as file order).
@@ -364,24 +377,7 @@ pub(crate) fn close_gaps(
         return Err(err(path, "radii", format!("{n} points is too many")));
     }
     let k = k.clamp(2, n - 1);
-    let centroid = positions
-        .iter()
-        .fold(DVec3::ZERO, |acc, p| acc + p.as_dvec3())
-        / n as f64;
-    let centre = centroid.as_vec3();
-    let mut pts: Vec<[f32; 3]> = Vec::with_capacity(n);
-    for p in positions {
-        let q = *p - centre;
-        let extent = q.abs().max_element();
-        if extent.is_nan() || extent > MAX_COORDINATE {
-            return Err(err(
-                path,
-                "radii",
-                format!("coordinates span more than {MAX_COORDINATE:e} model units"),
-            ));
-        }
-        pts.push(q.to_array());
-    }
+    let pts = centred_points(positions, path, "radii")?;
     let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&pts)
         .map_err(|e| err(path, "radii", format!("k-d tree: {e}")))?;
     let qty = NonZeroUsize::new(k + 1).unwrap_or(NonZeroUsize::MIN);
