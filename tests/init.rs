@@ -11,15 +11,12 @@ mod tracking_common;
 use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, Pose};
 use splattrack::gpu::shared_test_context;
-use splattrack::io::{Sequence, read_poses};
-use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
+use splattrack::keyframes::KeyframeStore;
 use splattrack::model::PointModel;
-use splattrack::splat::Splatter;
 use splattrack::synth::{SynthConfig, Trajectory, render_frame};
 use splattrack::tracker::{LostReason, Status, Tracker, TrackerConfig};
-use std::path::PathBuf;
 use std::time::Instant;
-use tracking_common::{Scene, camera_320};
+use tracking_common::{Fig10, RealSequence, Scene};
 
 fn within(p: &Pose, gt: &Pose, diameter: f64) -> (f64, f64, bool) {
     let (r, t) = (p.rotation_error_deg(gt), p.translation_error(gt));
@@ -31,18 +28,12 @@ fn within(p: &Pose, gt: &Pose, diameter: f64) -> (f64, f64, bool) {
 #[test]
 fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
     let ctx = shared_test_context();
-    let cam = camera_320();
-    let scene = Scene::new("blob", cam, 60_000);
-    let cfg = SynthConfig {
-        camera: cam,
-        frames: 100,
-        trajectory: Trajectory::Fig10,
-        ..Default::default()
-    };
-    let store = scene.keyframe_store(cfg.distance);
-    let frames: Vec<_> = (0..4)
-        .map(|i| render_frame(&cfg, &scene.object, &scene.bg, 20 + 3 * i))
-        .collect();
+    let Fig10 {
+        scene,
+        store,
+        frames,
+    } = Fig10::blob((0..4).map(|i| 20 + 3 * i));
+    let cam = scene.cam;
     let mut t = Tracker::new_searching(
         ctx,
         scene.model.clone(),
@@ -160,24 +151,14 @@ fn summary(name: &str, runs: &[(bool, f64)]) {
 #[test]
 #[ignore = "minutes on lavapipe: the every-tenth-frame measurement (README)"]
 fn every_tenth_frame_synthetic_and_real() {
-    let ctx = shared_test_context();
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
-        let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .join("../shared/data")
-            .join(name);
-        let model = PointModel::load(dir.join("model.ply")).unwrap();
-        let seq = Sequence::open(&dir).unwrap();
-        let splatter = Splatter::new(ctx).unwrap();
-        let store = KeyframeStore::build_from_dir(
-            ctx,
-            &splatter,
-            &model,
-            &seq.camera,
-            &dir.join("keyframes"),
-            &KeyframeConfig::default(),
-        )
-        .unwrap();
-        let gt = read_poses(&dir.join("poses.csv")).unwrap();
+        let RealSequence {
+            model,
+            seq,
+            store,
+            gt,
+            ..
+        } = RealSequence::load(name).expect("real data");
         let diameter = model.diameter() as f64;
         let runs: Vec<_> = (0..seq.frames.len())
             .step_by(10)

@@ -8,32 +8,12 @@
 
 mod tracking_common;
 
-use splattrack::PointModel;
 use splattrack::geometry::Pose;
 use splattrack::gpu::shared_test_context;
-use splattrack::io::{Sequence, read_poses};
-use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-use splattrack::splat::Splatter;
+use splattrack::io::read_poses;
 use splattrack::tracker::{Mode, Status, TrackResult, Tracker, TrackerConfig};
 use std::collections::HashMap;
-use std::path::PathBuf;
-
-fn data_dir(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    if dir.join("poses.csv").is_file() {
-        return Some(dir);
-    }
-    if std::env::var_os("SPLATTRACK_SKIP_REAL_DATA").is_some() {
-        eprintln!("skipped: no real data at {}", dir.display());
-        return None;
-    }
-    panic!(
-        "real data not found at {} (see shared/data/README.txt; set SPLATTRACK_SKIP_REAL_DATA=1 to skip)",
-        dir.display()
-    );
-}
+use tracking_common::RealSequence;
 
 /// `frame -> gt_ok` from gt_quality.csv.
 fn gt_ok(path: &std::path::Path) -> HashMap<usize, bool> {
@@ -58,24 +38,17 @@ type Tracked = (TrackResult, Option<(f64, f64)>);
 /// default settings in `mode`: per frame, the result and (gt_ok frames only)
 /// the rotation error (degrees) and translation error (% of the diameter).
 fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Tracked>> {
-    let dir = data_dir(name)?;
+    let RealSequence {
+        dir,
+        model,
+        seq,
+        store,
+        gt,
+    } = RealSequence::load(name)?;
     let ctx = shared_test_context();
-    let model = PointModel::load(dir.join("model.ply")).unwrap();
-    let seq = Sequence::open(&dir).unwrap();
     let cam = seq.camera;
     assert!(!cam.has_distortion(), "the ViSP camera has no distortion");
-    let splatter = Splatter::new(ctx).unwrap();
-    let store = KeyframeStore::build_from_dir(
-        ctx,
-        &splatter,
-        &model,
-        &cam,
-        &dir.join("keyframes"),
-        &KeyframeConfig::default(),
-    )
-    .unwrap();
     let init: Pose = read_poses(&seq.init_path()).unwrap()[0].pose;
-    let gt = read_poses(&dir.join("poses.csv")).unwrap();
     let ok = gt_ok(&dir.join("gt_quality.csv"));
     let diameter = model.diameter() as f64;
     let config = TrackerConfig {

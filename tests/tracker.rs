@@ -18,42 +18,16 @@ use splattrack::geometry::Pose;
 use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::KeyframeStore;
 use splattrack::rng::Rng;
-use splattrack::synth::{SynthConfig, SynthFrame, Trajectory, render_frame};
 use splattrack::tracker::{Modalities, Mode, Status, TrackError, Tracker, TrackerConfig};
 use std::sync::OnceLock;
-use tracking_common::{Scene, camera_320};
+use tracking_common::Fig10;
 
 const FIRST: usize = 50;
 const COUNT: usize = 20;
 
-struct Fixture {
-    scene: Scene,
-    store: KeyframeStore,
-    frames: Vec<SynthFrame>,
-}
-
-/// The sequence, rendered once per test binary.
-fn fixture() -> &'static Fixture {
-    static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let cam = camera_320();
-        let scene = Scene::new("blob", cam, 60_000);
-        let cfg = SynthConfig {
-            camera: cam,
-            frames: 100,
-            trajectory: Trajectory::Fig10,
-            ..Default::default()
-        };
-        let store = scene.keyframe_store(cfg.distance);
-        let frames = (FIRST..FIRST + COUNT)
-            .map(|i| render_frame(&cfg, &scene.object, &scene.bg, i))
-            .collect();
-        Fixture {
-            scene,
-            store,
-            frames,
-        }
-    })
+fn fixture() -> &'static Fig10 {
+    static F: OnceLock<Fig10> = OnceLock::new();
+    F.get_or_init(|| Fig10::blob(FIRST..FIRST + COUNT))
 }
 
 fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker {

@@ -14,50 +14,21 @@ mod tracking_common;
 use nalgebra::Vector3;
 use splattrack::geometry::{Pose, rotation_exp};
 use splattrack::gpu::shared_test_context;
-use splattrack::io::{Sequence, read_poses};
-use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-use splattrack::model::PointModel;
-use splattrack::splat::Splatter;
 use splattrack::synth::raster;
-use splattrack::synth::{Light, SynthConfig, SynthFrame, SynthObject, Trajectory, render_frame};
+use splattrack::synth::{Light, SynthFrame, SynthObject};
 use splattrack::tracker::{
     LostReason, Mode, Status, TrackResult, Tracker, TrackerConfig, Unverified,
 };
-use std::path::PathBuf;
 use std::sync::OnceLock;
-use tracking_common::{Scene, camera_320};
+use tracking_common::{Fig10, RealSequence};
 
 /// The most a `tracking` frame may be off, degrees (the bound).
 const BOUND_DEG: f64 = 10.0;
 
-struct Fixture {
-    scene: Scene,
-    store: KeyframeStore,
-    /// Frames 0, 3, 6, ... of the 100-frame fig10 sequence (fast motion).
-    frames: Vec<SynthFrame>,
-}
-
-fn fixture() -> &'static Fixture {
-    static F: OnceLock<Fixture> = OnceLock::new();
-    F.get_or_init(|| {
-        let cam = camera_320();
-        let scene = Scene::new("blob", cam, 60_000);
-        let cfg = SynthConfig {
-            camera: cam,
-            frames: 100,
-            trajectory: Trajectory::Fig10,
-            ..Default::default()
-        };
-        let store = scene.keyframe_store(cfg.distance);
-        let frames = (0..10)
-            .map(|i| render_frame(&cfg, &scene.object, &scene.bg, 3 * i))
-            .collect();
-        Fixture {
-            scene,
-            store,
-            frames,
-        }
-    })
+/// Frames 0, 3, 6, ... of the 100-frame fig10 sequence (fast motion).
+fn fixture() -> &'static Fig10 {
+    static F: OnceLock<Fig10> = OnceLock::new();
+    F.get_or_init(|| Fig10::blob((0..10).map(|i| 3 * i)))
 }
 
 fn tracker(mode: Mode, initial: Pose) -> Tracker {
@@ -242,60 +213,25 @@ fn an_object_leaving_the_image_is_lost_not_followed_off_screen() {
     );
 }
 
-fn real_dir(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    if dir.join("poses.csv").is_file() {
-        return Some(dir);
-    }
-    if std::env::var_os("SPLATTRACK_SKIP_REAL_DATA").is_some() {
-        eprintln!("skipped: no real data at {}", dir.display());
-        return None;
-    }
-    panic!(
-        "real data not found at {} (see shared/data/README.txt; set SPLATTRACK_SKIP_REAL_DATA=1 to skip)",
-        dir.display()
-    );
-}
-
 #[test]
 fn real_cube_with_a_wrong_initial_pose_is_never_tracking_far_off() {
-    let Some(dir) = real_dir("visp_rbt_cube") else {
+    let Some(real) = RealSequence::load("visp_rbt_cube") else {
         return;
     };
     let ctx = shared_test_context();
-    let model = PointModel::load(dir.join("model.ply")).unwrap();
-    let seq = Sequence::open(&dir).unwrap();
-    let splatter = Splatter::new(ctx).unwrap();
-    let store = KeyframeStore::build_from_dir(
-        ctx,
-        &splatter,
-        &model,
-        &seq.camera,
-        &dir.join("keyframes"),
-        &KeyframeConfig::default(),
-    )
-    .unwrap();
-    let gt = read_poses(&dir.join("poses.csv")).unwrap();
     let frames: Vec<_> = (0..4)
-        .map(|i| {
-            (
-                image::open(&seq.frames[i]).unwrap().to_rgb8(),
-                Some(gt[i].pose),
-            )
-        })
+        .map(|i| (real.image(i), Some(real.gt[i].pose)))
         .collect();
     for (deg, axis) in [
         (20.0, Vector3::new(0.0, 1.0, 0.0)),
         (45.0, Vector3::new(1.0, 0.0, 1.0)),
     ] {
-        let init = turned(&gt[0].pose, axis, deg);
+        let init = turned(&real.gt[0].pose, axis, deg);
         let mut t = Tracker::new(
             ctx,
-            model.clone(),
-            seq.camera,
-            Some(store.clone()),
+            real.model.clone(),
+            real.seq.camera,
+            Some(real.store.clone()),
             TrackerConfig::default(),
             init,
         )

@@ -5,13 +5,17 @@
 
 use splattrack::geometry::{Intrinsics, Pose};
 use splattrack::gpu::shared_test_context;
+use splattrack::io::{PoseRow, Sequence, read_poses};
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::model::{AttributeSource, PointModel, Provenance, TriangleMesh};
 use splattrack::rng::Rng;
 use splattrack::splat::Splatter;
 use splattrack::synth::raster::{self, Rendering};
 use splattrack::synth::sequence::sample_model;
-use splattrack::synth::{Light, SynthObject, background, keyframe_poses, to_image};
+use splattrack::synth::{
+    Light, SynthConfig, SynthFrame, SynthObject, Trajectory, background, keyframe_poses,
+    render_frame, to_image,
+};
 use std::path::PathBuf;
 
 /// 320x240 with the synth command's 56-degree field of view.
@@ -92,6 +96,101 @@ impl Scene {
             &KeyframeConfig::default(),
         )
         .expect("build keyframe store")
+    }
+}
+
+/// The blob on the 100-frame Fig. 10 trajectory at 320x240 (60k points),
+/// its keyframe store and the frames asked for.
+pub struct Fig10 {
+    pub scene: Scene,
+    pub store: KeyframeStore,
+    pub frames: Vec<SynthFrame>,
+}
+
+impl Fig10 {
+    /// Renders `frames` (indices into the 100-frame sequence).
+    pub fn blob(frames: impl IntoIterator<Item = usize>) -> Self {
+        let cam = camera_320();
+        let scene = Scene::new("blob", cam, 60_000);
+        let cfg = SynthConfig {
+            camera: cam,
+            frames: 100,
+            trajectory: Trajectory::Fig10,
+            ..Default::default()
+        };
+        let store = scene.keyframe_store(cfg.distance);
+        let frames = frames
+            .into_iter()
+            .map(|i| render_frame(&cfg, &scene.object, &scene.bg, i))
+            .collect();
+        Self {
+            scene,
+            store,
+            frames,
+        }
+    }
+}
+
+/// The real sequence `name` under `../shared/data` (shared/data/README.txt);
+/// `None` (said on stderr) only when it is absent and
+/// `SPLATTRACK_SKIP_REAL_DATA` is set, else absent data fails the test.
+pub fn real_data_dir(name: &str) -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/data")
+        .join(name);
+    if dir.join("poses.csv").is_file() {
+        return Some(dir);
+    }
+    if std::env::var_os("SPLATTRACK_SKIP_REAL_DATA").is_some() {
+        eprintln!("skipped: no real data at {}", dir.display());
+        return None;
+    }
+    panic!(
+        "real data not found at {} (see shared/data/README.txt; set SPLATTRACK_SKIP_REAL_DATA=1 to skip)",
+        dir.display()
+    );
+}
+
+/// A real sequence loaded for tracking: model, frames and camera, the
+/// keyframe store built from its keyframes folder, and the ground truth.
+pub struct RealSequence {
+    pub dir: PathBuf,
+    pub model: PointModel,
+    pub seq: Sequence,
+    pub store: KeyframeStore,
+    pub gt: Vec<PoseRow>,
+}
+
+impl RealSequence {
+    /// Loads `name` ([`real_data_dir`] says when it may be absent).
+    pub fn load(name: &str) -> Option<Self> {
+        let dir = real_data_dir(name)?;
+        let ctx = shared_test_context();
+        let model = PointModel::load(dir.join("model.ply")).expect("model");
+        let seq = Sequence::open(&dir).expect("sequence");
+        let splatter = Splatter::new(ctx).expect("splatter");
+        let store = KeyframeStore::build_from_dir(
+            ctx,
+            &splatter,
+            &model,
+            &seq.camera,
+            &dir.join("keyframes"),
+            &KeyframeConfig::default(),
+        )
+        .expect("keyframe store");
+        let gt = read_poses(&dir.join("poses.csv")).expect("ground truth");
+        Some(Self {
+            dir,
+            model,
+            seq,
+            store,
+            gt,
+        })
+    }
+
+    /// Frame `i` as an 8-bit image.
+    pub fn image(&self, i: usize) -> image::RgbImage {
+        image::open(&self.seq.frames[i]).expect("frame").to_rgb8()
     }
 }
 
