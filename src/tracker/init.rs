@@ -15,8 +15,10 @@
 //!    about [`TEMPLATE_POINTS`] points with radii grown to cover the same
 //!    surface (the object is a few dozen pixels wide there; splatting every
 //!    point would cost the search most of its time).
-//! 3. Search: masked ZNCC of each template, at three scales, over every
-//!    position of the frame shrunk alike ([`best_positions`], pure CPU).
+//! 3. Search: each template, at three scales, over every position of the
+//!    frame shrunk alike ([`best_positions`], pure CPU), scored by the
+//!    masked ZNCC of its texture and by how well its silhouette lies on
+//!    the frame's edges ([`EdgeMap`]).
 //! 4. The best [`InitConfig::candidates`] hits become poses (the template's
 //!    pose turned so its centre lies on the hit's line of sight, at the
 //!    distance the scale gives), are refined by the tracker's own KF step
@@ -134,6 +136,9 @@ pub fn shrink(img: &[f32], w: usize, h: usize, f: usize) -> (Vec<f32>, usize, us
 pub struct Template {
     /// Offsets from the top-left and values of the covered samples.
     pub samples: Vec<(usize, usize, f32)>,
+    /// Offsets and unit normals of the samples on the silhouette (covered,
+    /// with an uncovered 4-neighbour).
+    pub edges: Vec<(usize, usize, [f32; 2])>,
     /// Width, coarse pixels.
     pub w: usize,
     /// Height, coarse pixels.
@@ -165,19 +170,40 @@ impl Template {
         }
         let tw = (((x1 - x0 + 1) as f64) * scale).round().max(1.0) as usize;
         let th = (((y1 - y0 + 1) as f64) * scale).round().max(1.0) as usize;
+        // Coverage off the image counts as uncovered.
+        let at = |x: isize, y: isize| {
+            let inside = x >= 0 && y >= 0 && (x as usize) < w && (y as usize) < h;
+            if inside && on(x as usize, y as usize) {
+                1.0f32
+            } else {
+                0.0
+            }
+        };
         let mut samples = Vec::new();
+        let mut edges = Vec::new();
         for ty in 0..th {
             for tx in 0..tw {
                 let sx = x0 + ((tx as f64 + 0.5) / scale) as usize;
                 let sy = y0 + ((ty as f64 + 0.5) / scale) as usize;
                 if sx <= x1 && sy <= y1 && on(sx, sy) {
                     samples.push((tx, ty, view[sy * w + sx]));
+                    let (x, y) = (sx as isize, sy as isize);
+                    let border = [(1, 0), (-1, 0), (0, 1), (0, -1)]
+                        .iter()
+                        .any(|(dx, dy)| at(x + dx, y + dy) == 0.0);
+                    // The outward normal: down the coverage gradient.
+                    let n = [at(x - 1, y) - at(x + 1, y), at(x, y - 1) - at(x, y + 1)];
+                    let len = n[0].hypot(n[1]);
+                    if border && len > 0.0 {
+                        edges.push((tx, ty, [n[0] / len, n[1] / len]));
+                    }
                 }
             }
         }
         (samples.len() >= 12).then_some((
             Self {
                 samples,
+                edges,
                 w: tw,
                 h: th,
             },
@@ -186,16 +212,79 @@ impl Template {
     }
 }
 
-/// The masked ZNCC of `t` at every position of `img` (`w` x `h`) where it
-/// fits: the best `keep` positions, at least `t.w / 2` apart, best first.
+/// A gradient step (grey levels per coarse pixel) below which a pixel of
+/// an [`EdgeMap`] holds no edge.
+pub const MIN_EDGE: f32 = 0.01;
+
+/// The weight of the silhouette term in a template's score (the masked
+/// ZNCC has the rest).
+pub const EDGE_WEIGHT: f64 = 0.5;
+
+/// Where a coarse image has edges: per pixel the unit gradient direction
+/// of the strongest gradient in its 3x3 neighbourhood (so that a
+/// silhouette a pixel off still meets it), zero where every gradient there
+/// is under [`MIN_EDGE`].
+#[derive(Debug, Clone)]
+pub struct EdgeMap {
+    /// Width, pixels.
+    pub w: usize,
+    /// Height, pixels.
+    pub h: usize,
+    /// Row-major unit directions, or zero.
+    pub dir: Vec<[f32; 2]>,
+}
+
+impl EdgeMap {
+    /// The edges of `img` (`w` x `h`, row-major), by central differences.
+    pub fn new(img: &[f32], w: usize, h: usize) -> Self {
+        let mut grad = vec![[0.0f32; 3]; w * h];
+        for y in 1..h.saturating_sub(1) {
+            for x in 1..w.saturating_sub(1) {
+                let gx = 0.5 * (img[y * w + x + 1] - img[y * w + x - 1]);
+                let gy = 0.5 * (img[(y + 1) * w + x] - img[(y - 1) * w + x]);
+                grad[y * w + x] = [gx, gy, gx.hypot(gy)];
+            }
+        }
+        let mut dir = vec![[0.0f32; 2]; w * h];
+        for y in 0..h {
+            for x in 0..w {
+                let mut best = [0.0f32; 3];
+                for yy in y.saturating_sub(1)..(y + 2).min(h) {
+                    for xx in x.saturating_sub(1)..(x + 2).min(w) {
+                        let g = grad[yy * w + xx];
+                        if g[2] > best[2] {
+                            best = g;
+                        }
+                    }
+                }
+                if best[2] >= MIN_EDGE {
+                    dir[y * w + x] = [best[0] / best[2], best[1] / best[2]];
+                }
+            }
+        }
+        Self { w, h, dir }
+    }
+}
+
+/// A template's score at each position of a coarse frame `img` (`w` x `h`)
+/// where it fits: the masked ZNCC of its texture, blended with
+/// [`EDGE_WEIGHT`] of how well its silhouette lies on the frame's edges
+/// (the mean of `|n . d|` over the silhouette samples, `n` their normal
+/// and `d` the edge direction of `edges` there: a silhouette is an edge
+/// whatever the background, of either polarity). The texture alone ranks
+/// clutter of the right grey levels above the object turned 20 degrees
+/// from every template; the silhouette does not move with the texture.
+/// Returns the best `keep` positions, at least `t.w / 2` apart, best
+/// first: (x, y, score).
 pub fn best_positions(
     t: &Template,
     img: &[f32],
+    edges: &EdgeMap,
     w: usize,
     h: usize,
     keep: usize,
 ) -> Vec<(usize, usize, f64)> {
-    if t.w > w || t.h > h || t.samples.is_empty() {
+    if t.w > w || t.h > h || t.samples.is_empty() || edges.dir.len() != w * h {
         return Vec::new();
     }
     let n = t.samples.len() as f64;
@@ -219,7 +308,20 @@ pub fn best_positions(
                 sti += (v as f64 - mean_t) * i;
             }
             let var_i = sii - si * si / n;
-            let score = sti / (var_t * var_i).sqrt();
+            let zncc = sti / (var_t * var_i).sqrt();
+            let edge = if t.edges.is_empty() {
+                0.0
+            } else {
+                t.edges
+                    .iter()
+                    .map(|&(dx, dy, nv)| {
+                        let d = edges.dir[(y + dy) * w + x + dx];
+                        (nv[0] * d[0] + nv[1] * d[1]).abs() as f64
+                    })
+                    .sum::<f64>()
+                    / t.edges.len() as f64
+            };
+            let score = (1.0 - EDGE_WEIGHT) * zncc + EDGE_WEIGHT * edge;
             if var_i > 1e-9 && score.is_finite() {
                 all.push((x, y, score));
             }
@@ -323,6 +425,7 @@ impl Tracker {
         let cfg = self.config.init.clone();
         let f = ((diam_px / cfg.template_px).floor() as usize).clamp(1, 16);
         let (coarse, cw, ch) = shrink(&frame.grey.data, w, h, f);
+        let edges = EdgeMap::new(&coarse, cw, ch);
         // Templates rendered at twice the coarse size, then shrunk by 2:
         // pixel (i, j) of the result is centred where coarse pixel (i, j)
         // of the frame is ((u + 0.5) s - 0.5 with s = 1 / f).
@@ -348,7 +451,7 @@ impl Tracker {
                 let Some((t, origin)) = Template::new(&v, &c, vw, vh, scale) else {
                     continue;
                 };
-                for (x, y, score) in best_positions(&t, &coarse, cw, ch, 2) {
+                for (x, y, score) in best_positions(&t, &coarse, &edges, cw, ch, 2) {
                     hits.push(Hit {
                         view: vi,
                         scale,
@@ -503,13 +606,55 @@ mod tests {
         }
         let (t, origin) = Template::new(&view, &cover, w, h, 1.0).unwrap();
         assert_eq!((origin, t.w, t.h, t.samples.len()), ((23, 17), 10, 8, 80));
-        let best = best_positions(&t, &img, w, h, 3);
+        // Without edges in the frame the score is the ZNCC's share alone.
+        let flat = EdgeMap::new(&vec![0.0; w * h], w, h);
+        let best = best_positions(&t, &img, &flat, w, h, 3);
         assert_eq!((best[0].0, best[0].1), (23, 17));
-        assert!((best[0].2 - 1.0).abs() < 1e-9);
-        assert!(best[1].2 < 1.0);
+        assert!((best[0].2 - (1.0 - EDGE_WEIGHT)).abs() < 1e-9);
+        assert!(best[1].2 < 1.0 - EDGE_WEIGHT);
         // A scaled template has the scaled size.
         let (t2, _) = Template::new(&view, &cover, w, h, 1.25).unwrap();
         assert_eq!((t2.w, t2.h), (13, 10));
+    }
+
+    #[test]
+    fn the_silhouette_finds_an_object_whose_texture_matches_nothing() {
+        // A bright 10x8 block at (23, 17) on faint noise; the template has
+        // the block's outline and an unrelated texture.
+        let (w, h) = (60, 40);
+        let noise = |i: usize| (((i as u64).wrapping_mul(2_654_435_761) >> 7) % 97) as f32 / 96.0;
+        let inside = |x: usize, y: usize| (23..33).contains(&x) && (17..25).contains(&y);
+        let img: Vec<f32> = (0..w * h)
+            .map(|i| 0.005 * noise(i) + if inside(i % w, i / w) { 0.5 } else { 0.0 })
+            .collect();
+        let mut view = vec![0.0; w * h];
+        let mut cover = vec![0.0; w * h];
+        for y in 5..13 {
+            for x in 40..50 {
+                view[y * w + x] = noise(7 * (y * w + x) + 3);
+                cover[y * w + x] = 1.0;
+            }
+        }
+        let (t, origin) = Template::new(&view, &cover, w, h, 1.0).unwrap();
+        assert_eq!((origin, t.w, t.h), ((40, 5), 10, 8));
+        // The outline: 2 x 10 + 2 x 6 samples, normals outward.
+        assert_eq!(t.edges.len(), 32);
+        assert!(t.edges.contains(&(0, 4, [-1.0, 0.0])));
+        assert!(t.edges.contains(&(4, 7, [0.0, 1.0])));
+        let edges = EdgeMap::new(&img, w, h);
+        // Edges on the block's border (spread by a pixel), none far away.
+        let d = edges.dir[20 * w + 23];
+        assert!(d[0] > 0.999 && d[1].abs() < 0.02, "{d:?}");
+        assert_eq!(edges.dir[20 * w + 10], [0.0, 0.0]);
+        let best = best_positions(&t, &img, &edges, w, h, 1);
+        // Within the pixel the spread leaves open.
+        assert!(
+            best[0].0.abs_diff(23) <= 1 && best[0].1.abs_diff(17) <= 1,
+            "{best:?}"
+        );
+        // Every outline sample on an edge of its own direction (the
+        // corners' normals are diagonal, the edges there not).
+        assert!(best[0].2 > EDGE_WEIGHT * 0.9, "{best:?}");
     }
 
     #[test]
