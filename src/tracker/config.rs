@@ -358,6 +358,18 @@ impl TrackerConfig {
             |m| m.texture || m.contour,
             "at least one of texture and contour",
         )?;
+        check(
+            "init.template_px",
+            self.init.template_px,
+            |v| v >= 4.0 && v.is_finite(),
+            "a finite size >= 4",
+        )?;
+        check(
+            "init.keyframe_tilt_deg",
+            self.init.keyframe_tilt_deg,
+            |v| (0.0..=90.0).contains(&v),
+            "in [0, 90]",
+        )?;
         self.contour.validate()?;
         self.harris.validate()?;
         self.ncc.validate()?;
@@ -373,7 +385,7 @@ mod tests {
     fn defaults_are_valid_and_each_rule_names_its_field() {
         TrackerConfig::default().validate().unwrap();
         type Change = fn(&mut TrackerConfig);
-        let bad: [(Change, &str); 6] = [
+        let bad: [(Change, &str); 8] = [
             (
                 |c| c.harris.relative_threshold = 0.0,
                 "harris.relative_threshold = 0: must be in (0, 1]",
@@ -394,6 +406,14 @@ mod tests {
             (
                 |c| c.roi_margin_px = -2.5,
                 "roi_margin_px = -2.5: must be >= 0",
+            ),
+            (
+                |c| c.init.keyframe_tilt_deg = f64::NAN,
+                "init.keyframe_tilt_deg = NaN: must be in [0, 90]",
+            ),
+            (
+                |c| c.init.template_px = 0.0,
+                "init.template_px = 0: must be a finite size >= 4",
             ),
         ];
         for (change, want) in bad {

@@ -1,7 +1,8 @@
 //! Automatic initialisation and re-detection (issue 12, Deliver 2): find
 //! the object anywhere in a frame without a prior pose.
 //!
-//! 1. Viewpoints: the keyframes' own poses, plus [`InitConfig::sphere`]
+//! 1. Viewpoints: the keyframes' own poses, each also tilted four ways by
+//!    [`InitConfig::keyframe_tilt_deg`], plus [`InitConfig::sphere`]
 //!    directions spread over the viewing sphere (a Fibonacci lattice), each
 //!    at [`InitConfig::rolls`] turns about the line of sight, all at the
 //!    keyframes' median distance (else the distance at which the object
@@ -71,6 +72,9 @@ pub struct InitConfig {
     pub sphere: usize,
     /// Turns about the line of sight per direction.
     pub rolls: usize,
+    /// Each keyframe's viewpoint is also tried tilted by this angle up,
+    /// down, left and right, degrees (0: not).
+    pub keyframe_tilt_deg: f64,
     /// Size the object is shrunk to for the search, pixels.
     pub template_px: f64,
     /// Coarse hits refined and verified.
@@ -87,6 +91,7 @@ impl Default for InitConfig {
         Self {
             sphere: 16,
             rolls: 4,
+            keyframe_tilt_deg: 15.0,
             template_px: 24.0,
             candidates: 6,
             refine_steps: 3,
@@ -385,6 +390,14 @@ impl Tracker {
                 let ray = k.pose.transform_point(&c).normalize();
                 let r = axis_to(&ray).transpose() * k.pose.rotation;
                 out.push(centred(r, z, &c));
+                // And tilted four ways: the object seen from a little off
+                // the keyframe, still with its texture.
+                let tilt = self.config.init.keyframe_tilt_deg.to_radians();
+                if tilt > 0.0 {
+                    for axis in [Vector3::x(), -Vector3::x(), Vector3::y(), -Vector3::y()] {
+                        out.push(centred(rotation_exp(&(axis * tilt)) * r, z, &c));
+                    }
+                }
             }
         }
         dists.sort_by(f64::total_cmp);
