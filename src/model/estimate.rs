@@ -93,6 +93,55 @@ fn centred_points(
         .collect()
 }
 
+/// Threads for the per-point loops: the machine's cores, at most 16.
+fn threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get().min(16))
+}
+
+/// Runs `work` over `0..n` cut into `threads` contiguous ranges, one thread
+/// each, and returns the ranges' results in order: the same, point for
+/// point, as one range on one thread. `work` reports the points it
+/// finishes through its second argument; the calling thread passes each
+/// report on to `bar` as it comes.
+fn par_ranges<T: Send>(
+    n: usize,
+    threads: usize,
+    bar: &Stage<'_>,
+    work: impl Fn(std::ops::Range<usize>, &dyn Fn(usize)) -> T + Sync,
+) -> Vec<T> {
+    let threads = threads.clamp(1, n.max(1));
+    if threads == 1 {
+        return vec![work(0..n, &|units| bar.advance(units as u64))];
+    }
+    let step = n.div_ceil(threads);
+    let (tx, rx) = std::sync::mpsc::channel::<usize>();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..threads)
+            .map(|t| {
+                let range = (t * step).min(n)..((t + 1) * step).min(n);
+                let (work, tx) = (&work, tx.clone());
+                scope.spawn(move || {
+                    work(range, &|units| {
+                        let _ = tx.send(units);
+                    })
+                })
+            })
+            .collect();
+        drop(tx);
+        // Ends when every worker has ended (and dropped its sender).
+        for units in rx {
+            bar.advance(units as u64);
+        }
+        handles
+            .into_iter()
+            .map(|h| match h.join() {
+                Ok(v) => v,
+                Err(panic) => std::panic::resume_unwind(panic),
+            })
+            .collect()
+    })
+}
+
 fn err(path: &Path, what: &'static str, reason: impl Into<String>) -> ModelError {
     ModelError::Estimation {
         path: path.to_path_buf(),
@@ -101,7 +150,8 @@ fn err(path: &Path, what: &'static str, reason: impl Into<String>) -> ModelError
     }
 }
 
-/// Fills `normals` (length n) and `radii` (length n) as `task` says.
+/// Fills `normals` (length n) and `radii` (length n) as `task` says, on
+/// every core ([`threads`]).
 pub(crate) fn estimate(
     positions: &[Vec3],
     normals: &mut [Vec3],
@@ -109,6 +159,19 @@ pub(crate) fn estimate(
     task: &Task,
     path: &Path,
     bars: &Bars<'_>,
+) -> Result<(), ModelError> {
+    estimate_on(positions, normals, radii, task, path, bars, threads())
+}
+
+/// [`estimate`] on `threads` threads (the result does not depend on it).
+fn estimate_on(
+    positions: &[Vec3],
+    normals: &mut [Vec3],
+    radii: &mut [f32],
+    task: &Task,
+    path: &Path,
+    bars: &Bars<'_>,
+    threads: usize,
 ) -> Result<(), ModelError> {
     let n = positions.len();
     let what = if task.normals.is_some() {
@@ -161,64 +224,86 @@ pub(crate) fn estimate(
         sorted_normals = order.iter().map(|&i| normals[i as usize]).collect();
         sorted_mask = order.iter().map(|&i| mask[i as usize]).collect();
     }
-    let mut sorted_radii: Vec<f32> = if task.radii { vec![0.0; n] } else { Vec::new() };
 
     let orient_too = task.normals.is_some();
     let kg = GRAPH_K.min(k);
-    let mut graph: Vec<u32> = if orient_too {
-        vec![0; n * kg]
-    } else {
-        Vec::new()
-    };
     let qty = NonZeroUsize::new(k + 1).unwrap_or(NonZeroUsize::MIN);
-    let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
-    let mut nbrs: Vec<u32> = Vec::with_capacity(k + 1);
-    for (i, point) in pts.iter().enumerate() {
-        let item = i as u32;
-        let found = tree
-            .query(point)
-            .nearest_n::<SquaredEuclidean<f32>>(qty)
-            .with_scratch(&mut scratch)
-            .execute();
-        // The point itself is among the results unless more than k points
-        // share its position; either way keep k others.
-        nbrs.clear();
-        let mut last_dist2 = 0.0f32;
-        let mut skipped_self = false;
-        for r in &found {
-            if !skipped_self && r.item == item {
-                skipped_self = true;
-                continue;
+    // Per range of points: its graph rows, normals and radii.
+    let chunks = par_ranges(n, threads, &bars.neighbours, |range, report| {
+        let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
+        let mut nbrs: Vec<u32> = Vec::with_capacity(k + 1);
+        let m = range.len();
+        let mut graph: Vec<u32> = if orient_too {
+            vec![0; m * kg]
+        } else {
+            Vec::new()
+        };
+        let mut normals: Vec<Vec3> = Vec::new();
+        let mut radii: Vec<f32> = Vec::new();
+        for i in range {
+            let point = &pts[i];
+            let item = i as u32;
+            let found = tree
+                .query(point)
+                .nearest_n::<SquaredEuclidean<f32>>(qty)
+                .with_scratch(&mut scratch)
+                .execute();
+            // The point itself is among the results unless more than k
+            // points share its position; either way keep k others.
+            nbrs.clear();
+            let mut last_dist2 = 0.0f32;
+            let mut skipped_self = false;
+            for r in &found {
+                if !skipped_self && r.item == item {
+                    skipped_self = true;
+                    continue;
+                }
+                if nbrs.len() < k {
+                    nbrs.push(r.item);
+                    last_dist2 = r.distance;
+                }
             }
-            if nbrs.len() < k {
-                nbrs.push(r.item);
-                last_dist2 = r.distance;
+            if orient_too {
+                // Coincident points say nothing about orientation and would
+                // use up the row (a cloud of duplicated points would fall
+                // apart into tiny components), so the graph links distinct
+                // positions only; unused slots point to the point itself and
+                // are never followed.
+                let at = normals.len();
+                let row = &mut graph[at * kg..(at + 1) * kg];
+                row.fill(item);
+                let distinct = found
+                    .iter()
+                    .filter(|r| r.item != item && r.distance > 0.0)
+                    .map(|r| r.item);
+                for (slot, j) in row.iter_mut().zip(distinct) {
+                    *slot = j;
+                }
+                normals.push(if sorted_mask[i] {
+                    pca_normal(&pts, i, &nbrs)
+                } else {
+                    sorted_normals[i]
+                });
+            }
+            if task.radii {
+                radii.push(task.radius_factor * last_dist2.max(0.0).sqrt() / (k as f32).sqrt());
+            }
+            if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
+                report(PROGRESS_STEP);
             }
         }
-        if orient_too {
-            // Coincident points say nothing about orientation and would use
-            // up the row (a cloud of duplicated points would fall apart into
-            // tiny components), so the graph links distinct positions only;
-            // unused slots point to the point itself and are never followed.
-            let row = &mut graph[i * kg..(i + 1) * kg];
-            row.fill(item);
-            let distinct = found
-                .iter()
-                .filter(|r| r.item != item && r.distance > 0.0)
-                .map(|r| r.item);
-            for (slot, j) in row.iter_mut().zip(distinct) {
-                *slot = j;
-            }
-            if sorted_mask[i] {
-                sorted_normals[i] = pca_normal(&pts, i, &nbrs);
-            }
-        }
-        if task.radii {
-            sorted_radii[i] = task.radius_factor * last_dist2.max(0.0).sqrt() / (k as f32).sqrt();
-        }
-        if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
-            bars.neighbours.advance(PROGRESS_STEP as u64);
-        }
+        (graph, normals, radii)
+    });
+    let mut graph: Vec<u32> = Vec::with_capacity(if orient_too { n * kg } else { 0 });
+    let mut estimated_normals: Vec<Vec3> = Vec::with_capacity(if orient_too { n } else { 0 });
+    let mut sorted_radii: Vec<f32> = Vec::with_capacity(if task.radii { n } else { 0 });
+    for (g, nm, r) in chunks {
+        graph.extend(g);
+        estimated_normals.extend(nm);
+        sorted_radii.extend(r);
+    }
+    if orient_too {
+        sorted_normals = estimated_normals;
     }
     bars.neighbours.finish();
 
@@ -350,6 +435,19 @@ pub(crate) fn close_gaps(
     path: &Path,
     bar: &Stage<'_>,
 ) -> Result<GapClosure, ModelError> {
+    close_gaps_on(positions, normals, radii, k, path, bar, threads())
+}
+
+/// [`close_gaps`] on `threads` threads (the result does not depend on it).
+fn close_gaps_on(
+    positions: &[Vec3],
+    normals: &[Vec3],
+    radii: &mut [f32],
+    k: usize,
+    path: &Path,
+    bar: &Stage<'_>,
+    threads: usize,
+) -> Result<GapClosure, ModelError> {
     let n = positions.len();
     let mean = |r: &[f32]| r.iter().map(|&v| v as f64).sum::<f64>() / r.len().max(1) as f64;
     let mean_before = mean(radii);
@@ -381,102 +479,109 @@ pub(crate) fn close_gaps(
     let tree = ImmutableKdTree::<f32, 3>::new_from_slice(&pts)
         .map_err(|e| err(path, "radii", format!("k-d tree: {e}")))?;
     let qty = NonZeroUsize::new(k + 1).unwrap_or(NonZeroUsize::MIN);
-    let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
-    let (mut poly, mut next): (Vec<CellVertex>, Vec<CellVertex>) = (Vec::new(), Vec::new());
-    let mut near: Vec<([f32; 2], f32)> = Vec::with_capacity(k);
-    let mut grown_radii: Vec<(usize, f32)> = Vec::new();
-    for (i, point) in pts.iter().enumerate() {
-        let found = tree
-            .query(point)
-            .nearest_n::<SquaredEuclidean<f32>>(qty)
-            .with_scratch(&mut scratch)
-            .execute();
-        let ni = normals[i];
-        let (u, v) = ni.any_orthonormal_pair();
-        let pi = Vec3::from_array(*point);
-        near.clear();
-        let mut reach = 0f32;
-        for r in &found {
-            let j = r.item as usize;
-            if j == i || r.distance <= 0.0 || normals[j].dot(ni) < -0.5 {
+    let radii_in: &[f32] = radii;
+    // Per range of points: those whose radius grows, and to what.
+    let chunks = par_ranges(n, threads, bar, |range, report| {
+        let mut scratch = tree.create_scratch::<SquaredEuclidean<f32>>();
+        let (mut poly, mut next): (Vec<CellVertex>, Vec<CellVertex>) = (Vec::new(), Vec::new());
+        let mut near: Vec<([f32; 2], f32)> = Vec::with_capacity(k);
+        let mut grown_radii: Vec<(usize, f32)> = Vec::new();
+        for i in range {
+            let point = &pts[i];
+            let found = tree
+                .query(point)
+                .nearest_n::<SquaredEuclidean<f32>>(qty)
+                .with_scratch(&mut scratch)
+                .execute();
+            let ni = normals[i];
+            let (u, v) = ni.any_orthonormal_pair();
+            let pi = Vec3::from_array(*point);
+            near.clear();
+            let mut reach = 0f32;
+            for r in &found {
+                let j = r.item as usize;
+                if j == i || r.distance <= 0.0 || normals[j].dot(ni) < -0.5 {
+                    continue;
+                }
+                // Unfolded into the tangent plane: the projected direction at the
+                // 3-D distance. On a plane this is the projection; across a
+                // crease it lays the other face out beyond the crease instead of
+                // squeezing it onto the crease line (which would pretend that
+                // its discs cover this face up to the crease).
+                let d = Vec3::from_array(pts[j]) - pi;
+                let (x, y) = (d.dot(u), d.dot(v));
+                let flat = (x * x + y * y).sqrt();
+                if flat <= 1e-3 * d.length() {
+                    continue;
+                }
+                let s = d.length() / flat;
+                near.push(([x * s, y * s], radii_in[j]));
+                reach = reach.max(r.distance.sqrt());
+            }
+            if near.len() < 3 || reach <= 0.0 {
                 continue;
             }
-            // Unfolded into the tangent plane: the projected direction at the
-            // 3-D distance. On a plane this is the projection; across a
-            // crease it lays the other face out beyond the crease instead of
-            // squeezing it onto the crease line (which would pretend that
-            // its discs cover this face up to the crease).
-            let d = Vec3::from_array(pts[j]) - pi;
-            let (x, y) = (d.dot(u), d.dot(v));
-            let flat = (x * x + y * y).sqrt();
-            if flat <= 1e-3 * d.length() {
-                continue;
+            let l = 2.0 * reach;
+            poly.clear();
+            for (x, y) in [(-l, -l), (l, -l), (l, l), (-l, l)] {
+                poly.push(CellVertex {
+                    p: [x, y],
+                    a: BOX,
+                    b: BOX,
+                });
             }
-            let s = d.length() / flat;
-            near.push(([x * s, y * s], radii[j]));
-            reach = reach.max(r.distance.sqrt());
-        }
-        if near.len() < 3 || reach <= 0.0 {
-            continue;
-        }
-        let l = 2.0 * reach;
-        poly.clear();
-        for (x, y) in [(-l, -l), (l, -l), (l, l), (-l, l)] {
-            poly.push(CellVertex {
-                p: [x, y],
-                a: BOX,
-                b: BOX,
-            });
-        }
-        for (j, (q, _)) in near.iter().enumerate() {
-            let c = 0.5 * (q[0] * q[0] + q[1] * q[1]);
-            clip(&poly, *q, c, j as u32, &mut next);
-            std::mem::swap(&mut poly, &mut next);
-            if poly.is_empty() {
-                break;
+            for (j, (q, _)) in near.iter().enumerate() {
+                let c = 0.5 * (q[0] * q[0] + q[1] * q[1]);
+                clip(&poly, *q, c, j as u32, &mut next);
+                std::mem::swap(&mut poly, &mut next);
+                if poly.is_empty() {
+                    break;
+                }
             }
-        }
-        // Vertices, and points along the edges between two of them (with
-        // unequal radii a gap can open mid-edge between covered vertices).
-        let ri = radii[i];
-        let uncovered = |p: [f32; 2]| {
-            p[0] * p[0] + p[1] * p[1] > ri * ri
-                && !near.iter().any(|(q, rj)| {
-                    let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
-                    dx * dx + dy * dy <= rj * rj
-                })
-        };
-        let m = poly.len();
-        let (mut farthest, mut gap) = (0f32, false);
-        for (e, vx) in poly.iter().enumerate() {
-            if vx.a == BOX || vx.b == BOX {
-                continue;
+            // Vertices, and points along the edges between two of them (with
+            // unequal radii a gap can open mid-edge between covered vertices).
+            let ri = radii_in[i];
+            let uncovered = |p: [f32; 2]| {
+                p[0] * p[0] + p[1] * p[1] > ri * ri
+                    && !near.iter().any(|(q, rj)| {
+                        let (dx, dy) = (p[0] - q[0], p[1] - q[1]);
+                        dx * dx + dy * dy <= rj * rj
+                    })
+            };
+            let m = poly.len();
+            let (mut farthest, mut gap) = (0f32, false);
+            for (e, vx) in poly.iter().enumerate() {
+                if vx.a == BOX || vx.b == BOX {
+                    continue;
+                }
+                let dist = (vx.p[0] * vx.p[0] + vx.p[1] * vx.p[1]).sqrt();
+                farthest = farthest.max(dist.min(reach));
+                gap = gap || uncovered(vx.p);
+                let w = poly[(e + 1) % m];
+                if w.a == BOX || w.b == BOX {
+                    continue;
+                }
+                for t in [0.25f32, 0.5, 0.75] {
+                    let p = [
+                        vx.p[0] + t * (w.p[0] - vx.p[0]),
+                        vx.p[1] + t * (w.p[1] - vx.p[1]),
+                    ];
+                    gap = gap || uncovered(p);
+                }
             }
-            let dist = (vx.p[0] * vx.p[0] + vx.p[1] * vx.p[1]).sqrt();
-            farthest = farthest.max(dist.min(reach));
-            gap = gap || uncovered(vx.p);
-            let w = poly[(e + 1) % m];
-            if w.a == BOX || w.b == BOX {
-                continue;
+            // A gap in the cell: the point's disc grows to cover the whole cell
+            // (its farthest vertex), which closes it whatever the neighbours do.
+            let need = if gap { farthest } else { ri };
+            if need > ri {
+                grown_radii.push((i, need));
             }
-            for t in [0.25f32, 0.5, 0.75] {
-                let p = [
-                    vx.p[0] + t * (w.p[0] - vx.p[0]),
-                    vx.p[1] + t * (w.p[1] - vx.p[1]),
-                ];
-                gap = gap || uncovered(p);
+            if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
+                report(PROGRESS_STEP);
             }
         }
-        // A gap in the cell: the point's disc grows to cover the whole cell
-        // (its farthest vertex), which closes it whatever the neighbours do.
-        let need = if gap { farthest } else { ri };
-        if need > ri {
-            grown_radii.push((i, need));
-        }
-        if i % PROGRESS_STEP == PROGRESS_STEP - 1 {
-            bar.advance(PROGRESS_STEP as u64);
-        }
-    }
+        grown_radii
+    });
+    let grown_radii: Vec<(usize, f32)> = chunks.into_iter().flatten().collect();
     bar.finish();
     for &(i, r) in &grown_radii {
         radii[i] = r;
@@ -834,6 +939,70 @@ mod tests {
         let n = smallest_eigenvector(c).expect("plane");
         let want = DVec3::new(-0.5, 0.0, 1.0).normalize();
         assert!(n.dot(want).abs() > 1.0 - 1e-9, "{n:?}");
+    }
+
+    #[test]
+    fn results_do_not_depend_on_the_threads() {
+        // A noisy sphere of 40k points (more than two progress steps per
+        // thread at 5 threads), random radii, some normals trusted.
+        let mut rng = Rng::new(11);
+        let n = 40_000;
+        let positions: Vec<Vec3> = (0..n)
+            .map(|_| {
+                let v = Vec3::new(
+                    rng.next_f64() as f32 - 0.5,
+                    rng.next_f64() as f32 - 0.5,
+                    rng.next_f64() as f32 - 0.5,
+                );
+                v.normalize_or(Vec3::Z) * (1.0 + 0.01 * rng.next_f64() as f32)
+            })
+            .collect();
+        let mask: Vec<bool> = (0..n).map(|i| i % 7 != 0).collect();
+        let task = Task {
+            normals: Some(&mask),
+            radii: true,
+            k: 12,
+            radius_factor: 0.6,
+        };
+        let run = |threads: usize| {
+            let mut normals: Vec<Vec3> = positions.clone();
+            let mut radii = vec![0.0f32; n];
+            let bars = Bars {
+                neighbours: Stage::silent(),
+                orient: Stage::silent(),
+            };
+            let path = Path::new("sphere.ply");
+            estimate_on(
+                &positions,
+                &mut normals,
+                &mut radii,
+                &task,
+                path,
+                &bars,
+                threads,
+            )
+            .unwrap();
+            let before = radii.clone();
+            let closed = close_gaps_on(
+                &positions,
+                &normals,
+                &mut radii,
+                GAP_NEIGHBOURS,
+                path,
+                &Stage::silent(),
+                threads,
+            )
+            .unwrap();
+            (normals, before, radii, closed.grown)
+        };
+        let one = run(1);
+        let five = run(5);
+        // Radii of 0.6 spacings leave gaps: some grow.
+        assert!(one.3 > 1000, "{} grown", one.3);
+        assert!(one.0 == five.0, "normals differ");
+        assert!(one.1 == five.1, "estimated radii differ");
+        assert!(one.2 == five.2, "closed radii differ");
+        assert_eq!(one.3, five.3);
     }
 
     #[test]
