@@ -192,6 +192,27 @@ impl LiveSource {
         Ok(Self::start(name, camera, producer, Some(killer)))
     }
 
+    /// A video file replayed as a camera would deliver it: ffmpeg reads
+    /// it at its own frame rate (`-re`), and frames that arrive while one
+    /// is being tracked are dropped as a camera's would be.
+    pub fn replay(
+        file: &Path,
+        camera: &Intrinsics,
+        camera_path: &Path,
+    ) -> Result<Self, VideoError> {
+        if !file.is_file() {
+            return Err(VideoError::NotFound(file.to_owned()));
+        }
+        let mut input = OsString::from("file:");
+        input.push(file.as_os_str());
+        Self::ffmpeg(
+            file,
+            &["-re".into(), "-i".into(), input],
+            camera,
+            camera_path,
+        )
+    }
+
     /// A camera: `device` is a number N (`/dev/videoN`) or a device path,
     /// read through V4L2 at the camera's size (Linux).
     pub fn device(

@@ -61,6 +61,32 @@ pub trait FrameSource {
     }
 }
 
+/// A source borrowed for a run, so that the caller keeps it (and its
+/// counts) afterwards.
+impl<S: FrameSource + ?Sized> FrameSource for &mut S {
+    fn camera(&self) -> &Intrinsics {
+        (**self).camera()
+    }
+    fn tracking_camera(&self) -> Intrinsics {
+        (**self).tracking_camera()
+    }
+    fn name(&self) -> &Path {
+        (**self).name()
+    }
+    fn has_timestamps(&self) -> bool {
+        (**self).has_timestamps()
+    }
+    fn remaining(&self) -> Option<usize> {
+        (**self).remaining()
+    }
+    fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
+        (**self).next_frame()
+    }
+    fn dropped(&self) -> u64 {
+        (**self).dropped()
+    }
+}
+
 /// Where to start in a stream (`--start`): a frame index (`120`), or a time
 /// in seconds with an `s` suffix (`4.5s`: the first frame whose timestamp is
 /// at least 4.5 s).
