@@ -391,11 +391,11 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     if args.profile {
-        print!("{}", profile_table(&stats.mean_stages));
         println!(
-            "  {:<26} {:8.1} ms  (outside total: reading/decoding the frame)",
-            "frame source", stats.source_ms
+            "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
+            stats.source_ms
         );
+        print!("{}", profile_table(&stats.mean_stages));
     }
     Ok(())
 }
