@@ -319,14 +319,24 @@ fn ffmpeg_is_reaped_on_every_path_and_a_killed_one_is_an_error_naming_the_file()
     drop(ff);
     no_ffmpeg_children();
 
-    // A live source dropped while ffmpeg is blocked on its pipe.
-    let live = LiveSource::replay(mp4, &cam, &cam_path).unwrap();
+    // A replay starts when asked for its first frame, and is dropped while
+    // ffmpeg is blocked on its pipe.
+    let mut live = LiveSource::replay(mp4, &cam, &cam_path).unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(ffmpeg_children().is_empty());
+    assert_eq!(live.next_frame().unwrap().unwrap().index, 0);
     std::thread::sleep(Duration::from_millis(200));
+    drop(live);
+    no_ffmpeg_children();
+    // A replay of the wrong size says so at the first frame.
+    let wrong = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
+    let mut live = LiveSource::replay(mp4, &wrong, Path::new("wrong.json")).unwrap();
+    let e = live.next_frame().unwrap_err().to_string();
+    assert!(e.contains("160x120") && e.contains("wrong.json"), "{e}");
     drop(live);
     no_ffmpeg_children();
 
     // Refused at open: no child left either.
-    let wrong = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
     let e = VideoSource::open(mp4, &wrong, Path::new("wrong.json"), Start::Frame(0))
         .err()
         .unwrap()

@@ -295,10 +295,11 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             Some(Box::new(VideoSource::open(file, &cam, camera, *start)?))
         }
         Input::Video { file, camera, .. } => {
+            // Checked now; the replay starts once the tracker is ready
+            // (below), so that no frame passes while the model loads.
             let cam = Intrinsics::load(camera)?;
-            Some(Box::new(
-                LiveSource::replay(file, &cam, camera)?.stop_on(stop.clone()),
-            ))
+            VideoSource::open(file, &cam, camera, Start::Frame(0))?;
+            None
         }
         Input::Device { device, camera } => {
             let cam = Intrinsics::load(camera)?;
@@ -366,7 +367,13 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
                 run = run.start(k);
             }
         }
-        (None, _) => {}
+        (None, Input::Video { file, camera, .. }) => {
+            let replay = LiveSource::replay(file, &inputs.camera, camera)?;
+            run = run
+                .source(Box::new(replay.stop_on(stop.clone())))
+                .stop_on(stop.clone());
+        }
+        (None, Input::Device { .. }) => {}
     }
     let stats = run.run(|_, _| {})?;
     println!(

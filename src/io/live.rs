@@ -56,6 +56,8 @@ pub struct LiveCounts {
 
 #[derive(Default)]
 struct State {
+    /// The consumer has asked for a frame (a lazy source starts then).
+    requested: bool,
     slot: Option<(Stamp, RgbImage)>,
     free: Vec<RgbImage>,
     end: Option<Result<(), VideoError>>,
@@ -81,7 +83,7 @@ pub struct LiveSource {
     undistorter: Option<Undistorter>,
     shared: Arc<Shared>,
     reader: Option<JoinHandle<()>>,
-    killer: Option<FfmpegKiller>,
+    killer: Arc<Mutex<Option<FfmpegKiller>>>,
     stop: Option<Arc<AtomicBool>>,
 }
 
@@ -89,14 +91,18 @@ impl LiveSource {
     /// A live source of frames from `producer` (frames of `camera`'s size,
     /// as calibrated), read on its own thread; `name` names it in messages.
     pub fn from_producer(name: &Path, camera: &Intrinsics, producer: Producer) -> Self {
-        Self::start(name, camera, producer, None)
+        Self::start(name, camera, producer, Arc::default(), false)
     }
 
+    /// Starts the reader thread on `producer`; with `lazy`, the producer
+    /// is first called when a frame is first asked for. `killer` holds
+    /// the ffmpeg to kill on drop, once there is one.
     fn start(
         name: &Path,
         camera: &Intrinsics,
         mut producer: Producer,
-        killer: Option<FfmpegKiller>,
+        killer: Arc<Mutex<Option<FfmpegKiller>>>,
+        lazy: bool,
     ) -> Self {
         let shared = Arc::new(Shared {
             state: Mutex::new(State::default()),
@@ -107,6 +113,12 @@ impl LiveSource {
         let reader = std::thread::Builder::new()
             .name("splattrack-live".into())
             .spawn(move || {
+                if lazy {
+                    let mut st = s.lock();
+                    while !st.requested && !st.closing {
+                        st = s.ready.wait(st).unwrap_or_else(|p| p.into_inner());
+                    }
+                }
                 loop {
                     let mut buf = {
                         let mut st = s.lock();
@@ -182,19 +194,22 @@ impl LiveSource {
     ) -> Result<Self, VideoError> {
         let mut ff = Ffmpeg::spawn(name, input_args)?;
         check_size(name, camera, camera_path, ff.size())?;
-        let killer = ff.killer();
+        let killer = Arc::new(Mutex::new(Some(ff.killer())));
         let producer: Producer = Box::new(move |buf: &mut RgbImage| {
             Ok(ff.read_frame(buf.as_mut())?.map(|i| Stamp {
                 index: i.index,
                 time_s: i.time_s,
             }))
         });
-        Ok(Self::start(name, camera, producer, Some(killer)))
+        Ok(Self::start(name, camera, producer, killer, false))
     }
 
     /// A video file replayed as a camera would deliver it: ffmpeg reads
     /// it at its own frame rate (`-re`), and frames that arrive while one
-    /// is being tracked are dropped as a camera's would be.
+    /// is being tracked are dropped as a camera's would be. The replay
+    /// starts when the first frame is asked for (not while the tracker
+    /// is being set up); a file ffmpeg cannot read, or frames of another
+    /// size than `camera`'s, are reported by that first request.
     pub fn replay(
         file: &Path,
         camera: &Intrinsics,
@@ -205,12 +220,27 @@ impl LiveSource {
         }
         let mut input = OsString::from("file:");
         input.push(file.as_os_str());
-        Self::ffmpeg(
-            file,
-            &["-re".into(), "-i".into(), input],
-            camera,
-            camera_path,
-        )
+        let args: Vec<OsString> = vec!["-re".into(), "-i".into(), input];
+        let killer: Arc<Mutex<Option<FfmpegKiller>>> = Arc::default();
+        let slot = killer.clone();
+        let (path, cam, cam_path) = (file.to_owned(), *camera, camera_path.to_owned());
+        let mut ff: Option<Ffmpeg> = None;
+        let producer: Producer = Box::new(move |buf: &mut RgbImage| {
+            let f = match &mut ff {
+                Some(f) => f,
+                None => {
+                    let f = Ffmpeg::spawn(&path, &args)?;
+                    *slot.lock().unwrap_or_else(|p| p.into_inner()) = Some(f.killer());
+                    check_size(&path, &cam, &cam_path, f.size())?;
+                    ff.insert(f)
+                }
+            };
+            Ok(f.read_frame(buf.as_mut())?.map(|i| Stamp {
+                index: i.index,
+                time_s: i.time_s,
+            }))
+        });
+        Ok(Self::start(file, camera, producer, killer, true))
     }
 
     /// A camera: `device` is a number N (`/dev/videoN`) or a device path,
@@ -287,6 +317,10 @@ impl FrameSource for LiveSource {
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         let stopped = || self.stop.as_ref().is_some_and(|f| f.load(Ordering::SeqCst));
         let mut st = self.shared.lock();
+        if !st.requested {
+            st.requested = true;
+            self.shared.ready.notify_all();
+        }
         loop {
             if stopped() {
                 return Ok(None);
@@ -324,10 +358,11 @@ impl Drop for LiveSource {
             st.closing = true;
             st.slot = None;
             st.free.clear();
+            self.shared.ready.notify_all();
         }
         // The reader may be blocked on ffmpeg's pipe: killing ffmpeg ends
         // the read; the reader then reaps it.
-        if let Some(k) = &self.killer {
+        if let Some(k) = &*self.killer.lock().unwrap_or_else(|p| p.into_inner()) {
             k.kill();
         }
         if let Some(h) = self.reader.take() {
@@ -344,7 +379,7 @@ mod tests {
         Intrinsics::new(8, 6, 10.0, 10.0, 3.5, 2.5)
     }
 
-    /// A producer of `n` frames, as fast as it can, each filled with its
+    /// A producer of `n` frames, one every 0.1 ms, each filled with its
     /// number.
     fn counting(n: usize) -> Producer {
         let mut k = 0;
@@ -352,6 +387,7 @@ mod tests {
             if k == n {
                 return Ok(None);
             }
+            std::thread::sleep(Duration::from_micros(100));
             buf.pixels_mut().for_each(|p| p.0 = [k as u8; 3]);
             k += 1;
             Ok(Some(Stamp {
