@@ -6,7 +6,7 @@
 
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
-use splattrack::app::{TrackInputs, TrackRun};
+use splattrack::app::{AppError, TrackInputs, TrackRun};
 use splattrack::io::guard::{check_output, check_output_dir};
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::{FrameSource, Start};
@@ -375,7 +375,21 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         (None, Input::Device { .. }) => {}
     }
-    let stats = run.run(|_, _| {})?;
+    let stats = match run.run(|_, _| {}) {
+        Err(AppError::NoFrames) if args.start.is_some() => {
+            let what = match &input {
+                Input::Sequence(p) | Input::Video { file: p, .. } => p.display().to_string(),
+                Input::Device { device, .. } => device.clone(),
+            };
+            let start = match args.start {
+                Some(Start::Seconds(t)) => format!("{t}s"),
+                Some(Start::Frame(k)) => k.to_string(),
+                None => String::new(),
+            };
+            bail!("{what}: no frame at or after --start {start}");
+        }
+        r => r?,
+    };
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,

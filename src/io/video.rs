@@ -539,7 +539,7 @@ pub struct VideoSource {
     camera: Intrinsics,
     undistorter: Option<Undistorter>,
     start: Start,
-    skip_buf: Vec<u8>,
+    buf: Vec<u8>,
 }
 
 impl VideoSource {
@@ -567,7 +567,7 @@ impl VideoSource {
             camera: *camera,
             undistorter: camera.has_distortion().then(|| Undistorter::new(camera)),
             start,
-            skip_buf: Vec::new(),
+            buf: Vec::new(),
         })
     }
 }
@@ -589,16 +589,16 @@ impl FrameSource for VideoSource {
         let (w, h) = self.ffmpeg.size();
         let bytes = w as usize * h as usize * 3;
         loop {
-            let mut buf = vec![0u8; bytes];
-            let Some(info) = self.ffmpeg.read_frame(&mut buf)? else {
+            // Frames before the start are read into one reused buffer; a
+            // frame returned takes the buffer with it.
+            self.buf.resize(bytes, 0);
+            let Some(info) = self.ffmpeg.read_frame(&mut self.buf)? else {
                 return Ok(None);
             };
             if self.start.skips(info.index, info.time_s) {
-                // Frames before the start are decoded and discarded into
-                // one reused buffer.
-                self.skip_buf = buf;
                 continue;
             }
+            let buf = std::mem::take(&mut self.buf);
             let image = image::RgbImage::from_raw(w, h, buf).ok_or_else(|| VideoError::Died {
                 path: self.path.clone(),
                 frame: info.index,
