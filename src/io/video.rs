@@ -13,8 +13,8 @@
 //! size is checked against the camera before anything else is read.
 //!
 //! Why a child process rather than FFmpeg's libraries or a Rust decoder:
-//! the user needs only the `ffmpeg` program (any build from 4.3 on, every
-//! package manager has one), the crate builds with no C headers or
+//! the user needs only the `ffmpeg` program (every package manager has
+//! one; tested with 5.1), the crate builds with no C headers or
 //! libraries, every container and codec that ffmpeg reads works (MP4/H.264
 //! and H.265, MOV, AVI, MKV, WebM/VP8/VP9/AV1, MJPEG), and the same route
 //! reads V4L2 cameras. The cost is one copy of each frame through a pipe,
