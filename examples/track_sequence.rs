@@ -97,13 +97,15 @@ fn run(
     };
     let inputs = TrackInputs {
         model,
-        sequence,
+        camera: sequence.camera,
+        camera_path: sequence.camera_path.clone(),
+        sequence: Some(sequence),
         init: Some(init),
         keyframes,
     };
 
     // Ground truth, when the sequence has it, to print the error as we go.
-    let gt = match inputs.sequence.ground_truth_path() {
+    let gt = match inputs.sequence.as_ref().and_then(|s| s.ground_truth_path()) {
         Some(p) => Some(read_poses(&p)?),
         None => None,
     };

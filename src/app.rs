@@ -2,10 +2,10 @@
 //! program embedding the crate share. Loading everything a tracking run
 //! needs ([`TrackInputs`]), the keyframe store from a file or from
 //! keyframe images ([`load_keyframes`], [`load_or_build_keyframes`]), and
-//! the run over a sequence ([`TrackRun`]): frames in order, undistorted,
-//! one pose row per frame written as it is tracked (crash-safe), optional
-//! overlays and BOP results, progress through a [`ProgressFn`] and a
-//! callback per frame.
+//! the run over a sequence, a video or a camera ([`TrackRun`], frames from
+//! any [`FrameSource`]): frames in order, undistorted, one pose row per
+//! frame written as it is tracked (crash-safe), optional overlays and BOP
+//! results, progress through a [`ProgressFn`] and a callback per frame.
 
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
@@ -14,13 +14,17 @@ use crate::io::atomic::WriteError;
 use crate::io::bop::BopWriter;
 use crate::io::poses::{PoseFileError, PoseRow, PoseWriter, read_poses};
 use crate::io::sequence::{Frame, Sequence, SequenceError};
+use crate::io::source::{FrameSource, SequenceFrames, SourceError};
+use crate::io::video::VideoError;
 use crate::keyframes::{KeyframeConfig, KeyframeError, KeyframeStore, load_keyframe_images};
 use crate::model::{LoadOptions, ModelError, PointModel};
 use crate::progress::{ProgressEvent, ProgressFn};
 use crate::splat::{SplatError, Splatter};
 use crate::tracker::{Status, TrackError, TrackResult, Tracker, TrackerConfig};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// Why a tracking run could not be set up or finished (a lost frame is not
 /// an error).
@@ -32,6 +36,12 @@ pub enum AppError {
     /// The sequence directory or one of its frames is unusable.
     #[error(transparent)]
     Sequence(#[from] SequenceError),
+    /// A video or camera could not be read.
+    #[error(transparent)]
+    Video(#[from] VideoError),
+    /// The camera file could not be read.
+    #[error(transparent)]
+    Camera(#[from] crate::io::camera::CameraError),
     /// A pose file could not be read or written.
     #[error(transparent)]
     Poses(#[from] PoseFileError),
@@ -94,9 +104,21 @@ pub enum AppError {
     /// No frame to track (an empty range).
     #[error("no frames to track")]
     NoFrames,
+    /// A run without a sequence was given no [`FrameSource`].
+    #[error("no frames to track: the inputs have no sequence and the run no frame source")]
+    NoSource,
     /// An output would overwrite one of the run's inputs.
     #[error(transparent)]
     Clobber(#[from] crate::io::guard::ClobberError),
+}
+
+impl From<SourceError> for AppError {
+    fn from(e: SourceError) -> Self {
+        match e {
+            SourceError::Sequence(e) => AppError::Sequence(e),
+            SourceError::Video(e) => AppError::Video(e),
+        }
+    }
 }
 
 /// Loads the keyframe store `path` names: a store file saved by
@@ -190,8 +212,14 @@ pub fn load_or_build_keyframes(
 pub struct TrackInputs {
     /// The object's point model.
     pub model: PointModel,
-    /// The sequence, its camera and frames.
-    pub sequence: Sequence,
+    /// The sequence, its camera and frames, when the frames come from a
+    /// sequence directory (`None`: from a video or a camera, given to the
+    /// run by [`TrackRun::source`]).
+    pub sequence: Option<Sequence>,
+    /// The camera as calibrated (with its distortion, if any).
+    pub camera: Intrinsics,
+    /// The camera file.
+    pub camera_path: PathBuf,
     /// The pose of the first frame; `None`: the tracker searches the
     /// frames for the object ([`Tracker::new_searching`]).
     pub init: Option<Pose>,
@@ -233,16 +261,61 @@ impl TrackInputs {
         };
         Ok(Self {
             model,
-            sequence,
+            camera: sequence.camera,
+            camera_path: sequence.camera_path.clone(),
+            sequence: Some(sequence),
             init,
             keyframes,
         })
+    }
+
+    /// For frames from a video or a camera: loads the model, the camera
+    /// file `camera` (camera.json or an OpenCV yaml), the initial pose
+    /// (`init`: its first row is the pose of the first frame tracked;
+    /// `None`: the object is searched for) and the keyframe store
+    /// `keyframes` names, if any ([`load_keyframes`]).
+    pub fn load_with_camera(
+        ctx: &GpuContext,
+        model: &Path,
+        model_options: &LoadOptions,
+        camera: &Path,
+        keyframes: Option<&Path>,
+        init: Option<&Path>,
+    ) -> Result<Self, AppError> {
+        let model = PointModel::load_with(model, model_options)?;
+        let cam = Intrinsics::load(camera)?;
+        let init = match init {
+            Some(p) => Some(read_poses(p)?[0].pose),
+            None => None,
+        };
+        let keyframes = match keyframes {
+            Some(p) => Some(load_keyframes(ctx, &model, &cam, p)?),
+            None => None,
+        };
+        Ok(Self {
+            model,
+            sequence: None,
+            camera: cam,
+            camera_path: camera.to_owned(),
+            init,
+            keyframes,
+        })
+    }
+
+    /// The camera of the frames the tracker sees: the calibrated one
+    /// without its distortion.
+    pub fn tracking_camera(&self) -> Intrinsics {
+        self.camera.undistorted()
     }
 }
 
 /// The columns the tracker output adds after the pose (FORMATS.md
 /// "Tracker output").
 pub const RESULT_COLUMNS: [&str; 3] = ["inliers", "residual_px", "status"];
+
+/// The column a run over a video or a camera adds after [`RESULT_COLUMNS`]:
+/// the frame's timestamp in seconds (FORMATS.md, `track --video`).
+pub const TIME_COLUMN: &str = "time_s";
 
 /// The tracker output row of a frame.
 pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
@@ -275,17 +348,30 @@ pub struct RunStats {
     pub median_ms: f64,
     /// Mean time per frame of every stage and sub-stage.
     pub mean_stages: crate::tracker::StageTimes,
+    /// Mean milliseconds per frame spent getting the frame from its source
+    /// (reading and decoding an image, or waiting for the video decoder or
+    /// the camera, and undistorting it), outside the tracker's total.
+    pub source_ms: f64,
+    /// Frames the source dropped (a live camera: frames that arrived while
+    /// one was being tracked).
+    pub dropped: u64,
+    /// True when the run ended on its stop flag ([`TrackRun::stop_on`]).
+    pub stopped: bool,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
 pub const TRACKING_STAGE: &str = "tracking";
 
-/// A tracking run over a sequence: the tracker, its settings and where the
-/// results go. Built with the setters, started by [`TrackRun::run`].
+/// A tracking run over a sequence, a video or a camera: the tracker, its
+/// settings, where the frames come from and where the results go. Built
+/// with the setters, started by [`TrackRun::run`].
 pub struct TrackRun<'a> {
     ctx: &'a GpuContext,
     inputs: &'a TrackInputs,
     config: TrackerConfig,
+    source: Option<Box<dyn FrameSource + 'a>>,
+    start: usize,
+    stop: Option<Arc<AtomicBool>>,
     limit: Option<usize>,
     poses: Option<PathBuf>,
     overlays: Option<(PathBuf, usize)>,
@@ -295,13 +381,16 @@ pub struct TrackRun<'a> {
 }
 
 impl<'a> TrackRun<'a> {
-    /// A run of the tracker `config` describes over `inputs`' sequence,
-    /// writing nothing yet.
+    /// A run of the tracker `config` describes over `inputs`' sequence
+    /// (or the source [`TrackRun::source`] gives), writing nothing yet.
     pub fn new(ctx: &'a GpuContext, inputs: &'a TrackInputs, config: TrackerConfig) -> Self {
         Self {
             ctx,
             inputs,
             config,
+            source: None,
+            start: 0,
+            stop: None,
             limit: None,
             poses: None,
             overlays: None,
@@ -316,6 +405,29 @@ impl<'a> TrackRun<'a> {
     /// [`RunStats::mean_stages`]).
     pub fn gpu_timing(mut self, on: bool) -> Self {
         self.gpu_timing = on;
+        self
+    }
+
+    /// Takes the frames from `source` (a video, a camera) instead of the
+    /// inputs' sequence. Its camera is the one the tracker uses; it should
+    /// be the inputs' camera, for which the keyframes were built.
+    pub fn source(mut self, source: Box<dyn FrameSource + 'a>) -> Self {
+        self.source = Some(source);
+        self
+    }
+
+    /// Starts at frame `index` of the inputs' sequence (a [`Self::source`]
+    /// has its own start, e.g. [`crate::io::video::VideoSource::open`]'s).
+    pub fn start(mut self, index: usize) -> Self {
+        self.start = index;
+        self
+    }
+
+    /// Ends the run cleanly, after the frame being tracked, once `flag` is
+    /// set (Ctrl-C on a live camera): every finished frame is written and
+    /// the outputs are put in place as at the end of the frames.
+    pub fn stop_on(mut self, flag: Arc<AtomicBool>) -> Self {
+        self.stop = Some(flag);
         self
     }
 
@@ -351,13 +463,29 @@ impl<'a> TrackRun<'a> {
         self
     }
 
-    /// Tracks the frames in order, writing the outputs as it goes and
-    /// calling `on_frame` after each frame; the output files appear only
-    /// when every frame is done.
-    pub fn run(self, mut on_frame: impl FnMut(&Frame, &TrackResult)) -> Result<RunStats, AppError> {
-        let seq = &self.inputs.sequence;
-        let n = self.limit.unwrap_or(seq.frames.len()).min(seq.frames.len());
-        if n == 0 {
+    /// Tracks the frames in order, writing the outputs as it goes (each
+    /// pose row flushed as it is written) and calling `on_frame` after each
+    /// frame; the output files appear only when the run ends: at the end
+    /// of the frames, after the limit, or on the stop flag. A video or a
+    /// camera adds the column [`TIME_COLUMN`] to the pose file.
+    pub fn run(
+        mut self,
+        mut on_frame: impl FnMut(&Frame, &TrackResult),
+    ) -> Result<RunStats, AppError> {
+        let inputs = self.inputs;
+        let mut source: Box<dyn FrameSource + 'a> = match self.source.take() {
+            Some(s) => s,
+            None => match &inputs.sequence {
+                Some(seq) => Box::new(SequenceFrames::new(seq, self.start)),
+                None => return Err(AppError::NoSource),
+            },
+        };
+        // The frames to track, when known (a sequence; a limit).
+        let n = match (source.remaining(), self.limit) {
+            (Some(r), Some(l)) => Some(r.min(l)),
+            (r, l) => r.or(l),
+        };
+        if n == Some(0) {
             return Err(AppError::NoFrames);
         }
         self.check_outputs()?;
@@ -370,22 +498,27 @@ impl<'a> TrackRun<'a> {
         let mode = self.config.mode;
         let (model, cam, store) = (
             self.inputs.model.clone(),
-            seq.tracking_camera(),
+            source.tracking_camera(),
             self.inputs.keyframes.clone(),
         );
         let mut tracker = match self.inputs.init {
             Some(init) => Tracker::new(self.ctx, model, cam, store, self.config, init),
             None => Tracker::new_searching(self.ctx, model, cam, store, self.config),
         }
-        .map_err(|source| AppError::Start {
-            sequence: seq.dir.clone(),
-            source: Box::new(source),
+        .map_err(|e| AppError::Start {
+            sequence: source.name().to_owned(),
+            source: Box::new(e),
         })?;
         if self.gpu_timing {
             tracker.enable_gpu_timing();
         }
+        let timestamps = source.has_timestamps();
+        let mut columns = RESULT_COLUMNS.to_vec();
+        if timestamps {
+            columns.push(TIME_COLUMN);
+        }
         let mut poses = match &self.poses {
-            Some(p) => Some(PoseWriter::create(p, &RESULT_COLUMNS)?),
+            Some(p) => Some(PoseWriter::create(p, &columns)?),
             None => None,
         };
         let mut bop = match &self.bop {
@@ -397,23 +530,32 @@ impl<'a> TrackRun<'a> {
                 p(ProgressEvent {
                     stage: TRACKING_STAGE,
                     done: done as u64,
-                    total: n as u64,
+                    total: n.unwrap_or(0) as u64,
                 });
             }
         };
         report(0);
-        let mut stats = RunStats {
-            frames: n,
-            ..Default::default()
-        };
-        let mut totals = Vec::with_capacity(n);
-        for frame in seq.iter_frames().take(n) {
-            let frame = frame?;
+        let mut stats = RunStats::default();
+        let mut sum_stages = crate::tracker::StageTimes::default();
+        let mut source_time = Duration::ZERO;
+        let mut totals = Vec::with_capacity(n.unwrap_or(0).min(1 << 16));
+        let stop = self.stop.clone();
+        let stopped = || stop.as_ref().is_some_and(|f| f.load(Ordering::SeqCst));
+        let limit = n.unwrap_or(usize::MAX);
+        while totals.len() < limit {
+            if stopped() {
+                break;
+            }
+            let t0 = Instant::now();
+            let Some(frame) = source.next_frame()? else {
+                break;
+            };
+            source_time += t0.elapsed();
             let i = frame.index;
             let r = tracker
                 .track(&frame.image)
                 .map_err(|source| AppError::Track {
-                    frame: frame.path.clone(),
+                    frame: frame_name(&frame),
                     source: Box::new(source),
                 })?;
             if r.status == Status::Lost {
@@ -426,7 +568,17 @@ impl<'a> TrackRun<'a> {
                 );
             }
             if let Some(w) = &mut poses {
-                w.row(&result_row(&frame.label, &r))?;
+                let mut row = result_row(&frame.label, &r);
+                if timestamps {
+                    let t = frame.time_s.unwrap_or(f64::NAN);
+                    let t = if t.is_finite() {
+                        format!("{t:.6}")
+                    } else {
+                        "nan".into()
+                    };
+                    row.extra.push((TIME_COLUMN.into(), t));
+                }
+                w.row(&row)?;
             }
             let t = &r.times;
             for (acc, d) in stats
@@ -434,10 +586,10 @@ impl<'a> TrackRun<'a> {
                 .iter_mut()
                 .zip([t.features, t.it, t.kf, t.total])
             {
-                *acc += ms(d) / n as f64;
+                *acc += ms(d);
             }
-            stats.contour_ms += ms(t.contour) / n as f64;
-            stats.mean_stages.add_scaled(t, 1.0 / n as f64);
+            stats.contour_ms += ms(t.contour);
+            sum_stages.add_scaled(t, 1.0);
             totals.push(ms(t.total));
             if let Some(w) = &mut bop {
                 let score = if r.status == Status::Tracking {
@@ -451,7 +603,7 @@ impl<'a> TrackRun<'a> {
                 let mask = tracker
                     .silhouette(&r.pose)
                     .map_err(|source| AppError::Track {
-                        frame: frame.path.clone(),
+                        frame: frame_name(&frame),
                         source: Box::new(source),
                     })?;
                 let colour = match r.status {
@@ -471,7 +623,25 @@ impl<'a> TrackRun<'a> {
                     .map_err(|source| AppError::Overlay { path, source })?;
             }
             on_frame(&frame, &r);
-            report(i + 1);
+            report(totals.len());
+        }
+        stats.dropped = source.dropped();
+        stats.stopped = stopped();
+        let done = totals.len();
+        if done == 0 {
+            // Nothing tracked (an empty video, a stop before the first
+            // frame): no output, not even a partial one.
+            drop((poses, bop));
+            for p in [
+                self.poses.as_deref(),
+                self.bop.as_ref().map(|b| b.0.as_path()),
+            ]
+            .into_iter()
+            .flatten()
+            {
+                let _ = std::fs::remove_file(crate::io::atomic::partial_path(p));
+            }
+            return Err(AppError::NoFrames);
         }
         if let Some(w) = poses {
             w.finish()?;
@@ -479,9 +649,24 @@ impl<'a> TrackRun<'a> {
         if let Some(w) = bop {
             w.finish()?;
         }
+        let k = 1.0 / done as f64;
+        stats.frames = done;
+        stats.mean_ms.iter_mut().for_each(|m| *m *= k);
+        stats.contour_ms *= k;
+        stats.mean_stages.add_scaled(&sum_stages, k);
+        stats.source_ms = ms(source_time) * k;
         totals.sort_by(f64::total_cmp);
         stats.median_ms = totals[totals.len() / 2];
         Ok(stats)
+    }
+}
+
+/// A frame as errors name it: its image file, or the video or device and
+/// the frame's number.
+fn frame_name(frame: &Frame) -> PathBuf {
+    match frame.time_s {
+        None => frame.path.clone(),
+        Some(_) => PathBuf::from(format!("{}, frame {}", frame.path.display(), frame.index)),
     }
 }
 
@@ -492,7 +677,20 @@ impl TrackRun<'_> {
     /// keyframes folder.
     fn check_outputs(&self) -> Result<(), AppError> {
         use crate::io::guard::{check_output, check_output_dir};
-        let seq = &self.inputs.sequence;
+        let Some(seq) = &self.inputs.sequence else {
+            // A video or a camera: the outputs must not be the camera
+            // file nor each other (the caller checks its other inputs).
+            let inputs = [self.inputs.camera_path.as_path()];
+            if let Some(p) = &self.poses {
+                check_output(p, "pose output", &inputs)?;
+            }
+            if let Some((p, _)) = &self.bop {
+                let mut with_poses = inputs.to_vec();
+                with_poses.extend(self.poses.as_deref());
+                check_output(p, "BOP output", &with_poses)?;
+            }
+            return Ok(());
+        };
         let init = seq.init_path();
         let gt = seq.dir.join("poses.csv");
         let kf_dir = seq.dir.join("keyframes");

@@ -50,6 +50,8 @@ fn ten_thousand_frames_with_flat_memory() {
     .unwrap();
     let frames: Vec<image::RgbImage> = inputs
         .sequence
+        .as_ref()
+        .expect("a sequence")
         .iter_frames()
         .map(|f| f.unwrap().image)
         .collect();
@@ -66,7 +68,7 @@ fn ten_thousand_frames_with_flat_memory() {
     let mut tracker = Tracker::new(
         ctx,
         inputs.model.clone(),
-        inputs.sequence.tracking_camera(),
+        inputs.tracking_camera(),
         inputs.keyframes.clone(),
         config,
         inputs.init.expect("the synthetic sequence has an init.csv"),

@@ -1,14 +1,21 @@
-//! `splattrack track --model M.ply --sequence DIR [--keyframes DIR|FILE]
-//! [--init init.csv] [--mode kf+it|it|kf] --out poses.csv [--overlay DIR]
-//! [--profile] [--bop FILE]`: the flags, then [`splattrack::app`] does the
-//! work.
+//! `splattrack track --model M.ply (--sequence DIR | --video FILE |
+//! --device N|PATH --camera C) [--keyframes DIR|FILE] [--init init.csv]
+//! [--mode kf+it|it|kf] --out poses.csv [--overlay DIR] [--profile]
+//! [--bop FILE] [--start N|Ts] [--frames N]`: the flags, then
+//! [`splattrack::app`] does the work.
 
-use anyhow::bail;
-use splattrack::app::{TrackInputs, TrackRun};
+use anyhow::{Context, bail};
+use splattrack::Intrinsics;
+use splattrack::app::{AppError, TrackInputs, TrackRun};
 use splattrack::io::guard::{check_output, check_output_dir};
+use splattrack::io::live::LiveSource;
+use splattrack::io::source::{FrameSource, Start};
+use splattrack::io::video::VideoSource;
 use splattrack::splat::Backend;
 use splattrack::tracker::{ConfigError, Modalities, Mode, TrackerConfig};
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -16,8 +23,33 @@ pub struct Args {
     #[arg(long)]
     pub model: PathBuf,
     /// The sequence directory (camera.json, frames/, init.csv, ...).
+    #[arg(long, conflicts_with_all = ["video", "device", "camera"])]
+    pub sequence: Option<PathBuf>,
+    /// A video file (MP4, MOV, AVI, MKV, WebM, ...: whatever ffmpeg
+    /// decodes), read through the ffmpeg program; needs --camera. Frames
+    /// are numbered from 0 in decode order; the output gains time_s.
+    #[arg(long, conflicts_with = "device")]
+    pub video: Option<PathBuf>,
+    /// A live camera: N for /dev/videoN, or a device path (V4L2, Linux),
+    /// read through ffmpeg at the camera's size; needs --camera. Frames
+    /// that arrive while one is tracked are dropped and counted; Ctrl-C
+    /// ends the run after the current frame, every finished frame written.
     #[arg(long)]
-    pub sequence: PathBuf,
+    pub device: Option<String>,
+    /// --video: read the video at its own frame rate, as a camera would
+    /// deliver it, and track it as a live camera (frames that arrive while
+    /// one is tracked are dropped and counted; Ctrl-C ends the run): how
+    /// the tracker would fare live at this speed.
+    #[arg(long, requires = "video")]
+    pub realtime: bool,
+    /// The camera of --video or --device (camera.json or an OpenCV yaml).
+    #[arg(long)]
+    pub camera: Option<PathBuf>,
+    /// Where to start: a frame index (120), or seconds with an s suffix
+    /// (4.5s: the first frame at or after 4.5 s; --video only). Frames keep
+    /// their numbers in the whole video or sequence.
+    #[arg(long)]
+    pub start: Option<Start>,
     /// Keyframes: a directory with images and poses.csv, or a store built by
     /// `splattrack keyframes` (.stkf). Default: SEQUENCE/keyframes if present.
     #[arg(long)]
@@ -50,7 +82,7 @@ pub struct Args {
     /// BOP object id.
     #[arg(long, default_value_t = 1)]
     pub obj_id: u32,
-    /// Track only the first N frames.
+    /// Track only N frames (from --start).
     #[arg(long)]
     pub frames: Option<usize>,
     /// The splatter: render (render pass), compute (compute shader with
@@ -232,11 +264,14 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
     }
+    let input = Input::of(&args)?;
     // Outputs that are this run's other inputs (the sequence's own files
     // are checked by the run).
     let mut inputs = vec![args.model.as_path()];
     inputs.extend(args.init.as_deref());
     inputs.extend(args.keyframes.as_deref());
+    inputs.extend(args.video.as_deref());
+    inputs.extend(args.camera.as_deref());
     check_output(&args.out, "--out", &inputs)?;
     if let Some(bop) = &args.bop {
         check_output(bop, "--bop", &inputs)?;
@@ -245,15 +280,70 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
+    // A video or a camera is opened first: a missing ffmpeg, a file it
+    // cannot decode or frames of the wrong size fail before the GPU and
+    // the model are set up.
+    let stop = Arc::new(AtomicBool::new(false));
+    let source: Option<Box<dyn FrameSource>> = match &input {
+        Input::Sequence(_) => None,
+        Input::Video {
+            file,
+            camera,
+            start,
+        } if !args.realtime => {
+            let cam = Intrinsics::load(camera)?;
+            Some(Box::new(VideoSource::open(file, &cam, camera, *start)?))
+        }
+        Input::Video { file, camera, .. } => {
+            // Checked now; the replay starts once the tracker is ready
+            // (below), so that no frame passes while the model loads.
+            let cam = Intrinsics::load(camera)?;
+            VideoSource::open(file, &cam, camera, Start::Frame(0))?;
+            None
+        }
+        Input::Device { device, camera } => {
+            let cam = Intrinsics::load(camera)?;
+            Some(Box::new(
+                LiveSource::device(device, &cam, camera)?.stop_on(stop.clone()),
+            ))
+        }
+    };
     let ctx = super::gpu(adapter)?;
-    let inputs = TrackInputs::load(
-        &ctx,
-        &args.model,
-        &super::model_options(),
-        &args.sequence,
-        args.keyframes.as_deref(),
-        args.init.as_deref(),
-    )?;
+    let inputs = match &input {
+        Input::Sequence(dir) => TrackInputs::load(
+            &ctx,
+            &args.model,
+            &super::model_options(),
+            dir,
+            args.keyframes.as_deref(),
+            args.init.as_deref(),
+        )?,
+        Input::Video { camera, .. } | Input::Device { camera, .. } => {
+            TrackInputs::load_with_camera(
+                &ctx,
+                &args.model,
+                &super::model_options(),
+                camera,
+                args.keyframes.as_deref(),
+                args.init.as_deref(),
+            )?
+        }
+    };
+    let live = matches!(input, Input::Device { .. }) || args.realtime;
+    if live {
+        // Ctrl-C: the run ends after the frame being tracked, its outputs
+        // complete; a second Ctrl-C ends it at once (the rows so far stay
+        // in OUT.partial).
+        let flag = stop.clone();
+        ctrlc::set_handler(move || {
+            if flag.swap(true, Ordering::SeqCst) {
+                eprintln!("stopped at once: the rows so far are in the .partial file");
+                std::process::exit(130);
+            }
+            eprintln!("stopping after the current frame (Ctrl-C again to stop at once)");
+        })
+        .context("cannot catch Ctrl-C")?;
+    }
     let mut run = TrackRun::new(&ctx, &inputs, config)
         .limit(args.frames)
         .poses(&args.out)
@@ -270,7 +360,36 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if args.profile {
         run = run.gpu_timing(true);
     }
-    let stats = run.run(|_, _| {})?;
+    match (source, &input) {
+        (Some(src), _) => run = run.source(src).stop_on(stop.clone()),
+        (None, Input::Sequence(_)) => {
+            if let Some(Start::Frame(k)) = args.start {
+                run = run.start(k);
+            }
+        }
+        (None, Input::Video { file, camera, .. }) => {
+            let replay = LiveSource::replay(file, &inputs.camera, camera)?;
+            run = run
+                .source(Box::new(replay.stop_on(stop.clone())))
+                .stop_on(stop.clone());
+        }
+        (None, Input::Device { .. }) => {}
+    }
+    let stats = match run.run(|_, _| {}) {
+        Err(AppError::NoFrames) if args.start.is_some() => {
+            let what = match &input {
+                Input::Sequence(p) | Input::Video { file: p, .. } => p.display().to_string(),
+                Input::Device { device, .. } => device.clone(),
+            };
+            let start = match args.start {
+                Some(Start::Seconds(t)) => format!("{t}s"),
+                Some(Start::Frame(k)) => k.to_string(),
+                None => String::new(),
+            };
+            bail!("{what}: no frame at or after --start {start}");
+        }
+        r => r?,
+    };
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,
@@ -281,10 +400,85 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         stats.median_ms,
         args.out.display()
     );
+    if live {
+        println!(
+            "{} frames dropped (arrived while a frame was being tracked){}",
+            stats.dropped,
+            if stats.stopped {
+                "; stopped by Ctrl-C"
+            } else {
+                ""
+            }
+        );
+    }
     if args.profile {
+        println!(
+            "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
+            stats.source_ms
+        );
         print!("{}", profile_table(&stats.mean_stages));
     }
     Ok(())
+}
+
+/// Where the frames come from.
+enum Input {
+    Sequence(PathBuf),
+    Video {
+        file: PathBuf,
+        camera: PathBuf,
+        start: Start,
+    },
+    Device {
+        device: String,
+        camera: PathBuf,
+    },
+}
+
+impl Input {
+    /// The one input the flags name, with the flags it needs.
+    fn of(args: &Args) -> anyhow::Result<Self> {
+        let camera = || {
+            args.camera.clone().ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--camera is needed with --video and --device (camera.json or an OpenCV yaml)"
+                )
+            })
+        };
+        Ok(match (&args.sequence, &args.video, &args.device) {
+            (Some(dir), None, None) => {
+                if let Some(Start::Seconds(t)) = args.start {
+                    bail!(
+                        "--start {t}s: a sequence's frames have no timestamps; give a frame index"
+                    );
+                }
+                Input::Sequence(dir.clone())
+            }
+            (None, Some(file), None) => {
+                if args.realtime && args.start.is_some() {
+                    bail!("--start: not with --realtime (a replay starts at the beginning)");
+                }
+                Input::Video {
+                    file: file.clone(),
+                    camera: camera()?,
+                    start: args.start.unwrap_or_default(),
+                }
+            }
+            (None, None, Some(device)) => {
+                if args.start.is_some() {
+                    bail!("--start: a live camera starts now; not for --device");
+                }
+                Input::Device {
+                    device: device.clone(),
+                    camera: camera()?,
+                }
+            }
+            (None, None, None) => {
+                bail!("no frames: give --sequence DIR, --video FILE or --device N|PATH")
+            }
+            _ => bail!("give only one of --sequence, --video and --device"),
+        })
+    }
 }
 
 /// The `--profile` table: every stage of the step, its parts, and what

@@ -1,6 +1,7 @@
 //! Files on disk (FORMATS.md): sequence directories, pose CSVs, BOP
 //! results, raw float images (.npy), all written crash-safely
-//! ([`atomic`]).
+//! ([`atomic`]); frames from a sequence, a video file or a camera
+//! ([`source`], [`video`], [`live`]).
 
 pub mod atomic;
 pub mod bop;
@@ -8,11 +9,15 @@ pub mod camera;
 #[doc(hidden)]
 pub mod fuzz_entry;
 pub mod guard;
+pub mod live;
 pub mod npy;
 pub mod poses;
 pub mod sequence;
+pub mod source;
+pub mod video;
 
 pub use atomic::{PartialFile, WriteError, write_atomic};
 pub use bop::BopWriter;
 pub use poses::{PoseRow, PoseWriter, read_poses, write_poses};
 pub use sequence::{Frame, Sequence};
+pub use source::{FrameSource, SourceError, Start};

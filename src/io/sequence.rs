@@ -51,10 +51,13 @@ pub struct Frame {
     pub index: usize,
     /// Its label in pose files ([`Sequence::frame_label`]).
     pub label: String,
-    /// The image file.
+    /// The image file (for a video or a camera: the file or device).
     pub path: PathBuf,
     /// The image, undistorted when the camera has distortion.
     pub image: image::RgbImage,
+    /// Its timestamp in seconds, for frames of a video or a camera (`None`
+    /// for image files).
+    pub time_s: Option<f64>,
 }
 
 /// A sequence on disk; frames are read lazily.
@@ -242,6 +245,7 @@ impl Sequence {
             label: self.frame_label(i),
             path: path.clone(),
             image,
+            time_s: None,
         })
     }
 
