@@ -19,6 +19,7 @@ use crate::model::{LoadOptions, ModelError, PointModel};
 use crate::progress::{ProgressEvent, ProgressFn};
 use crate::splat::{SplatError, Splatter};
 use crate::tracker::{Status, TrackError, TrackResult, Tracker, TrackerConfig};
+use crate::view::{Flow, FrameSink, ViewError, ViewFrame};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -97,6 +98,9 @@ pub enum AppError {
     /// An output would overwrite one of the run's inputs.
     #[error(transparent)]
     Clobber(#[from] crate::io::guard::ClobberError),
+    /// The live view failed.
+    #[error(transparent)]
+    View(#[from] ViewError),
 }
 
 /// Loads the keyframe store `path` names: a store file saved by
@@ -275,6 +279,10 @@ pub struct RunStats {
     pub median_ms: f64,
     /// Mean time per frame of every stage and sub-stage.
     pub mean_stages: crate::tracker::StageTimes,
+    /// The run ended before its last frame because its [`FrameSink`] said
+    /// [`Flow::Stop`] (the live view was closed); `frames` counts the
+    /// frames tracked.
+    pub stopped: bool,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -292,6 +300,7 @@ pub struct TrackRun<'a> {
     bop: Option<(PathBuf, u32)>,
     progress: Option<ProgressFn>,
     gpu_timing: bool,
+    sink: Option<Box<dyn FrameSink + 'a>>,
 }
 
 impl<'a> TrackRun<'a> {
@@ -308,6 +317,7 @@ impl<'a> TrackRun<'a> {
             bop: None,
             progress: None,
             gpu_timing: false,
+            sink: None,
         }
     }
 
@@ -351,6 +361,17 @@ impl<'a> TrackRun<'a> {
         self
     }
 
+    /// Hands every finished frame to `sink` (the live view,
+    /// [`crate::view`]), after the outputs are written: the frame, its
+    /// result, the model's silhouette at the tracked pose when the sink
+    /// wants it. When the sink answers [`Flow::Stop`] the run ends after
+    /// that frame as at the end of the sequence (outputs complete for the
+    /// frames tracked, [`RunStats::stopped`] set).
+    pub fn sink(mut self, sink: impl FrameSink + 'a) -> Self {
+        self.sink = Some(Box::new(sink));
+        self
+    }
+
     /// Tracks the frames in order, writing the outputs as it goes and
     /// calling `on_frame` after each frame; the output files appear only
     /// when every frame is done.
@@ -361,6 +382,7 @@ impl<'a> TrackRun<'a> {
             return Err(AppError::NoFrames);
         }
         self.check_outputs()?;
+        let mut sink = self.sink;
         if let Some((dir, _)) = &self.overlays {
             std::fs::create_dir_all(dir).map_err(|e| AppError::Overlay {
                 path: dir.clone(),
@@ -407,6 +429,7 @@ impl<'a> TrackRun<'a> {
             ..Default::default()
         };
         let mut totals = Vec::with_capacity(n);
+        let mut done = 0;
         for frame in seq.iter_frames().take(n) {
             let frame = frame?;
             let i = frame.index;
@@ -447,13 +470,20 @@ impl<'a> TrackRun<'a> {
                 };
                 w.row(i, &r.pose, score, t.total.as_secs_f64())?;
             }
-            if let Some((dir, _)) = self.overlays.as_ref().filter(|(_, every)| i % every == 0) {
-                let mask = tracker
-                    .silhouette(&r.pose)
-                    .map_err(|source| AppError::Track {
-                        frame: frame.path.clone(),
-                        source: Box::new(source),
-                    })?;
+            let overlay = self.overlays.as_ref().filter(|(_, every)| i % every == 0);
+            let mask = if overlay.is_some() || sink.as_ref().is_some_and(|s| s.wants_mask()) {
+                Some(
+                    tracker
+                        .silhouette(&r.pose)
+                        .map_err(|source| AppError::Track {
+                            frame: frame.path.clone(),
+                            source: Box::new(source),
+                        })?,
+                )
+            } else {
+                None
+            };
+            if let (Some((dir, _)), Some(mask)) = (overlay, &mask) {
                 let colour = match r.status {
                     Status::Tracking => [40, 230, 60],
                     Status::Lost => [240, 40, 40],
@@ -466,12 +496,37 @@ impl<'a> TrackRun<'a> {
                     r.residual_px
                 );
                 let path = dir.join(format!("{i:06}.png"));
-                draw::silhouette_overlay(&frame.image, &mask, colour, &label)
+                draw::silhouette_overlay(&frame.image, mask, colour, &label)
                     .save(&path)
                     .map_err(|source| AppError::Overlay { path, source })?;
             }
             on_frame(&frame, &r);
             report(i + 1);
+            done += 1;
+            if let Some(s) = sink.as_mut() {
+                let view = ViewFrame {
+                    index: i,
+                    label: &frame.label,
+                    image: &frame.image,
+                    result: &r,
+                    mask: mask.as_deref().filter(|_| s.wants_mask()),
+                    time_s: None,
+                    mode,
+                };
+                if s.frame(&view)? == Flow::Stop {
+                    break;
+                }
+            }
+        }
+        if done < n {
+            // Stopped by the sink: the means were taken over n frames.
+            stats.stopped = true;
+            stats.frames = done;
+            let k = n as f64 / done as f64;
+            stats.mean_ms.iter_mut().for_each(|v| *v *= k);
+            stats.contour_ms *= k;
+            let stages = std::mem::take(&mut stats.mean_stages);
+            stats.mean_stages.add_scaled(&stages, k);
         }
         if let Some(w) = poses {
             w.finish()?;

@@ -58,6 +58,12 @@ pub struct Args {
     /// the adapter supports it: the faster measured, BENCHMARKS.md).
     #[arg(long, default_value = "auto")]
     pub splatter: Backend,
+    /// Show each frame in a window as it is tracked: the model's outline
+    /// at the tracked pose, tracking or lost (and why), inliers, residual
+    /// and ms per frame. Esc, q or closing the window ends the run with
+    /// every finished frame on disk. Needs a display (X11 or Wayland).
+    #[arg(long)]
+    pub view: bool,
     #[command(flatten)]
     pub tuning: Tuning,
 }
@@ -246,6 +252,14 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
     let ctx = super::gpu(adapter)?;
+    // Before anything is loaded or written: no display, no run.
+    let mut window = match args.view {
+        true => Some(splattrack::view::WindowSink::open(
+            &ctx,
+            &format!("splattrack track {}", args.sequence.display()),
+        )?),
+        false => None,
+    };
     let inputs = TrackInputs::load(
         &ctx,
         &args.model,
@@ -270,7 +284,12 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if args.profile {
         run = run.gpu_timing(true);
     }
+    if let Some(w) = window.as_mut() {
+        run = run.sink(w);
+    }
+    let wall = std::time::Instant::now();
     let stats = run.run(|_, _| {})?;
+    let wall = wall.elapsed().as_secs_f64();
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,
@@ -281,8 +300,29 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         stats.median_ms,
         args.out.display()
     );
+    if stats.stopped {
+        println!(
+            "the live view was closed: stopped after {} frames",
+            stats.frames
+        );
+    }
     if args.profile {
         print!("{}", profile_table(&stats.mean_stages));
+        println!(
+            "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
+            if window.is_some() { ", live view" } else { "" },
+            wall * 1e3 / stats.frames as f64,
+            stats.frames as f64 / wall
+        );
+        if let Some(w) = &window {
+            let v = w.stats();
+            println!(
+                "live view: {} frames shown, {} skipped (surface not ready); {:.1} ms per frame to compose, draw and present",
+                v.shown,
+                v.skipped,
+                v.busy.as_secs_f64() * 1e3 / (v.shown + v.skipped).max(1) as f64
+            );
+        }
     }
     Ok(())
 }
