@@ -49,10 +49,10 @@ fn result(status: Status) -> TrackResult {
     }
 }
 
-/// A 96x64 frame with a gradient and a disc-shaped silhouette.
+/// A 320x64 frame with a gradient and a disc-shaped silhouette.
 fn frame_and_mask() -> (RgbImage, Vec<bool>) {
-    let (w, h) = (96u32, 64u32);
-    let img = RgbImage::from_fn(w, h, |x, y| Rgb([(x * 2) as u8, (y * 3) as u8, 90]));
+    let (w, h) = (320u32, 64u32);
+    let img = RgbImage::from_fn(w, h, |x, y| Rgb([(x * 3 / 4) as u8, (y * 3) as u8, 90]));
     let mask = (0..w * h)
         .map(|i| {
             let (x, y) = ((i % w) as f64, (i / w) as f64);
