@@ -4,8 +4,8 @@
 //! keyframe images ([`load_keyframes`], [`load_or_build_keyframes`]), and
 //! the run over a sequence ([`TrackRun`]): frames in order, undistorted,
 //! one pose row per frame written as it is tracked (crash-safe), optional
-//! overlays and BOP results, progress through a [`ProgressFn`] and a
-//! callback per frame.
+//! overlays and BOP results, progress through a [`ProgressFn`], a
+//! callback per frame and a [`FrameSink`] (the live view).
 
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};

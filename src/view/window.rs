@@ -293,6 +293,7 @@ impl FrameSink for WindowSink {
 /// The event loop, or why there is no display. On Linux and the BSDs it
 /// may be created off the main thread (tests, embedding programs).
 fn build_event_loop() -> Result<EventLoop<()>, ViewError> {
+    #[allow(unused_mut)] // mutated on Linux and the BSDs only
     let mut builder = EventLoop::builder();
     #[cfg(all(unix, not(target_vendor = "apple"), not(target_os = "android")))]
     {
