@@ -427,3 +427,28 @@ fn track_view_without_a_display_says_so_and_writes_nothing() {
     assert!(!out.exists() && !splattrack::io::atomic::partial_path(&out).exists());
     assert!(String::from_utf8_lossy(&o.stdout).is_empty());
 }
+
+/// The window itself, where a display exists (by hand, or in CI under
+/// Xvfb): `DISPLAY=:1 cargo test --release --test view -- --ignored`.
+/// Fails (never skips) without a display.
+#[test]
+#[ignore = "needs a display (X11 or Wayland; Xvfb will do)"]
+fn a_window_shows_every_frame_it_is_given() {
+    let ctx = shared_test_context();
+    let mut window = splattrack::view::WindowSink::open(ctx, "splattrack tests/view.rs").unwrap();
+    let (img, mask) = frame_and_mask();
+    for (k, status) in [Status::Tracking, Status::Lost, Status::Tracking]
+        .into_iter()
+        .enumerate()
+    {
+        let r = result(status);
+        let f = ViewFrame {
+            index: k,
+            ..view(&img, &r, Some(&mask), Some(k as f64 / 30.0))
+        };
+        assert_eq!(window.frame(&f).unwrap(), Flow::Continue);
+    }
+    let s = window.stats();
+    assert_eq!(s.shown + s.skipped, 3);
+    assert!(s.shown >= 2, "{s:?}");
+}
