@@ -176,9 +176,11 @@ pub const REQUIRED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE;
 /// Cloning is cheap: wgpu's device and queue are shared handles.
 ///
 /// The instance and adapter are kept so that a window can present with
-/// the tracker's own device ([`GpuContext::create_surface`], the live
-/// view): on Vulkan, Metal and DX12 a surface needs no display handle at
-/// instance creation, so the headless context serves a window as it is.
+/// the tracker's own device (`instance.create_surface(window)`, checked
+/// with `adapter.is_surface_supported`: the live view,
+/// [`crate::view::WindowSink`]): on Vulkan, Metal and DX12 a surface needs
+/// no display handle at instance creation, so the headless context serves
+/// a window as it is.
 #[derive(Clone)]
 pub struct GpuContext {
     pub instance: wgpu::Instance,
