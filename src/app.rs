@@ -484,10 +484,7 @@ impl<'a> TrackRun<'a> {
                 None
             };
             if let (Some((dir, _)), Some(mask)) = (overlay, &mask) {
-                let colour = match r.status {
-                    Status::Tracking => [40, 230, 60],
-                    Status::Lost => [240, 40, 40],
-                };
+                let colour = crate::view::status_colour(r.status);
                 let label = format!(
                     "{} frame {i}  {}  {} inliers  {:.2} px",
                     mode.name(),
@@ -510,6 +507,7 @@ impl<'a> TrackRun<'a> {
                     image: &frame.image,
                     result: &r,
                     mask: mask.as_deref().filter(|_| s.wants_mask()),
+                    // Image folders have no timestamps; a video's go here.
                     time_s: None,
                     mode,
                 };
