@@ -430,6 +430,7 @@ impl<'a> TrackRun<'a> {
         };
         let mut totals = Vec::with_capacity(n);
         let mut done = 0;
+        let mut rate = crate::view::Rate::default();
         for frame in seq.iter_frames().take(n) {
             let frame = frame?;
             let i = frame.index;
@@ -509,6 +510,7 @@ impl<'a> TrackRun<'a> {
                     mask: mask.as_deref().filter(|_| s.wants_mask()),
                     // Image folders have no timestamps; a video's go here.
                     time_s: None,
+                    rate_hz: rate.tick(),
                     mode,
                 };
                 if s.frame(&view)? == Flow::Stop {

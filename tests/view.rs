@@ -75,6 +75,7 @@ fn view<'a>(
         result: r,
         mask,
         time_s,
+        rate_hz: None,
         mode: Mode::KfIt,
     }
 }
@@ -189,6 +190,14 @@ fn the_status_band_says_tracking_or_lost_and_why() {
     let lines = splattrack::view::status_lines(&view(&img, &lost, None, Some(1.0)));
     assert_eq!(lines[0], "kf+it  frame 7 (000007)  t 1.000 s");
     assert_eq!(lines[1], "lost  42 inliers  0.75 px  101 ms");
+    let rated = ViewFrame {
+        rate_hz: Some(2.94),
+        ..view(&img, &tracking, None, None)
+    };
+    assert_eq!(
+        splattrack::view::status_lines(&rated)[1],
+        "tracking  42 inliers  0.75 px  101 ms  2.9 frames/s"
+    );
     assert!(lines[2].starts_with("why: KF: 3 inliers"), "{}", lines[2]);
 }
 
@@ -270,6 +279,7 @@ struct Seen {
     mask_len: Option<usize>,
     mask_on: usize,
     picture: (u32, u32),
+    rate_hz: Option<f64>,
 }
 
 /// A sink that records every frame and stops after `stop_after` frames.
@@ -307,6 +317,7 @@ impl FrameSink for Recorder {
             mask_len: f.mask.map(<[bool]>::len),
             mask_on: f.mask.map_or(0, |m| m.iter().filter(|v| **v).count()),
             picture: compose(f).dimensions(),
+            rate_hz: f.rate_hz,
         });
         Ok(match self.stop_after {
             Some(n) if self.seen.len() >= n => Flow::Stop,
@@ -358,6 +369,9 @@ fn a_run_hands_the_sink_every_frame_in_order_and_stops_when_told() {
         // The blob covers a good part of the frame at the tracked pose.
         assert!(s.mask_on > 500, "frame {k}: {} pixels", s.mask_on);
         assert_eq!(s.picture, (160, 120 + band));
+        // The run's rate, from the second frame on.
+        assert_eq!(s.rate_hz.is_some(), k > 0, "frame {k}");
+        assert!(s.rate_hz.is_none_or(|f| f > 0.0 && f.is_finite()));
     }
 
     // Stopped after the second frame: as at the end of a 2-frame

@@ -68,6 +68,10 @@ pub struct ViewFrame<'a> {
     pub mask: Option<&'a [bool]>,
     /// The frame's timestamp in seconds, when the source has one.
     pub time_s: Option<f64>,
+    /// Frames per second of the whole run lately (reading, tracking,
+    /// writing and showing: the rate a viewer sees), `None` on the first
+    /// frame.
+    pub rate_hz: Option<f64>,
     /// The tracker's mode.
     pub mode: Mode,
 }
@@ -158,7 +162,8 @@ impl Layout {
 }
 
 /// The text lines of the status band: mode, frame and time; status,
-/// inliers, residual and milliseconds; on a lost frame, the reason.
+/// inliers, residual, the tracker's milliseconds and the run's frames per
+/// second; on a lost frame, the reason.
 pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
     let r = frame.result;
     let time = frame
@@ -175,8 +180,11 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
     } else {
         "- px".into()
     };
+    let rate = frame
+        .rate_hz
+        .map_or_else(String::new, |f| format!("  {f:.1} frames/s"));
     let second = format!(
-        "{}  {} inliers  {residual}  {:.0} ms",
+        "{}  {} inliers  {residual}  {:.0} ms{rate}",
         r.status.name(),
         r.inliers,
         r.times.total.as_secs_f64() * 1e3
@@ -187,6 +195,34 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
         (Status::Tracking, _) => String::new(),
     };
     [first, second, third]
+}
+
+/// Frames per second over the last [`Rate::WINDOW`] frames, from the
+/// times the frames were finished ([`ViewFrame::rate_hz`]).
+#[derive(Debug, Clone, Default)]
+pub struct Rate {
+    times: std::collections::VecDeque<std::time::Instant>,
+}
+
+impl Rate {
+    /// Frames the rate is measured over.
+    pub const WINDOW: usize = 10;
+
+    /// A frame finished now: the rate so far (`None` on the first).
+    pub fn tick(&mut self) -> Option<f64> {
+        self.tick_at(std::time::Instant::now())
+    }
+
+    /// A frame finished at `t` (not before the previous one).
+    pub fn tick_at(&mut self, t: std::time::Instant) -> Option<f64> {
+        self.times.push_back(t);
+        if self.times.len() > Self::WINDOW + 1 {
+            self.times.pop_front();
+        }
+        let (first, last) = (self.times.front()?, self.times.back()?);
+        let span = last.duration_since(*first).as_secs_f64();
+        (self.times.len() > 1 && span > 0.0).then(|| (self.times.len() - 1) as f64 / span)
+    }
 }
 
 /// `text` cut to `n` characters, ending in `...` when cut.
@@ -237,6 +273,29 @@ pub fn compose(frame: &ViewFrame<'_>) -> RgbaImage {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_rate_is_frames_over_the_recent_span() {
+        use std::time::{Duration, Instant};
+        let t0 = Instant::now();
+        let at = |s: f64| t0 + Duration::from_secs_f64(s);
+        let mut r = Rate::default();
+        assert_eq!(r.tick_at(at(0.0)), None);
+        assert_eq!(r.tick_at(at(0.5)), Some(2.0));
+        assert_eq!(r.tick_at(at(1.0)), Some(2.0));
+        // Ten frames at 2 per second, then ten at 10: only the last ten
+        // intervals count.
+        let mut r = Rate::default();
+        let mut last = None;
+        for k in 0..=10 {
+            last = r.tick_at(at(k as f64 * 0.5));
+        }
+        assert!((last.unwrap() - 2.0).abs() < 1e-9);
+        for k in 1..=10 {
+            last = r.tick_at(at(5.0 + k as f64 * 0.1));
+        }
+        assert!((last.unwrap() - 10.0).abs() < 1e-6, "{last:?}");
+    }
 
     #[test]
     fn long_lines_are_cut_with_an_ellipsis() {
