@@ -5,7 +5,8 @@
 //! the run over a sequence, a video or a camera ([`TrackRun`], frames from
 //! any [`FrameSource`]): frames in order, undistorted, one pose row per
 //! frame written as it is tracked (crash-safe), optional overlays and BOP
-//! results, progress through a [`ProgressFn`] and a callback per frame.
+//! results, progress through a [`ProgressFn`], a callback per frame and a
+//! [`FrameSink`] (the live view).
 
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
@@ -21,6 +22,7 @@ use crate::model::{LoadOptions, ModelError, PointModel};
 use crate::progress::{ProgressEvent, ProgressFn};
 use crate::splat::{SplatError, Splatter};
 use crate::tracker::{Status, TrackError, TrackResult, Tracker, TrackerConfig};
+use crate::view::{Flow, FrameSink, ViewError, ViewFrame};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -110,6 +112,9 @@ pub enum AppError {
     /// An output would overwrite one of the run's inputs.
     #[error(transparent)]
     Clobber(#[from] crate::io::guard::ClobberError),
+    /// The live view failed.
+    #[error(transparent)]
+    View(#[from] ViewError),
 }
 
 impl From<SourceError> for AppError {
@@ -355,7 +360,10 @@ pub struct RunStats {
     /// Frames the source dropped (a live camera: frames that arrived while
     /// one was being tracked).
     pub dropped: u64,
-    /// True when the run ended on its stop flag ([`TrackRun::stop_on`]).
+    /// True when the run ended before its last frame: on its stop flag
+    /// ([`TrackRun::stop_on`], Ctrl-C) or because its [`FrameSink`] said
+    /// [`Flow::Stop`] (the live view was closed); `frames` counts the
+    /// frames tracked.
     pub stopped: bool,
 }
 
@@ -378,6 +386,7 @@ pub struct TrackRun<'a> {
     bop: Option<(PathBuf, u32)>,
     progress: Option<ProgressFn>,
     gpu_timing: bool,
+    sink: Option<Box<dyn FrameSink + 'a>>,
 }
 
 impl<'a> TrackRun<'a> {
@@ -397,6 +406,7 @@ impl<'a> TrackRun<'a> {
             bop: None,
             progress: None,
             gpu_timing: false,
+            sink: None,
         }
     }
 
@@ -463,6 +473,17 @@ impl<'a> TrackRun<'a> {
         self
     }
 
+    /// Hands every finished frame to `sink` (the live view,
+    /// [`crate::view`]), after the outputs are written: the frame, its
+    /// result, the model's silhouette at the tracked pose when the sink
+    /// wants it. When the sink answers [`Flow::Stop`] the run ends after
+    /// that frame as at the end of the frames (outputs complete for the
+    /// frames tracked, [`RunStats::stopped`] set).
+    pub fn sink(mut self, sink: impl FrameSink + 'a) -> Self {
+        self.sink = Some(Box::new(sink));
+        self
+    }
+
     /// Tracks the frames in order, writing the outputs as it goes (each
     /// pose row flushed as it is written) and calling `on_frame` after each
     /// frame; the output files appear only when the run ends: at the end
@@ -489,6 +510,7 @@ impl<'a> TrackRun<'a> {
             return Err(AppError::NoFrames);
         }
         self.check_outputs()?;
+        let mut sink = self.sink;
         if let Some((dir, _)) = &self.overlays {
             std::fs::create_dir_all(dir).map_err(|e| AppError::Overlay {
                 path: dir.clone(),
@@ -542,6 +564,8 @@ impl<'a> TrackRun<'a> {
         let stop = self.stop.clone();
         let stopped = || stop.as_ref().is_some_and(|f| f.load(Ordering::SeqCst));
         let limit = n.unwrap_or(usize::MAX);
+        let mut rate = crate::view::Rate::default();
+        let mut sink_stopped = false;
         while totals.len() < limit {
             if stopped() {
                 break;
@@ -599,17 +623,21 @@ impl<'a> TrackRun<'a> {
                 };
                 w.row(i, &r.pose, score, t.total.as_secs_f64())?;
             }
-            if let Some((dir, _)) = self.overlays.as_ref().filter(|(_, every)| i % every == 0) {
-                let mask = tracker
-                    .silhouette(&r.pose)
-                    .map_err(|source| AppError::Track {
-                        frame: frame_name(&frame),
-                        source: Box::new(source),
-                    })?;
-                let colour = match r.status {
-                    Status::Tracking => [40, 230, 60],
-                    Status::Lost => [240, 40, 40],
-                };
+            let overlay = self.overlays.as_ref().filter(|(_, every)| i % every == 0);
+            let mask = if overlay.is_some() || sink.as_ref().is_some_and(|s| s.wants_mask()) {
+                Some(
+                    tracker
+                        .silhouette(&r.pose)
+                        .map_err(|source| AppError::Track {
+                            frame: frame_name(&frame),
+                            source: Box::new(source),
+                        })?,
+                )
+            } else {
+                None
+            };
+            if let (Some((dir, _)), Some(mask)) = (overlay, &mask) {
+                let colour = crate::view::status_colour(r.status);
                 let label = format!(
                     "{} frame {i}  {}  {} inliers  {:.2} px",
                     mode.name(),
@@ -618,15 +646,31 @@ impl<'a> TrackRun<'a> {
                     r.residual_px
                 );
                 let path = dir.join(format!("{i:06}.png"));
-                draw::silhouette_overlay(&frame.image, &mask, colour, &label)
+                draw::silhouette_overlay(&frame.image, mask, colour, &label)
                     .save(&path)
                     .map_err(|source| AppError::Overlay { path, source })?;
             }
             on_frame(&frame, &r);
             report(totals.len());
+            if let Some(s) = sink.as_mut() {
+                let view = ViewFrame {
+                    index: i,
+                    label: &frame.label,
+                    image: &frame.image,
+                    result: &r,
+                    mask: mask.as_deref().filter(|_| s.wants_mask()),
+                    time_s: frame.time_s,
+                    rate_hz: rate.tick(),
+                    mode,
+                };
+                if s.frame(&view)? == Flow::Stop {
+                    sink_stopped = true;
+                    break;
+                }
+            }
         }
         stats.dropped = source.dropped();
-        stats.stopped = stopped();
+        stats.stopped = stopped() || sink_stopped;
         let done = totals.len();
         if done == 0 {
             // Nothing tracked (an empty video, a stop before the first

@@ -150,7 +150,20 @@ pub fn distinct(k: usize) -> Colour {
 /// `text` as a label in the top-left corner.
 pub fn silhouette_overlay(frame: &RgbImage, mask: &[bool], colour: Colour, text: &str) -> RgbImage {
     let mut img = frame.clone();
+    silhouette(&mut img, mask, colour);
+    label(&mut img, 6, 6, text, WHITE, BLACK, 1);
+    img
+}
+
+/// Draws the outline of `mask` (one flag per pixel of `img`, row-major:
+/// the object's silhouette) in `colour`, 2 pixels wide, and tints its
+/// inside: a mask pixel with a 4-neighbour outside the mask (or the image)
+/// is a border pixel, drawn with its right and lower neighbours.
+pub fn silhouette(img: &mut RgbImage, mask: &[bool], colour: Colour) {
     let (w, h) = (img.width() as usize, img.height() as usize);
+    if mask.len() != w * h {
+        return;
+    }
     for y in 0..h {
         for x in 0..w {
             if !mask[y * w + x] {
@@ -168,16 +181,17 @@ pub fn silhouette_overlay(frame: &RgbImage, mask: &[bool], colour: Colour, text:
                 });
             if edge {
                 for (dx, dy) in [(0, 0), (1, 0), (0, 1)] {
-                    put(&mut img, x as i64 + dx, y as i64 + dy, colour);
+                    put(img, x as i64 + dx, y as i64 + dy, colour);
                 }
             } else {
-                blend(&mut img, x as i64, y as i64, colour, 0.18);
+                blend(img, x as i64, y as i64, colour, SILHOUETTE_TINT);
             }
         }
     }
-    label(&mut img, 6, 6, text, WHITE, BLACK, 1);
-    img
 }
+
+/// How strongly [`silhouette`] tints the inside of the outline (0..1).
+pub const SILHOUETTE_TINT: f32 = 0.18;
 
 /// `img` with a green cross on each corner.
 pub fn corners_picture(img: &RgbImage, corners: &[Corner]) -> RgbImage {

@@ -49,6 +49,7 @@ pub mod shaders;
 pub mod splat;
 pub mod synth;
 pub mod tracker;
+pub mod view;
 
 pub use geometry::{Intrinsics, Pose};
 pub use gpu::{AdapterChoice, GpuContext};

@@ -40,6 +40,7 @@ pub const ALL: &[(&str, &str)] = &[
     ),
     ("harris", include_str!("../shaders/harris.wgsl")),
     ("ncc", include_str!("../shaders/ncc.wgsl")),
+    ("present", include_str!("../shaders/present.wgsl")),
 ];
 
 /// What every shader shares: structs and helpers (composed after the
@@ -233,6 +234,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::RefineCorner>(),
         RustLayout::of::<f::NccParams>(),
         RustLayout::of::<f::Best>(),
+        RustLayout::of::<crate::view::present::PresentParams>(),
     ]
 }
 

@@ -90,6 +90,12 @@ pub struct Args {
     /// the adapter supports it: the faster measured, BENCHMARKS.md).
     #[arg(long, default_value = "auto")]
     pub splatter: Backend,
+    /// Show each frame in a window as it is tracked: the model's outline
+    /// at the tracked pose, tracking or lost (and why), inliers, residual
+    /// and ms per frame. Esc, q or closing the window ends the run with
+    /// every finished frame on disk. Needs a display (X11 or Wayland).
+    #[arg(long)]
+    pub view: bool,
     #[command(flatten)]
     pub tuning: Tuning,
 }
@@ -309,6 +315,14 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
     };
     let ctx = super::gpu(adapter)?;
+    // Before anything is loaded or written: no display, no run.
+    let mut window = match args.view {
+        true => Some(splattrack::view::WindowSink::open(
+            &ctx,
+            &format!("splattrack track {}", input.describe()),
+        )?),
+        false => None,
+    };
     let inputs = match &input {
         Input::Sequence(dir) => TrackInputs::load(
             &ctx,
@@ -375,12 +389,13 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         (None, Input::Device { .. }) => {}
     }
+    if let Some(w) = window.as_mut() {
+        run = run.sink(w);
+    }
+    let wall = std::time::Instant::now();
     let stats = match run.run(|_, _| {}) {
         Err(AppError::NoFrames) if args.start.is_some() => {
-            let what = match &input {
-                Input::Sequence(p) | Input::Video { file: p, .. } => p.display().to_string(),
-                Input::Device { device, .. } => device.clone(),
-            };
+            let what = input.describe();
             let start = match args.start {
                 Some(Start::Seconds(t)) => format!("{t}s"),
                 Some(Start::Frame(k)) => k.to_string(),
@@ -390,6 +405,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         r => r?,
     };
+    let wall = wall.elapsed().as_secs_f64();
     println!(
         "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,
@@ -400,15 +416,18 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         stats.median_ms,
         args.out.display()
     );
+    let ctrl_c = stop.load(Ordering::SeqCst);
     if live {
         println!(
             "{} frames dropped (arrived while a frame was being tracked){}",
             stats.dropped,
-            if stats.stopped {
-                "; stopped by Ctrl-C"
-            } else {
-                ""
-            }
+            if ctrl_c { "; stopped by Ctrl-C" } else { "" }
+        );
+    }
+    if stats.stopped && !ctrl_c {
+        println!(
+            "the live view was closed: stopped after {} frames",
+            stats.frames
         );
     }
     if args.profile {
@@ -417,6 +436,21 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             stats.source_ms
         );
         print!("{}", profile_table(&stats.mean_stages));
+        println!(
+            "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
+            if window.is_some() { ", live view" } else { "" },
+            wall * 1e3 / stats.frames as f64,
+            stats.frames as f64 / wall
+        );
+        if let Some(w) = &window {
+            let v = w.stats();
+            println!(
+                "live view: {} frames shown, {} skipped (surface not ready); {:.1} ms per frame to compose, draw and present",
+                v.shown,
+                v.skipped,
+                v.busy.as_secs_f64() * 1e3 / (v.shown + v.skipped).max(1) as f64
+            );
+        }
     }
     Ok(())
 }
@@ -436,6 +470,14 @@ enum Input {
 }
 
 impl Input {
+    /// The input as a user named it (the live view's title).
+    fn describe(&self) -> String {
+        match self {
+            Input::Sequence(p) | Input::Video { file: p, .. } => p.display().to_string(),
+            Input::Device { device, .. } => device.clone(),
+        }
+    }
+
     /// The one input the flags name, with the flags it needs.
     fn of(args: &Args) -> anyhow::Result<Self> {
         let camera = || {

@@ -174,8 +174,17 @@ pub const REQUIRED_FEATURES: wgpu::Features = wgpu::Features::FLOAT32_BLENDABLE;
 
 /// A device and queue with what is known about the adapter behind them.
 /// Cloning is cheap: wgpu's device and queue are shared handles.
+///
+/// The instance and adapter are kept so that a window can present with
+/// the tracker's own device (`instance.create_surface(window)`, checked
+/// with `adapter.is_surface_supported`: the live view,
+/// [`crate::view::WindowSink`]): on Vulkan, Metal and DX12 a surface needs
+/// no display handle at instance creation, so the headless context serves
+/// a window as it is.
 #[derive(Clone)]
 pub struct GpuContext {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
     pub device: wgpu::Device,
     pub queue: wgpu::Queue,
     pub info: wgpu::AdapterInfo,
@@ -265,10 +274,13 @@ impl GpuContext {
                     .collect(),
             });
         };
-        Self::from_adapter(adapter).await
+        Self::from_adapter(&instance, adapter).await
     }
 
-    async fn from_adapter(adapter: &wgpu::Adapter) -> Result<Self, GpuError> {
+    async fn from_adapter(
+        instance: &wgpu::Instance,
+        adapter: &wgpu::Adapter,
+    ) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let optional = wgpu::Features::TIMESTAMP_QUERY
             | wgpu::Features::TIMESTAMP_QUERY_INSIDE_ENCODERS
@@ -307,6 +319,8 @@ impl GpuContext {
             *lost = Some(format!("{reason:?}: {message}"));
         });
         Ok(Self {
+            instance: instance.clone(),
+            adapter: adapter.clone(),
             device,
             queue,
             info,
