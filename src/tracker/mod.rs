@@ -611,6 +611,8 @@ impl Tracker {
         };
         times.contour = t_contour.elapsed();
 
+        let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
+            || it.estimate.is_some_and(|e| rules.trusted(&e));
         let d = decide(
             &rules,
             &FrameSteps {
@@ -631,7 +633,14 @@ impl Tracker {
                 let s = self.verify_scores(&frame.grey, &d.pose.unwrap_or(start_pose))?;
                 scores = Some(s);
                 log::debug!("verify: {s:?}");
-                verify::judge(&s, &self.config.verify)
+                // Without a trusted texture step the object shows no
+                // texture to correlate (an untextured object's shading):
+                // the contour's edges decide.
+                if self.config.modalities.contour && !texture_held {
+                    verify::judge_with_contour(&s, &self.config.verify)
+                } else {
+                    verify::judge(&s, &self.config.verify)
+                }
             };
             verified(d, check)
         } else {
