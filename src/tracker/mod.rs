@@ -600,6 +600,9 @@ impl Tracker {
             let kf_trusted = kf.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
             let anchors = std::mem::take(&mut self.kf_anchors);
             match (kf_trusted, it_trusted) {
+                // A trusted KF step: the outline only refines it where
+                // configured ([`ContourConfig::refine_texture`]).
+                (Some(_), _) if !self.config.contour.refine_texture => StepOutcome::default(),
                 (Some(p), _) => self.contour_stage(rgb, &p, false, &anchors),
                 // IT's matches are not fused: they carry its drift (on the
                 // real dragon they pulled the fused pose 20 degrees off).
