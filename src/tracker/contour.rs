@@ -68,8 +68,8 @@ pub struct ContourConfig {
     /// holds it back where the object really makes it (0 by default: 0.01
     /// left the synthetic `plain` object 26 degrees behind its tilt).
     pub damping: f64,
-    /// [`Self::damping`] when the step starts from a trusted texture
-    /// estimate: it holds the fused solve near that estimate, so that the
+    /// [`Self::damping`] when the step refines a trusted KF estimate, fused
+    /// with its matches: it holds the fused solve near that estimate, so that the
     /// outline refines a textured object's pose instead of pulling it
     /// (the real cube fused: 1.01 degrees undamped, 0.50 at 0.1, against
     /// 0.35 with texture alone; 1 spoils the real dragon).
@@ -583,9 +583,14 @@ impl Tracker {
         anchors: &[Anchor],
     ) -> Result<Estimate, StepError> {
         let cfg = self.config.contour.clone();
-        // From a texture estimate, damping holds the solve near it (the
-        // prior the contour refines); alone, nothing should hold it back.
-        let damping = if long { cfg.damping } else { cfg.fused_damping };
+        // Fused with a trusted KF step's matches, damping holds the solve
+        // near that estimate (the prior the contour refines); from IT's
+        // estimate (which drifts) or alone, nothing should hold it back.
+        let damping = if anchors.is_empty() {
+            cfg.damping
+        } else {
+            cfg.fused_damping
+        };
         let mut pose = *start;
         let mut last = None;
         for round in 0..cfg.rounds.max(1) {
