@@ -11,20 +11,23 @@
 //!    normal is the gradient of the coverage over an 11x11 window, and its edge
 //!    position is moved off the pixel centre by the covered fraction of
 //!    that window (a straight edge through the window cuts it in proportion
-//!    to its offset), so the contour is sub-pixel.
+//!    to its offset), so the contour is sub-pixel, then inward by the width
+//!    the splatter's low-pass filter adds to the silhouette ([`inset`]).
 //! 2. Along each normal, the frame is sampled every pixel and each sample's
 //!    colour turned into the probability that it shows the object
 //!    ([`ColourModel`]: foreground and background colour histograms learnt
-//!    online at the tracked pose, as region trackers such as RBOT, SRT3D
-//!    and M3T do). The boundary position `d` along the line is the mean of
-//!    its posterior under a smooth-step model of the line ([`search_line`]).
+//!    online at the tracked pose, away from the outline, as region
+//!    trackers such as RBOT, SRT3D and M3T do). The boundary position `d`
+//!    along the line is the mean of its posterior under a smooth-step
+//!    model of the line ([`search_line`]).
 //! 3. A twist `a` moves the contour point by `L(x_c) a` (the splatted motion
 //!    predictors gathered at the contour pixel), of which the normal part
 //!    is observable: the residual is `n^T L(x_c) a - d`, one row of 6
 //!    ([`contour_row`]). The rows are solved with the texture matches of
 //!    the frame (re-projected at the current estimate) by
 //!    [`crate::pose::irls_grouped`], each modality with its own robust
-//!    scale.
+//!    scale; undamped alone, damped towards a trusted KF estimate it
+//!    refines ([`ContourConfig::fused_damping`]).
 
 use super::{ConfigError, Estimate, StepError, StepOutcome, Tracker};
 use crate::geometry::Pose;
@@ -824,6 +827,28 @@ mod tests {
     }
 
     #[test]
+    fn colours_are_not_learnt_near_the_outline() {
+        // Object red on the left half, background blue, and a mixed purple
+        // column on the boundary that belongs to neither.
+        let (w, h) = (20u32, 10u32);
+        let frame = image::RgbImage::from_fn(w, h, |x, _| match x {
+            0..=9 => image::Rgb([250, 10, 10]),
+            10 => image::Rgb([130, 10, 130]),
+            _ => image::Rgb([10, 10, 250]),
+        });
+        let coverage: Vec<bool> = (0..w * h).map(|i| i % w <= 10).collect();
+        let rect = (0, 0, w as usize - 1, h as usize - 1);
+        let mut near = ColourModel::new(8);
+        near.learn(&frame, &coverage, rect, 0, 1.0);
+        assert!(near.foreground_probability([130, 10, 130]) > 0.9);
+        let mut away = ColourModel::new(8);
+        away.learn(&frame, &coverage, rect, 2, 1.0);
+        assert_eq!(away.foreground_probability([130, 10, 130]), 0.5);
+        assert!(away.foreground_probability([250, 10, 10]) > 0.9);
+        assert!(away.foreground_probability([10, 10, 250]) < 0.1);
+    }
+
+    #[test]
     fn contour_row_is_the_normal_part_of_the_motion() {
         let l = Matrix2x6::from_fn(|r, c| (r * 6 + c) as f64 - 3.0);
         let n = Vector2::new(0.6, -0.8);
@@ -846,6 +871,31 @@ mod tests {
                 .to_string()
                 .contains("contour.search_px")
         );
+        for (c, field) in [
+            (
+                ContourConfig {
+                    inset_px: f64::NAN,
+                    ..Default::default()
+                },
+                "contour.inset_px",
+            ),
+            (
+                ContourConfig {
+                    fused_damping: -1.0,
+                    ..Default::default()
+                },
+                "contour.fused_damping",
+            ),
+            (
+                ContourConfig {
+                    learn_margin_px: 100,
+                    ..Default::default()
+                },
+                "contour.learn_margin_px",
+            ),
+        ] {
+            assert!(c.validate().unwrap_err().to_string().contains(field));
+        }
         let c = ContourConfig {
             bins: 1,
             ..Default::default()
