@@ -9,7 +9,8 @@ use splattrack::draw;
 use splattrack::gpu::{AdapterChoice, GpuContext};
 use splattrack::io::{Sequence, read_poses};
 use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets, Splatter};
-use splattrack::tracker::contour::{extract_contour, limb_normals};
+use splattrack::tracker::ContourConfig;
+use splattrack::tracker::contour::{extract_contour, inset, limb_normals};
 use std::path::Path;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -32,6 +33,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mask: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
     let mut points = extract_contour(&mask, cam.width as usize, cam.height as usize, 8);
     limb_normals(&cam, &normals, &mut points);
+    inset(&mut points, ContourConfig::default().inset_px);
     let mut img = image::open(&seq.frames[k])?.to_rgb8();
     for p in &points {
         let (a, b): (Vector2<f64>, Vector2<f64>) =

@@ -600,6 +600,9 @@ impl Tracker {
             let kf_trusted = kf.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
             let anchors = std::mem::take(&mut self.kf_anchors);
             match (kf_trusted, it_trusted) {
+                // A trusted KF step: the outline only refines it where
+                // configured ([`ContourConfig::refine_texture`]).
+                (Some(_), _) if !self.config.contour.refine_texture => StepOutcome::default(),
                 (Some(p), _) => self.contour_stage(rgb, &p, false, &anchors),
                 // IT's matches are not fused: they carry its drift (on the
                 // real dragon they pulled the fused pose 20 degrees off).
@@ -611,6 +614,8 @@ impl Tracker {
         };
         times.contour = t_contour.elapsed();
 
+        let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
+            || it.estimate.is_some_and(|e| rules.trusted(&e));
         let d = decide(
             &rules,
             &FrameSteps {
@@ -631,7 +636,14 @@ impl Tracker {
                 let s = self.verify_scores(&frame.grey, &d.pose.unwrap_or(start_pose))?;
                 scores = Some(s);
                 log::debug!("verify: {s:?}");
-                verify::judge(&s, &self.config.verify)
+                // Without a trusted texture step the object shows no
+                // texture to correlate (an untextured object's shading):
+                // the contour's edges decide.
+                if self.config.modalities.contour && !texture_held {
+                    verify::judge_with_contour(&s, &self.config.verify)
+                } else {
+                    verify::judge(&s, &self.config.verify)
+                }
             };
             verified(d, check)
         } else {

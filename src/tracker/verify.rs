@@ -255,6 +255,25 @@ pub fn edge_support(frame: &GreyImage, covered: &[bool], cfg: &VerifyConfig) -> 
     (contour >= 20).then(|| supported as f64 / contour as f64)
 }
 
+/// [`judge`] for a frame that the contour modality tracked while no
+/// texture step was trusted: a pose whose outline the frame's edges
+/// support strongly (the rule without any texture) also passes where the
+/// novel view's ZNCC is low, since an untextured object shows only its
+/// shading there, which keyframes lit otherwise do not share (the
+/// synthetic `plain` object under its moving light: ZNCC 0.24 at poses
+/// within 4 degrees, edge support 0.92). Where a texture step holds, the
+/// ZNCC keeps its veto (a turned textured blob keeps its outline).
+pub fn judge_with_contour(s: &VerifyScores, cfg: &VerifyConfig) -> Result<(), Unverified> {
+    judge(s, cfg).or_else(|e| match e {
+        Unverified::Appearance { .. }
+            if s.edge_support.unwrap_or(0.0) >= cfg.strong_edge_support =>
+        {
+            Ok(())
+        }
+        e => Err(e),
+    })
+}
+
 /// The rule: in view, large enough, and looking like the frame (module
 /// docs). `Ok` when the pose passes.
 pub fn judge(s: &VerifyScores, cfg: &VerifyConfig) -> Result<(), Unverified> {
@@ -472,6 +491,29 @@ mod tests {
             judge(&s(Some(0.1), 0.4), &cfg).unwrap_err().to_string(),
             "model does not match the image: ZNCC 0.10, contour edge support 0.40"
         );
+    }
+
+    #[test]
+    fn without_texture_strong_contour_edges_override_a_low_zncc() {
+        let cfg = VerifyConfig::default();
+        let s = |zncc, edge| VerifyScores {
+            visible: 1.0,
+            covered_px: 1000,
+            zncc,
+            edge_support: Some(edge),
+        };
+        assert!(judge(&s(Some(0.24), 0.92), &cfg).is_err());
+        judge_with_contour(&s(Some(0.24), 0.92), &cfg).unwrap();
+        judge_with_contour(&s(None, 0.8), &cfg).unwrap();
+        assert!(judge_with_contour(&s(Some(0.24), 0.5), &cfg).is_err());
+        let hidden = VerifyScores {
+            visible: 0.2,
+            ..s(Some(0.9), 0.95)
+        };
+        assert!(matches!(
+            judge_with_contour(&hidden, &cfg),
+            Err(Unverified::NotInView { .. })
+        ));
     }
 
     #[test]
