@@ -240,9 +240,17 @@ pub struct EdgeMap {
 }
 
 impl EdgeMap {
-    /// The edges of `img` (`w` x `h`, row-major), by central differences.
+    /// The edges of `img` (`w` x `h`, row-major), by central differences;
+    /// none where `img` is not `w` x `h`.
     pub fn new(img: &[f32], w: usize, h: usize) -> Self {
         let mut grad = vec![[0.0f32; 3]; w * h];
+        if img.len() != w * h {
+            return Self {
+                w,
+                h,
+                dir: vec![[0.0; 2]; w * h],
+            };
+        }
         for y in 1..h.saturating_sub(1) {
             for x in 1..w.saturating_sub(1) {
                 let gx = 0.5 * (img[y * w + x + 1] - img[y * w + x - 1]);
@@ -658,6 +666,13 @@ mod tests {
         // Edges on the block's border (spread by a pixel), none far away.
         let d = edges.dir[20 * w + 23];
         assert!(d[0] > 0.999 && d[1].abs() < 0.02, "{d:?}");
+        // A wrong size gives no edges, not a panic.
+        assert!(
+            EdgeMap::new(&img[1..], w, h)
+                .dir
+                .iter()
+                .all(|d| *d == [0.0; 2])
+        );
         assert_eq!(edges.dir[20 * w + 10], [0.0, 0.0]);
         let best = best_positions(&t, &img, &edges, w, h, 1);
         // Within the pixel the spread leaves open.
