@@ -115,28 +115,40 @@ fn par_ranges<T: Send>(
     }
     let step = n.div_ceil(threads);
     let (tx, rx) = std::sync::mpsc::channel::<usize>();
+    let ranges: Vec<_> = (0..threads)
+        .map(|t| (t * step).min(n)..((t + 1) * step).min(n))
+        .collect();
     std::thread::scope(|scope| {
-        let handles: Vec<_> = (0..threads)
-            .map(|t| {
-                let range = (t * step).min(n)..((t + 1) * step).min(n);
-                let (work, tx) = (&work, tx.clone());
-                scope.spawn(move || {
-                    work(range, &|units| {
-                        let _ = tx.send(units);
+        // A range whose thread cannot be started (the system out of
+        // threads) is worked on here afterwards.
+        let handles: Vec<_> = ranges
+            .iter()
+            .map(|range| {
+                let (work, tx, range) = (&work, tx.clone(), range.clone());
+                std::thread::Builder::new()
+                    .name("splattrack-estimate".into())
+                    .spawn_scoped(scope, move || {
+                        work(range, &|units| {
+                            let _ = tx.send(units);
+                        })
                     })
-                })
+                    .ok()
             })
             .collect();
         drop(tx);
-        // Ends when every worker has ended (and dropped its sender).
+        // Ends when every started worker has ended (and dropped its sender).
         for units in rx {
             bar.advance(units as u64);
         }
         handles
             .into_iter()
-            .map(|h| match h.join() {
-                Ok(v) => v,
-                Err(panic) => std::panic::resume_unwind(panic),
+            .zip(ranges)
+            .map(|(h, range)| match h {
+                Some(h) => match h.join() {
+                    Ok(v) => v,
+                    Err(panic) => std::panic::resume_unwind(panic),
+                },
+                None => work(range, &|units| bar.advance(units as u64)),
             })
             .collect()
     })
