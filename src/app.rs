@@ -547,12 +547,17 @@ impl<'a> TrackRun<'a> {
             Some((p, obj)) => Some(BopWriter::create(p, *obj)?),
             None => None,
         };
+        // The progress total: the frames to track where known, else about
+        // how many a video has left (0: unknown, a live camera).
+        let total = n
+            .or_else(|| source.expected())
+            .map_or(0, |e| self.limit.map_or(e, |l| e.min(l)));
         let report = |done: usize| {
             if let Some(p) = &self.progress {
                 p(ProgressEvent {
                     stage: TRACKING_STAGE,
                     done: done as u64,
-                    total: n.unwrap_or(0) as u64,
+                    total: total.max(done) as u64,
                 });
             }
         };

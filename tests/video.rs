@@ -4,7 +4,8 @@
 //! decoding noise; `time_s` follows the encoded frame rate; `--start` and
 //! `--frames` pick the right rows; `--realtime` replays a video as a camera
 //! and Ctrl-C (SIGINT) ends it cleanly; bad videos and a missing ffmpeg
-//! fail with one line. MOV, AVI and MKV files decode to the same frames.
+//! fail with one line. MOV, AVI and MKV files decode to the same frames,
+//! and their frame counts (for progress) are known.
 //!
 //! Needs the `ffmpeg` program with libx264 and libvpx (Debian's; CI
 //! installs it); without it the tests fail saying so.
@@ -391,8 +392,13 @@ fn mov_avi_and_mkv_decode_to_the_frames() {
     ] {
         let video = f.encode(name, "15", codec);
         let mut src = VideoSource::open(&video, &seq.camera, &cam_path, Start::Frame(0)).unwrap();
+        // For the progress bar: the frame count (MOV, AVI) or the duration
+        // times the rate (MKV), never a limit.
+        assert_eq!(src.expected(), Some(16), "{name}");
+        assert_eq!(src.remaining(), None, "{name}");
         let mut n = 0;
         while let Some(frame) = src.next_frame().unwrap() {
+            assert_eq!(src.expected(), (n < 15).then_some(15 - n), "{name}");
             let png = seq.frame(frame.index).unwrap().image;
             let diff = frame
                 .image

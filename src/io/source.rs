@@ -50,6 +50,13 @@ pub trait FrameSource {
         None
     }
 
+    /// About how many frames are left, for progress only (never a limit:
+    /// a video's own count can be off): [`FrameSource::remaining`] where
+    /// it is known, else an estimate (a video's container), else `None`.
+    fn expected(&self) -> Option<usize> {
+        self.remaining()
+    }
+
     /// The next frame, `None` at the end of the stream (or, for a live
     /// source, once it was told to stop).
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError>;
@@ -78,6 +85,9 @@ impl<S: FrameSource + ?Sized> FrameSource for &mut S {
     }
     fn remaining(&self) -> Option<usize> {
         (**self).remaining()
+    }
+    fn expected(&self) -> Option<usize> {
+        (**self).expected()
     }
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         (**self).next_frame()

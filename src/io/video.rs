@@ -540,6 +540,66 @@ pub struct VideoSource {
     undistorter: Option<Undistorter>,
     start: Start,
     buf: Vec<u8>,
+    /// Frames the container says the video has (for progress).
+    frames: Option<usize>,
+    /// Frames read so far, the skipped ones before the start included.
+    read: usize,
+}
+
+/// The FFmpeg prober, which comes with the ffmpeg program.
+pub const FFPROBE: &str = "ffprobe";
+
+/// How many frames the container of `path` says its first video stream
+/// has: its frame count, else its duration times its mean frame rate;
+/// `None` where ffprobe is missing or says neither. For progress only.
+pub fn probe_frame_count(path: &Path) -> Option<usize> {
+    let mut input = OsString::from("file:");
+    input.push(path.as_os_str());
+    let out = Command::new(FFPROBE)
+        .args(["-v", "error", "-select_streams", "v:0", "-show_entries"])
+        .arg("stream=nb_frames,avg_frame_rate,duration:format=duration")
+        .args(["-of", "default=noprint_wrappers=1"])
+        .arg(input)
+        .stdin(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .output()
+        .ok()?;
+    if !out.status.success() {
+        return None;
+    }
+    parse_probe(&String::from_utf8_lossy(&out.stdout))
+}
+
+/// The frame count from ffprobe's `key=value` lines (module
+/// [`probe_frame_count`]).
+fn parse_probe(text: &str) -> Option<usize> {
+    let mut nb_frames = None;
+    let mut rate = None;
+    let mut duration = None;
+    for line in text.lines() {
+        let Some((key, value)) = line.trim().split_once('=') else {
+            continue;
+        };
+        match key {
+            "nb_frames" => nb_frames = value.parse::<usize>().ok().filter(|n| *n > 0),
+            "avg_frame_rate" => {
+                rate = value.split_once('/').and_then(|(a, b)| {
+                    let (a, b) = (a.parse::<f64>().ok()?, b.parse::<f64>().ok()?);
+                    (b > 0.0 && a > 0.0).then_some(a / b)
+                })
+            }
+            // The stream's duration comes first; the container's fills in.
+            "duration" if duration.is_none() => {
+                duration = value.parse::<f64>().ok().filter(|d| *d > 0.0);
+            }
+            _ => {}
+        }
+    }
+    let from_duration = || {
+        let n = (duration? * rate?).round();
+        (1.0..1e9).contains(&n).then_some(n as usize)
+    };
+    nb_frames.or_else(from_duration)
 }
 
 impl VideoSource {
@@ -568,6 +628,8 @@ impl VideoSource {
             undistorter: camera.has_distortion().then(|| Undistorter::new(camera)),
             start,
             buf: Vec::new(),
+            frames: probe_frame_count(path),
+            read: 0,
         })
     }
 }
@@ -585,6 +647,16 @@ impl FrameSource for VideoSource {
         true
     }
 
+    fn expected(&self) -> Option<usize> {
+        let skipped = match self.start {
+            Start::Frame(k) => k,
+            Start::Seconds(_) => 0,
+        };
+        self.frames
+            .map(|n| n.saturating_sub(self.read.max(skipped)))
+            .filter(|n| *n > 0)
+    }
+
     fn next_frame(&mut self) -> Result<Option<Frame>, SourceError> {
         let (w, h) = self.ffmpeg.size();
         let bytes = w as usize * h as usize * 3;
@@ -595,6 +667,7 @@ impl FrameSource for VideoSource {
             let Some(info) = self.ffmpeg.read_frame(&mut self.buf)? else {
                 return Ok(None);
             };
+            self.read += 1;
             if self.start.skips(info.index, info.time_s) {
                 continue;
             }
@@ -613,6 +686,23 @@ impl FrameSource for VideoSource {
                 time_s: Some(info.time_s),
             }));
         }
+    }
+}
+
+#[cfg(test)]
+mod probe_tests {
+    use super::parse_probe;
+
+    #[test]
+    fn the_frame_count_comes_from_the_count_else_duration_times_rate() {
+        let mp4 = "avg_frame_rate=15/1\nduration=2.000000\nnb_frames=30\nduration=2.000000\n";
+        assert_eq!(parse_probe(mp4), Some(30));
+        // Matroska and WebM streams carry no count or duration: the
+        // container's duration.
+        let mkv = "avg_frame_rate=30000/1001\nduration=N/A\nnb_frames=N/A\nduration=10.010000\n";
+        assert_eq!(parse_probe(mkv), Some(300));
+        assert_eq!(parse_probe("avg_frame_rate=0/0\nnb_frames=N/A\n"), None);
+        assert_eq!(parse_probe(""), None);
     }
 }
 
