@@ -306,3 +306,41 @@ fn windows_give_the_poses_of_the_whole_image() {
         }
     }
 }
+
+#[test]
+fn the_windowed_silhouette_is_the_whole_frame_one() {
+    // Overlays and the live view splat only the window the model can cover.
+    let f = fixture();
+    let make = |windows: bool| {
+        Tracker::new(
+            shared_test_context(),
+            f.scene.model.clone(),
+            f.scene.cam,
+            None,
+            TrackerConfig {
+                windows,
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        )
+        .expect("tracker")
+    };
+    let (mut windowed, mut whole) = (make(true), make(false));
+    let same = |a: &[bool], b: &[bool]| {
+        let covered = b.iter().filter(|v| **v).count();
+        assert!(covered > 2000, "{covered} pixels covered");
+        let differ = a.iter().zip(b).filter(|(x, y)| x != y).count();
+        assert_eq!(differ, 0, "{differ} of {covered} pixels differ");
+    };
+    for fr in &f.frames[..3] {
+        let a = windowed.silhouette(&fr.pose).unwrap();
+        let b = whole.silhouette(&fr.pose).unwrap();
+        same(&a, &b);
+        // At a tracked pose: the coverage of the check's render, kept.
+        let r = windowed.track(&fr.image).unwrap();
+        assert_eq!(r.status, Status::Tracking);
+        let a = windowed.silhouette(&r.pose).unwrap();
+        let b = whole.silhouette(&r.pose).unwrap();
+        same(&a, &b);
+    }
+}

@@ -686,22 +686,49 @@ impl Tracker {
         })
     }
 
-    /// Renders the model at `pose` and returns its coverage mask (for
-    /// overlays): one flag per pixel.
+    /// The model's coverage mask at `pose` (for overlays and the live
+    /// view): one flag per pixel of the frame. Only the window the model
+    /// can cover at `pose` is splatted and read back (the whole frame with
+    /// windows off), the rest is uncovered; at the pose the last frame's
+    /// check rendered (a tracked frame's), that render's coverage is read
+    /// instead of splatting again.
     pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
-        let cam = self.use_window(Window::full(&self.cam));
-        self.splatter.render(
-            &self.ctx,
-            &self.geometry,
-            &cam,
-            pose,
-            Attributes::COLOR,
-            &mut self.targets,
-        )?;
-        let w = self
-            .splatter
-            .read(&self.ctx, &self.targets, Attribute::Weight)?;
-        Ok(w.data.iter().map(|v| *v > 0.0 && !v.is_nan()).collect())
+        let (weight, window) = match self.kept_at(pose) {
+            Some((targets, window)) => (
+                self.splatter.read(&self.ctx, targets, Attribute::Weight)?,
+                window,
+            ),
+            None => {
+                let window = self.view_window(pose);
+                let cam = self.use_window(window);
+                self.splatter.render(
+                    &self.ctx,
+                    &self.geometry,
+                    &cam,
+                    pose,
+                    Attributes::COLOR,
+                    &mut self.targets,
+                )?;
+                let weight = self
+                    .splatter
+                    .read(&self.ctx, &self.targets, Attribute::Weight)?;
+                (weight, window)
+            }
+        };
+        let (fw, fh) = (self.cam.width as usize, self.cam.height as usize);
+        let (x0, y0, ww) = (
+            window.x0 as usize,
+            window.y0 as usize,
+            window.width as usize,
+        );
+        let mut mask = vec![false; fw * fh];
+        for (y, row) in weight.data.chunks(ww.max(1)).enumerate() {
+            let at = (y0 + y) * fw + x0;
+            for (m, v) in mask[at..at + row.len()].iter_mut().zip(row) {
+                *m = *v > 0.0 && !v.is_nan();
+            }
+        }
+        Ok(mask)
     }
 }
 

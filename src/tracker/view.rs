@@ -249,6 +249,14 @@ impl Tracker {
         }
     }
 
+    /// The kept render and its window, when it was made at `pose`.
+    pub(super) fn kept_at(&self, pose: &Pose) -> Option<(&SplatTargets, Window)> {
+        self.kept
+            .as_ref()
+            .filter(|k| k.pose == *pose)
+            .map(|k| (&k.targets, k.window))
+    }
+
     /// Makes the kept render current when it was made at `pose` in window
     /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
     /// give); whether it was.
