@@ -6,74 +6,11 @@
 //! Data safety: no command overwrites its inputs or a crashed run's
 //! partial output.
 
-use std::io::Read;
+mod cli_common;
+
+use cli_common::*;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
-
-/// Runs the binary, killing it after `DEADLINE`: (success, stdout, stderr).
-fn run(args: &[&str]) -> (bool, String, String) {
-    const DEADLINE: Duration = Duration::from_secs(240);
-    let mut c = Command::new(env!("CARGO_BIN_EXE_splattrack"));
-    if std::env::var_os("SPLATTRACK_ADAPTER").is_none() {
-        c.env("SPLATTRACK_ADAPTER", "cpu");
-    }
-    let mut child = c
-        .args(args)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run splattrack");
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            panic!("{args:?} still running after {DEADLINE:?} (a hang)");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let (mut out, mut err) = (String::new(), String::new());
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
-    (status.success(), out, err)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-fn ok(args: &[&str]) -> String {
-    let (success, out, err) = run(args);
-    assert!(success, "{args:?} failed: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    out
-}
-
-/// Expects a failure with one line on stderr holding every needle.
-fn fails(args: &[&str], needles: &[&str]) -> String {
-    let (success, _, err) = run(args);
-    assert!(!success, "{args:?} succeeded");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: {err:?} lacks {n:?}");
-    }
-    err
-}
 
 /// A small synthetic sequence (6 frames of the blob, 160 x 120) and its
 /// keyframe store, made once.

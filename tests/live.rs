@@ -8,6 +8,9 @@
 //! Needs the `ffmpeg` program (CI installs it); without it the tests fail
 //! saying so.
 
+mod cli_common;
+
+use cli_common::*;
 use splattrack::Intrinsics;
 use splattrack::app::{TrackInputs, TrackRun};
 use splattrack::gpu::shared_test_context;
@@ -18,7 +21,6 @@ use splattrack::io::{Sequence, read_poses};
 use splattrack::synth::{SynthConfig, sequence::write_sequence};
 use splattrack::tracker::{Mode, TrackerConfig};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, OnceLock};
 use std::time::Duration;
@@ -60,26 +62,6 @@ fn fixture() -> &'static (PathBuf, PathBuf) {
         ]);
         (seq, mp4)
     })
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-/// Runs ffmpeg to make a test video; fails loudly when it is missing.
-fn ffmpeg(args: &[&str]) {
-    let out = Command::new("ffmpeg")
-        .args(["-hide_banner", "-loglevel", "error", "-y"])
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!("these tests need the ffmpeg program (apt install ffmpeg): {e}")
-        });
-    assert!(
-        out.status.success(),
-        "ffmpeg {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 /// Processes (zombies included) whose parent is this test process and

@@ -10,6 +10,9 @@
 //! Needs the `ffmpeg` program with libx264 and libvpx (Debian's; CI
 //! installs it); without it the tests fail saying so.
 
+mod cli_common;
+
+use cli_common::*;
 use splattrack::io::source::{FrameSource, Start};
 use splattrack::io::video::VideoSource;
 use splattrack::io::{PoseRow, Sequence, read_poses};
@@ -21,90 +24,6 @@ use std::time::{Duration, Instant};
 
 /// Frames tracked per run (KF+IT at 320x240 on lavapipe: ~0.1 s each).
 const FRAMES: usize = 12;
-
-/// Runs the binary with `env` added, killing it after a deadline:
-/// (success, stdout, stderr).
-fn run_env(args: &[&str], env: &[(&str, &str)]) -> (bool, String, String) {
-    const DEADLINE: Duration = Duration::from_secs(240);
-    let mut c = Command::new(env!("CARGO_BIN_EXE_splattrack"));
-    if std::env::var_os("SPLATTRACK_ADAPTER").is_none() {
-        c.env("SPLATTRACK_ADAPTER", "cpu");
-    }
-    let mut child = c
-        .args(args)
-        .envs(env.iter().copied())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("run splattrack");
-    let start = Instant::now();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > DEADLINE {
-            let _ = child.kill();
-            panic!("{args:?} still running after {DEADLINE:?} (a hang)");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let (mut out, mut err) = (String::new(), String::new());
-    child
-        .stdout
-        .take()
-        .unwrap()
-        .read_to_string(&mut out)
-        .unwrap();
-    child
-        .stderr
-        .take()
-        .unwrap()
-        .read_to_string(&mut err)
-        .unwrap();
-    (status.success(), out, err)
-}
-
-fn ok(args: &[&str]) -> String {
-    let (success, out, err) = run_env(args, &[]);
-    assert!(success, "{args:?} failed: {err}");
-    assert!(!err.contains("panicked"), "{err}");
-    out
-}
-
-/// Expects a failure with one line on stderr holding every needle.
-fn fails_env(args: &[&str], env: &[(&str, &str)], needles: &[&str]) {
-    let (success, _, err) = run_env(args, env);
-    assert!(!success, "{args:?} succeeded");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: {err:?} lacks {n:?}");
-    }
-}
-
-fn fails(args: &[&str], needles: &[&str]) {
-    fails_env(args, &[], needles)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-/// Runs ffmpeg to make a test video; fails loudly when it is missing.
-fn ffmpeg(args: &[&str]) {
-    let out = Command::new("ffmpeg")
-        .args(["-hide_banner", "-loglevel", "error", "-y"])
-        .args(args)
-        .output()
-        .unwrap_or_else(|e| {
-            panic!("these tests need the ffmpeg program (apt install ffmpeg): {e}")
-        });
-    assert!(
-        out.status.success(),
-        "ffmpeg {args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// The sequence (the blob at 320x240, its trajectory over 60 frames, of
 /// which the first 16 are encoded at 15 frames/s), its keyframe store, and
