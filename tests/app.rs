@@ -3,17 +3,19 @@
 //! when it matches the model and rebuilt when stale, and a tracking run
 //! writing poses, BOP rows and overlays, reporting progress and each frame.
 
+mod tracking_common;
+
+use splattrack::PointModel;
 use splattrack::app::{
     AppError, KeyframeOrigin, TrackInputs, TrackRun, load_keyframes, load_or_build_keyframes,
 };
 use splattrack::gpu::shared_test_context;
 use splattrack::io::read_poses;
 use splattrack::progress::{ProgressEvent, ProgressFn};
-use splattrack::synth::{SynthConfig, sequence::write_sequence};
 use splattrack::tracker::{Mode, TrackerConfig};
-use splattrack::{Intrinsics, PointModel};
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
+use tracking_common::small_sequence;
 
 const FRAMES: usize = 4;
 
@@ -21,26 +23,11 @@ const FRAMES: usize = 4;
 /// a 4000-point model, 12 keyframes.
 fn sequence() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("app_seq");
-        let _ = std::fs::remove_dir_all(&dir);
-        let cfg = SynthConfig {
-            frames: FRAMES,
-            camera: Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5),
-            ..Default::default()
-        };
-        write_sequence(&cfg, &dir, 4000, None).expect("write the sequence");
-        dir
-    })
+    DIR.get_or_init(|| small_sequence("app_seq", FRAMES))
 }
 
 fn workdir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("app")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    tracking_common::workdir("app", name)
 }
 
 #[test]

@@ -8,13 +8,15 @@
 //! `track --view` where there is no display (one line, non-zero exit,
 //! nothing written).
 
+mod tracking_common;
+
 use image::{Rgb, RgbImage, RgbaImage};
+use splattrack::Pose;
 use splattrack::app::{AppError, TrackInputs, TrackRun};
 use splattrack::draw::{self, SILHOUETTE_TINT};
 use splattrack::gpu::shared_test_context;
 use splattrack::io::read_poses;
 use splattrack::rng::Rng;
-use splattrack::synth::{SynthConfig, sequence::write_sequence};
 use splattrack::tracker::{
     LostReason, Mode, Stage, StageTimes, Status, TrackResult, TrackerConfig,
 };
@@ -22,10 +24,10 @@ use splattrack::view::present::{Presenter, letterbox, present_cpu};
 use splattrack::view::{
     BAND_COLOUR, Flow, FrameSink, Layout, ViewError, ViewFrame, compose, status_colour,
 };
-use splattrack::{Intrinsics, Pose};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::time::Duration;
+use tracking_common::small_sequence;
 
 fn result(status: Status) -> TrackResult {
     TrackResult {
@@ -247,26 +249,11 @@ const FRAMES: usize = 4;
 /// 4 frames of the blob at 160x120, a 4000-point model, keyframes.
 fn sequence() -> &'static Path {
     static DIR: OnceLock<PathBuf> = OnceLock::new();
-    DIR.get_or_init(|| {
-        let dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("view_seq");
-        let _ = std::fs::remove_dir_all(&dir);
-        let cfg = SynthConfig {
-            frames: FRAMES,
-            camera: Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5),
-            ..Default::default()
-        };
-        write_sequence(&cfg, &dir, 4000, None).expect("write the sequence");
-        dir
-    })
+    DIR.get_or_init(|| small_sequence("view_seq", FRAMES))
 }
 
 fn workdir(name: &str) -> PathBuf {
-    let d = Path::new(env!("CARGO_TARGET_TMPDIR"))
-        .join("view")
-        .join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    tracking_common::workdir("view", name)
 }
 
 /// What a fake sink saw of one frame.

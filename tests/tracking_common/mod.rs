@@ -263,3 +263,29 @@ impl Drop for TempDir {
         let _ = std::fs::remove_dir_all(&self.0);
     }
 }
+
+/// Writes a small synthetic sequence under the tests' temporary folder,
+/// named `name`: `frames` frames of the blob at 160x120, a 4000-point
+/// model, the 12 synth keyframes.
+pub fn small_sequence(name: &str, frames: usize) -> PathBuf {
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    let cfg = SynthConfig {
+        frames,
+        camera: Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5),
+        ..Default::default()
+    };
+    splattrack::synth::sequence::write_sequence(&cfg, &dir, 4000, None)
+        .expect("write the sequence");
+    dir
+}
+
+/// A fresh, empty folder `group/name` under the tests' temporary folder.
+pub fn workdir(group: &str, name: &str) -> PathBuf {
+    let d = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(group)
+        .join(name);
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
