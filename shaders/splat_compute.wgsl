@@ -3,10 +3,18 @@
 // and less-or-equal depth test), written with atomics instead of the
 // rasteriser and blending (Dehais et al. 2010, sections 2.3 and 3.2;
 // Botsch et al. 2005). One thread per splat walks the pixels of its
-// screen-space bounding box (the quad the render pass would rasterise);
-// footprints of more than BIG_SPLAT_PIXELS are listed instead and walked by
-// a whole workgroup (`visibility_big`, `accumulate_big`), so a large or
-// near-plane splat does not serialise on one thread:
+// screen-space bounding box (the quad the render pass would rasterise).
+// Footprints of more than `params.tile_pixels` are binned instead into the
+// 8x8 tiles of the image they touch (`tile_scan`, `tile_scatter`), and a
+// workgroup per tile, a lane per pixel, goes through the tile's splats
+// (`tile_visibility`, `tile_accumulate`): the lanes of a large splat run
+// side by side, and a pixel sums its fragments in registers, so it makes
+// one atomic per sum instead of one per fragment. The sums are the same
+// integers in any order, so a render is the same bit for bit either way. A
+// splat that finds no room left in the tile lists is walked by a whole
+// workgroup in 8x8 blocks instead (`visibility_big`, `accumulate_big`).
+// Every walk calls the same per-pixel functions (`visibility_key`,
+// `fragment`):
 //
 // 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
 //    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders
@@ -44,6 +52,14 @@ struct ComputeParams {
     count: u32,
     // COMPUTE_GEOMETRY | COMPUTE_MOTION: which groups to accumulate.
     flags: u32,
+    // Footprints of more pixels are binned into 8x8 tiles (`tile_*`).
+    tile_pixels: u32,
+    // Room for (tile, splat) entries in `tile_splats`; a splat that does
+    // not fit is walked by a workgroup instead (`*_big`).
+    tile_capacity: u32,
+    // Tiles per row and per column: ceil(width / 8), ceil(height / 8).
+    tiles_x: u32,
+    tiles_y: u32,
 }
 
 // @group(0) @binding(0): `cam`, in splat_common.wgsl.
@@ -59,20 +75,33 @@ struct ComputeParams {
 // The pixels any splat may touch: COMPUTE_BOUNDS_* (the minima stored as
 // 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
 // max serves both), then the indirect dispatch of `finish` over them.
-// [4]: the number of large splats listed in `big`.
+// [4]: the number of splats listed in `big` for a workgroup each, [5]: the
+// number listed (from its end) for the tiles, [6]: the (tile, splat)
+// entries claimed so far.
 @group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
-// Splats whose footprint exceeds BIG_SPLAT_PIXELS: a workgroup shares each.
+// Splats whose footprint exceeds `params.tile_pixels`: from the start, those
+// walked by a workgroup each; from the end (index count - 1 - k), those
+// binned into tiles. A splat is in one list at most, so `count` entries do.
 @group(0) @binding(11) var<storage, read_write> big: array<u32>;
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
 // models textured by different keyframes share the geometry).
 @group(0) @binding(12) var<storage, read> colors: array<u32>;
-// The indirect dispatches of `finish` ([0..3]) and of the large splats ([4..7]).
-@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 8>;
+// Per 8x8 tile of the image: [t] the number of binned splats touching it,
+// [ntiles + t] the end of its entries in `tile_splats` (`tile_scan` writes
+// the start, `tile_scatter` advances it to the end).
+@group(0) @binding(13) var<storage, read_write> tiles: array<atomic<u32>>;
+// The binned splats of every tile, tile after tile.
+@group(0) @binding(14) var<storage, read_write> tile_splats: array<u32>;
+// The indirect dispatches of `finish` ([0..3]), of the workgroup-walked
+// splats ([4..7]) and of `tile_scatter` ([8..11]).
+@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 12>;
 
 var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
 // Bits of 1.0f: the cleared depth.
 const DEPTH_ONE: u32 = 0x3f800000u;
+// Edge of a tile of the binned splats (a workgroup of WORKGROUP_1D lanes).
+const TILE: i32 = i32(SPLAT_TILE);
 
 // A splat after the vertex stage of splat.wgsl: camera-space centre,
 // normal, radius, projected centre, colour, and the pixels whose centres
@@ -131,37 +160,178 @@ fn footprint(s: Setup) -> u32 {
     return u32(s.hi.x - s.lo.x + 1) * u32(s.hi.y - s.lo.y + 1);
 }
 
-fn visibility_pixel(s: Setup, x: i32, y: i32) {
-    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-    if hit.w <= 0.0 {
-        return;
-    }
-    let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
-    let pixel = u32(y) * params.width + u32(x);
-    atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
+// Whether pixel (x, y) is in the splat's range.
+fn in_range(s: Setup, x: i32, y: i32) -> bool {
+    return x >= s.lo.x && x <= s.hi.x && y >= s.lo.y && y <= s.hi.y;
 }
 
-// The large splats of `big`, one workgroup per splat at a time, its
-// threads striding over the footprint.
+// The tiles a splat's range touches: (first x, first y, last x, last y).
+fn tile_range(s: Setup) -> vec4<u32> {
+    return vec4<u32>(vec2<u32>(s.lo / TILE), vec2<u32>(s.hi / TILE));
+}
+
+// The depth key of the splat at a pixel (pass 1): `DEPTH_ONE - bits(depth)`
+// of the pushed-back depth, 0 where the kernel is zero.
+fn visibility_key(s: Setup, x: i32, y: i32) -> u32 {
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 {
+        return 0u;
+    }
+    let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
+    return DEPTH_ONE - bitcast<u32>(d);
+}
+
+fn visibility_pixel(s: Setup, x: i32, y: i32) {
+    let key = visibility_key(s, x, y);
+    if key != 0u {
+        atomicMax(&depth_key[u32(y) * params.width + u32(x)], key);
+    }
+}
+
+fn fixed(v: f32) -> i32 {
+    return i32(round(v * FIXED_SCALE));
+}
+
+// The fixed-point sums of one fragment (pass 2), or of many added up: the
+// ACC_STRIDE values of a pixel in order.
+struct Sums {
+    w: i32,
+    color: vec3<i32>,
+    z: i32,
+    normal: vec3<i32>,
+    iz: i32,
+}
+
+// The fragment of the splat at a pixel whose visibility depth bits are
+// `vis`: zero sums where the kernel is zero or the fragment fails the
+// render pass's less-or-equal test against pass 1's depth. Depths are
+// relative to the pixel's visibility depth zv: every fragment passing the
+// test lies within the push-back in front of it, so z / zv is about 1 at
+// any distance. Sums of groups not in `params.flags` stay zero.
+fn fragment(s: Setup, x: i32, y: i32, vis: u32) -> Sums {
+    var out: Sums;
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 || bitcast<u32>(depth_of(hit.x.z)) > vis {
+        return out;
+    }
+    let w = hit.w;
+    out.w = fixed(w);
+    out.color = vec3<i32>(fixed(w * s.color.x), fixed(w * s.color.y), fixed(w * s.color.z));
+    let zv = visible_z(vis);
+    if (params.flags & COMPUTE_GEOMETRY) != 0u {
+        out.z = fixed(w * hit.x.z / zv);
+        out.normal = vec3<i32>(fixed(w * s.normal.x), fixed(w * s.normal.y), fixed(w * s.normal.z));
+    }
+    if (params.flags & COMPUTE_MOTION) != 0u {
+        out.iz = fixed(w * zv / hit.x.z);
+    }
+    return out;
+}
+
+fn add(a: Sums, b: Sums) -> Sums {
+    return Sums(a.w + b.w, a.color + b.color, a.z + b.z, a.normal + b.normal, a.iz + b.iz);
+}
+
+// The visibility depth bits of a pixel (after pass 1).
+fn pixel_vis(x: i32, y: i32) -> u32 {
+    return DEPTH_ONE - atomicLoad(&depth_key[u32(y) * params.width + u32(x)]);
+}
+
+// Adds a pixel's sums to its accumulators (nothing where the weight is 0:
+// every fragment that passes has a positive weight).
+fn add_to_pixel(x: i32, y: i32, f: Sums) {
+    if f.w == 0 {
+        return;
+    }
+    let base = (u32(y) * params.width + u32(x)) * ACC_STRIDE;
+    atomicAdd(&acc[base], f.w);
+    atomicAdd(&acc[base + 1u], f.color.x);
+    atomicAdd(&acc[base + 2u], f.color.y);
+    atomicAdd(&acc[base + 3u], f.color.z);
+    if (params.flags & COMPUTE_GEOMETRY) != 0u {
+        atomicAdd(&acc[base + 4u], f.z);
+        atomicAdd(&acc[base + 5u], f.normal.x);
+        atomicAdd(&acc[base + 6u], f.normal.y);
+        atomicAdd(&acc[base + 7u], f.normal.z);
+    }
+    if (params.flags & COMPUTE_MOTION) != 0u {
+        atomicAdd(&acc[base + 8u], f.iz);
+    }
+}
+
+fn accumulate_pixel(s: Setup, x: i32, y: i32) {
+    add_to_pixel(x, y, fragment(s, x, y, pixel_vis(x, y)));
+}
+
+// Which pass `splat_pixel` serves.
+const PASS_VISIBILITY: u32 = 0u;
+const PASS_ACCUMULATE: u32 = 1u;
+
+// The work of one pass at one pixel of a splat's footprint, made of
+// atomics: the walks by a thread and by a workgroup.
+fn splat_pixel(s: Setup, x: i32, y: i32, stage: u32) {
+    if stage == PASS_VISIBILITY {
+        visibility_pixel(s, x, y);
+    } else {
+        accumulate_pixel(s, x, y);
+    }
+}
+
+// One thread walks a whole footprint.
+fn walk_thread(s: Setup, stage: u32) {
+    for (var y = s.lo.y; y <= s.hi.y; y++) {
+        for (var x = s.lo.x; x <= s.hi.x; x++) {
+            splat_pixel(s, x, y, stage);
+        }
+    }
+}
+
+// The splats at the start of `big`, one workgroup per splat at a time, its
+// lanes laid out as 8x8 blocks over the footprint (no integer division: it
+// is scalarised on CPU adapters).
+fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
+    let n = atomicLoad(&bounds[4]);
+    let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+    for (var j = wg; j < n; j += groups) {
+        let s = setup(big[j]);
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    splat_pixel(s, q.x, q.y, stage);
+                }
+            }
+        }
+    }
+}
+
 @compute @workgroup_size(WORKGROUP_1D)
 fn visibility_big(
     @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = atomicLoad(&bounds[4]);
-    for (var j = wg.x; j < n; j += groups.x) {
-        let s = setup(big[j]);
-        // 8x8 blocks of lanes over the footprint (no integer division:
-        // it is scalarised on CPU adapters).
-        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
-        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
-            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
-                let q = vec2<i32>(bx, by) + lane;
-                if q.x <= s.hi.x && q.y <= s.hi.y {
-                    visibility_pixel(s, q.x, q.y);
-                }
-            }
+    walk_big(li, wg.x, groups.x, PASS_VISIBILITY);
+}
+
+// A large splat: binned into the tiles it touches when their lists have
+// room for it, else walked by a workgroup.
+fn list_large(i: u32, s: Setup) {
+    let t = tile_range(s);
+    let n = (t.z - t.x + 1u) * (t.w - t.y + 1u);
+    // (Once full, the lists take no more, so the count cannot wrap.)
+    var fits = atomicLoad(&bounds[6]) < params.tile_capacity && n <= params.tile_capacity;
+    if fits {
+        fits = atomicAdd(&bounds[6], n) + n <= params.tile_capacity;
+    }
+    if !fits {
+        big[atomicAdd(&bounds[4], 1u)] = i;
+        return;
+    }
+    big[params.count - 1u - atomicAdd(&bounds[5], 1u)] = i;
+    for (var ty = t.y; ty <= t.w; ty++) {
+        for (var tx = t.x; tx <= t.z; tx++) {
+            atomicAdd(&tiles[ty * params.tiles_x + tx], 1u);
         }
     }
 }
@@ -185,15 +355,11 @@ fn visibility(
             atomicMax(&wg_bounds[2], u32(s.hi.x) + 1u);
             atomicMax(&wg_bounds[3], u32(s.hi.y) + 1u);
         }
-        if footprint(s) > BIG_SPLAT_PIXELS {
-            // Too long a walk for one thread: a workgroup shares it.
-            big[atomicAdd(&bounds[4], 1u)] = i;
+        if footprint(s) > params.tile_pixels {
+            // Too long a walk for one thread: the tiles share it.
+            list_large(i, s);
         } else {
-            for (var y = s.lo.y; y <= s.hi.y; y++) {
-                for (var x = s.lo.x; x <= s.hi.x; x++) {
-                    visibility_pixel(s, x, y);
-                }
-            }
+            walk_thread(s, PASS_VISIBILITY);
         }
     }
     // One global atomic per workgroup and bound, not one per splat.
@@ -206,13 +372,14 @@ fn visibility(
     }
 }
 
-// The workgroups of `finish`: the bounding box of the splats' pixels.
+// The workgroups of `finish` (the bounding box of the splats' pixels), of
+// the workgroup-walked splats and of `tile_scatter`.
 @compute @workgroup_size(1)
 fn finish_dispatch() {
     let x1 = atomicLoad(&bounds[2]);
     let y1 = atomicLoad(&bounds[3]);
     if x1 == 0u || y1 == 0u {
-        for (var k = 0u; k < 8u; k++) {
+        for (var k = 0u; k < 12u; k++) {
             finish_args[k] = 0u;
         }
         return;
@@ -226,45 +393,101 @@ fn finish_dispatch() {
     finish_args[4] = min(nbig, 65535u);
     finish_args[5] = select(0u, 1u, nbig > 0u);
     finish_args[6] = select(0u, 1u, nbig > 0u);
+    let ntiled = atomicLoad(&bounds[5]);
+    finish_args[8] = min((ntiled + WORKGROUP_1D - 1u) / WORKGROUP_1D, 65535u);
+    finish_args[9] = select(0u, 1u, ntiled > 0u);
+    finish_args[10] = select(0u, 1u, ntiled > 0u);
 }
 
-fn fixed(v: f32) -> i32 {
-    return i32(round(v * FIXED_SCALE));
+var<workgroup> wg_scan: array<u32, WORKGROUP_1D>;
+
+// The start of every tile's entries in `tile_splats` (an exclusive prefix
+// sum of the counts), into tiles[ntiles + t]: one workgroup, each lane
+// a run of tiles.
+@compute @workgroup_size(WORKGROUP_1D)
+fn tile_scan(@builtin(local_invocation_index) li: u32) {
+    let ntiles = params.tiles_x * params.tiles_y;
+    let run = (ntiles + WORKGROUP_1D - 1u) / WORKGROUP_1D;
+    let first = min(li * run, ntiles);
+    let last = min(first + run, ntiles);
+    var total = 0u;
+    for (var t = first; t < last; t++) {
+        total += atomicLoad(&tiles[t]);
+    }
+    wg_scan[li] = total;
+    workgroupBarrier();
+    var start = 0u;
+    for (var k = 0u; k < li; k++) {
+        start += wg_scan[k];
+    }
+    for (var t = first; t < last; t++) {
+        atomicStore(&tiles[ntiles + t], start);
+        start += atomicLoad(&tiles[t]);
+    }
 }
 
-fn accumulate_pixel(s: Setup, x: i32, y: i32) {
-    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-    if hit.w <= 0.0 {
-        return;
-    }
-    let pixel = u32(y) * params.width + u32(x);
-    // The render pass's less-or-equal test against pass 1's depth.
-    let vis = DEPTH_ONE - atomicLoad(&depth_key[pixel]);
-    if bitcast<u32>(depth_of(hit.x.z)) > vis {
-        return;
-    }
-    let w = hit.w;
-    let base = pixel * ACC_STRIDE;
-    atomicAdd(&acc[base], fixed(w));
-    atomicAdd(&acc[base + 1u], fixed(w * s.color.x));
-    atomicAdd(&acc[base + 2u], fixed(w * s.color.y));
-    atomicAdd(&acc[base + 3u], fixed(w * s.color.z));
-    let geometry = (params.flags & COMPUTE_GEOMETRY) != 0u;
-    let motion = (params.flags & COMPUTE_MOTION) != 0u;
-    if geometry || motion {
-        // Depths relative to the pixel's visibility depth zv: every
-        // fragment passing the test lies within the push-back in front of
-        // it, so z / zv is about 1 at any distance.
-        let zv = visible_z(vis);
-        if geometry {
-            atomicAdd(&acc[base + 4u], fixed(w * hit.x.z / zv));
-            atomicAdd(&acc[base + 5u], fixed(w * s.normal.x));
-            atomicAdd(&acc[base + 6u], fixed(w * s.normal.y));
-            atomicAdd(&acc[base + 7u], fixed(w * s.normal.z));
+// The binned splats into their tiles' lists (any order within a tile: the
+// sums do not depend on it).
+@compute @workgroup_size(WORKGROUP_1D)
+fn tile_scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
+    let n = atomicLoad(&bounds[5]);
+    let ntiles = params.tiles_x * params.tiles_y;
+    for (var j = id.x; j < n; j += groups.x * WORKGROUP_1D) {
+        let i = big[params.count - 1u - j];
+        let t = tile_range(setup(i));
+        for (var ty = t.y; ty <= t.w; ty++) {
+            for (var tx = t.x; tx <= t.z; tx++) {
+                tile_splats[atomicAdd(&tiles[ntiles + ty * params.tiles_x + tx], 1u)] = i;
+            }
         }
-        if motion {
-            atomicAdd(&acc[base + 8u], fixed(w * zv / hit.x.z));
+    }
+}
+
+// The pixel of a lane in its tile, and the tile's entries in `tile_splats`
+// (after `tile_scatter`, whose atomics moved the start to the end).
+fn tile_pixel(wg: vec3<u32>, li: u32) -> vec2<i32> {
+    return vec2<i32>(wg.xy) * TILE + vec2<i32>(i32(li & 7u), i32(li >> 3u));
+}
+
+fn tile_entries(wg: vec3<u32>) -> vec2<u32> {
+    let t = wg.y * params.tiles_x + wg.x;
+    let end = atomicLoad(&tiles[params.tiles_x * params.tiles_y + t]);
+    return vec2<u32>(end - atomicLoad(&tiles[t]), end);
+}
+
+// The setups of up to WORKGROUP_1D of a tile's splats, made once (a lane
+// each) for all the tile's pixels.
+var<workgroup> wg_setup: array<Setup, WORKGROUP_1D>;
+
+// Loads entries [k0, k0 + 64) of a tile (up to `end`) into `wg_setup`;
+// returns how many. Called in uniform control flow.
+fn load_setups(k0: u32, end: u32, li: u32) -> u32 {
+    workgroupBarrier();
+    if k0 + li < end {
+        wg_setup[li] = setup(tile_splats[k0 + li]);
+    }
+    workgroupBarrier();
+    return min(end - k0, WORKGROUP_1D);
+}
+
+// A workgroup per tile, a lane per pixel: the nearest depth over the
+// tile's binned splats, then one atomic.
+@compute @workgroup_size(WORKGROUP_1D)
+fn tile_visibility(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    let e = tile_entries(wg);
+    let p = tile_pixel(wg, li);
+    var key = 0u;
+    for (var k0 = e.x; k0 < e.y; k0 += WORKGROUP_1D) {
+        let n = load_setups(k0, e.y, li);
+        for (var k = 0u; k < n; k++) {
+            let s = wg_setup[k];
+            if in_range(s, p.x, p.y) {
+                key = max(key, visibility_key(s, p.x, p.y));
+            }
         }
+    }
+    if key != 0u {
+        atomicMax(&depth_key[u32(p.y) * params.width + u32(p.x)], key);
     }
 }
 
@@ -275,14 +498,10 @@ fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         return;
     }
     let s = setup(i);
-    if footprint(s) > BIG_SPLAT_PIXELS {
-        return; // accumulate_big
+    if footprint(s) > params.tile_pixels {
+        return; // tile_accumulate or accumulate_big
     }
-    for (var y = s.lo.y; y <= s.hi.y; y++) {
-        for (var x = s.lo.x; x <= s.hi.x; x++) {
-            accumulate_pixel(s, x, y);
-        }
-    }
+    walk_thread(s, PASS_ACCUMULATE);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -291,18 +510,32 @@ fn accumulate_big(
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = atomicLoad(&bounds[4]);
-    for (var j = wg.x; j < n; j += groups.x) {
-        let s = setup(big[j]);
-        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
-        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
-            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
-                let q = vec2<i32>(bx, by) + lane;
-                if q.x <= s.hi.x && q.y <= s.hi.y {
-                    accumulate_pixel(s, q.x, q.y);
-                }
+    walk_big(li, wg.x, groups.x, PASS_ACCUMULATE);
+}
+
+// A workgroup per tile, a lane per pixel: the fragments of the tile's
+// binned splats summed in registers, then one atomic per sum.
+@compute @workgroup_size(WORKGROUP_1D)
+fn tile_accumulate(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
+    let e = tile_entries(wg);
+    let p = tile_pixel(wg, li);
+    let inside = p.x < i32(params.width) && p.y < i32(params.height);
+    var vis = 0u;
+    if inside && e.x != e.y {
+        vis = pixel_vis(p.x, p.y);
+    }
+    var sums: Sums;
+    for (var k0 = e.x; k0 < e.y; k0 += WORKGROUP_1D) {
+        let n = load_setups(k0, e.y, li);
+        for (var k = 0u; k < n; k++) {
+            let s = wg_setup[k];
+            if in_range(s, p.x, p.y) {
+                sums = add(sums, fragment(s, p.x, p.y, vis));
             }
         }
+    }
+    if inside {
+        add_to_pixel(p.x, p.y, sums);
     }
 }
 
