@@ -3,18 +3,14 @@
 // and less-or-equal depth test), written with atomics instead of the
 // rasteriser and blending (Dehais et al. 2010, sections 2.3 and 3.2;
 // Botsch et al. 2005). One thread per splat walks the pixels of its
-// screen-space bounding box (the quad the render pass would rasterise).
-// Footprints of more than `params.tile_pixels` are binned instead into the
-// 8x8 tiles of the image they touch (`tile_scan`, `tile_scatter`), and a
-// workgroup per tile, a lane per pixel, goes through the tile's splats
-// (`tile_visibility`, `tile_accumulate`): the lanes of a large splat run
-// side by side, and a pixel sums its fragments in registers, so it makes
-// one atomic per sum instead of one per fragment. The sums are the same
-// integers in any order, so a render is the same bit for bit either way. A
-// splat that finds no room left in the tile lists is walked by a whole
-// workgroup in 8x8 blocks instead (`visibility_big`, `accumulate_big`).
-// Every walk calls the same per-pixel functions (`visibility_key`,
-// `fragment`):
+// screen-space bounding box (the quad the render pass would rasterise);
+// footprints of more than `BIG_SPLAT_PIXELS` are listed instead and walked
+// by a whole workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`),
+// so a large or near-plane splat does not serialise on one thread. Both
+// walks call the same per-pixel functions (`splat_pixel`: `visibility_key`,
+// `fragment`). (Binning large splats into 8x8 tiles, a workgroup per tile
+// summing a pixel's fragments in registers, was measured slower on
+// lavapipe at every threshold: BENCHMARKS.md.)
 //
 // 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
 //    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders
@@ -52,14 +48,6 @@ struct ComputeParams {
     count: u32,
     // COMPUTE_GEOMETRY | COMPUTE_MOTION: which groups to accumulate.
     flags: u32,
-    // Footprints of more pixels are binned into 8x8 tiles (`tile_*`).
-    tile_pixels: u32,
-    // Room for (tile, splat) entries in `tile_splats`; a splat that does
-    // not fit is walked by a workgroup instead (`*_big`).
-    tile_capacity: u32,
-    // Tiles per row and per column: ceil(width / 8), ceil(height / 8).
-    tiles_x: u32,
-    tiles_y: u32,
 }
 
 // @group(0) @binding(0): `cam`, in splat_common.wgsl.
@@ -75,34 +63,20 @@ struct ComputeParams {
 // The pixels any splat may touch: COMPUTE_BOUNDS_* (the minima stored as
 // 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
 // max serves both), then the indirect dispatch of `finish` over them.
-// [4]: the number of splats listed in `big` for a workgroup each, [5]: the
-// number listed (from its end) for the tiles, [6]: the (tile, splat)
-// entries claimed so far.
+// [4]: the number of large splats listed in `big`.
 @group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
-// Splats whose footprint exceeds `params.tile_pixels`: from the start, those
-// walked by a workgroup each; from the end (index count - 1 - k), those
-// binned into tiles. A splat is in one list at most, so `count` entries do.
+// Splats whose footprint exceeds `BIG_SPLAT_PIXELS`: a workgroup shares each.
 @group(0) @binding(11) var<storage, read_write> big: array<u32>;
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
 // models textured by different keyframes share the geometry).
 @group(0) @binding(12) var<storage, read> colors: array<u32>;
-// Per 8x8 tile of the image: [t] the number of binned splats touching it,
-// [ntiles + t] the end of its entries in `tile_splats` (`tile_scan` writes
-// the start, `tile_scatter` advances it to the end).
-@group(0) @binding(13) var<storage, read_write> tiles: array<atomic<u32>>;
-// The binned splats of every tile, tile after tile.
-@group(0) @binding(14) var<storage, read_write> tile_splats: array<u32>;
-// The indirect dispatches of `finish` ([0..3]), of the workgroup-walked
-// splats ([4..7]) and of `tile_scatter` ([8..11]).
-@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 12>;
+// The indirect dispatches of `finish` ([0..3]) and of the large splats ([4..7]).
+@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 8>;
 
 var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
 // Bits of 1.0f: the cleared depth.
 const DEPTH_ONE: u32 = 0x3f800000u;
-// Edge of a tile of the binned splats (a workgroup of WORKGROUP_1D lanes).
-const TILE: i32 = i32(SPLAT_TILE);
-
 // A splat after the vertex stage of splat.wgsl: camera-space centre,
 // normal, radius, projected centre, colour, and the pixels whose centres
 // its quad covers (lo..=hi, clipped to the image; empty when culled).
@@ -160,16 +134,6 @@ fn footprint(s: Setup) -> u32 {
     return u32(s.hi.x - s.lo.x + 1) * u32(s.hi.y - s.lo.y + 1);
 }
 
-// Whether pixel (x, y) is in the splat's range.
-fn in_range(s: Setup, x: i32, y: i32) -> bool {
-    return x >= s.lo.x && x <= s.hi.x && y >= s.lo.y && y <= s.hi.y;
-}
-
-// The tiles a splat's range touches: (first x, first y, last x, last y).
-fn tile_range(s: Setup) -> vec4<u32> {
-    return vec4<u32>(vec2<u32>(s.lo / TILE), vec2<u32>(s.hi / TILE));
-}
-
 // The depth key of the splat at a pixel (pass 1): `DEPTH_ONE - bits(depth)`
 // of the pushed-back depth, 0 where the kernel is zero.
 fn visibility_key(s: Setup, x: i32, y: i32) -> u32 {
@@ -192,8 +156,8 @@ fn fixed(v: f32) -> i32 {
     return i32(round(v * FIXED_SCALE));
 }
 
-// The fixed-point sums of one fragment (pass 2), or of many added up: the
-// ACC_STRIDE values of a pixel in order.
+// The fixed-point sums of one fragment (pass 2): the ACC_STRIDE values of
+// a pixel in order.
 struct Sums {
     w: i32,
     color: vec3<i32>,
@@ -228,17 +192,13 @@ fn fragment(s: Setup, x: i32, y: i32, vis: u32) -> Sums {
     return out;
 }
 
-fn add(a: Sums, b: Sums) -> Sums {
-    return Sums(a.w + b.w, a.color + b.color, a.z + b.z, a.normal + b.normal, a.iz + b.iz);
-}
-
 // The visibility depth bits of a pixel (after pass 1).
 fn pixel_vis(x: i32, y: i32) -> u32 {
     return DEPTH_ONE - atomicLoad(&depth_key[u32(y) * params.width + u32(x)]);
 }
 
-// Adds a pixel's sums to its accumulators (nothing where the weight is 0:
-// every fragment that passes has a positive weight).
+// Adds a fragment's sums to its pixel's accumulators (nothing where the
+// weight is 0: every fragment that passes has a positive weight).
 fn add_to_pixel(x: i32, y: i32, f: Sums) {
     if f.w == 0 {
         return;
@@ -286,7 +246,7 @@ fn walk_thread(s: Setup, stage: u32) {
     }
 }
 
-// The splats at the start of `big`, one workgroup per splat at a time, its
+// The splats of `big`, one workgroup per splat at a time, its
 // lanes laid out as 8x8 blocks over the footprint (no integer division: it
 // is scalarised on CPU adapters).
 fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
@@ -314,28 +274,6 @@ fn visibility_big(
     walk_big(li, wg.x, groups.x, PASS_VISIBILITY);
 }
 
-// A large splat: binned into the tiles it touches when their lists have
-// room for it, else walked by a workgroup.
-fn list_large(i: u32, s: Setup) {
-    let t = tile_range(s);
-    let n = (t.z - t.x + 1u) * (t.w - t.y + 1u);
-    // (Once full, the lists take no more, so the count cannot wrap.)
-    var fits = atomicLoad(&bounds[6]) < params.tile_capacity && n <= params.tile_capacity;
-    if fits {
-        fits = atomicAdd(&bounds[6], n) + n <= params.tile_capacity;
-    }
-    if !fits {
-        big[atomicAdd(&bounds[4], 1u)] = i;
-        return;
-    }
-    big[params.count - 1u - atomicAdd(&bounds[5], 1u)] = i;
-    for (var ty = t.y; ty <= t.w; ty++) {
-        for (var tx = t.x; tx <= t.z; tx++) {
-            atomicAdd(&tiles[ty * params.tiles_x + tx], 1u);
-        }
-    }
-}
-
 @compute @workgroup_size(WORKGROUP_1D)
 fn visibility(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -355,9 +293,9 @@ fn visibility(
             atomicMax(&wg_bounds[2], u32(s.hi.x) + 1u);
             atomicMax(&wg_bounds[3], u32(s.hi.y) + 1u);
         }
-        if footprint(s) > params.tile_pixels {
-            // Too long a walk for one thread: the tiles share it.
-            list_large(i, s);
+        if footprint(s) > BIG_SPLAT_PIXELS {
+            // Too long a walk for one thread: a workgroup shares it.
+            big[atomicAdd(&bounds[4], 1u)] = i;
         } else {
             walk_thread(s, PASS_VISIBILITY);
         }
@@ -372,14 +310,14 @@ fn visibility(
     }
 }
 
-// The workgroups of `finish` (the bounding box of the splats' pixels), of
-// the workgroup-walked splats and of `tile_scatter`.
+// The workgroups of `finish` (the bounding box of the splats' pixels) and
+// of the large splats.
 @compute @workgroup_size(1)
 fn finish_dispatch() {
     let x1 = atomicLoad(&bounds[2]);
     let y1 = atomicLoad(&bounds[3]);
     if x1 == 0u || y1 == 0u {
-        for (var k = 0u; k < 12u; k++) {
+        for (var k = 0u; k < 8u; k++) {
             finish_args[k] = 0u;
         }
         return;
@@ -393,102 +331,6 @@ fn finish_dispatch() {
     finish_args[4] = min(nbig, 65535u);
     finish_args[5] = select(0u, 1u, nbig > 0u);
     finish_args[6] = select(0u, 1u, nbig > 0u);
-    let ntiled = atomicLoad(&bounds[5]);
-    finish_args[8] = min((ntiled + WORKGROUP_1D - 1u) / WORKGROUP_1D, 65535u);
-    finish_args[9] = select(0u, 1u, ntiled > 0u);
-    finish_args[10] = select(0u, 1u, ntiled > 0u);
-}
-
-var<workgroup> wg_scan: array<u32, WORKGROUP_1D>;
-
-// The start of every tile's entries in `tile_splats` (an exclusive prefix
-// sum of the counts), into tiles[ntiles + t]: one workgroup, each lane
-// a run of tiles.
-@compute @workgroup_size(WORKGROUP_1D)
-fn tile_scan(@builtin(local_invocation_index) li: u32) {
-    let ntiles = params.tiles_x * params.tiles_y;
-    let run = (ntiles + WORKGROUP_1D - 1u) / WORKGROUP_1D;
-    let first = min(li * run, ntiles);
-    let last = min(first + run, ntiles);
-    var total = 0u;
-    for (var t = first; t < last; t++) {
-        total += atomicLoad(&tiles[t]);
-    }
-    wg_scan[li] = total;
-    workgroupBarrier();
-    var start = 0u;
-    for (var k = 0u; k < li; k++) {
-        start += wg_scan[k];
-    }
-    for (var t = first; t < last; t++) {
-        atomicStore(&tiles[ntiles + t], start);
-        start += atomicLoad(&tiles[t]);
-    }
-}
-
-// The binned splats into their tiles' lists (any order within a tile: the
-// sums do not depend on it).
-@compute @workgroup_size(WORKGROUP_1D)
-fn tile_scatter(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let n = atomicLoad(&bounds[5]);
-    let ntiles = params.tiles_x * params.tiles_y;
-    for (var j = id.x; j < n; j += groups.x * WORKGROUP_1D) {
-        let i = big[params.count - 1u - j];
-        let t = tile_range(setup(i));
-        for (var ty = t.y; ty <= t.w; ty++) {
-            for (var tx = t.x; tx <= t.z; tx++) {
-                tile_splats[atomicAdd(&tiles[ntiles + ty * params.tiles_x + tx], 1u)] = i;
-            }
-        }
-    }
-}
-
-// The pixel of a lane in its tile, and the tile's entries in `tile_splats`
-// (after `tile_scatter`, whose atomics moved the start to the end).
-fn tile_pixel(wg: vec3<u32>, li: u32) -> vec2<i32> {
-    return vec2<i32>(wg.xy) * TILE + vec2<i32>(i32(li & 7u), i32(li >> 3u));
-}
-
-fn tile_entries(wg: vec3<u32>) -> vec2<u32> {
-    let t = wg.y * params.tiles_x + wg.x;
-    let end = atomicLoad(&tiles[params.tiles_x * params.tiles_y + t]);
-    return vec2<u32>(end - atomicLoad(&tiles[t]), end);
-}
-
-// The setups of up to WORKGROUP_1D of a tile's splats, made once (a lane
-// each) for all the tile's pixels.
-var<workgroup> wg_setup: array<Setup, WORKGROUP_1D>;
-
-// Loads entries [k0, k0 + 64) of a tile (up to `end`) into `wg_setup`;
-// returns how many. Called in uniform control flow.
-fn load_setups(k0: u32, end: u32, li: u32) -> u32 {
-    workgroupBarrier();
-    if k0 + li < end {
-        wg_setup[li] = setup(tile_splats[k0 + li]);
-    }
-    workgroupBarrier();
-    return min(end - k0, WORKGROUP_1D);
-}
-
-// A workgroup per tile, a lane per pixel: the nearest depth over the
-// tile's binned splats, then one atomic.
-@compute @workgroup_size(WORKGROUP_1D)
-fn tile_visibility(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    let e = tile_entries(wg);
-    let p = tile_pixel(wg, li);
-    var key = 0u;
-    for (var k0 = e.x; k0 < e.y; k0 += WORKGROUP_1D) {
-        let n = load_setups(k0, e.y, li);
-        for (var k = 0u; k < n; k++) {
-            let s = wg_setup[k];
-            if in_range(s, p.x, p.y) {
-                key = max(key, visibility_key(s, p.x, p.y));
-            }
-        }
-    }
-    if key != 0u {
-        atomicMax(&depth_key[u32(p.y) * params.width + u32(p.x)], key);
-    }
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -498,8 +340,8 @@ fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
         return;
     }
     let s = setup(i);
-    if footprint(s) > params.tile_pixels {
-        return; // tile_accumulate or accumulate_big
+    if footprint(s) > BIG_SPLAT_PIXELS {
+        return; // accumulate_big
     }
     walk_thread(s, PASS_ACCUMULATE);
 }
@@ -511,32 +353,6 @@ fn accumulate_big(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     walk_big(li, wg.x, groups.x, PASS_ACCUMULATE);
-}
-
-// A workgroup per tile, a lane per pixel: the fragments of the tile's
-// binned splats summed in registers, then one atomic per sum.
-@compute @workgroup_size(WORKGROUP_1D)
-fn tile_accumulate(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) li: u32) {
-    let e = tile_entries(wg);
-    let p = tile_pixel(wg, li);
-    let inside = p.x < i32(params.width) && p.y < i32(params.height);
-    var vis = 0u;
-    if inside && e.x != e.y {
-        vis = pixel_vis(p.x, p.y);
-    }
-    var sums: Sums;
-    for (var k0 = e.x; k0 < e.y; k0 += WORKGROUP_1D) {
-        let n = load_setups(k0, e.y, li);
-        for (var k = 0u; k < n; k++) {
-            let s = wg_setup[k];
-            if in_range(s, p.x, p.y) {
-                sums = add(sums, fragment(s, p.x, p.y, vis));
-            }
-        }
-    }
-    if inside {
-        add_to_pixel(p.x, p.y, sums);
-    }
 }
 
 // Camera-space z of a visibility depth (bits of the [0, 1] depth): the

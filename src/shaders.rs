@@ -93,7 +93,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("COMPUTE_MOTION", U32(s::COMPUTE_MOTION)),
         ("ACC_STRIDE", U32(s::ACC_STRIDE)),
         ("FIXED_SCALE", F32(s::FIXED_SCALE)),
-        ("SPLAT_TILE", U32(s::SPLAT_TILE)),
+        ("BIG_SPLAT_PIXELS", U32(s::BIG_SPLAT_PIXELS)),
     ]
 };
 

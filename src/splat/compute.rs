@@ -1,7 +1,6 @@
 //! The compute-shader back end of the splatter ([`super::Backend::Compute`]):
-//! one thread per splat, or, for footprints over
-//! [`TILE_SPLAT_PIXELS`](super::gpu_data::TILE_SPLAT_PIXELS) pixels, the
-//! splats binned into 8x8 tiles of the image and a workgroup per tile;
+//! one thread per splat, or a workgroup per splat for footprints over
+//! [`BIG_SPLAT_PIXELS`](super::gpu_data::BIG_SPLAT_PIXELS) pixels;
 //! the passes of the render pass (visibility, attributes) as compute
 //! kernels with atomics (shaders/splat_compute.wgsl says how), writing the
 //! same accumulation targets, so that normalisation, gather and every
@@ -19,10 +18,7 @@
 //! `ComputeParams`, pixel indices relative to the origin) and dispatching
 //! `finish` over the rectangle only is all it takes.
 
-use super::gpu_data::{
-    ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, SPLAT_TILE,
-    TILE_ENTRIES_PER_TILE, TILE_SPLAT_PIXELS,
-};
+use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams};
 use super::targets::{TARGETS, cleared_attachments};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
@@ -38,15 +34,9 @@ pub(super) struct Scratch {
     params: wgpu::Buffer,
     /// The splats' pixel bounding box (4 u32).
     bounds: wgpu::Buffer,
-    /// The indirect dispatches of `finish`, of the workgroup-walked splats
-    /// and of `tile_scatter` (bound alone in group 1).
+    /// The indirect dispatches of `finish` and of the large splats (bound
+    /// alone in group 1).
     finish_args: wgpu::Buffer,
-    /// Per tile: the number of binned splats, then the end of its list.
-    tiles: wgpu::Buffer,
-    /// The binned splats of every tile, [`TILE_ENTRIES_PER_TILE`] a tile.
-    tile_splats: wgpu::Buffer,
-    tiles_x: u32,
-    tiles_y: u32,
     /// The list of large splats (one u32 per splat of the largest model).
     big: GrowBuffer,
     finish_bind: Option<wgpu::BindGroup>,
@@ -58,17 +48,7 @@ impl Scratch {
         let acc_bytes = pixels * ACC_STRIDE as u64 * 4;
         let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
         ctx.check_buffer_size("compute splatter sums", acc_bytes, usage)?;
-        let (tiles_x, tiles_y) = (width.div_ceil(SPLAT_TILE), height.div_ceil(SPLAT_TILE));
-        let ntiles = tiles_x as u64 * tiles_y as u64;
         Ok(Self {
-            tiles: ctx.buffer("compute splat tiles", ntiles * 8, usage),
-            tile_splats: ctx.buffer(
-                "compute splat tile lists",
-                ntiles * TILE_ENTRIES_PER_TILE as u64 * 4,
-                wgpu::BufferUsages::STORAGE,
-            ),
-            tiles_x,
-            tiles_y,
             depth: ctx.buffer("compute splat depth", pixels * 4, usage),
             acc: ctx.buffer("compute splat sums", acc_bytes, usage),
             params: ctx.buffer(
@@ -80,7 +60,7 @@ impl Scratch {
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
             finish_args: ctx.buffer(
                 "compute splat finish dispatch",
-                48,
+                32,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             ),
             finish_bind: None,
@@ -88,22 +68,13 @@ impl Scratch {
     }
 }
 
-// `visibility_big`, `accumulate_big` and the tile kernels lay a workgroup
-// out as 8x8 lanes.
-const _: () = assert!(WORKGROUP_1D == 64 && SPLAT_TILE == 8);
+// `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
+const _: () = assert!(WORKGROUP_1D == 64);
 
 /// Whether the adapter can run the compute back end (it writes the five
 /// accumulation targets as storage textures in one pass).
 pub(super) fn supported(ctx: &GpuContext) -> bool {
     ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
-}
-
-/// Footprint threshold (EXPERIMENT: env override).
-fn tile_pixels() -> u32 {
-    std::env::var("SPLATTRACK_TILE_PIXELS")
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(TILE_SPLAT_PIXELS)
 }
 
 /// The pipelines of the compute back end.
@@ -114,10 +85,6 @@ pub(super) struct ComputeSplatter {
     accumulate: wgpu::ComputePipeline,
     visibility_big: wgpu::ComputePipeline,
     accumulate_big: wgpu::ComputePipeline,
-    tile_scan: wgpu::ComputePipeline,
-    tile_scatter: wgpu::ComputePipeline,
-    tile_visibility: wgpu::ComputePipeline,
-    tile_accumulate: wgpu::ComputePipeline,
     finish_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
 }
@@ -157,8 +124,6 @@ impl ComputeSplatter {
                 compute_entry(10, storage(false)),
                 compute_entry(11, storage(false)),
                 compute_entry(12, storage(true)),
-                compute_entry(13, storage(false)),
-                compute_entry(14, storage(false)),
             ],
         );
         let args_layout = ctx.bind_group_layout(
@@ -192,10 +157,6 @@ impl ComputeSplatter {
             accumulate: pipeline("accumulate", &one)?,
             visibility_big: pipeline("visibility_big", &one)?,
             accumulate_big: pipeline("accumulate_big", &one)?,
-            tile_scan: pipeline("tile_scan", &one)?,
-            tile_scatter: pipeline("tile_scatter", &one)?,
-            tile_visibility: pipeline("tile_visibility", &one)?,
-            tile_accumulate: pipeline("tile_accumulate", &one)?,
             finish: pipeline("finish", &one)?,
             finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
@@ -247,11 +208,6 @@ impl ComputeSplatter {
             count: model.count,
             flags: if attrs.geometry { COMPUTE_GEOMETRY } else { 0 }
                 | if attrs.motion { COMPUTE_MOTION } else { 0 },
-            tile_pixels: tile_pixels(),
-            tile_capacity: (scratch.tiles_x * scratch.tiles_y)
-                .saturating_mul(TILE_ENTRIES_PER_TILE),
-            tiles_x: scratch.tiles_x,
-            tiles_y: scratch.tiles_y,
         };
         ctx.queue
             .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
@@ -297,14 +253,6 @@ impl ComputeSplatter {
             binding: 12,
             resource: model.colors.as_entire_binding(),
         });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 13,
-            resource: scratch.tiles.as_entire_binding(),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 14,
-            resource: scratch.tile_splats.as_entire_binding(),
-        });
         let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat compute"),
             layout: &self.layout,
@@ -318,7 +266,6 @@ impl ComputeSplatter {
         // The depth keys and sums are zero: made so (wgpu zeroes new
         // buffers), and `finish` clears every pixel it reads.
         enc.clear_buffer(&scratch.bounds, 0, None);
-        enc.clear_buffer(&scratch.tiles, 0, None);
         {
             // The targets start at zero, as the render pass's clear does;
             // `finish` writes only the splats' bounding box.
@@ -340,10 +287,7 @@ impl ComputeSplatter {
             pass.set_pipeline(&self.finish_dispatch);
             pass.set_bind_group(1, &finish_bind, &[]);
             pass.dispatch_workgroups(1, 1, 1);
-            pass.set_pipeline(&self.tile_scan);
-            pass.dispatch_workgroups(1, 1, 1);
         }
-        let (tx, ty) = (scratch.tiles_x, scratch.tiles_y);
         {
             // The large splats' visibility opens this pass: their dispatch
             // reads arguments that `finish_dispatch` wrote through group 1,
@@ -352,16 +296,10 @@ impl ComputeSplatter {
             pass.set_bind_group(0, &bind, &[]);
             pass.set_pipeline(&self.visibility_big);
             pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
-            pass.set_pipeline(&self.tile_scatter);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 32);
-            pass.set_pipeline(&self.tile_visibility);
-            pass.dispatch_workgroups(tx, ty, 1);
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
             pass.set_pipeline(&self.accumulate_big);
             pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
-            pass.set_pipeline(&self.tile_accumulate);
-            pass.dispatch_workgroups(tx, ty, 1);
             pass.set_pipeline(&self.finish);
             pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
         }

@@ -117,14 +117,6 @@ wgsl_struct! {
         pub count: u32,
         /// [`COMPUTE_GEOMETRY`] | [`COMPUTE_MOTION`].
         pub flags: u32,
-        /// Footprints of more pixels are binned into 8x8 tiles
-        /// ([`TILE_SPLAT_PIXELS`]).
-        pub tile_pixels: u32,
-        /// Room for (tile, splat) entries in the tile lists.
-        pub tile_capacity: u32,
-        /// 8x8 tiles per row and per column of the target.
-        pub tiles_x: u32,
-        pub tiles_y: u32,
     }
 }
 
@@ -139,16 +131,10 @@ pub const ACC_STRIDE: u32 = 9;
 /// resolution of 1e-6 and room for 2048 full-weight contributions.
 pub const FIXED_SCALE: f32 = 1_048_576.0;
 
-/// Footprints above this many pixels are binned into the 8x8 tiles of
-/// the image they touch and splatted a workgroup per tile, a lane per pixel
-/// (`tile_visibility`, `tile_accumulate` in shaders/splat_compute.wgsl),
-/// not walked by one thread; a splat that finds the tile lists full is
-/// walked by a whole workgroup in 8x8 blocks (`visibility_big`,
-/// `accumulate_big`). Measured on lavapipe: BENCHMARKS.md.
-pub const TILE_SPLAT_PIXELS: u32 = 1024;
-
-/// Edge of the tiles of [`TILE_SPLAT_PIXELS`].
-pub const SPLAT_TILE: u32 = 8;
-
-/// (Tile, splat) entries the tile lists hold per tile of the target.
-pub const TILE_ENTRIES_PER_TILE: u32 = 16;
+/// Footprints above this many pixels (32 x 32) are walked by a whole
+/// workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`), not by one
+/// thread: splats of a dense model stay one per thread, a huge or
+/// near-plane splat no longer serialises on one. Measured on lavapipe
+/// (BENCHMARKS.md): thresholds of 64 and 256 pixels, and binning large
+/// splats into 8x8 tiles of the image instead, were slower.
+pub const BIG_SPLAT_PIXELS: u32 = 1024;
