@@ -507,6 +507,74 @@ fn auto_picks_the_compute_splatter_where_supported_and_the_flag_names_parse() {
     }
 }
 
+#[test]
+fn auto_sends_large_splats_through_the_render_pass_on_cpu_adapters() {
+    // A sparse sphere close up (median splat radius over
+    // AUTO_CPU_RENDER_PASS_ABOVE_PX on screen) and a dense one far away.
+    let sparse = GpuModel::new(ctx(), &shapes::sphere(Vec3::ZERO, 0.5, 400, 1.2)).unwrap();
+    let dense = GpuModel::new(ctx(), &shapes::sphere(Vec3::ZERO, 0.5, 20_000, 1.2)).unwrap();
+    let cam = Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5);
+    let at = |d: f64| {
+        look_at(
+            &Vector3::new(0.0, 0.0, -d),
+            &Vector3::zeros(),
+            &Vector3::new(0.0, -1.0, 0.0),
+        )
+    };
+    let typical = |m: &GpuModel, d: f64| cam.fx * m.bounds.median_splat_radius / d;
+    assert!(typical(&sparse, 1.5) > splattrack::splat::AUTO_CPU_RENDER_PASS_ABOVE_PX);
+    assert!(typical(&dense, 4.0) < splattrack::splat::AUTO_CPU_RENDER_PASS_ABOVE_PX);
+    let explicit = splatter(Backend::Compute);
+    assert_eq!(
+        explicit.backend_for(&sparse, &cam, &at(1.5)),
+        Backend::Compute
+    );
+    assert_eq!(
+        explicit.backend_for(&dense, &cam, &at(4.0)),
+        Backend::Compute
+    );
+    let render = splatter(Backend::RenderPass);
+    assert_eq!(
+        render.backend_for(&dense, &cam, &at(4.0)),
+        Backend::RenderPass
+    );
+    if std::env::var(splattrack::splat::SPLATTER_ENV).is_ok() {
+        return; // a run that forces a back end
+    }
+    let auto = Splatter::new(ctx()).unwrap();
+    if auto.backend() != Backend::Compute {
+        assert_eq!(
+            auto.backend_for(&dense, &cam, &at(4.0)),
+            Backend::RenderPass
+        );
+        return;
+    }
+    let large = if ctx().is_cpu() {
+        Backend::RenderPass
+    } else {
+        Backend::Compute
+    };
+    assert_eq!(auto.backend_for(&sparse, &cam, &at(1.5)), large);
+    assert_eq!(auto.backend_for(&dense, &cam, &at(4.0)), Backend::Compute);
+    // Whichever renders, the images are that back end's, bit for bit.
+    for (m, d) in [(&sparse, 1.5), (&dense, 4.0)] {
+        let read = |s: &Splatter| {
+            let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+            s.render(ctx(), m, &cam, &at(d), Attributes::ALL, &mut t)
+                .unwrap();
+            s.read(ctx(), &t, Attribute::Motion).unwrap().data
+        };
+        let chosen = splatter(auto.backend_for(m, &cam, &at(d)));
+        let (a, b) = (read(&auto), read(&chosen));
+        assert!(a.iter().any(|v| !v.is_nan()));
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()))
+        );
+    }
+}
+
 /// tests/splat_mesh.rs's check, on the compute back end, at 320x240.
 fn against_mesh(mesh: &TriangleMesh, n: usize, diameter: f64, dist: f64, label: &str) {
     let cam = Intrinsics::new(320, 240, 300.0, 301.0, 159.2, 120.4);

@@ -82,11 +82,14 @@ pub use window::Window;
 pub enum Backend {
     /// [`SPLATTER_ENV`] when set, else [`Backend::Compute`] wherever the
     /// adapter supports it (five storage textures per stage), else
-    /// [`Backend::RenderPass`]. Measured (BENCHMARKS.md): on lavapipe a
-    /// KF+IT frame with a 100k-point model takes half the time with the
-    /// compute splatter (the render pass is faster only for sparse models
-    /// of large splats); on an H100 DESIGN.md section 5 measured a compute
-    /// splat ~14x faster than the render pass.
+    /// [`Backend::RenderPass`]; on a CPU adapter, per render, the render
+    /// pass where splats are large on screen
+    /// ([`AUTO_CPU_RENDER_PASS_ABOVE_PX`], [`Splatter::backend_for`]).
+    /// Measured (BENCHMARKS.md): on lavapipe a KF+IT frame with a
+    /// 100k-point model takes half the time with the compute splatter, the
+    /// render pass is faster for sparse models of large splats; on an H100
+    /// DESIGN.md section 5 measured a compute splat ~14x faster than the
+    /// render pass.
     #[default]
     Auto,
     /// Instanced quads through the rasteriser, additive blending.
@@ -96,6 +99,17 @@ pub enum Backend {
     /// shaders/splat_compute.wgsl).
     Compute,
 }
+
+/// [`Backend::Auto`] on a CPU adapter (lavapipe): renders whose typical
+/// splat (the model's median radius at the depth of its centre) is wider
+/// than this many pixels in radius go through the render pass, the others
+/// through the compute splatter. Measured on lavapipe (BENCHMARKS.md,
+/// `cargo bench --bench splat`): a 10k-point sphere (radius about 3.5 px at
+/// 640x480, 7 px at 1280x720) splats 1.7-2.1x faster through the render
+/// pass, 100k points (1.1 and 2.2 px) and 1M 1.6-5x faster through the
+/// compute splatter, where one thread walking a large footprint and the
+/// per-fragment atomics cost more than the rasteriser's per-splat setup.
+pub const AUTO_CPU_RENDER_PASS_ABOVE_PX: f64 = 3.0;
 
 /// Environment variable that overrides [`Backend::Auto`]:
 /// `render`, `compute` or `auto`.
