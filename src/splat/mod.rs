@@ -104,12 +104,13 @@ pub enum Backend {
 /// splat (the model's median radius at the depth of its centre) is wider
 /// than this many pixels in radius go through the render pass, the others
 /// through the compute splatter. Measured on lavapipe (BENCHMARKS.md,
-/// `cargo bench --bench splat`, colour + predictors): a 10k-point sphere
-/// (median splat radius 6.5 px at 640x480, 13 px at 1280x720) splats 1.7x
-/// and 2.1x faster through the render pass, where one thread walks a
-/// large footprint; 100k points (2.1 and 4.1 px) 2.3x and 1.2x faster
-/// through the compute splatter, 1M points (0.65 and 1.3 px) 5.3x and
-/// 3.1x, where the rasteriser's per-splat setup dominates.
+/// `cargo bench --bench splat`, colour + predictors, criterion medians): a
+/// 10k-point sphere (median splat radius 6.5 px at 640x480, 13 px at
+/// 1280x720) splats 1.9x and 2.0x faster through the render pass, where
+/// one thread walks a large footprint; 100k points (2.1 and 4.1 px) 2.2x
+/// and 1.3x faster through the compute splatter, 1M points (0.65 and
+/// 1.3 px) 5.5x and 3.3x, where the rasteriser's per-splat setup
+/// dominates.
 pub const AUTO_CPU_RENDER_PASS_ABOVE_PX: f64 = 5.0;
 
 /// Environment variable that overrides [`Backend::Auto`]:
