@@ -61,6 +61,20 @@ fn bench(c: &mut Criterion) {
             let splatter = Splatter::with_params(&ctx, params).unwrap();
             for (n, model) in &models {
                 let gm = GpuModel::new(&ctx, model).unwrap();
+                if backend == Backend::Compute {
+                    // After a render, so the compute scratch is counted.
+                    splatter
+                        .render(&ctx, &gm, &cam, &pose, Attributes::ALL, &mut targets)
+                        .unwrap();
+                    let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+                    eprintln!(
+                        "gpu memory n={n} {w}x{h}: model {:.1} MB, one set of targets with the compute scratch {:.1} MB; median splat radius {:.2} px; auto renders with {}",
+                        mb(gm.gpu_bytes()),
+                        mb(targets.gpu_bytes()),
+                        cam.fx * gm.bounds.median_splat_radius / pose.translation.norm(),
+                        Splatter::new(&ctx).unwrap().backend_for(&gm, &cam, &pose)
+                    );
+                }
                 for (name, attrs) in [
                     ("color", Attributes::COLOR),
                     ("color+predictors", Attributes::ALL),

@@ -8,7 +8,14 @@
 //!   the adapter's default splatter;
 //! - `track/kf+it/BACKEND/WxH/POINTS`: KF+IT with either splatter, models of
 //!   10k and 100k points (1M with `SPLATTRACK_BENCH_1M=1`), at 640x480 and
-//!   1280x720.
+//!   1280x720;
+//! - `track/kf+it+contour/auto/WxH/POINTS`: KF+IT with the contour modality
+//!   too (`--modalities texture,contour`), at 100k points (and 1M).
+//!
+//! The loop is the tracker's as it runs (windows, render reuse, the pose
+//! check, the default splatter where `auto`). Each case also prints the GPU
+//! memory of the tracker's splatting after its frames
+//! (`Tracker::gpu_memory`).
 //!
 //! Each case also prints the mean time per stage (features, IT, KF, contour,
 //! the rest: the check of the pose and bookkeeping) from
@@ -25,7 +32,7 @@ use splattrack::splat::{Backend, Splatter};
 use splattrack::synth::{
     SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
-use splattrack::tracker::{Mode, Tracker, TrackerConfig};
+use splattrack::tracker::{Modalities, Mode, Tracker, TrackerConfig};
 use std::time::Duration;
 
 const FRAMES: usize = 16;
@@ -121,6 +128,15 @@ fn case(
         })
     });
     let m = stages.map(|s| s / n.max(1) as f64);
+    let mem = tracker.gpu_memory();
+    let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+    eprintln!(
+        "gpu memory {id}: model {:.1} MB, keyframe colours {:.1} MB, targets {:.1} MB, total {:.1} MB",
+        mb(mem.model),
+        mb(mem.keyframe_colors),
+        mb(mem.targets),
+        mb(mem.total())
+    );
     eprintln!(
         "stages {id}: features {:.1} ms, IT {:.1} ms, KF {:.1} ms, contour {:.1} ms, rest {:.1} ms, total {:.1} ms (mean of {n} frames)",
         m[0],
@@ -156,6 +172,18 @@ fn bench(c: &mut Criterion) {
                     let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
                     case(&mut group, &ctx, &scene, &model, &store, config, id);
                 }
+            }
+            if n >= 100_000 {
+                let config = TrackerConfig {
+                    mode: Mode::KfIt,
+                    modalities: Modalities {
+                        texture: true,
+                        contour: true,
+                    },
+                    ..Default::default()
+                };
+                let id = format!("kf+it+contour/auto/{w}x{h}/{n}");
+                case(&mut group, &ctx, &scene, &model, &store, config, id);
             }
             for backend in [Backend::RenderPass, Backend::Compute] {
                 let config = TrackerConfig {

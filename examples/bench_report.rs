@@ -140,8 +140,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
 
     println!("\n### Tracking (ms per frame, median)\n");
-    println!("| image | points | IT (auto) | KF (auto) | KF+IT render | KF+IT compute |");
-    println!("|---|---:|---:|---:|---:|---:|");
+    println!(
+        "| image | points | IT (auto) | KF (auto) | KF+IT render | KF+IT compute | KF+IT + contour (auto) |"
+    );
+    println!("|---|---:|---:|---:|---:|---:|---:|");
     for s in sizes {
         for n in points {
             let v = |id: &str| get(format!("track/{id}/{s}/{n}"));
@@ -150,16 +152,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 v("kf/auto"),
                 v("kf+it/render"),
                 v("kf+it/compute"),
+                v("kf+it+contour/auto"),
             ];
             if row.iter().all(Option::is_none) {
                 continue;
             }
             println!(
-                "| {s} | {n} | {} | {} | {} | {} |",
+                "| {s} | {n} | {} | {} | {} | {} | {} |",
                 fmt(row[0]),
                 fmt(row[1]),
                 fmt(row[2]),
-                fmt(row[3])
+                fmt(row[3]),
+                fmt(row[4])
             );
         }
     }

@@ -4,9 +4,13 @@
 // rasteriser and blending (Dehais et al. 2010, sections 2.3 and 3.2;
 // Botsch et al. 2005). One thread per splat walks the pixels of its
 // screen-space bounding box (the quad the render pass would rasterise);
-// footprints of more than BIG_SPLAT_PIXELS are listed instead and walked by
-// a whole workgroup (`visibility_big`, `accumulate_big`), so a large or
-// near-plane splat does not serialise on one thread:
+// footprints of more than `BIG_SPLAT_PIXELS` are listed instead and walked
+// by a whole workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`),
+// so a large or near-plane splat does not serialise on one thread. Both
+// walks call the same per-pixel functions (`splat_pixel`: `visibility_key`,
+// `fragment`). (Binning large splats into 8x8 tiles, a workgroup per tile
+// summing a pixel's fragments in registers, was measured slower on
+// lavapipe at every threshold: BENCHMARKS.md.)
 //
 // 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
 //    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders
@@ -61,7 +65,7 @@ struct ComputeParams {
 // max serves both), then the indirect dispatch of `finish` over them.
 // [4]: the number of large splats listed in `big`.
 @group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
-// Splats whose footprint exceeds BIG_SPLAT_PIXELS: a workgroup shares each.
+// Splats whose footprint exceeds `BIG_SPLAT_PIXELS`: a workgroup shares each.
 @group(0) @binding(11) var<storage, read_write> big: array<u32>;
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
 // models textured by different keyframes share the geometry).
@@ -73,7 +77,6 @@ var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
 // Bits of 1.0f: the cleared depth.
 const DEPTH_ONE: u32 = 0x3f800000u;
-
 // A splat after the vertex stage of splat.wgsl: camera-space centre,
 // normal, radius, projected centre, colour, and the pixels whose centres
 // its quad covers (lo..=hi, clipped to the image; empty when culled).
@@ -131,39 +134,144 @@ fn footprint(s: Setup) -> u32 {
     return u32(s.hi.x - s.lo.x + 1) * u32(s.hi.y - s.lo.y + 1);
 }
 
-fn visibility_pixel(s: Setup, x: i32, y: i32) {
+// The depth key of the splat at a pixel (pass 1): `DEPTH_ONE - bits(depth)`
+// of the pushed-back depth, 0 where the kernel is zero.
+fn visibility_key(s: Setup, x: i32, y: i32) -> u32 {
     let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
     if hit.w <= 0.0 {
-        return;
+        return 0u;
     }
     let d = depth_of(hit.x.z + cam.params.x * s.radius / hit.ray_len);
-    let pixel = u32(y) * params.width + u32(x);
-    atomicMax(&depth_key[pixel], DEPTH_ONE - bitcast<u32>(d));
+    return DEPTH_ONE - bitcast<u32>(d);
 }
 
-// The large splats of `big`, one workgroup per splat at a time, its
-// threads striding over the footprint.
+fn visibility_pixel(s: Setup, x: i32, y: i32) {
+    let key = visibility_key(s, x, y);
+    if key != 0u {
+        atomicMax(&depth_key[u32(y) * params.width + u32(x)], key);
+    }
+}
+
+fn fixed(v: f32) -> i32 {
+    return i32(round(v * FIXED_SCALE));
+}
+
+// The fixed-point sums of one fragment (pass 2): the ACC_STRIDE values of
+// a pixel in order.
+struct Sums {
+    w: i32,
+    color: vec3<i32>,
+    z: i32,
+    normal: vec3<i32>,
+    iz: i32,
+}
+
+// The fragment of the splat at a pixel whose visibility depth bits are
+// `vis`: zero sums where the kernel is zero or the fragment fails the
+// render pass's less-or-equal test against pass 1's depth. Depths are
+// relative to the pixel's visibility depth zv: every fragment passing the
+// test lies within the push-back in front of it, so z / zv is about 1 at
+// any distance. Sums of groups not in `params.flags` stay zero.
+fn fragment(s: Setup, x: i32, y: i32, vis: u32) -> Sums {
+    var out: Sums;
+    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
+    if hit.w <= 0.0 || bitcast<u32>(depth_of(hit.x.z)) > vis {
+        return out;
+    }
+    let w = hit.w;
+    out.w = fixed(w);
+    out.color = vec3<i32>(fixed(w * s.color.x), fixed(w * s.color.y), fixed(w * s.color.z));
+    let zv = visible_z(vis);
+    if (params.flags & COMPUTE_GEOMETRY) != 0u {
+        out.z = fixed(w * hit.x.z / zv);
+        out.normal = vec3<i32>(fixed(w * s.normal.x), fixed(w * s.normal.y), fixed(w * s.normal.z));
+    }
+    if (params.flags & COMPUTE_MOTION) != 0u {
+        out.iz = fixed(w * zv / hit.x.z);
+    }
+    return out;
+}
+
+// The visibility depth bits of a pixel (after pass 1).
+fn pixel_vis(x: i32, y: i32) -> u32 {
+    return DEPTH_ONE - atomicLoad(&depth_key[u32(y) * params.width + u32(x)]);
+}
+
+// Adds a fragment's sums to its pixel's accumulators (nothing where the
+// weight is 0: every fragment that passes has a positive weight).
+fn add_to_pixel(x: i32, y: i32, f: Sums) {
+    if f.w == 0 {
+        return;
+    }
+    let base = (u32(y) * params.width + u32(x)) * ACC_STRIDE;
+    atomicAdd(&acc[base], f.w);
+    atomicAdd(&acc[base + 1u], f.color.x);
+    atomicAdd(&acc[base + 2u], f.color.y);
+    atomicAdd(&acc[base + 3u], f.color.z);
+    if (params.flags & COMPUTE_GEOMETRY) != 0u {
+        atomicAdd(&acc[base + 4u], f.z);
+        atomicAdd(&acc[base + 5u], f.normal.x);
+        atomicAdd(&acc[base + 6u], f.normal.y);
+        atomicAdd(&acc[base + 7u], f.normal.z);
+    }
+    if (params.flags & COMPUTE_MOTION) != 0u {
+        atomicAdd(&acc[base + 8u], f.iz);
+    }
+}
+
+fn accumulate_pixel(s: Setup, x: i32, y: i32) {
+    add_to_pixel(x, y, fragment(s, x, y, pixel_vis(x, y)));
+}
+
+// Which pass `splat_pixel` serves.
+const PASS_VISIBILITY: u32 = 0u;
+const PASS_ACCUMULATE: u32 = 1u;
+
+// The work of one pass at one pixel of a splat's footprint, made of
+// atomics: the walks by a thread and by a workgroup.
+fn splat_pixel(s: Setup, x: i32, y: i32, stage: u32) {
+    if stage == PASS_VISIBILITY {
+        visibility_pixel(s, x, y);
+    } else {
+        accumulate_pixel(s, x, y);
+    }
+}
+
+// One thread walks a whole footprint.
+fn walk_thread(s: Setup, stage: u32) {
+    for (var y = s.lo.y; y <= s.hi.y; y++) {
+        for (var x = s.lo.x; x <= s.hi.x; x++) {
+            splat_pixel(s, x, y, stage);
+        }
+    }
+}
+
+// The splats of `big`, one workgroup per splat at a time, its
+// lanes laid out as 8x8 blocks over the footprint (no integer division: it
+// is scalarised on CPU adapters).
+fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
+    let n = atomicLoad(&bounds[4]);
+    let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
+    for (var j = wg; j < n; j += groups) {
+        let s = setup(big[j]);
+        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
+            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
+                let q = vec2<i32>(bx, by) + lane;
+                if q.x <= s.hi.x && q.y <= s.hi.y {
+                    splat_pixel(s, q.x, q.y, stage);
+                }
+            }
+        }
+    }
+}
+
 @compute @workgroup_size(WORKGROUP_1D)
 fn visibility_big(
     @builtin(local_invocation_index) li: u32,
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = atomicLoad(&bounds[4]);
-    for (var j = wg.x; j < n; j += groups.x) {
-        let s = setup(big[j]);
-        // 8x8 blocks of lanes over the footprint (no integer division:
-        // it is scalarised on CPU adapters).
-        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
-        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
-            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
-                let q = vec2<i32>(bx, by) + lane;
-                if q.x <= s.hi.x && q.y <= s.hi.y {
-                    visibility_pixel(s, q.x, q.y);
-                }
-            }
-        }
-    }
+    walk_big(li, wg.x, groups.x, PASS_VISIBILITY);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -189,11 +297,7 @@ fn visibility(
             // Too long a walk for one thread: a workgroup shares it.
             big[atomicAdd(&bounds[4], 1u)] = i;
         } else {
-            for (var y = s.lo.y; y <= s.hi.y; y++) {
-                for (var x = s.lo.x; x <= s.hi.x; x++) {
-                    visibility_pixel(s, x, y);
-                }
-            }
+            walk_thread(s, PASS_VISIBILITY);
         }
     }
     // One global atomic per workgroup and bound, not one per splat.
@@ -206,7 +310,8 @@ fn visibility(
     }
 }
 
-// The workgroups of `finish`: the bounding box of the splats' pixels.
+// The workgroups of `finish` (the bounding box of the splats' pixels) and
+// of the large splats.
 @compute @workgroup_size(1)
 fn finish_dispatch() {
     let x1 = atomicLoad(&bounds[2]);
@@ -228,46 +333,6 @@ fn finish_dispatch() {
     finish_args[6] = select(0u, 1u, nbig > 0u);
 }
 
-fn fixed(v: f32) -> i32 {
-    return i32(round(v * FIXED_SCALE));
-}
-
-fn accumulate_pixel(s: Setup, x: i32, y: i32) {
-    let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-    if hit.w <= 0.0 {
-        return;
-    }
-    let pixel = u32(y) * params.width + u32(x);
-    // The render pass's less-or-equal test against pass 1's depth.
-    let vis = DEPTH_ONE - atomicLoad(&depth_key[pixel]);
-    if bitcast<u32>(depth_of(hit.x.z)) > vis {
-        return;
-    }
-    let w = hit.w;
-    let base = pixel * ACC_STRIDE;
-    atomicAdd(&acc[base], fixed(w));
-    atomicAdd(&acc[base + 1u], fixed(w * s.color.x));
-    atomicAdd(&acc[base + 2u], fixed(w * s.color.y));
-    atomicAdd(&acc[base + 3u], fixed(w * s.color.z));
-    let geometry = (params.flags & COMPUTE_GEOMETRY) != 0u;
-    let motion = (params.flags & COMPUTE_MOTION) != 0u;
-    if geometry || motion {
-        // Depths relative to the pixel's visibility depth zv: every
-        // fragment passing the test lies within the push-back in front of
-        // it, so z / zv is about 1 at any distance.
-        let zv = visible_z(vis);
-        if geometry {
-            atomicAdd(&acc[base + 4u], fixed(w * hit.x.z / zv));
-            atomicAdd(&acc[base + 5u], fixed(w * s.normal.x));
-            atomicAdd(&acc[base + 6u], fixed(w * s.normal.y));
-            atomicAdd(&acc[base + 7u], fixed(w * s.normal.z));
-        }
-        if motion {
-            atomicAdd(&acc[base + 8u], fixed(w * zv / hit.x.z));
-        }
-    }
-}
-
 @compute @workgroup_size(WORKGROUP_1D)
 fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
     let i = splat_index(id, groups);
@@ -278,11 +343,7 @@ fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgro
     if footprint(s) > BIG_SPLAT_PIXELS {
         return; // accumulate_big
     }
-    for (var y = s.lo.y; y <= s.hi.y; y++) {
-        for (var x = s.lo.x; x <= s.hi.x; x++) {
-            accumulate_pixel(s, x, y);
-        }
-    }
+    walk_thread(s, PASS_ACCUMULATE);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -291,19 +352,7 @@ fn accumulate_big(
     @builtin(workgroup_id) wg: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = atomicLoad(&bounds[4]);
-    for (var j = wg.x; j < n; j += groups.x) {
-        let s = setup(big[j]);
-        let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
-        for (var by = s.lo.y; by <= s.hi.y; by += 8) {
-            for (var bx = s.lo.x; bx <= s.hi.x; bx += 8) {
-                let q = vec2<i32>(bx, by) + lane;
-                if q.x <= s.hi.x && q.y <= s.hi.y {
-                    accumulate_pixel(s, q.x, q.y);
-                }
-            }
-        }
-    }
+    walk_big(li, wg.x, groups.x, PASS_ACCUMULATE);
 }
 
 // Camera-space z of a visibility depth (bits of the [0, 1] depth): the

@@ -365,6 +365,9 @@ pub struct RunStats {
     /// [`Flow::Stop`] (the live view was closed); `frames` counts the
     /// frames tracked.
     pub stopped: bool,
+    /// GPU memory of the tracker's splatting at the end of the run
+    /// ([`crate::tracker::Tracker::gpu_memory`]).
+    pub gpu_memory: Option<crate::tracker::GpuMemory>,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -706,6 +709,7 @@ impl<'a> TrackRun<'a> {
         stats.source_ms = ms(source_time) * k;
         totals.sort_by(f64::total_cmp);
         stats.median_ms = totals[totals.len() / 2];
+        stats.gpu_memory = Some(tracker.gpu_memory());
         Ok(stats)
     }
 }

@@ -630,6 +630,16 @@ impl TexturedCache {
         Ok(gm)
     }
 
+    /// GPU bytes of the keyframe colours resident now (the geometry is
+    /// the tracker's model, counted there).
+    pub fn gpu_bytes(&self) -> u64 {
+        self.slots
+            .iter()
+            .flatten()
+            .map(|(m, _)| m.color_bytes())
+            .sum()
+    }
+
     /// Textured models on the GPU now.
     pub fn resident(&self) -> usize {
         self.slots.iter().filter(|s| s.is_some()).count()

@@ -23,7 +23,7 @@ use splattrack::model::{AttributeSource, PointModel, TriangleMesh, shapes};
 use splattrack::rng::Rng;
 use splattrack::splat::{
     Attribute, Attributes, Backend, GatherMode, GpuModel, SplatImage, SplatParams, SplatTargets,
-    Splatter, cpu,
+    Splatter, Window, cpu,
 };
 use splattrack::synth::raster;
 
@@ -180,6 +180,137 @@ fn large_footprints_shared_by_a_workgroup_agree() {
     }
     let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
     check(&model, &cam, &pose, "large and small splats");
+}
+
+/// 60 splats of footprints from about 20 x 20 to 100 x 100 pixels at
+/// 150 px focal length and distance 3 (many over BIG_SPLAT_PIXELS, 32 x 32:
+/// walked by a workgroup; the rest by one thread each), among 2000 small
+/// ones.
+fn large_and_small(seed: u64) -> PointModel {
+    let mut rng = Rng::new(seed);
+    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
+    let small = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
+    model.positions.extend(&small.positions);
+    model.normals.extend(&small.normals);
+    model.radii.extend(&small.radii);
+    if let (Some(c), Some(d)) = (&mut model.colors, &small.colors) {
+        c.extend(d);
+    }
+    model
+}
+
+/// Splats whose projected radius exceeds 16 px (footprints over 32 x 32)
+/// and whose disc reaches over the image border.
+fn large_across_border(model: &PointModel, cam: &Intrinsics, pose: &Pose) -> usize {
+    (0..model.len())
+        .filter(|&i| {
+            let p = model.positions[i];
+            let x = pose.transform_point(&Vector3::new(p.x as f64, p.y as f64, p.z as f64));
+            if x.z <= 0.0 {
+                return false;
+            }
+            let r = cam.fx * model.radii[i] as f64 / x.z;
+            let (u, v) = (cam.fx * x.x / x.z + cam.cx, cam.fy * x.y / x.z + cam.cy);
+            let inside = u > -r && v > -r && u < cam.width as f64 + r && v < cam.height as f64 + r;
+            let crosses = u < r || v < r || u > cam.width as f64 - r || v > cam.height as f64 - r;
+            r > 16.0 && inside && crosses
+        })
+        .count()
+}
+
+#[test]
+fn large_splats_across_the_image_border_agree() {
+    // The cloud's centre projected near each corner and edge: footprints
+    // over 32 x 32 pixels clipped by the border, on both walks.
+    let model = large_and_small(17);
+    let pose = look_at(
+        &Vector3::new(0.4, -0.3, -3.0),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    for (cx, cy) in [(4.0, 4.0), (156.0, 116.0), (80.0, 118.0), (-20.0, 60.0)] {
+        let cam = Intrinsics::new(160, 120, 150.0, 150.0, cx, cy);
+        let crossing = large_across_border(&model, &cam, &pose);
+        assert!(
+            crossing >= 5,
+            "principal point ({cx}, {cy}): {crossing} large splats cross the border"
+        );
+        check(
+            &model,
+            &cam,
+            &pose,
+            &format!("border ({cx}, {cy}), {crossing} large splats across it"),
+        );
+    }
+}
+
+#[test]
+fn large_splats_in_windows_agree_with_the_full_render() {
+    // Renders into windows (the tracker's crops: the camera shifted by the
+    // window's origin) against the CPU reference and the render pass at the
+    // window's camera, and against the same pixels of the full render.
+    let model = large_and_small(23);
+    let cam = Intrinsics::new(200, 150, 150.0, 150.0, 99.5, 74.5);
+    let pose = look_at(
+        &Vector3::new(-0.2, 0.3, -3.0),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let compute = splatter(Backend::Compute);
+    let full = images(&compute, &model, &cam, &pose);
+    for win in [
+        Window {
+            x0: 37,
+            y0: 21,
+            width: 96,
+            height: 80,
+        },
+        Window {
+            x0: 120,
+            y0: 90,
+            width: 80,
+            height: 60,
+        },
+        Window {
+            x0: 0,
+            y0: 70,
+            width: 64,
+            height: 80,
+        },
+    ] {
+        let wcam = win.camera(&cam);
+        let label = format!("window {win:?}");
+        assert!(
+            large_across_border(&model, &wcam, &pose) >= 3,
+            "{label}: too few large splats cross its border"
+        );
+        check(&model, &wcam, &pose, &label);
+        let part = images(&compute, &model, &wcam, &pose);
+        let (mut covered, mut bad) = (0, 0);
+        for y in 0..win.height {
+            for x in 0..win.width {
+                let (fx, fy) = (x + win.x0, y + win.y0);
+                let (a, b) = (part[1].is_valid(x, y), full[1].is_valid(fx, fy));
+                covered += (a || b) as usize;
+                let same = a == b
+                    && (!a
+                        || (part[0]
+                            .pixel(x, y)
+                            .iter()
+                            .zip(full[0].pixel(fx, fy))
+                            .all(|(p, q)| (p - q).abs() <= 1e-4)
+                            && (part[1].pixel(x, y)[0] - full[1].pixel(fx, fy)[0]).abs()
+                                <= 1e-5 * full[1].pixel(fx, fy)[0]));
+                bad += !same as usize;
+            }
+        }
+        eprintln!("{label}: {bad} of {covered} covered pixels differ from the full render");
+        assert!(covered > 1000, "{label}: only {covered} pixels covered");
+        assert!(
+            bad as f64 <= 0.005 * covered as f64,
+            "{label}: {bad} of {covered} pixels differ from the full render"
+        );
+    }
 }
 
 #[test]
@@ -373,6 +504,74 @@ fn auto_picks_the_compute_splatter_where_supported_and_the_flag_names_parse() {
         };
         assert_eq!(Backend::Auto.resolve(ctx()).unwrap(), want);
         assert_eq!(Splatter::new(ctx()).unwrap().backend(), want);
+    }
+}
+
+#[test]
+fn auto_sends_large_splats_through_the_render_pass_on_cpu_adapters() {
+    // A sparse sphere close up (median splat radius over
+    // AUTO_CPU_RENDER_PASS_ABOVE_PX on screen) and a dense one far away.
+    let sparse = GpuModel::new(ctx(), &shapes::sphere(Vec3::ZERO, 0.5, 400, 1.2)).unwrap();
+    let dense = GpuModel::new(ctx(), &shapes::sphere(Vec3::ZERO, 0.5, 20_000, 1.2)).unwrap();
+    let cam = Intrinsics::new(160, 120, 150.0, 150.0, 79.5, 59.5);
+    let at = |d: f64| {
+        look_at(
+            &Vector3::new(0.0, 0.0, -d),
+            &Vector3::zeros(),
+            &Vector3::new(0.0, -1.0, 0.0),
+        )
+    };
+    let typical = |m: &GpuModel, d: f64| cam.fx * m.bounds.median_splat_radius / d;
+    assert!(typical(&sparse, 1.5) > splattrack::splat::AUTO_CPU_RENDER_PASS_ABOVE_PX);
+    assert!(typical(&dense, 4.0) < splattrack::splat::AUTO_CPU_RENDER_PASS_ABOVE_PX);
+    let explicit = splatter(Backend::Compute);
+    assert_eq!(
+        explicit.backend_for(&sparse, &cam, &at(1.5)),
+        Backend::Compute
+    );
+    assert_eq!(
+        explicit.backend_for(&dense, &cam, &at(4.0)),
+        Backend::Compute
+    );
+    let render = splatter(Backend::RenderPass);
+    assert_eq!(
+        render.backend_for(&dense, &cam, &at(4.0)),
+        Backend::RenderPass
+    );
+    if std::env::var(splattrack::splat::SPLATTER_ENV).is_ok() {
+        return; // a run that forces a back end
+    }
+    let auto = Splatter::new(ctx()).unwrap();
+    if auto.backend() != Backend::Compute {
+        assert_eq!(
+            auto.backend_for(&dense, &cam, &at(4.0)),
+            Backend::RenderPass
+        );
+        return;
+    }
+    let large = if ctx().is_cpu() {
+        Backend::RenderPass
+    } else {
+        Backend::Compute
+    };
+    assert_eq!(auto.backend_for(&sparse, &cam, &at(1.5)), large);
+    assert_eq!(auto.backend_for(&dense, &cam, &at(4.0)), Backend::Compute);
+    // Whichever renders, the images are that back end's, bit for bit.
+    for (m, d) in [(&sparse, 1.5), (&dense, 4.0)] {
+        let read = |s: &Splatter| {
+            let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+            s.render(ctx(), m, &cam, &at(d), Attributes::ALL, &mut t)
+                .unwrap();
+            s.read(ctx(), &t, Attribute::Motion).unwrap().data
+        };
+        let chosen = splatter(auto.backend_for(m, &cam, &at(d)));
+        let (a, b) = (read(&auto), read(&chosen));
+        assert!(a.iter().any(|v| !v.is_nan()));
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(p, q)| p.to_bits() == q.to_bits() || (p.is_nan() && q.is_nan()))
+        );
     }
 }
 

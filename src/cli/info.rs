@@ -31,7 +31,21 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let backend = splattrack::splat::Backend::Auto
         .resolve(&ctx)
         .context("--splatter")?;
-    println!("splatter:  {backend} (what --splatter auto picks here)");
+    let env = std::env::var(splattrack::splat::SPLATTER_ENV).ok();
+    let by_size = backend == splattrack::splat::Backend::Compute
+        && ctx.is_cpu()
+        && env
+            .as_deref()
+            .and_then(splattrack::splat::Backend::parse)
+            .is_none_or(|b| b == splattrack::splat::Backend::Auto);
+    if by_size {
+        println!(
+            "splatter:  {backend}, render for splats over {} px in radius (what --splatter auto picks here)",
+            splattrack::splat::AUTO_CPU_RENDER_PASS_ABOVE_PX
+        );
+    } else {
+        println!("splatter:  {backend} (what --splatter auto picks here)");
+    }
     if let Some(path) = args.model {
         let m = super::load_model(&path)?;
         let (lo, hi) = m.bounds();

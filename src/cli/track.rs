@@ -437,6 +437,16 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             stats.source_ms
         );
         print!("{}", profile_table(&stats.mean_stages));
+        if let Some(m) = stats.gpu_memory {
+            let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+            println!(
+                "GPU memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+                mb(m.total()),
+                mb(m.model),
+                mb(m.keyframe_colors),
+                mb(m.targets)
+            );
+        }
         println!(
             "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
             if window.is_some() { ", live view" } else { "" },

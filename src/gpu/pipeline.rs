@@ -138,6 +138,11 @@ impl GrowBuffer {
         true
     }
 
+    /// Bytes allocated now (0 before the first [`GrowBuffer::ensure`]).
+    pub fn size(&self) -> u64 {
+        self.buffer.as_ref().map_or(0, |b| b.size())
+    }
+
     /// The buffer; panics before the first [`GrowBuffer::ensure`].
     pub fn get(&self) -> &wgpu::Buffer {
         self.buffer.as_ref().expect("GrowBuffer used before ensure")

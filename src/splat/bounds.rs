@@ -28,6 +28,9 @@ pub struct ModelBounds {
     pub center: Vector3<f64>,
     pub radius: f64,
     pub max_splat_radius: f64,
+    /// The median splat radius (model units; 0 for no points): how large
+    /// a typical splat is (`Splatter::backend_for`).
+    pub median_splat_radius: f64,
 }
 
 impl ModelBounds {
@@ -41,10 +44,20 @@ impl ModelBounds {
                 .map(|p| Vector3::new(p.x as f64, p.y as f64, p.z as f64)),
         );
         let max_splat_radius = model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64));
+        let median_splat_radius = {
+            let mut r = model.radii.clone();
+            let mid = r.len() / 2;
+            if r.is_empty() {
+                0.0
+            } else {
+                *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+            }
+        };
         Self {
             center,
             radius,
             max_splat_radius,
+            median_splat_radius,
         }
     }
 

@@ -68,6 +68,25 @@ impl Scratch {
     }
 }
 
+impl Scratch {
+    /// GPU bytes of this scratch: the depth keys (4 a pixel), the sums
+    /// (4 * ACC_STRIDE a pixel), the list of large splats (4 a splat of the
+    /// largest model rendered) and the small buffers.
+    pub(super) fn gpu_bytes(&self) -> u64 {
+        [
+            &self.depth,
+            &self.acc,
+            &self.params,
+            &self.bounds,
+            &self.finish_args,
+        ]
+        .iter()
+        .map(|b| b.size())
+        .sum::<u64>()
+            + self.big.size()
+    }
+}
+
 // `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
 const _: () = assert!(WORKGROUP_1D == 64);
 

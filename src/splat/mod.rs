@@ -82,11 +82,14 @@ pub use window::Window;
 pub enum Backend {
     /// [`SPLATTER_ENV`] when set, else [`Backend::Compute`] wherever the
     /// adapter supports it (five storage textures per stage), else
-    /// [`Backend::RenderPass`]. Measured (BENCHMARKS.md): on lavapipe a
-    /// KF+IT frame with a 100k-point model takes half the time with the
-    /// compute splatter (the render pass is faster only for sparse models
-    /// of large splats); on an H100 DESIGN.md section 5 measured a compute
-    /// splat ~14x faster than the render pass.
+    /// [`Backend::RenderPass`]; on a CPU adapter, per render, the render
+    /// pass where splats are large on screen
+    /// ([`AUTO_CPU_RENDER_PASS_ABOVE_PX`], [`Splatter::backend_for`]).
+    /// Measured (BENCHMARKS.md): on lavapipe a KF+IT frame with a
+    /// 100k-point model takes half the time with the compute splatter, the
+    /// render pass is faster for sparse models of large splats; on an H100
+    /// DESIGN.md section 5 measured a compute splat ~14x faster than the
+    /// render pass.
     #[default]
     Auto,
     /// Instanced quads through the rasteriser, additive blending.
@@ -96,6 +99,19 @@ pub enum Backend {
     /// shaders/splat_compute.wgsl).
     Compute,
 }
+
+/// [`Backend::Auto`] on a CPU adapter (lavapipe): renders whose typical
+/// splat (the model's median radius at the depth of its centre) is wider
+/// than this many pixels in radius go through the render pass, the others
+/// through the compute splatter. Measured on lavapipe (BENCHMARKS.md,
+/// `cargo bench --bench splat`, colour + predictors, criterion medians): a
+/// 10k-point sphere (median splat radius 6.5 px at 640x480, 13 px at
+/// 1280x720) splats 1.9x and 2.0x faster through the render pass, where
+/// one thread walks a large footprint; 100k points (2.1 and 4.1 px) 2.2x
+/// and 1.3x faster through the compute splatter, 1M points (0.65 and
+/// 1.3 px) 5.5x and 3.3x, where the rasteriser's per-splat setup
+/// dominates.
+pub const AUTO_CPU_RENDER_PASS_ABOVE_PX: f64 = 5.0;
 
 /// Environment variable that overrides [`Backend::Auto`]:
 /// `render`, `compute` or `auto`.

@@ -139,6 +139,11 @@ impl GpuModel {
         self.colors.size()
     }
 
+    /// GPU bytes of this model: geometry and colours (36 bytes a point).
+    pub fn gpu_bytes(&self) -> u64 {
+        self.geometry_bytes() + self.color_bytes()
+    }
+
     /// GPU bytes of the geometry (shared by recoloured copies).
     pub fn geometry_bytes(&self) -> u64 {
         self.geometry.size()

@@ -33,6 +33,10 @@ pub struct Splatter {
     backend: Backend,
     /// The compute back end's pipelines, when it renders.
     compute: Option<ComputeSplatter>,
+    /// `auto` on a CPU adapter: renders whose typical splat is wider than
+    /// this (pixels, radius) go through the render pass
+    /// ([`super::AUTO_CPU_RENDER_PASS_ABOVE_PX`]).
+    render_pass_above_px: Option<f64>,
 }
 
 impl Splatter {
@@ -46,6 +50,15 @@ impl Splatter {
             Backend::Compute => Some(ComputeSplatter::new(ctx)?),
             _ => None,
         };
+        let forced = std::env::var(super::SPLATTER_ENV)
+            .ok()
+            .and_then(|v| Backend::parse(&v))
+            .is_some_and(|b| b != Backend::Auto);
+        let render_pass_above_px = (params.backend == Backend::Auto
+            && !forced
+            && backend == Backend::Compute
+            && ctx.is_cpu())
+        .then_some(super::AUTO_CPU_RENDER_PASS_ABOVE_PX);
         let need = TARGETS as u32 * 16;
         if ctx.limits.max_color_attachments < TARGETS as u32
             || ctx.limits.max_color_attachment_bytes_per_sample < need
@@ -173,7 +186,27 @@ impl Splatter {
             dummy_points,
             backend,
             compute,
+            render_pass_above_px,
         })
+    }
+
+    /// The back end that renders `model` at `pose`: [`Splatter::backend`],
+    /// except for `auto` on a CPU adapter, where renders whose typical
+    /// splat (the median radius at the depth of the model's centre) is
+    /// wider than [`super::AUTO_CPU_RENDER_PASS_ABOVE_PX`] pixels go
+    /// through the render pass. Both write the same targets.
+    pub fn backend_for(&self, model: &GpuModel, cam: &Intrinsics, pose: &Pose) -> Backend {
+        if self.compute.is_none() {
+            return Backend::RenderPass;
+        }
+        if let Some(limit) = self.render_pass_above_px {
+            let z = pose.transform_point(&model.bounds.center).z;
+            let px = cam.fx.max(cam.fy) * model.bounds.median_splat_radius / z;
+            if z > 0.0 && px > limit {
+                return Backend::RenderPass;
+            }
+        }
+        Backend::Compute
     }
 
     pub fn params(&self) -> &SplatParams {
@@ -181,7 +214,9 @@ impl Splatter {
     }
 
     /// The back end that renders: [`Backend::RenderPass`] or
-    /// [`Backend::Compute`] (what [`Backend::Auto`] chose on this adapter).
+    /// [`Backend::Compute`] (what [`Backend::Auto`] chose on this adapter;
+    /// on a CPU adapter `auto` still sends renders of large splats through
+    /// the render pass: [`Splatter::backend_for`]).
     pub fn backend(&self) -> Backend {
         self.backend
     }
@@ -222,7 +257,9 @@ impl Splatter {
             });
         }
         let uniform = model.bounds.view(cam, pose, &self.params)?;
-        if let Some(compute) = &self.compute {
+        if let Some(compute) = &self.compute
+            && self.backend_for(model, cam, pose) == Backend::Compute
+        {
             compute.render(ctx, model, &uniform, attrs, targets, timer)?;
             targets.rendered = Some(attrs);
             return Ok(());

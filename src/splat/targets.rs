@@ -82,6 +82,27 @@ impl SplatTargets {
         }
     }
 
+    /// GPU bytes these targets hold: the five RGBA32F accumulators and the
+    /// 32-bit depth (84 bytes a pixel), the camera uniform, and the compute
+    /// back end's scratch once it has rendered here (40 bytes a pixel and
+    /// 4 a splat of the largest model; `compute::Scratch`).
+    pub fn gpu_bytes(&self) -> u64 {
+        let pixels = self.width as u64 * self.height as u64;
+        let acc: u64 = self
+            .acc
+            .iter()
+            .map(|t| {
+                let s = t.size();
+                s.width as u64
+                    * s.height as u64
+                    * t.format().block_copy_size(None).unwrap_or(16) as u64
+            })
+            .sum();
+        acc + pixels * DEPTH_FORMAT.block_copy_size(None).unwrap_or(4) as u64
+            + self.uniform.size()
+            + self.compute.as_ref().map_or(0, |c| c.gpu_bytes())
+    }
+
     pub fn width(&self) -> u32 {
         self.width
     }

@@ -844,3 +844,39 @@ mod tests {
         );
     }
 }
+
+/// GPU memory the splatting of a [`Tracker`] holds (bytes), from the sizes
+/// of the buffers and textures it created ([`GpuModel::gpu_bytes`],
+/// [`SplatTargets::gpu_bytes`], `TexturedCache::gpu_bytes`). Not counted:
+/// the Harris and NCC buffers (grow-only, sized by the frame and the
+/// features), pipelines, and the driver's own allocations.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct GpuMemory {
+    /// The model's geometry and colours.
+    pub model: u64,
+    /// The keyframe colours resident in the textured cache.
+    pub keyframe_colors: u64,
+    /// Every set of render targets (the current one, the spare ones, the
+    /// kept render), with the compute splatter's scratch.
+    pub targets: u64,
+}
+
+impl GpuMemory {
+    /// All of it.
+    pub fn total(&self) -> u64 {
+        self.model + self.keyframe_colors + self.targets
+    }
+}
+
+impl Tracker {
+    /// The GPU memory of the splatting now ([`GpuMemory`]).
+    pub fn gpu_memory(&self) -> GpuMemory {
+        GpuMemory {
+            model: self.geometry.gpu_bytes(),
+            keyframe_colors: self.textured.gpu_bytes(),
+            targets: self.targets.gpu_bytes()
+                + self.spare.iter().map(|t| t.gpu_bytes()).sum::<u64>()
+                + self.kept.as_ref().map_or(0, |k| k.targets().gpu_bytes()),
+        }
+    }
+}

@@ -37,6 +37,13 @@ pub(super) struct Kept {
     targets: SplatTargets,
 }
 
+impl Kept {
+    /// The targets of the kept render.
+    pub(super) fn targets(&self) -> &SplatTargets {
+        &self.targets
+    }
+}
+
 /// An image placed in the frame: its pixel (0, 0) is pixel `at.x0, at.y0`
 /// of the frame.
 #[derive(Clone, Copy)]
