@@ -344,3 +344,43 @@ fn the_windowed_silhouette_is_the_whole_frame_one() {
         same(&a, &b);
     }
 }
+
+#[test]
+fn the_steady_loop_allocates_no_gpu_buffers() {
+    // Issue 13: read/gather outputs, staging buffers, Harris and NCC
+    // buffers and render targets (one set per window size) are kept and
+    // reused across frames. Frames 0..10 and back: going back, every
+    // window size has been seen and every buffer has grown, so no frame
+    // allocates. A context of its own, so that other tests' buffers are
+    // not counted.
+    use splattrack::gpu::{AdapterChoice, GpuContext};
+    let f = fixture();
+    let ctx = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let mut t = Tracker::new(
+        &ctx,
+        f.scene.model.clone(),
+        f.scene.cam,
+        Some(f.store.clone()),
+        TrackerConfig::default(),
+        f.frames[0].pose,
+    )
+    .expect("tracker");
+    let order: Vec<usize> = (0..10).chain((0..9).rev()).collect();
+    let made: Vec<u64> = order
+        .iter()
+        .map(|&i| {
+            let before = ctx.buffers_created();
+            let r = t.track(&f.frames[i].image).expect("track");
+            assert_eq!(r.status, Status::Tracking, "frame {i}");
+            ctx.buffers_created() - before
+        })
+        .collect();
+    eprintln!("GPU buffers made per frame, 0..10 and back: {made:?}");
+    assert!(made[0] > 0, "the first frame makes the buffers: {made:?}");
+    assert!(
+        made[10..].iter().all(|&n| n == 0),
+        "frames seen before allocate: {made:?}"
+    );
+}

@@ -24,8 +24,9 @@ use crate::features::{Corner, FeatureError, GreyImage, Match, NccMatcher};
 use crate::geometry::{Intrinsics, Pose};
 use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
 
-/// Spare render targets kept (one per recent window size).
-const SPARE_TARGETS: usize = 3;
+/// Spare render targets kept (one per recent window size; a sequence
+/// cycles through a few sizes, and a size not kept costs new targets).
+const SPARE_TARGETS: usize = 6;
 
 /// A render kept for a later step: the check's render of the reported
 /// pose (colour, geometry and predictors) is the render the next frame's
