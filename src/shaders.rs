@@ -41,6 +41,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("harris", include_str!("../shaders/harris.wgsl")),
     ("ncc", include_str!("../shaders/ncc.wgsl")),
     ("present", include_str!("../shaders/present.wgsl")),
+    ("verify", include_str!("../shaders/verify.wgsl")),
 ];
 
 /// What every shader shares: structs and helpers (composed after the
@@ -94,6 +95,14 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("ACC_STRIDE", U32(s::ACC_STRIDE)),
         ("FIXED_SCALE", F32(s::FIXED_SCALE)),
         ("BIG_SPLAT_PIXELS", U32(s::BIG_SPLAT_PIXELS)),
+        ("CHECK_SUMS", U32(crate::tracker::verify_gpu::CHECK_SUMS)),
+        (
+            "CHECK_WORKGROUP",
+            U32(crate::tracker::verify_gpu::CHECK_WORKGROUP),
+        ),
+        ("LUMA_R", F32(crate::features::image::LUMA[0])),
+        ("LUMA_G", F32(crate::features::image::LUMA[1])),
+        ("LUMA_B", F32(crate::features::image::LUMA[2])),
     ]
 };
 
@@ -235,6 +244,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::NccParams>(),
         RustLayout::of::<f::Best>(),
         RustLayout::of::<crate::view::present::PresentParams>(),
+        RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
     ]
 }
 

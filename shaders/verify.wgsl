@@ -1,0 +1,178 @@
+// The pose check's scores on the GPU (issue 12's check, issue 13's
+// resident loop): the splatted view's weight and colour (resolved by the
+// splatter into buffers that never leave the GPU) against the frame's grey
+// levels over the same window, reduced to CHECK_SUMS floats. CPU
+// reference: `verify::score` in src/tracker/verify.rs (the same rules:
+// inner pixels for the ZNCC, contour pixels and the edge search along the
+// silhouette's normal for the edge support).
+//
+// `rows`: one workgroup per image row; each thread walks the row's pixels
+// in strides of CHECK_WORKGROUP and accumulates, then a tree reduction in
+// workgroup memory writes the row's sums. `total`: one workgroup sums the
+// rows. The grey levels are summed less `centre` (ZNCC is blind to an
+// offset) so that the f32 sums of squares keep the variance.
+//
+// The sums, in this order: covered pixels, ZNCC pairs n, sum a, sum b,
+// sum aa, sum bb, sum ab (a: the view's grey, b: the frame's), contour
+// pixels, supported contour pixels.
+
+// Twin: `CheckParams` in src/tracker/verify_gpu.rs.
+struct CheckParams {
+    width: u32,
+    height: u32,
+    // VerifyConfig::edge_search_px.
+    search: u32,
+    // VerifyConfig::edge_gradient.
+    gradient: f32,
+    centre: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: CheckParams;
+@group(0) @binding(1) var<storage, read> weight: array<f32>;
+@group(0) @binding(2) var<storage, read> colour: array<f32>;
+@group(0) @binding(3) var<storage, read> frame: array<f32>;
+@group(0) @binding(4) var<storage, read_write> partial: array<f32>;
+@group(0) @binding(5) var<storage, read_write> total: array<f32>;
+
+var<workgroup> acc: array<array<f32, CHECK_SUMS>, CHECK_WORKGROUP>;
+
+fn covered(x: u32, y: u32) -> bool {
+    // NaN (no splat) fails the comparison.
+    return weight[y * params.width + x] > 0.0;
+}
+
+fn mask(x: u32, y: u32) -> f32 {
+    return select(0.0, 1.0, covered(x, y));
+}
+
+fn view_grey(i: u32) -> f32 {
+    return LUMA_R * colour[3u * i] + LUMA_G * colour[3u * i + 1u] + LUMA_B * colour[3u * i + 2u];
+}
+
+fn px(x: u32, y: u32) -> f32 {
+    return frame[y * params.width + x];
+}
+
+// Sobel / 8 of the frame at (x, y), 1 <= x < width - 1, 1 <= y < height - 1.
+fn frame_sobel(x: u32, y: u32) -> vec2<f32> {
+    let gx = (px(x + 1u, y - 1u) + 2.0 * px(x + 1u, y) + px(x + 1u, y + 1u))
+        - (px(x - 1u, y - 1u) + 2.0 * px(x - 1u, y) + px(x - 1u, y + 1u));
+    let gy = (px(x - 1u, y + 1u) + 2.0 * px(x, y + 1u) + px(x + 1u, y + 1u))
+        - (px(x - 1u, y - 1u) + 2.0 * px(x, y - 1u) + px(x + 1u, y - 1u));
+    return vec2<f32>(gx, gy) / 8.0;
+}
+
+fn mask_sobel(x: u32, y: u32) -> vec2<f32> {
+    let gx = (mask(x + 1u, y - 1u) + 2.0 * mask(x + 1u, y) + mask(x + 1u, y + 1u))
+        - (mask(x - 1u, y - 1u) + 2.0 * mask(x - 1u, y) + mask(x - 1u, y + 1u));
+    let gy = (mask(x - 1u, y + 1u) + 2.0 * mask(x, y + 1u) + mask(x + 1u, y + 1u))
+        - (mask(x - 1u, y - 1u) + 2.0 * mask(x, y - 1u) + mask(x + 1u, y - 1u));
+    return vec2<f32>(gx, gy) / 8.0;
+}
+
+// Whether a contour pixel (x, y) with unit normal n has a frame edge along
+// n within `search` pixels (the rule of `verify::edge_support`).
+fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
+    let steps = i32(params.search);
+    let r = f32(params.search);
+    let w = f32(params.width);
+    let h = f32(params.height);
+    for (var s = -steps; s <= steps; s++) {
+        let d = f32(s) / f32(max(steps, 1)) * r;
+        // Rounding half away from zero, as Rust's f64::round, for the
+        // values that can pass the bounds below.
+        let q = floor(vec2<f32>(f32(x), f32(y)) + d * n + 0.5);
+        if q.x < 1.0 || q.y < 1.0 || q.x >= w - 1.0 || q.y >= h - 1.0 {
+            continue;
+        }
+        let g = frame_sobel(u32(q.x), u32(q.y));
+        if abs(g.x * n.x + g.y * n.y) >= params.gradient {
+            return true;
+        }
+    }
+    return false;
+}
+
+@compute @workgroup_size(CHECK_WORKGROUP)
+fn rows(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
+    let y = wg.x;
+    var s: array<f32, CHECK_SUMS>;
+    for (var k = 0u; k < CHECK_SUMS; k++) {
+        s[k] = 0.0;
+    }
+    let w = params.width;
+    let h = params.height;
+    for (var x = t; x < w; x += CHECK_WORKGROUP) {
+        if !covered(x, y) {
+            continue;
+        }
+        s[0] += 1.0;
+        if x == 0u || y == 0u || x + 1u >= w || y + 1u >= h {
+            continue;
+        }
+        let four = covered(x - 1u, y) && covered(x + 1u, y) && covered(x, y - 1u)
+            && covered(x, y + 1u);
+        if four {
+            let i = y * w + x;
+            let a = view_grey(i) - params.centre;
+            let b = frame[i] - params.centre;
+            s[1] += 1.0;
+            s[2] += a;
+            s[3] += b;
+            s[4] += a * a;
+            s[5] += b * b;
+            s[6] += a * b;
+            continue;
+        }
+        let m = mask_sobel(x, y);
+        let norm = length(m);
+        if norm < 1e-9 {
+            continue;
+        }
+        let n = m / norm;
+        s[7] += 1.0;
+        s[8] += select(0.0, 1.0, supported(x, y, n));
+    }
+    acc[t] = s;
+    workgroupBarrier();
+    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
+        if t < half {
+            for (var k = 0u; k < CHECK_SUMS; k++) {
+                acc[t][k] += acc[t + half][k];
+            }
+        }
+        workgroupBarrier();
+    }
+    if t < CHECK_SUMS {
+        partial[y * CHECK_SUMS + t] = acc[0][t];
+    }
+}
+
+@compute @workgroup_size(CHECK_WORKGROUP)
+fn sum_rows(@builtin(local_invocation_index) t: u32) {
+    var s: array<f32, CHECK_SUMS>;
+    for (var k = 0u; k < CHECK_SUMS; k++) {
+        s[k] = 0.0;
+    }
+    for (var y = t; y < params.height; y += CHECK_WORKGROUP) {
+        for (var k = 0u; k < CHECK_SUMS; k++) {
+            s[k] += partial[y * CHECK_SUMS + k];
+        }
+    }
+    acc[t] = s;
+    workgroupBarrier();
+    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
+        if t < half {
+            for (var k = 0u; k < CHECK_SUMS; k++) {
+                acc[t][k] += acc[t + half][k];
+            }
+        }
+        workgroupBarrier();
+    }
+    if t < CHECK_SUMS {
+        total[t] = acc[0][t];
+    }
+}
