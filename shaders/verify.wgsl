@@ -25,9 +25,9 @@ struct CheckParams {
     // VerifyConfig::edge_gradient.
     gradient: f32,
     centre: f32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: CheckParams;
@@ -39,9 +39,15 @@ struct CheckParams {
 
 var<workgroup> acc: array<array<f32, CHECK_SUMS>, CHECK_WORKGROUP>;
 
+// NaN is tested on the bits: WGSL need not keep NaN through comparisons.
+fn is_nan_bits(v: f32) -> bool {
+    let b = bitcast<u32>(v);
+    return (b & 0x7f800000u) == 0x7f800000u && (b & 0x007fffffu) != 0u;
+}
+
 fn covered(x: u32, y: u32) -> bool {
-    // NaN (no splat) fails the comparison.
-    return weight[y * params.width + x] > 0.0;
+    let w = weight[y * params.width + x];
+    return !is_nan_bits(w) && w > 0.0;
 }
 
 fn mask(x: u32, y: u32) -> f32 {

@@ -76,6 +76,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("PIXEL_VALID", U32(f::PIXEL_VALID)),
         ("PIXEL_ALLOWED", U32(f::PIXEL_ALLOWED)),
         ("PIXEL_HOLE", U32(f::PIXEL_HOLE)),
+        ("PINHOLE_NEIGHBOURS", U32(f::PINHOLE_NEIGHBOURS as u32)),
         ("INVALID_RESPONSE", F32(f::INVALID_RESPONSE)),
         ("MAX_TAPS", U32(f::MAX_TAPS as u32)),
         ("NO_SCORE", F32(f::NO_SCORE)),
