@@ -6,10 +6,8 @@
 // inner pixels for the ZNCC, contour pixels and the edge search along the
 // silhouette's normal for the edge support).
 //
-// `rows`: one workgroup per image row; each thread walks the row's pixels
-// in strides of CHECK_WORKGROUP and accumulates, then a tree reduction in
-// workgroup memory writes the row's sums. `total`: one workgroup sums the
-// rows. The grey levels are summed less `centre` (ZNCC is blind to an
+// `rows`: one thread per image row writes the row's sums; `sum_rows`:
+// one thread per sum adds the rows. The grey levels are summed less `centre` (ZNCC is blind to an
 // offset) so that the f32 sums of squares keep the variance.
 //
 // The sums, in this order: covered pixels, ZNCC pairs n, sum a, sum b,
@@ -36,8 +34,6 @@ struct CheckParams {
 @group(0) @binding(3) var<storage, read> frame: array<f32>;
 @group(0) @binding(4) var<storage, read_write> partial: array<f32>;
 @group(0) @binding(5) var<storage, read_write> total: array<f32>;
-
-var<workgroup> acc: array<array<f32, CHECK_SUMS>, CHECK_WORKGROUP>;
 
 // NaN is tested on the bits: WGSL need not keep NaN through comparisons.
 fn is_nan_bits(v: f32) -> bool {
@@ -102,20 +98,31 @@ fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
     return false;
 }
 
+// One thread per row: scalar sums and no barrier (barriers and arrays
+// indexed at run time are slow on CPU adapters; a window has hundreds of
+// rows, enough threads for a GPU too).
 @compute @workgroup_size(CHECK_WORKGROUP)
-fn rows(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t: u32) {
-    let y = wg.x;
-    var s: array<f32, CHECK_SUMS>;
-    for (var k = 0u; k < CHECK_SUMS; k++) {
-        s[k] = 0.0;
-    }
+fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
+    let y = id.x;
     let w = params.width;
     let h = params.height;
-    for (var x = t; x < w; x += CHECK_WORKGROUP) {
+    if y >= h {
+        return;
+    }
+    var covered_px = 0.0;
+    var n = 0.0;
+    var sa = 0.0;
+    var sb = 0.0;
+    var saa = 0.0;
+    var sbb = 0.0;
+    var sab = 0.0;
+    var contour = 0.0;
+    var hits = 0.0;
+    for (var x = 0u; x < w; x++) {
         if !covered(x, y) {
             continue;
         }
-        s[0] += 1.0;
+        covered_px += 1.0;
         if x == 0u || y == 0u || x + 1u >= w || y + 1u >= h {
             continue;
         }
@@ -125,12 +132,12 @@ fn rows(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t
             let i = y * w + x;
             let a = view_grey(i) - params.centre;
             let b = frame[i] - params.centre;
-            s[1] += 1.0;
-            s[2] += a;
-            s[3] += b;
-            s[4] += a * a;
-            s[5] += b * b;
-            s[6] += a * b;
+            n += 1.0;
+            sa += a;
+            sb += b;
+            saa += a * a;
+            sbb += b * b;
+            sab += a * b;
             continue;
         }
         let m = mask_sobel(x, y);
@@ -138,47 +145,27 @@ fn rows(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_index) t
         if norm < 1e-9 {
             continue;
         }
-        let n = m / norm;
-        s[7] += 1.0;
-        s[8] += select(0.0, 1.0, supported(x, y, n));
+        contour += 1.0;
+        hits += select(0.0, 1.0, supported(x, y, m / norm));
     }
-    acc[t] = s;
-    workgroupBarrier();
-    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
-        if t < half {
-            for (var k = 0u; k < CHECK_SUMS; k++) {
-                acc[t][k] += acc[t + half][k];
-            }
-        }
-        workgroupBarrier();
-    }
-    if t < CHECK_SUMS {
-        partial[y * CHECK_SUMS + t] = acc[0][t];
-    }
+    let o = y * CHECK_SUMS;
+    partial[o] = covered_px;
+    partial[o + 1u] = n;
+    partial[o + 2u] = sa;
+    partial[o + 3u] = sb;
+    partial[o + 4u] = saa;
+    partial[o + 5u] = sbb;
+    partial[o + 6u] = sab;
+    partial[o + 7u] = contour;
+    partial[o + 8u] = hits;
 }
 
-@compute @workgroup_size(CHECK_WORKGROUP)
-fn sum_rows(@builtin(local_invocation_index) t: u32) {
-    var s: array<f32, CHECK_SUMS>;
-    for (var k = 0u; k < CHECK_SUMS; k++) {
-        s[k] = 0.0;
+// One thread per sum, over the rows.
+@compute @workgroup_size(CHECK_SUMS)
+fn sum_rows(@builtin(local_invocation_index) k: u32) {
+    var s = 0.0;
+    for (var y = 0u; y < params.height; y++) {
+        s += partial[y * CHECK_SUMS + k];
     }
-    for (var y = t; y < params.height; y += CHECK_WORKGROUP) {
-        for (var k = 0u; k < CHECK_SUMS; k++) {
-            s[k] += partial[y * CHECK_SUMS + k];
-        }
-    }
-    acc[t] = s;
-    workgroupBarrier();
-    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
-        if t < half {
-            for (var k = 0u; k < CHECK_SUMS; k++) {
-                acc[t][k] += acc[t + half][k];
-            }
-        }
-        workgroupBarrier();
-    }
-    if t < CHECK_SUMS {
-        total[t] = acc[0][t];
-    }
+    total[k] = s;
 }

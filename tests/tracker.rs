@@ -384,3 +384,34 @@ fn the_steady_loop_allocates_no_gpu_buffers() {
         "frames seen before allocate: {made:?}"
     );
 }
+
+#[test]
+fn the_resident_check_gives_the_host_checks_poses() {
+    // The pose check scored on the GPU (shaders/verify.wgsl) or on the
+    // host from a readback (the default on CPU adapters): the same
+    // statuses and poses (the scores agree to f32 rounding:
+    // tests/verify_gpu.rs).
+    let f = fixture();
+    let make = |resident: bool| {
+        let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
+        t.set_resident_check(resident);
+        t
+    };
+    let (mut gpu, mut host) = (make(true), make(false));
+    for (i, fr) in f.frames[..6].iter().enumerate() {
+        let (a, b) = (
+            gpu.track(&fr.image).unwrap(),
+            host.track(&fr.image).unwrap(),
+        );
+        assert_eq!(a.status, b.status, "frame {i}");
+        let (sa, sb) = (a.verify.expect("checked"), b.verify.expect("checked"));
+        assert_eq!(sa.covered_px, sb.covered_px, "frame {i}");
+        let d = |x: Option<f64>, y: Option<f64>| (x.unwrap() - y.unwrap()).abs();
+        assert!(d(sa.zncc, sb.zncc) < 1e-4, "frame {i}: {sa:?} vs {sb:?}");
+        assert!(
+            d(sa.edge_support, sb.edge_support) < 0.01,
+            "frame {i}: {sa:?} vs {sb:?}"
+        );
+        assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
+    }
+}

@@ -338,6 +338,13 @@ impl super::Tracker {
         seen as f64 / all as f64
     }
 
+    /// Scores the check on the GPU (`true`, the default on GPUs) or on the
+    /// host from a readback of the view (the default on CPU adapters):
+    /// [`super::verify_gpu::GpuCheck::resident`]. The scores are the same.
+    pub fn set_resident_check(&mut self, on: bool) {
+        self.check.set_resident(on);
+    }
+
     /// Scores `pose` against `frame` (module docs).
     pub(super) fn verify_scores(
         &mut self,
@@ -364,7 +371,7 @@ impl super::Tracker {
         };
         let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
         let frame = super::view::Placed::full(frame).crop(&window);
-        if self.check.fits(window.width, window.height) {
+        if self.check.resident() && self.check.fits(window.width, window.height) {
             // Resident: the view is resolved into the check's buffers and
             // scored there; CHECK_SUMS floats come back.
             let (wb, cb) = self.check.targets(window.width, window.height);
