@@ -26,7 +26,7 @@ use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
 
 /// Spare render targets kept (one per recent window size; a sequence
 /// cycles through a few sizes, and a size not kept costs new targets).
-const SPARE_TARGETS: usize = 5;
+const SPARE_TARGETS: usize = 3;
 
 /// A render kept for a later step: the check's render of the reported
 /// pose (colour, geometry and predictors) is the render the next frame's
