@@ -42,7 +42,7 @@ pub struct Splatter {
 
 /// Bind groups of resolves and gathers kept (one per recent targets and
 /// output buffer).
-const KEPT_BINDS: usize = 16;
+const KEPT_BINDS: usize = 4;
 
 /// The buffers [`Splatter::read`] and [`Splatter::gather`] reuse
 /// (grow-only) and the bind groups made on them.
