@@ -41,6 +41,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("harris", include_str!("../shaders/harris.wgsl")),
     ("ncc", include_str!("../shaders/ncc.wgsl")),
     ("present", include_str!("../shaders/present.wgsl")),
+    ("verify", include_str!("../shaders/verify.wgsl")),
 ];
 
 /// What every shader shares: structs and helpers (composed after the
@@ -75,6 +76,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("PIXEL_VALID", U32(f::PIXEL_VALID)),
         ("PIXEL_ALLOWED", U32(f::PIXEL_ALLOWED)),
         ("PIXEL_HOLE", U32(f::PIXEL_HOLE)),
+        ("PINHOLE_NEIGHBOURS", U32(f::PINHOLE_NEIGHBOURS as u32)),
         ("INVALID_RESPONSE", F32(f::INVALID_RESPONSE)),
         ("MAX_TAPS", U32(f::MAX_TAPS as u32)),
         ("NO_SCORE", F32(f::NO_SCORE)),
@@ -94,6 +96,14 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("ACC_STRIDE", U32(s::ACC_STRIDE)),
         ("FIXED_SCALE", F32(s::FIXED_SCALE)),
         ("BIG_SPLAT_PIXELS", U32(s::BIG_SPLAT_PIXELS)),
+        ("CHECK_SUMS", U32(crate::tracker::verify_gpu::CHECK_SUMS)),
+        (
+            "CHECK_WORKGROUP",
+            U32(crate::tracker::verify_gpu::CHECK_WORKGROUP),
+        ),
+        ("LUMA_R", F32(crate::features::image::LUMA[0])),
+        ("LUMA_G", F32(crate::features::image::LUMA[1])),
+        ("LUMA_B", F32(crate::features::image::LUMA[2])),
     ]
 };
 
@@ -235,6 +245,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::NccParams>(),
         RustLayout::of::<f::Best>(),
         RustLayout::of::<crate::view::present::PresentParams>(),
+        RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
     ]
 }
 

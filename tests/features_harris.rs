@@ -410,3 +410,57 @@ fn gpu_grey_conversion_of_rgb_frames_matches_cpu() {
             .is_empty()
     );
 }
+
+#[test]
+fn gpu_grey_and_packing_of_a_resolved_view_match_cpu() {
+    // A splatted view's colour as the splatter resolves it (3 floats a
+    // pixel, NaN where empty): an object (a disc) with a few pinholes, on
+    // an empty background. Converted and packed on the GPU
+    // (Harris::detect_resolved), it gives the grey levels of
+    // GreyImage::from_rgb_f32 (within 1e-6: the GPU may fuse
+    // multiply-adds) and the corners of the CPU reference on them, with
+    // and without the tolerance of pinholes.
+    let (w, h) = (131, 97);
+    let ch: Vec<GreyImage> = (0..3)
+        .map(|s| patterns::polygons(w, h, 12, 90 + s))
+        .collect();
+    let pinholes = [(60, 40), (70, 55), (45, 50), (80, 35)];
+    let empty = |x: usize, y: usize| {
+        let (dx, dy) = (x as f32 - 65.0, y as f32 - 48.0);
+        dx * dx + dy * dy > 44.0 * 44.0 || pinholes.contains(&(x, y))
+    };
+    let colour: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let e = empty(x, y);
+            [0, 1, 2].map(|c| if e { f32::NAN } else { ch[c].get(x, y) })
+        })
+        .collect();
+    let want = GreyImage::from_rgb_f32(w, h, &colour).unwrap();
+    for cfg in [
+        HarrisConfig::default(),
+        HarrisConfig {
+            min_valid_weight: 1.0,
+            ..HarrisConfig::default()
+        },
+    ] {
+        let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+        let target = harris.colour_target(w, h).unwrap();
+        ctx()
+            .queue
+            .write_buffer(&target, 0, bytemuck::cast_slice(&colour));
+        let (corners, grey) = harris.detect_resolved(w, h).unwrap();
+        assert_eq!((grey.width, grey.height), (w, h));
+        for (i, (g, c)) in grey.data.iter().zip(&want.data).enumerate() {
+            assert_eq!(g.is_nan(), c.is_nan(), "pixel {i}");
+            assert!(c.is_nan() || (g - c).abs() <= 1e-6, "pixel {i}: {g} vs {c}");
+        }
+        let cpu = harris_cpu(&want, &cfg, None).unwrap();
+        assert!(cpu.len() > 10, "{} corners", cpu.len());
+        assert_same_corners(
+            &format!("resolved view, min_valid_weight {}", cfg.min_valid_weight),
+            &corners,
+            &cpu,
+        );
+    }
+}

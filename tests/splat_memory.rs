@@ -61,8 +61,11 @@ fn models_and_targets_account_for_their_buffers() {
     compute
         .render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut t)
         .unwrap();
-    let scratch =
-        |splats: u64| pixels * (4 + 9 * 4) + (splats * 4).next_multiple_of(16) + 16 + 32 + 32;
+    // The list of large splats is a grow-only buffer rounded up to a
+    // power of two (`GrowBuffer`).
+    let scratch = |splats: u64| {
+        pixels * (4 + 9 * 4) + (splats * 4).next_multiple_of(16).next_power_of_two() + 16 + 32 + 32
+    };
     assert_eq!(t.gpu_bytes(), plain + scratch(n));
     // A larger model grows the list of large splats, a smaller one does not
     // shrink it.

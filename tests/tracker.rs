@@ -344,3 +344,74 @@ fn the_windowed_silhouette_is_the_whole_frame_one() {
         same(&a, &b);
     }
 }
+
+#[test]
+fn the_steady_loop_allocates_no_gpu_buffers() {
+    // Issue 13: read/gather outputs, staging buffers, Harris and NCC
+    // buffers and render targets (one set per window size) are kept and
+    // reused across frames. Frames 0..8 and back: going back, every
+    // window size has been seen (and is still kept: three spare sets) and
+    // every buffer has grown, so no frame allocates. A context of its own, so that other tests' buffers are
+    // not counted.
+    use splattrack::gpu::{AdapterChoice, GpuContext};
+    let f = fixture();
+    let ctx = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let mut t = Tracker::new(
+        &ctx,
+        f.scene.model.clone(),
+        f.scene.cam,
+        Some(f.store.clone()),
+        TrackerConfig::default(),
+        f.frames[0].pose,
+    )
+    .expect("tracker");
+    let order: Vec<usize> = (0..8).chain((0..7).rev()).collect();
+    let made: Vec<u64> = order
+        .iter()
+        .map(|&i| {
+            let before = ctx.buffers_created();
+            let r = t.track(&f.frames[i].image).expect("track");
+            assert_eq!(r.status, Status::Tracking, "frame {i}");
+            ctx.buffers_created() - before
+        })
+        .collect();
+    eprintln!("GPU buffers made per frame, 0..8 and back: {made:?}");
+    assert!(made[0] > 0, "the first frame makes the buffers: {made:?}");
+    assert!(
+        made[8..].iter().all(|&n| n == 0),
+        "frames seen before allocate: {made:?}"
+    );
+}
+
+#[test]
+fn the_resident_check_gives_the_host_checks_poses() {
+    // The pose check scored on the GPU (shaders/verify.wgsl) or on the
+    // host from a readback (the default on CPU adapters): the same
+    // statuses and poses (the scores agree to f32 rounding:
+    // tests/verify_gpu.rs).
+    let f = fixture();
+    let make = |resident: bool| {
+        let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
+        t.set_resident_check(resident);
+        t
+    };
+    let (mut gpu, mut host) = (make(true), make(false));
+    for (i, fr) in f.frames[..6].iter().enumerate() {
+        let (a, b) = (
+            gpu.track(&fr.image).unwrap(),
+            host.track(&fr.image).unwrap(),
+        );
+        assert_eq!(a.status, b.status, "frame {i}");
+        let (sa, sb) = (a.verify.expect("checked"), b.verify.expect("checked"));
+        assert_eq!(sa.covered_px, sb.covered_px, "frame {i}");
+        let d = |x: Option<f64>, y: Option<f64>| (x.unwrap() - y.unwrap()).abs();
+        assert!(d(sa.zncc, sb.zncc) < 1e-4, "frame {i}: {sa:?} vs {sb:?}");
+        assert!(
+            d(sa.edge_support, sb.edge_support) < 0.01,
+            "frame {i}: {sa:?} vs {sb:?}"
+        );
+        assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
+    }
+}

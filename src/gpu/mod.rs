@@ -99,6 +99,13 @@ pub const DEFAULT_TIMEOUT_S: u64 = 300;
 struct Health {
     first_error: std::sync::Mutex<Option<GpuError>>,
     lost: std::sync::Mutex<Option<String>>,
+    /// Buffers made through [`GpuContext::buffer`] and
+    /// [`GpuContext::buffer_init`] (issue 13: the steady frame loop makes
+    /// none).
+    buffers_created: std::sync::atomic::AtomicU64,
+    /// The staging buffer of readbacks, grow-only; taken while in use (a
+    /// concurrent readback makes its own).
+    staging: std::sync::Mutex<Option<wgpu::Buffer>>,
 }
 
 impl Health {
@@ -545,6 +552,7 @@ impl GpuContext {
             self.health.record(e);
             return self.buffer(label, 16, usage);
         }
+        self.count_buffer();
         // wgpu rejects zero-sized bindings: keep at least 16 bytes.
         if bytes.len() < 16 {
             let mut padded = bytes.to_vec();
@@ -577,12 +585,62 @@ impl GpuContext {
                 16
             }
         };
+        self.count_buffer();
         self.device.create_buffer(&wgpu::BufferDescriptor {
             label: Some(label),
             size: size.max(16).next_multiple_of(4),
             usage,
             mapped_at_creation: false,
         })
+    }
+
+    fn count_buffer(&self) {
+        self.health
+            .buffers_created
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// How many buffers [`GpuContext::buffer`] and
+    /// [`GpuContext::buffer_init`] have made on this device so far (all
+    /// clones of this context together): the difference over a stretch of
+    /// work is what it allocated.
+    pub fn buffers_created(&self) -> u64 {
+        self.health
+            .buffers_created
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// A mappable staging buffer of at least `size` bytes: the kept one
+    /// when it is free and large enough (grown otherwise), else a new one.
+    /// Give it back with [`GpuContext::put_staging`].
+    fn take_staging(&self, size: u64) -> wgpu::Buffer {
+        let kept = self
+            .health
+            .staging
+            .try_lock()
+            .ok()
+            .and_then(|mut s| s.take())
+            .filter(|b| b.size() >= size);
+        kept.unwrap_or_else(|| {
+            self.buffer(
+                "readback",
+                size.next_power_of_two()
+                    .max(4096)
+                    .min(self.limits.max_buffer_size)
+                    .max(size),
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            )
+        })
+    }
+
+    /// Keeps `b` (unmapped) for the next readback, unless a larger one is
+    /// kept.
+    fn put_staging(&self, b: wgpu::Buffer) {
+        if let Ok(mut s) = self.health.staging.try_lock()
+            && s.as_ref().is_none_or(|k| k.size() < b.size())
+        {
+            *s = Some(b);
+        }
     }
 
     /// [`GpuContext::buffer`], refusing a size above the adapter's limits
@@ -614,15 +672,13 @@ impl GpuContext {
                 buffer.size()
             )));
         }
-        let staging = self.buffer(
-            "readback",
-            size,
-            wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-        );
+        let staging = self.take_staging(size.next_multiple_of(4));
         let mut enc = self.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size.next_multiple_of(4));
         self.queue.submit([enc.finish()]);
+        // A failed map may leave the buffer pending: dropped, not kept.
         let bytes = self.map_read(&staging, size)?;
+        self.put_staging(staging);
         Ok(bytemuck::pod_collect_to_vec(&bytes[..size as usize]))
     }
 

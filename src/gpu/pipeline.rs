@@ -128,13 +128,25 @@ impl GrowBuffer {
     }
 
     /// Ensures at least `size` bytes; true when the buffer was (re)created,
-    /// so bind groups referencing it must be rebuilt.
+    /// so bind groups referencing it must be rebuilt. Grows to the next
+    /// power of two (within the adapter's limit), so that sizes that vary
+    /// from frame to frame stop reallocating after a few frames.
     pub fn ensure(&mut self, ctx: &GpuContext, size: u64) -> bool {
         let size = size.max(16).next_multiple_of(16);
         if self.buffer.as_ref().is_some_and(|b| b.size() >= size) {
             return false;
         }
-        self.buffer = Some(ctx.buffer(self.label, size, self.usage));
+        let grown = size
+            .next_power_of_two()
+            .min(
+                ctx.limits
+                    .max_buffer_size
+                    .min(ctx.limits.max_storage_buffer_binding_size)
+                    / 16
+                    * 16,
+            )
+            .max(size);
+        self.buffer = Some(ctx.buffer(self.label, grown, self.usage));
         true
     }
 

@@ -12,8 +12,8 @@ use super::{
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{
-    GpuContext, GpuTimer, STORAGE_OUT, WORKGROUP_1D, buffer_entry, compute_entry, storage,
-    texture_entry, workgroups,
+    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, WORKGROUP_1D, buffer_entry,
+    compute_entry, storage, texture_entry, workgroups,
 };
 
 /// The GPU splatter: pipelines for the three passes and the gather kernel.
@@ -37,6 +37,50 @@ pub struct Splatter {
     /// this (pixels, radius) go through the render pass
     /// ([`super::AUTO_CPU_RENDER_PASS_ABOVE_PX`]).
     render_pass_above_px: Option<f64>,
+    /// Buffers and bind groups of `read`/`gather`, kept across calls.
+    reuse: std::sync::Mutex<Reuse>,
+    /// Held through a `read` or `gather`, whose kept buffers one call at a
+    /// time may use.
+    busy: std::sync::Mutex<()>,
+}
+
+/// Bind groups of resolves and gathers kept (one per recent targets and
+/// output buffer).
+const KEPT_BINDS: usize = 4;
+
+/// The buffers [`Splatter::read`] and [`Splatter::gather`] reuse
+/// (grow-only) and the bind groups made on them.
+struct Reuse {
+    /// The uniform of each resolve kind (indexed by kind).
+    params: [Option<wgpu::Buffer>; 5],
+    gather_params: Option<wgpu::Buffer>,
+    /// Indexed by [`Grown`].
+    buffers: [GrowBuffer; 3],
+    binds: Vec<(BindKey, wgpu::BindGroup)>,
+}
+
+#[derive(Clone, Copy)]
+enum Grown {
+    Read = 0,
+    Gather = 1,
+    Points = 2,
+}
+
+fn resolve_params(ctx: &GpuContext) -> wgpu::Buffer {
+    ctx.buffer(
+        "splat resolve params",
+        std::mem::size_of::<ResolveParams>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    )
+}
+
+/// What a kept resolve bind group binds.
+#[derive(PartialEq)]
+struct BindKey {
+    view: wgpu::TextureView,
+    params: wgpu::Buffer,
+    out: wgpu::Buffer,
+    points: Option<wgpu::Buffer>,
 }
 
 impl Splatter {
@@ -187,6 +231,17 @@ impl Splatter {
             backend,
             compute,
             render_pass_above_px,
+            reuse: std::sync::Mutex::new(Reuse {
+                params: std::array::from_fn(|_| Some(resolve_params(ctx))),
+                gather_params: Some(resolve_params(ctx)),
+                buffers: [
+                    GrowBuffer::new("splat image", STORAGE_OUT),
+                    GrowBuffer::new("gather out", STORAGE_OUT),
+                    GrowBuffer::new("gather points", STORAGE_IN),
+                ],
+                binds: Vec::new(),
+            }),
+            busy: std::sync::Mutex::new(()),
         })
     }
 
@@ -338,6 +393,10 @@ impl Splatter {
         Ok(())
     }
 
+    /// The bind group of a resolve or gather into `out` from `targets`,
+    /// with its uniform set to `params` (written now: each caller submits
+    /// before the next writes). Kept per (targets, out, points) and reused
+    /// (issue 13: no allocation per frame).
     fn resolve_bind(
         &self,
         ctx: &GpuContext,
@@ -346,11 +405,34 @@ impl Splatter {
         out: &wgpu::Buffer,
         points: Option<&wgpu::Buffer>,
     ) -> wgpu::BindGroup {
-        let pbuf = ctx.buffer_init(
-            "splat resolve params",
-            &[params],
-            wgpu::BufferUsages::UNIFORM,
-        );
+        let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
+        let slot = params.kind as usize % reuse.params.len();
+        let gather = points.is_some();
+        let pbuf = reuse.params[slot]
+            .get_or_insert_with(|| resolve_params(ctx))
+            .clone();
+        let pbuf = if gather {
+            reuse
+                .gather_params
+                .get_or_insert_with(|| resolve_params(ctx))
+                .clone()
+        } else {
+            pbuf
+        };
+        ctx.queue
+            .write_buffer(&pbuf, 0, bytemuck::bytes_of(&params));
+        let key = BindKey {
+            view: targets.acc_views[0].clone(),
+            params: pbuf.clone(),
+            out: out.clone(),
+            points: points.cloned(),
+        };
+        if let Some(i) = reuse.binds.iter().position(|(k, _)| *k == key) {
+            let hit = reuse.binds.remove(i);
+            let bind = hit.1.clone();
+            reuse.binds.insert(0, hit);
+            return bind;
+        }
         let mut entries = vec![wgpu::BindGroupEntry {
             binding: 0,
             resource: pbuf.as_entire_binding(),
@@ -369,26 +451,36 @@ impl Splatter {
             binding: 7,
             resource: points.unwrap_or(&self.dummy_points).as_entire_binding(),
         });
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat resolve"),
             layout: &self.resolve_layout,
             entries: &entries,
-        })
+        });
+        reuse.binds.insert(0, (key, bind.clone()));
+        reuse.binds.truncate(KEPT_BINDS);
+        bind
     }
 
-    /// Normalises one attribute of the last render on the GPU and reads the
-    /// whole image back (for the CLI and tests; the tracker uses
-    /// [`Splatter::gather`]).
-    pub fn read(
+    /// Normalises one attribute of the last render on the GPU into `out`
+    /// (at least width x height x channels floats, `STORAGE`), where it
+    /// stays: nothing is read back. Submitted at once.
+    pub fn resolve_into(
         &self,
         ctx: &GpuContext,
         targets: &SplatTargets,
         attribute: Attribute,
-    ) -> Result<SplatImage, SplatError> {
+        out: &wgpu::Buffer,
+    ) -> Result<(), SplatError> {
         targets.check(attribute.needs(), attribute)?;
         let (w, h) = (targets.width, targets.height);
-        let n = w as usize * h as usize * attribute.channels();
-        let out = ctx.buffer("splat image", (n * 4) as u64, STORAGE_OUT);
+        let n = w as u64 * h as u64 * attribute.channels() as u64;
+        if out.size() < n * 4 {
+            return Err(SplatError::Unsupported(format!(
+                "resolve_into: a {}-byte buffer for {} bytes",
+                out.size(),
+                n * 4
+            )));
+        }
         let bind = self.resolve_bind(
             ctx,
             targets,
@@ -398,7 +490,7 @@ impl Splatter {
                 kind: attribute.kind(),
                 mode: GATHER_NEAREST,
             },
-            &out,
+            out,
             None,
         );
         let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -413,6 +505,24 @@ impl Splatter {
             );
         }
         ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// Normalises one attribute of the last render on the GPU and reads the
+    /// whole image back (for the CLI and tests; the tracker uses
+    /// [`Splatter::gather`]).
+    pub fn read(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        attribute: Attribute,
+    ) -> Result<SplatImage, SplatError> {
+        targets.check(attribute.needs(), attribute)?;
+        let (w, h) = (targets.width, targets.height);
+        let n = w as usize * h as usize * attribute.channels();
+        let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
+        let out = self.grown(ctx, Grown::Read, (n * 4) as u64);
+        self.resolve_into(ctx, targets, attribute, &out)?;
         let data = ctx.read_buffer::<f32>(&out, n)?;
         Ok(SplatImage {
             width: w,
@@ -420,6 +530,14 @@ impl Splatter {
             channels: attribute.channels(),
             data,
         })
+    }
+
+    /// A kept buffer of at least `size` bytes (grow-only).
+    fn grown(&self, ctx: &GpuContext, which: Grown, size: u64) -> wgpu::Buffer {
+        let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
+        let b = &mut reuse.buffers[which as usize];
+        b.ensure(ctx, size);
+        b.get().clone()
     }
 
     /// Motion predictors, depth and validity at `points` (OpenCV pixel
@@ -436,9 +554,13 @@ impl Splatter {
         if points.is_empty() {
             return Ok(Vec::new());
         }
-        let pbuf = ctx.buffer_init("gather points", points, wgpu::BufferUsages::STORAGE);
+        let bytes: &[u8] = bytemuck::cast_slice(points);
+        let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
+        ctx.check_buffer_size("gather points", bytes.len() as u64, STORAGE_IN)?;
+        let pbuf = self.grown(ctx, Grown::Points, bytes.len() as u64);
+        ctx.queue.write_buffer(&pbuf, 0, bytes);
         let n = points.len() * GATHER_STRIDE;
-        let out = ctx.buffer("gather out", (n * 4) as u64, STORAGE_OUT);
+        let out = self.grown(ctx, Grown::Gather, (n * 4) as u64);
         let bind = self.resolve_bind(
             ctx,
             targets,

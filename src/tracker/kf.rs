@@ -84,19 +84,19 @@ impl Tracker {
         let k = self
             .render_view_in(pose, Attributes::ALL, window, "KF")?
             .ok_or(StepError::NoKeyframes)?;
-        // The novel view of the window only (its corners in window
-        // coordinates, then in the frame's).
-        let colour = self
-            .splatter
-            .read(&self.ctx, &self.targets, Attribute::Color)?;
-        let view =
-            GreyImage::from_rgb_f32(colour.width as usize, colour.height as usize, &colour.data)?;
         self.stages.kf_render += t.elapsed();
+        // The novel view of the window only (its corners in window
+        // coordinates, then in the frame's): its colour is resolved into
+        // Harris's input on the GPU, and only its grey levels come back
+        // (for the NCC windows and the refinement).
         let t = std::time::Instant::now();
+        let (w, h) = (window.width as usize, window.height as usize);
+        let target = self.harris.colour_target(w, h)?;
+        self.splatter
+            .resolve_into(&self.ctx, &self.targets, Attribute::Color, &target)?;
+        let (corners, view) = self.harris.detect_resolved(w, h)?;
         let o = window.origin();
-        let view_corners: Vec<Corner> = self
-            .harris
-            .detect(&view, None)?
+        let view_corners: Vec<Corner> = corners
             .into_iter()
             .map(|c| Corner {
                 x: c.x + o[0],

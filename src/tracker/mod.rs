@@ -43,6 +43,7 @@ mod it;
 mod kf;
 mod profile;
 pub mod verify;
+pub mod verify_gpu;
 mod view;
 
 pub use config::{ConfigError, Modalities, Mode, TrackerConfig};
@@ -313,6 +314,8 @@ pub struct Tracker {
     stages: StageTimes,
     /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
     gpu_timer: Option<crate::gpu::GpuTimer>,
+    /// The check's scoring on the GPU (issue 13).
+    check: verify_gpu::GpuCheck,
 }
 
 impl Tracker {
@@ -429,6 +432,7 @@ impl Tracker {
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
+            check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);

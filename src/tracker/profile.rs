@@ -24,6 +24,7 @@ impl Tracker {
     pub fn enable_gpu_timing(&mut self) {
         self.gpu_timer = Some(GpuTimer::new(&self.ctx, 2));
         self.harris.enable_timing();
+        self.check.enable_timing();
         for m in [
             &mut self.it_matcher,
             &mut self.kf_matcher,

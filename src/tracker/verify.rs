@@ -191,6 +191,13 @@ pub fn zncc_of(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
         sbb += b * b;
         sab += a * b;
     }
+    zncc_of_sums([n, sa, sb, saa, sbb, sab])
+}
+
+/// ZNCC of paired samples from their sums `[n, Σa, Σb, Σa², Σb², Σab]`
+/// (the GPU check reduces to these); `None` under 50 pairs or without
+/// contrast.
+pub fn zncc_of_sums([n, sa, sb, saa, sbb, sab]: [f64; 6]) -> Option<f64> {
     if n < 50.0 {
         return None;
     }
@@ -331,6 +338,13 @@ impl super::Tracker {
         seen as f64 / all as f64
     }
 
+    /// Scores the check on the GPU (`true`, the default on GPUs) or on the
+    /// host from a readback of the view (the default on CPU adapters):
+    /// [`super::verify_gpu::GpuCheck::resident`]. The scores are the same.
+    pub fn set_resident_check(&mut self, on: bool) {
+        self.check.set_resident(on);
+    }
+
     /// Scores `pose` against `frame` (module docs).
     pub(super) fn verify_scores(
         &mut self,
@@ -356,6 +370,29 @@ impl super::Tracker {
             Attributes::COLOR
         };
         let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
+        let frame = super::view::Placed::full(frame).crop(&window);
+        if self.check.resident() && self.check.fits(window.width, window.height) {
+            // Resident: the view is resolved into the check's buffers and
+            // scored there; CHECK_SUMS floats come back.
+            let (wb, cb) = self.check.targets(window.width, window.height);
+            let (wb, cb) = (wb.clone(), cb.clone());
+            self.splatter
+                .resolve_into(&self.ctx, &self.targets, Attribute::Weight, &wb)?;
+            if textured {
+                self.splatter
+                    .resolve_into(&self.ctx, &self.targets, Attribute::Color, &cb)?;
+            }
+            self.keep_render(*pose);
+            let s = self
+                .check
+                .score(&frame, textured, visible, &self.config.verify)
+                .map_err(crate::splat::SplatError::from)?;
+            if self.gpu_timer.is_some() {
+                let r = self.check.last_timings().clone();
+                super::profile::note(&mut self.stages.gpu, "check score", &r);
+            }
+            return Ok(s);
+        }
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;
@@ -372,7 +409,6 @@ impl super::Tracker {
         } else {
             None
         };
-        let frame = super::view::Placed::full(frame).crop(&window);
         self.keep_render(*pose);
         Ok(score(
             &frame,

@@ -24,7 +24,8 @@ use crate::features::{Corner, FeatureError, GreyImage, Match, NccMatcher};
 use crate::geometry::{Intrinsics, Pose};
 use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
 
-/// Spare render targets kept (one per recent window size).
+/// Spare render targets kept (one per recent window size; a sequence
+/// cycles through a few sizes, and a size not kept costs new targets).
 const SPARE_TARGETS: usize = 3;
 
 /// A render kept for a later step: the check's render of the reported

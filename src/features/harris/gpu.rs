@@ -20,7 +20,12 @@ pub struct Harris {
     passes: Vec<wgpu::ComputePipeline>,
     refine: wgpu::ComputePipeline,
     grey: wgpu::ComputePipeline,
+    grey_f32: wgpu::ComputePipeline,
+    pack_f32: wgpu::ComputePipeline,
+    /// RGBA8 frames, or a view's resolved colour (3 f32 a pixel).
     rgba: GrowBuffer,
+    /// The grey levels of a resolved view, kept for the host.
+    grey_out: GrowBuffer,
     params: wgpu::Buffer,
     pixels: GrowBuffer,
     tmp: GrowBuffer,
@@ -48,10 +53,13 @@ impl Harris {
             &layout,
             &[
                 PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
+                "grey_f32", "pack_f32",
             ],
         )?;
-        let grey = all.pop().expect("seven pipelines");
-        let refine = all.pop().expect("seven pipelines");
+        let pack_f32 = all.pop().expect("nine pipelines");
+        let grey_f32 = all.pop().expect("nine pipelines");
+        let grey = all.pop().expect("nine pipelines");
+        let refine = all.pop().expect("nine pipelines");
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -59,7 +67,10 @@ impl Harris {
             passes: all,
             refine,
             grey,
+            grey_f32,
+            pack_f32,
             rgba: GrowBuffer::new("harris rgba", STORAGE_IN),
+            grey_out: GrowBuffer::new("harris grey", STORAGE_OUT),
             params: ctx.buffer(
                 "harris params",
                 std::mem::size_of::<HarrisParams>() as u64,
@@ -85,7 +96,7 @@ impl Harris {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 2));
+        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 3));
     }
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
@@ -157,7 +168,8 @@ impl Harris {
         let ctx = &self.ctx.clone();
         let mut changed = false;
         changed |= self.pixels.ensure(ctx, (w * h * 8) as u64);
-        changed |= self.rgba.ensure(ctx, (w * h * 4) as u64);
+        changed |= self.rgba.ensure(ctx, (w * h * 12) as u64);
+        self.grey_out.ensure(ctx, (w * h * 4) as u64);
         changed |= self.tmp.ensure(ctx, big);
         changed |= self.grad.ensure(ctx, big);
         changed |= self.response.ensure(ctx, (w * h * 4) as u64);
@@ -210,6 +222,8 @@ impl Harris {
                 ctx.queue
                     .write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
             }
+            // Already on the GPU (Harris::colour_target).
+            Input::Resolved { .. } => {}
         }
         ctx.queue.write_buffer(
             self.counters.get(),
@@ -232,6 +246,23 @@ impl Harris {
             pass.set_pipeline(&self.grey);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
+        }
+        if let Input::Resolved { .. } = input {
+            for (pipeline, label) in [(&self.grey_f32, "grey"), (&self.pack_f32, "pack")] {
+                let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, bind, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+            // The grey levels, before the integration passes reuse
+            // `response`.
+            enc.copy_buffer_to_buffer(
+                self.response.get(),
+                0,
+                self.grey_out.get(),
+                0,
+                (w * h * 4) as u64,
+            );
         }
         for (pipeline, label) in self.passes.iter().zip(PASSES) {
             let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
@@ -285,6 +316,37 @@ impl Harris {
             });
         }
         self.detect_input(Input::Rgb(img), mask)
+    }
+
+    /// The buffer to resolve a splatted view's colour into (3 f32 a
+    /// pixel, NaN where empty: [`crate::splat::Splatter::resolve_into`]) for
+    /// [`Harris::detect_resolved`] on a `width x height` view.
+    pub fn colour_target(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<wgpu::Buffer, FeatureError> {
+        self.prepare(width.max(1), height.max(1))?;
+        Ok(self.rgba.get().clone())
+    }
+
+    /// Harris corners of the view resolved into [`Harris::colour_target`]:
+    /// grey conversion (as [`GreyImage::from_rgb_f32`]) and packing (as
+    /// the host packs a [`GreyImage`], pinholes included) on the GPU, so
+    /// the view's colour never comes back. Returns the corners (as
+    /// [`Harris::detect`] of that grey image without a mask) and the grey
+    /// image (one float a pixel, read back for NCC windows and refinement).
+    pub fn detect_resolved(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<(Vec<Corner>, GreyImage), FeatureError> {
+        if width == 0 || height == 0 {
+            return Ok((Vec::new(), GreyImage::filled(width, height, 0.0)));
+        }
+        let corners = self.detect_input(Input::Resolved { width, height }, None)?;
+        let data = self.ctx.read_buffer(self.grey_out.get(), width * height)?;
+        Ok((corners, GreyImage::new(width, height, data)?))
     }
 
     fn detect_input(
@@ -378,6 +440,11 @@ impl Harris {
 enum Input<'i> {
     Grey(&'i GreyImage),
     Rgb(&'i image::RgbImage),
+    /// A view's colour resolved into `rgba` on the GPU.
+    Resolved {
+        width: usize,
+        height: usize,
+    },
 }
 
 impl Input<'_> {
@@ -385,6 +452,7 @@ impl Input<'_> {
         match self {
             Input::Grey(g) => (g.width, g.height),
             Input::Rgb(c) => (c.width() as usize, c.height() as usize),
+            Input::Resolved { width, height } => (*width, *height),
         }
     }
 }

@@ -1,0 +1,171 @@
+// The pose check's scores on the GPU (issue 12's check, issue 13's
+// resident loop): the splatted view's weight and colour (resolved by the
+// splatter into buffers that never leave the GPU) against the frame's grey
+// levels over the same window, reduced to CHECK_SUMS floats. CPU
+// reference: `verify::score` in src/tracker/verify.rs (the same rules:
+// inner pixels for the ZNCC, contour pixels and the edge search along the
+// silhouette's normal for the edge support).
+//
+// `rows`: one thread per image row writes the row's sums; `sum_rows`:
+// one thread per sum adds the rows. The grey levels are summed less `centre` (ZNCC is blind to an
+// offset) so that the f32 sums of squares keep the variance.
+//
+// The sums, in this order: covered pixels, ZNCC pairs n, sum a, sum b,
+// sum aa, sum bb, sum ab (a: the view's grey, b: the frame's), contour
+// pixels, supported contour pixels.
+
+// Twin: `CheckParams` in src/tracker/verify_gpu.rs.
+struct CheckParams {
+    width: u32,
+    height: u32,
+    // VerifyConfig::edge_search_px.
+    search: u32,
+    // VerifyConfig::edge_gradient.
+    gradient: f32,
+    centre: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(0) var<uniform> params: CheckParams;
+@group(0) @binding(1) var<storage, read> weight: array<f32>;
+@group(0) @binding(2) var<storage, read> colour: array<f32>;
+@group(0) @binding(3) var<storage, read> frame: array<f32>;
+@group(0) @binding(4) var<storage, read_write> partial: array<f32>;
+@group(0) @binding(5) var<storage, read_write> total: array<f32>;
+
+// NaN is tested on the bits: WGSL need not keep NaN through comparisons.
+fn is_nan_bits(v: f32) -> bool {
+    let b = bitcast<u32>(v);
+    return (b & 0x7f800000u) == 0x7f800000u && (b & 0x007fffffu) != 0u;
+}
+
+fn covered(x: u32, y: u32) -> bool {
+    let w = weight[y * params.width + x];
+    return !is_nan_bits(w) && w > 0.0;
+}
+
+fn mask(x: u32, y: u32) -> f32 {
+    return select(0.0, 1.0, covered(x, y));
+}
+
+fn view_grey(i: u32) -> f32 {
+    return LUMA_R * colour[3u * i] + LUMA_G * colour[3u * i + 1u] + LUMA_B * colour[3u * i + 2u];
+}
+
+fn px(x: u32, y: u32) -> f32 {
+    return frame[y * params.width + x];
+}
+
+// Sobel / 8 of the frame at (x, y), 1 <= x < width - 1, 1 <= y < height - 1.
+fn frame_sobel(x: u32, y: u32) -> vec2<f32> {
+    let gx = (px(x + 1u, y - 1u) + 2.0 * px(x + 1u, y) + px(x + 1u, y + 1u))
+        - (px(x - 1u, y - 1u) + 2.0 * px(x - 1u, y) + px(x - 1u, y + 1u));
+    let gy = (px(x - 1u, y + 1u) + 2.0 * px(x, y + 1u) + px(x + 1u, y + 1u))
+        - (px(x - 1u, y - 1u) + 2.0 * px(x, y - 1u) + px(x + 1u, y - 1u));
+    return vec2<f32>(gx, gy) / 8.0;
+}
+
+fn mask_sobel(x: u32, y: u32) -> vec2<f32> {
+    let gx = (mask(x + 1u, y - 1u) + 2.0 * mask(x + 1u, y) + mask(x + 1u, y + 1u))
+        - (mask(x - 1u, y - 1u) + 2.0 * mask(x - 1u, y) + mask(x - 1u, y + 1u));
+    let gy = (mask(x - 1u, y + 1u) + 2.0 * mask(x, y + 1u) + mask(x + 1u, y + 1u))
+        - (mask(x - 1u, y - 1u) + 2.0 * mask(x, y - 1u) + mask(x + 1u, y - 1u));
+    return vec2<f32>(gx, gy) / 8.0;
+}
+
+// Whether a contour pixel (x, y) with unit normal n has a frame edge along
+// n within `search` pixels (the rule of `verify::edge_support`).
+fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
+    let steps = i32(params.search);
+    let r = f32(params.search);
+    let w = f32(params.width);
+    let h = f32(params.height);
+    for (var s = -steps; s <= steps; s++) {
+        let d = f32(s) / f32(max(steps, 1)) * r;
+        // Rounding half away from zero, as Rust's f64::round, for the
+        // values that can pass the bounds below.
+        let q = floor(vec2<f32>(f32(x), f32(y)) + d * n + 0.5);
+        if q.x < 1.0 || q.y < 1.0 || q.x >= w - 1.0 || q.y >= h - 1.0 {
+            continue;
+        }
+        let g = frame_sobel(u32(q.x), u32(q.y));
+        if abs(g.x * n.x + g.y * n.y) >= params.gradient {
+            return true;
+        }
+    }
+    return false;
+}
+
+// One thread per row: scalar sums and no barrier (barriers and arrays
+// indexed at run time are slow on CPU adapters; a window has hundreds of
+// rows, enough threads for a GPU too).
+@compute @workgroup_size(CHECK_WORKGROUP)
+fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
+    let y = id.x;
+    let w = params.width;
+    let h = params.height;
+    if y >= h {
+        return;
+    }
+    var covered_px = 0.0;
+    var n = 0.0;
+    var sa = 0.0;
+    var sb = 0.0;
+    var saa = 0.0;
+    var sbb = 0.0;
+    var sab = 0.0;
+    var contour = 0.0;
+    var hits = 0.0;
+    for (var x = 0u; x < w; x++) {
+        if !covered(x, y) {
+            continue;
+        }
+        covered_px += 1.0;
+        if x == 0u || y == 0u || x + 1u >= w || y + 1u >= h {
+            continue;
+        }
+        let four = covered(x - 1u, y) && covered(x + 1u, y) && covered(x, y - 1u)
+            && covered(x, y + 1u);
+        if four {
+            let i = y * w + x;
+            let a = view_grey(i) - params.centre;
+            let b = frame[i] - params.centre;
+            n += 1.0;
+            sa += a;
+            sb += b;
+            saa += a * a;
+            sbb += b * b;
+            sab += a * b;
+            continue;
+        }
+        let m = mask_sobel(x, y);
+        let norm = length(m);
+        if norm < 1e-9 {
+            continue;
+        }
+        contour += 1.0;
+        hits += select(0.0, 1.0, supported(x, y, m / norm));
+    }
+    let o = y * CHECK_SUMS;
+    partial[o] = covered_px;
+    partial[o + 1u] = n;
+    partial[o + 2u] = sa;
+    partial[o + 3u] = sb;
+    partial[o + 4u] = saa;
+    partial[o + 5u] = sbb;
+    partial[o + 6u] = sab;
+    partial[o + 7u] = contour;
+    partial[o + 8u] = hits;
+}
+
+// One thread per sum, over the rows.
+@compute @workgroup_size(CHECK_SUMS)
+fn sum_rows(@builtin(local_invocation_index) k: u32) {
+    var s = 0.0;
+    for (var y = 0u; y < params.height; y++) {
+        s += partial[y * CHECK_SUMS + k];
+    }
+    total[k] = s;
+}
