@@ -166,16 +166,26 @@ struct Sums {
     iz: i32,
 }
 
-// The fragment of the splat at a pixel whose visibility depth bits are
-// `vis`: zero sums where the kernel is zero or the fragment fails the
-// render pass's less-or-equal test against pass 1's depth. Depths are
+// The visibility depth bits of a pixel (after pass 1).
+fn pixel_vis(x: i32, y: i32) -> u32 {
+    return DEPTH_ONE - atomicLoad(&depth_key[u32(y) * params.width + u32(x)]);
+}
+
+// The fragment of the splat at a pixel (pass 2): zero sums where the
+// kernel is zero or the fragment fails the render pass's less-or-equal
+// test against pass 1's depth (loaded only where the kernel is not zero:
+// most of a small splat's box is outside its ellipse). Depths are
 // relative to the pixel's visibility depth zv: every fragment passing the
 // test lies within the push-back in front of it, so z / zv is about 1 at
 // any distance. Sums of groups not in `params.flags` stay zero.
-fn fragment(s: Setup, x: i32, y: i32, vis: u32) -> Sums {
+fn fragment(s: Setup, x: i32, y: i32) -> Sums {
     var out: Sums;
     let hit = intersect(s, vec2<f32>(f32(x), f32(y)));
-    if hit.w <= 0.0 || bitcast<u32>(depth_of(hit.x.z)) > vis {
+    if hit.w <= 0.0 {
+        return out;
+    }
+    let vis = pixel_vis(x, y);
+    if bitcast<u32>(depth_of(hit.x.z)) > vis {
         return out;
     }
     let w = hit.w;
@@ -190,11 +200,6 @@ fn fragment(s: Setup, x: i32, y: i32, vis: u32) -> Sums {
         out.iz = fixed(w * zv / hit.x.z);
     }
     return out;
-}
-
-// The visibility depth bits of a pixel (after pass 1).
-fn pixel_vis(x: i32, y: i32) -> u32 {
-    return DEPTH_ONE - atomicLoad(&depth_key[u32(y) * params.width + u32(x)]);
 }
 
 // Adds a fragment's sums to its pixel's accumulators (nothing where the
@@ -220,7 +225,7 @@ fn add_to_pixel(x: i32, y: i32, f: Sums) {
 }
 
 fn accumulate_pixel(s: Setup, x: i32, y: i32) {
-    add_to_pixel(x, y, fragment(s, x, y, pixel_vis(x, y)));
+    add_to_pixel(x, y, fragment(s, x, y));
 }
 
 // Which pass `splat_pixel` serves.

@@ -563,8 +563,11 @@ pub fn load_keyframe_images(
 }
 
 /// Default GPU memory for the keyframe colours of [`TexturedCache`]:
-/// 256 MB (64 keyframes of a million points).
-pub const DEFAULT_TEXTURED_BUDGET: u64 = 256 << 20;
+/// 64 MB (16 keyframes of a million points, 160 of 100k), so that a
+/// 1M-point model's whole GPU memory at 640x480 stays under 256 MB
+/// (BENCHMARKS.md "Memory"); a dropped keyframe costs one 4-bytes-a-point
+/// upload when it is needed again.
+pub const DEFAULT_TEXTURED_BUDGET: u64 = 64 << 20;
 
 /// GPU bytes of one point's colour (RGBA8); the geometry is shared.
 const COLOR_BYTES: u64 = 4;
