@@ -432,11 +432,21 @@ impl Tracker {
     pub fn find(&mut self, frame: &image::RgbImage) -> Result<Option<Pose>, TrackError> {
         let grey = GreyImage::from_rgb8(frame);
         let corners = self.harris.detect(&grey, None)?;
-        let frame = Frame { grey, corners };
-        self.find_in(&frame)
+        let grey_frame = Frame { grey, corners };
+        let found = self.find_in(&grey_frame, frame);
+        if self.config.modalities.contour {
+            // The candidates' colours are not the object's: the first
+            // tracked frame learns them afresh at its pose.
+            self.colours = super::contour::ColourModel::new(self.config.contour.bins);
+        }
+        found
     }
 
-    pub(super) fn find_in(&mut self, frame: &Frame) -> Result<Option<Pose>, TrackError> {
+    pub(super) fn find_in(
+        &mut self,
+        frame: &Frame,
+        rgb: &image::RgbImage,
+    ) -> Result<Option<Pose>, TrackError> {
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let views = self.init_viewpoints();
         let d0 = views
@@ -509,12 +519,19 @@ impl Tracker {
             let z = pose.transform_point(&self.center).z / hit.scale;
             let rot = r * pose.rotation;
             let start = Pose::new(rot, ray * z - rot * self.center)?;
-            let Some(refined) = self.refine_candidate(frame, start)? else {
+            let Some((refined, by_contour)) = self.refine_candidate(frame, rgb, start)? else {
                 continue;
             };
             let s = self.verify_scores(&frame.grey, &refined)?;
-            log::debug!("init candidate {hit:?}: {s:?}");
-            if super::verify::judge(&s, &self.config.verify).is_ok() {
+            log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
+            // Refined by its outline (no texture step held), the edges
+            // decide as they do for a tracked frame.
+            let judged = if by_contour {
+                super::verify::judge_with_contour(&s, &self.config.verify)
+            } else {
+                super::verify::judge(&s, &self.config.verify)
+            };
+            if judged.is_ok() {
                 let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
                 if best.is_none_or(|b| z > b.0) {
                     best = Some((z, refined));
@@ -525,8 +542,16 @@ impl Tracker {
     }
 
     /// The KF step from `start`, wide search first: the refined pose, or
-    /// `None` when a step fails.
-    fn refine_candidate(&mut self, frame: &Frame, start: Pose) -> Result<Option<Pose>, TrackError> {
+    /// `None` when a step fails. Where a KF step fails (too few corners on
+    /// a weakly textured object) and the contour modality is on, the
+    /// outline refines the candidate instead ([`Tracker::contour_candidate`]);
+    /// the flag says so.
+    fn refine_candidate(
+        &mut self,
+        frame: &Frame,
+        rgb: &image::RgbImage,
+        start: Pose,
+    ) -> Result<Option<(Pose, bool)>, TrackError> {
         let mut pose = start;
         for i in 0..self.config.init.refine_steps.max(1) {
             if self.roi(&pose).is_none() {
@@ -540,10 +565,40 @@ impl Tracker {
             match self.kf_step(frame, &pose, search, &[]) {
                 Ok((step, _)) => pose = step.pose,
                 Err(StepError::Gpu(e)) => return Err(TrackError::Search(e)),
+                Err(_) if self.config.modalities.contour => {
+                    return self.contour_candidate(rgb, start);
+                }
                 Err(_) => return Ok(None),
             }
         }
-        Ok(Some(pose))
+        Ok(Some((pose, false)))
+    }
+
+    /// The contour step from `start` (colours learnt at `start`, long lines
+    /// first), `refine_steps` times: the refined pose, or `None` when a
+    /// step fails or is not trusted.
+    fn contour_candidate(
+        &mut self,
+        rgb: &image::RgbImage,
+        start: Pose,
+    ) -> Result<Option<(Pose, bool)>, TrackError> {
+        self.colours = super::contour::ColourModel::new(self.config.contour.bins);
+        let rules = super::decision::Rules::of(&self.config);
+        let mut pose = start;
+        for i in 0..self.config.init.refine_steps.max(1) {
+            if self.roi(&pose).is_none() {
+                return Ok(None);
+            }
+            let step = self.contour_stage(rgb, &pose, i == 0, &[]);
+            if let Some(StepError::Gpu(e)) = step.error {
+                return Err(TrackError::Search(e));
+            }
+            match step.estimate.filter(|e| rules.trusted(e)) {
+                Some(e) => pose = e.pose,
+                None => return Ok(None),
+            }
+        }
+        Ok(Some((pose, true)))
     }
 
     /// The textured view (grey) and coverage (0/1) at `pose` of the
