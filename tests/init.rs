@@ -126,15 +126,7 @@ fn views_turned_20_degrees_from_every_keyframe_are_found() {
     }
     // The torus (its turned outline differs most): the tilted keyframe views.
     let cam = scene.cam;
-    let torus = Scene::new("torus", cam, 60_000);
-    let cfg = SynthConfig {
-        object: "torus".into(),
-        camera: cam,
-        frames: 100,
-        trajectory: Trajectory::Fig10,
-        ..Default::default()
-    };
-    let store = torus.keyframe_store(cfg.distance);
+    let (torus, cfg, store) = fig10_scene("torus", cam);
     let f = render_frame(&cfg, &torus.object, &torus.bg, 80);
     let (ok, secs) = start(&torus.model, cam, &store, &f.image, &f.pose, 0.0);
     assert!(ok, "torus not found in {secs:.1} s");
@@ -205,22 +197,8 @@ fn the_untextured_object_is_found_by_its_outline() {
     // candidates, and with the contour modality the outline does
     // (README "Initialisation and re-detection").
     let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
-    let plain = Scene::new("plain", cam, 60_000);
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        camera: cam,
-        frames: 100,
-        trajectory: Trajectory::Fig10,
-        ..Default::default()
-    };
-    let store = plain.keyframe_store(cfg.distance);
-    let contour = TrackerConfig {
-        modalities: splattrack::tracker::Modalities {
-            texture: false,
-            contour: true,
-        },
-        ..TrackerConfig::default()
-    };
+    let (plain, cfg, store) = fig10_scene("plain", cam);
+    let contour = with_contour(false);
     for i in [0, 40] {
         let f = render_frame(&cfg, &plain.object, &plain.bg, i);
         let (ok, secs) = start_with(
@@ -250,34 +228,11 @@ fn the_untextured_object_is_found_by_its_outline() {
 #[ignore = "minutes on lavapipe: the every-tenth-frame measurement (README)"]
 fn every_tenth_frame_synthetic_and_real() {
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
-        let RealSequence {
-            model,
-            seq,
-            store,
-            gt,
-            ..
-        } = RealSequence::load(name).expect("real data");
-        let diameter = model.diameter() as f64;
-        let runs: Vec<_> = (0..seq.frames.len())
-            .step_by(10)
-            .map(|i| {
-                let img = image::open(&seq.frames[i]).unwrap().to_rgb8();
-                start(&model, seq.camera, &store, &img, &gt[i].pose, diameter)
-            })
-            .collect();
-        summary(name, &runs);
+        summary(name, &every_tenth_real(name, TrackerConfig::default()));
     }
     for object in ["blob", "box", "torus"] {
         let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
-        let scene = Scene::new(object, cam, 60_000);
-        let cfg = SynthConfig {
-            object: object.into(),
-            camera: cam,
-            frames: 100,
-            trajectory: Trajectory::Fig10,
-            ..Default::default()
-        };
-        let store = scene.keyframe_store(cfg.distance);
+        let (scene, cfg, store) = fig10_scene(object, cam);
         let runs: Vec<_> = (0..10)
             .map(|i| {
                 let f = render_frame(&cfg, &scene.object, &scene.bg, 10 * i);
@@ -292,36 +247,62 @@ fn every_tenth_frame_synthetic_and_real() {
 #[ignore = "minutes on lavapipe: the every-tenth-frame measurement with the contour (README)"]
 fn every_tenth_frame_of_the_real_sequences_with_the_contour() {
     for name in ["visp_rbt_dragon", "visp_rbt_cube"] {
-        let RealSequence {
-            model,
-            seq,
-            store,
-            gt,
-            ..
-        } = RealSequence::load(name).expect("real data");
-        let diameter = model.diameter() as f64;
-        let config = TrackerConfig {
-            modalities: splattrack::tracker::Modalities {
-                texture: true,
-                contour: true,
-            },
-            ..TrackerConfig::default()
-        };
-        let runs: Vec<_> = (0..seq.frames.len())
-            .step_by(10)
-            .map(|i| {
-                let img = image::open(&seq.frames[i]).unwrap().to_rgb8();
-                start_with(
-                    &model,
-                    seq.camera,
-                    &store,
-                    &img,
-                    &gt[i].pose,
-                    diameter,
-                    config.clone(),
-                )
-            })
-            .collect();
+        let runs = every_tenth_real(name, with_contour(true));
         summary(&format!("{name}, texture,contour"), &runs);
+    }
+}
+
+/// A fresh search with `config` on every tenth frame of the real sequence
+/// `name` (../shared/data).
+fn every_tenth_real(name: &str, config: TrackerConfig) -> Vec<(bool, f64)> {
+    let RealSequence {
+        model,
+        seq,
+        store,
+        gt,
+        ..
+    } = RealSequence::load(name).expect("real data");
+    let diameter = model.diameter() as f64;
+    (0..seq.frames.len())
+        .step_by(10)
+        .map(|i| {
+            let img = image::open(&seq.frames[i]).unwrap().to_rgb8();
+            start_with(
+                &model,
+                seq.camera,
+                &store,
+                &img,
+                &gt[i].pose,
+                diameter,
+                config.clone(),
+            )
+        })
+        .collect()
+}
+
+/// The synthetic `object` (60k points) seen by `cam`, its 100-frame Fig. 10
+/// sequence and its keyframes.
+fn fig10_scene(object: &str, cam: Intrinsics) -> (Scene, SynthConfig, KeyframeStore) {
+    let scene = Scene::new(object, cam, 60_000);
+    let cfg = SynthConfig {
+        object: object.into(),
+        camera: cam,
+        frames: 100,
+        trajectory: Trajectory::Fig10,
+        ..Default::default()
+    };
+    let store = scene.keyframe_store(cfg.distance);
+    (scene, cfg, store)
+}
+
+/// The default settings with the contour modality on (and texture where
+/// `texture`).
+fn with_contour(texture: bool) -> TrackerConfig {
+    TrackerConfig {
+        modalities: splattrack::tracker::Modalities {
+            texture,
+            contour: true,
+        },
+        ..TrackerConfig::default()
     }
 }
