@@ -170,14 +170,7 @@ fn large_footprints_shared_by_a_workgroup_agree() {
     // Splats hundreds to thousands of pixels wide (over BIG_SPLAT_PIXELS:
     // walked by a workgroup), mixed with small ones (one thread each).
     let mut rng = Rng::new(99);
-    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
-    let small = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
-    model.positions.extend(&small.positions);
-    model.normals.extend(&small.normals);
-    model.radii.extend(&small.radii);
-    if let (Some(c), Some(d)) = (&mut model.colors, &small.colors) {
-        c.extend(d);
-    }
+    let model = large_and_small(&mut rng);
     let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
     check(&model, &cam, &pose, "large and small splats");
 }
@@ -186,10 +179,9 @@ fn large_footprints_shared_by_a_workgroup_agree() {
 /// 150 px focal length and distance 3 (many over BIG_SPLAT_PIXELS, 32 x 32:
 /// walked by a workgroup; the rest by one thread each), among 2000 small
 /// ones.
-fn large_and_small(seed: u64) -> PointModel {
-    let mut rng = Rng::new(seed);
-    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
-    let small = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
+fn large_and_small(rng: &mut Rng) -> PointModel {
+    let mut model = shapes::random_cloud(rng, Vec3::ZERO, 1.0, 60, 0.2, 0.6);
+    let small = shapes::random_cloud(rng, Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
     model.positions.extend(&small.positions);
     model.normals.extend(&small.normals);
     model.radii.extend(&small.radii);
@@ -222,7 +214,7 @@ fn large_across_border(model: &PointModel, cam: &Intrinsics, pose: &Pose) -> usi
 fn large_splats_across_the_image_border_agree() {
     // The cloud's centre projected near each corner and edge: footprints
     // over 32 x 32 pixels clipped by the border, on both walks.
-    let model = large_and_small(17);
+    let model = large_and_small(&mut Rng::new(17));
     let pose = look_at(
         &Vector3::new(0.4, -0.3, -3.0),
         &Vector3::zeros(),
@@ -249,7 +241,7 @@ fn large_splats_in_windows_agree_with_the_full_render() {
     // Renders into windows (the tracker's crops: the camera shifted by the
     // window's origin) against the CPU reference and the render pass at the
     // window's camera, and against the same pixels of the full render.
-    let model = large_and_small(23);
+    let model = large_and_small(&mut Rng::new(23));
     let cam = Intrinsics::new(200, 150, 150.0, 150.0, 99.5, 74.5);
     let pose = look_at(
         &Vector3::new(-0.2, 0.3, -3.0),
