@@ -507,15 +507,19 @@ mod tests {
         ));
     }
 
-    #[test]
-    fn with_a_texture_both_must_hold_without_one_strong_edges() {
-        let cfg = VerifyConfig::default();
-        let s = |zncc, edge| VerifyScores {
+    /// Scores of an object in full view, 1000 pixels covered.
+    fn s(zncc: Option<f64>, edge: f64) -> VerifyScores {
+        VerifyScores {
             visible: 1.0,
             covered_px: 1000,
             zncc,
             edge_support: Some(edge),
-        };
+        }
+    }
+
+    #[test]
+    fn with_a_texture_both_must_hold_without_one_strong_edges() {
+        let cfg = VerifyConfig::default();
         judge(&s(None, 0.8), &cfg).unwrap();
         judge(&s(Some(0.5), 0.4), &cfg).unwrap();
         assert!(judge(&s(Some(0.1), 0.4), &cfg).is_err());
@@ -532,12 +536,6 @@ mod tests {
     #[test]
     fn without_texture_strong_contour_edges_override_a_low_zncc() {
         let cfg = VerifyConfig::default();
-        let s = |zncc, edge| VerifyScores {
-            visible: 1.0,
-            covered_px: 1000,
-            zncc,
-            edge_support: Some(edge),
-        };
         assert!(judge(&s(Some(0.24), 0.92), &cfg).is_err());
         judge_with_contour(&s(Some(0.24), 0.92), &cfg).unwrap();
         judge_with_contour(&s(None, 0.8), &cfg).unwrap();
