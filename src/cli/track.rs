@@ -568,6 +568,10 @@ fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
     for (name, v) in rows {
         out += &format!("  {name:<26} {v:8.1} ms\n");
     }
+    out += &format!(
+        "  {:<26} {:8.0} bytes in {:.1} readbacks\n",
+        "read back from the GPU", t.readback_bytes, t.readbacks
+    );
     if !t.gpu.is_empty() {
         out += "GPU passes per frame (mean, timestamp queries):\n";
         for (name, v) in &t.gpu {

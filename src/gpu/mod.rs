@@ -103,6 +103,11 @@ struct Health {
     /// [`GpuContext::buffer_init`] (issue 13: the steady frame loop makes
     /// none).
     buffers_created: std::sync::atomic::AtomicU64,
+    /// Bytes read back to the host and the readbacks (each a wait for the
+    /// GPU) that did it, through [`GpuContext::read_buffer`] and
+    /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
+    bytes_read: std::sync::atomic::AtomicU64,
+    readbacks: std::sync::atomic::AtomicU64,
     /// The staging buffer of readbacks, grow-only; taken while in use (a
     /// concurrent readback makes its own).
     staging: std::sync::Mutex<Option<wgpu::Buffer>>,
@@ -610,6 +615,23 @@ impl GpuContext {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// Bytes read back to the host so far (all clones of this context
+    /// together; padding to 4 bytes and texture rows' alignment included):
+    /// the difference over a stretch of work is what it read back.
+    pub fn bytes_read(&self) -> u64 {
+        self.health
+            .bytes_read
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Readbacks so far (each maps a staging buffer, waiting for the GPU),
+    /// counted as [`GpuContext::bytes_read`].
+    pub fn readbacks(&self) -> u64 {
+        self.health
+            .readbacks
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
     /// A mappable staging buffer of at least `size` bytes: the kept one
     /// when it is free and large enough (grown otherwise), else a new one.
     /// Give it back with [`GpuContext::put_staging`].
@@ -722,6 +744,11 @@ impl GpuContext {
 
     fn map_read(&self, staging: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
         let slice = staging.slice(..size.next_multiple_of(4));
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        self.health
+            .bytes_read
+            .fetch_add(size.next_multiple_of(4), relaxed);
+        self.health.readbacks.fetch_add(1, relaxed);
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);

@@ -103,6 +103,14 @@ pub struct StageTimes {
     /// timestamp queries; empty unless [`Tracker::enable_gpu_timing`]).
     #[serde(default)]
     pub gpu: Vec<(String, f64)>,
+    /// Bytes read back from the GPU during the call
+    /// ([`GpuContext::bytes_read`]; a mean over frames is fractional).
+    #[serde(default)]
+    pub readback_bytes: f64,
+    /// Readbacks (waits for the GPU) during the call
+    /// ([`GpuContext::readbacks`]).
+    #[serde(default)]
+    pub readbacks: f64,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -127,6 +135,8 @@ impl StageTimes {
         for (acc, d) in pairs {
             *acc += d.mul_f64(k);
         }
+        self.readback_bytes += other.readback_bytes * k;
+        self.readbacks += other.readbacks * k;
         for (label, ms) in &other.gpu {
             profile::add(&mut self.gpu, label, ms * k);
         }
@@ -530,6 +540,7 @@ impl Tracker {
             });
         }
         let t0 = Instant::now();
+        let read0 = (self.ctx.bytes_read(), self.ctx.readbacks());
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
@@ -677,6 +688,8 @@ impl Tracker {
         times.kf_harris = sub.kf_harris;
         times.kf_ncc = sub.kf_ncc;
         times.gpu = sub.gpu;
+        times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
+        times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
