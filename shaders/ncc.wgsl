@@ -24,6 +24,13 @@
 //   the search radius get NO_SCORE.
 // row_best / col_best: one workgroup per row / column reduces to the best
 //   score (ties: the lower index). The host keeps mutual bests.
+// mutual_refine (the resident path, NccMatcher::match_resident): one
+//   thread per feature of A keeps its row's best when it is mutual and
+//   scores at least min_score, and (refine_on) moves B's point to the
+//   sub-pixel NCC peak as features::refine_match does on the host (CPU
+//   reference): the best integer shift within max_shift, then two
+//   parabola fits, windows of 2 refine_half + 1 sampled strictly (any
+//   invalid pixel voids a window). Only these rows come back.
 
 // Twin: NccParams in src/features/gpu_data.rs.
 struct NccParams {
@@ -39,6 +46,14 @@ struct NccParams {
     radius2: f32,
     min_std: f32,
     min_valid: f32,
+    min_score: f32,
+    refine_on: u32,
+    refine_half: u32,
+    max_shift: u32,
+    refine_min: f32,
+    shift_bx: f32,
+    shift_by: f32,
+    _pad2: u32,
 }
 
 // A raw sample that touches an invalid pixel (grey values are in 0..1).
@@ -76,6 +91,19 @@ fn desc_set(i: u32, v: f32) {
 @group(0) @binding(5) var<storage, read_write> scores: array<f32>;
 // Best per row of S (na entries), then per column (nb entries).
 @group(0) @binding(6) var<storage, read_write> best: array<Best>;
+
+// Twin: MatchOut in src/features/gpu_data.rs.
+struct MatchOut {
+    b: u32,
+    score: f32,
+    x: f32,
+    y: f32,
+    peak: f32,
+    refined: u32,
+}
+
+// One per feature of A (mutual_refine).
+@group(0) @binding(7) var<storage, read_write> matched: array<MatchOut>;
 
 // Bilinear sample (value, 1) at (x, y); (0, 0) if one of the four pixels
 // is a pinhole (PIXEL_HOLE) and the others valid; (0, -1) if (x, y) is
@@ -252,7 +280,8 @@ fn finish_score(i: u32, j: u32, acc: f32) {
     let ob = ok[na + j];
     var near = true;
     if (params.radius2 >= 0.0) {
-        let dp = positions[na + j] - positions[i];
+        // B's positions in A's pixels: shifted by an integer (exact).
+        let dp = positions[na + j] + vec2<f32>(params.shift_bx, params.shift_by) - positions[i];
         near = dp.x * dp.x + dp.y * dp.y <= params.radius2;
     }
     if (oa == 0u || ob == 0u || !near) {
@@ -393,4 +422,164 @@ fn col_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id)
     if (lid.x == 0u && j < params.nb) {
         best[params.na + j] = Best(red_index[0], red_score[0]);
     }
+}
+
+// A bilinear sample of the image at `offset` (w x h) that any invalid
+// pixel (pinholes included) or the outside voids: (value, 1), else
+// (0, -1). Mirrors GreyImage::bilinear.
+fn sample_strict(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
+    if (w < 2u || h < 2u || !(x >= 0.0 && y >= 0.0) || x > f32(w - 1u) || y > f32(h - 1u)) {
+        return vec2<f32>(0.0, -1.0);
+    }
+    let x0 = min(u32(floor(x)), w - 2u);
+    let y0 = min(u32(floor(y)), h - 2u);
+    let fx = x - f32(x0);
+    let fy = y - f32(y0);
+    let i = offset + y0 * w + x0;
+    let p00 = pixels[i];
+    let p10 = pixels[i + 1u];
+    let p01 = pixels[i + w];
+    let p11 = pixels[i + w + 1u];
+    if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
+        return vec2<f32>(0.0, -1.0);
+    }
+    let top = p00.value + fx * (p10.value - p00.value);
+    let bottom = p01.value + fx * (p11.value - p01.value);
+    return vec2<f32>(top + fy * (bottom - top), 1.0);
+}
+
+// Mean and norm (of the centred samples) of the strict window at (x, y)
+// of image A (`in_b` false) or B; z < 0: void (outside, invalid or flat).
+// Sums in sample order, as refine.rs's `window`.
+fn window_stats(in_b: bool, x: f32, y: f32) -> vec3<f32> {
+    var offset = 0u;
+    var w = params.wa;
+    var h = params.ha;
+    if (in_b) {
+        offset = params.offset_b;
+        w = params.wb;
+        h = params.hb;
+    }
+    let half = i32(params.refine_half);
+    var sum = 0.0;
+    var n = 0.0;
+    for (var dy = -half; dy <= half; dy++) {
+        for (var dx = -half; dx <= half; dx++) {
+            let s = sample_strict(offset, w, h, x + f32(dx), y + f32(dy));
+            if (s.y < 0.0) {
+                return vec3<f32>(0.0, 0.0, -1.0);
+            }
+            sum = sum + s.x;
+            n = n + 1.0;
+        }
+    }
+    let mean = sum / n;
+    var ss = 0.0;
+    for (var dy = -half; dy <= half; dy++) {
+        for (var dx = -half; dx <= half; dx++) {
+            let c = sample_strict(offset, w, h, x + f32(dx), y + f32(dy)).x - mean;
+            ss = ss + c * c;
+        }
+    }
+    let norm = sqrt(ss);
+    if (norm < 1e-6) {
+        return vec3<f32>(0.0, 0.0, -1.0);
+    }
+    return vec3<f32>(mean, norm, 1.0);
+}
+
+// The NCC of A's window at `pa` (stats `ta`) with B's at (x, y); < -1.5:
+// B's window is void.
+fn refine_score(pa: vec2<f32>, ta: vec3<f32>, x: f32, y: f32) -> f32 {
+    let tb = window_stats(true, x, y);
+    if (tb.z < 0.0) {
+        return -3.0;
+    }
+    let half = i32(params.refine_half);
+    var dot = 0.0;
+    for (var dy = -half; dy <= half; dy++) {
+        for (var dx = -half; dx <= half; dx++) {
+            let a = sample_strict(0u, params.wa, params.ha, pa.x + f32(dx), pa.y + f32(dy)).x;
+            let b = sample_strict(params.offset_b, params.wb, params.hb, x + f32(dx), y + f32(dy)).x;
+            dot = dot + ((a - ta.x) / ta.y) * ((b - tb.x) / tb.y);
+        }
+    }
+    return dot;
+}
+
+// refine.rs's parabola_peak.
+fn parabola_peak(a: f32, b: f32, c: f32) -> f32 {
+    let den = a - 2.0 * b + c;
+    if (den >= -1e-9) {
+        return 0.0;
+    }
+    return clamp(0.5 * (a - c) / den, -0.5, 0.5);
+}
+
+// The sub-pixel refinement of B's point `pb` against A's window at `pa`:
+// (x, y, peak, 1), or w = 0 when it fails (as refine_match's None).
+fn refine_point(pa: vec2<f32>, pb: vec2<f32>) -> vec4<f32> {
+    let fail = vec4<f32>(pb, 0.0, 0.0);
+    let ta = window_stats(false, pa.x, pa.y);
+    if (ta.z < 0.0) {
+        return fail;
+    }
+    let m = i32(params.max_shift);
+    var bs = -1.0e30;
+    var bx = 0;
+    var by = 0;
+    for (var dy = -m; dy <= m; dy++) {
+        for (var dx = -m; dx <= m; dx++) {
+            let s = refine_score(pa, ta, pb.x + f32(dx), pb.y + f32(dy));
+            if (s > -1.5 && s > bs) {
+                bs = s;
+                bx = dx;
+                by = dy;
+            }
+        }
+    }
+    if (bs < params.refine_min || abs(bx) == m || abs(by) == m) {
+        return fail;
+    }
+    var centre = vec2<f32>(pb.x + f32(bx), pb.y + f32(by));
+    var peak = bs;
+    for (var k = 0u; k < 2u; k++) {
+        let step = select(0.5, 1.0, k == 0u);
+        let c = refine_score(pa, ta, centre.x, centre.y);
+        let l = refine_score(pa, ta, centre.x - step, centre.y);
+        let r = refine_score(pa, ta, centre.x + step, centre.y);
+        let u = refine_score(pa, ta, centre.x, centre.y - step);
+        let d = refine_score(pa, ta, centre.x, centre.y + step);
+        if (min(min(c, l), min(min(r, u), d)) < -1.5) {
+            return fail;
+        }
+        centre.x = centre.x + parabola_peak(l, c, r) * step;
+        centre.y = centre.y + parabola_peak(u, c, d) * step;
+        peak = c;
+    }
+    return vec4<f32>(centre, peak, 1.0);
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn mutual_refine(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i >= params.na) {
+        return;
+    }
+    let r = best[i];
+    var out = MatchOut(NO_INDEX, r.score, 0.0, 0.0, 0.0, 0u);
+    if (r.index != NO_INDEX && r.score >= params.min_score && best[params.na + r.index].index == i) {
+        let pb = positions[params.na + r.index];
+        out.b = r.index;
+        out.x = pb.x;
+        out.y = pb.y;
+        if (params.refine_on != 0u) {
+            let q = refine_point(positions[i], pb);
+            out.x = q.x;
+            out.y = q.y;
+            out.peak = q.z;
+            out.refined = u32(q.w);
+        }
+    }
+    matched[i] = out;
 }

@@ -244,6 +244,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::RefineCorner>(),
         RustLayout::of::<f::NccParams>(),
         RustLayout::of::<f::Best>(),
+        RustLayout::of::<f::MatchOut>(),
         RustLayout::of::<crate::view::present::PresentParams>(),
         RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
     ]

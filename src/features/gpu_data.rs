@@ -196,6 +196,36 @@ wgsl_struct! {
         /// Smallest fraction of a window's samples that must be valid
         /// ([`super::NccConfig::min_valid`]).
         pub min_valid: f32,
+        /// Mutual bests below this are no match (`mutual_refine`).
+        pub min_score: f32,
+        /// 1: `mutual_refine` refines B's point (features::refine_match).
+        pub refine_on: u32,
+        /// Half the side of the refinement's windows.
+        pub refine_half: u32,
+        /// The refinement's integer search, pixels.
+        pub max_shift: u32,
+        /// The refinement's least peak score.
+        pub refine_min: f32,
+        /// Where B's pixel (0, 0) lies in A's pixels (an integer shift),
+        /// for the search radius.
+        pub shift_bx: f32,
+        pub shift_by: f32,
+        pub _pad2: u32,
+    }
+}
+
+wgsl_struct! {
+    /// A feature of A's mutual match as `mutual_refine` writes it: `b`
+    /// ([`NO_INDEX`]: none), the NCC score, B's point (refined when
+    /// `refined` is 1, with its peak score).
+    #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+    pub struct MatchOut {
+        pub b: u32,
+        pub score: f32,
+        pub x: f32,
+        pub y: f32,
+        pub peak: f32,
+        pub refined: u32,
     }
 }
 

@@ -54,6 +54,7 @@ pub mod ncc;
 mod ncc_cpu;
 pub mod patterns;
 pub mod refine;
+pub mod resident;
 
 pub use gpu_data::INVALID_RESPONSE;
 pub use harris::{Corner, Harris, HarrisConfig, harris_cpu, harris_response_cpu};
@@ -61,6 +62,7 @@ pub use image::GreyImage;
 pub use ncc::{Match, NccConfig, NccMatcher};
 pub use ncc_cpu::ncc_match_cpu;
 pub use refine::refine_match;
+pub use resident::{GpuGrey, Refinement, ResidentImage, ResidentMatch};
 
 use crate::gpu::GpuError;
 

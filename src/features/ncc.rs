@@ -2,7 +2,8 @@
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
 use super::FeatureError;
-use super::gpu_data::{Best, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
+use super::gpu_data::{Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
+use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use crate::gpu::{
@@ -146,18 +147,21 @@ pub struct NccMatcher {
     ok: GrowBuffer,
     scores: GrowBuffer,
     best: GrowBuffer,
+    matched: GrowBuffer,
+    mutual_refine: wgpu::ComputePipeline,
     bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
-const ENTRIES: [&str; 5] = [
+const ENTRIES: [&str; 6] = [
     "vectorize",
     "score_tiled",
     "row_best",
     "col_best",
     "score_direct",
+    "mutual_refine",
 ];
 
 impl NccMatcher {
@@ -167,10 +171,11 @@ impl NccMatcher {
         let mut entries = vec![compute_entry(0, storage(true))];
         entries.push(compute_entry(1, storage(true)));
         entries.push(compute_entry(2, storage(true)));
-        entries.extend((3..7).map(|b| compute_entry(b, storage(false))));
+        entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
         let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
-        let score_direct = passes.pop().expect("five pipelines");
+        let mutual_refine = passes.pop().expect("six pipelines");
+        let score_direct = passes.pop().expect("six pipelines");
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -189,6 +194,8 @@ impl NccMatcher {
             ok: GrowBuffer::new("ncc ok", STORAGE_OUT),
             scores: GrowBuffer::new("ncc scores", STORAGE_OUT),
             best: GrowBuffer::new("ncc best", STORAGE_OUT),
+            matched: GrowBuffer::new("ncc matched", STORAGE_OUT),
+            mutual_refine,
             bind: None,
             timer: None,
             last_timings: TimerReport::default(),
@@ -209,7 +216,7 @@ impl NccMatcher {
     /// Times every pass with GPU timestamp queries from now on (where
     /// supported); see [`NccMatcher::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32));
+        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 1));
     }
 
     /// Per-pass GPU durations of the last match (empty unless enabled).
@@ -234,6 +241,130 @@ impl NccMatcher {
         if na == 0 || nb == 0 || img_a.is_empty() || img_b.is_empty() {
             return Ok(Vec::new());
         }
+        let sizes = [
+            (img_a.width, img_a.height),
+            (img_b.width, img_b.height),
+        ];
+        self.prepare(na, nb, sizes, [0, 0], None)?;
+        let ctx = &self.ctx.clone();
+        let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
+        pixels.extend(pack_with_holes(img_b, None, false));
+        ctx.queue
+            .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
+        let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
+        ctx.queue
+            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        self.encode(&mut enc, na, nb, false);
+        ctx.queue.submit([enc.finish()]);
+        let best: Vec<Best> = ctx.read_buffer(self.best.get(), na + nb)?;
+        self.finish_timing()?;
+        Ok(mutual(&best[..na], &best[na..], self.config.min_score))
+    }
+
+    /// Mutual best NCC matches between the features `a` of rows `a_rows`
+    /// of the GPU-resident image `img_a` and `b` of rows `b_rows` of
+    /// `img_b` (positions in each whole image's pixels; a window leaving
+    /// its rows leaves its image; `offset_b`: where B's pixel (0, 0) lies
+    /// in A's pixels, for the search radius): what [`NccMatcher::match_features`]
+    /// gives on those rows as host images, without uploading or reading
+    /// back any image. Both bands are copied on the GPU into the matcher's
+    /// buffer. With `refine`, B's point of each match is moved to the
+    /// sub-pixel NCC peak on the GPU, as [`super::refine_match`] does on
+    /// the host. One readback of [`ResidentMatch`]'s few values per
+    /// feature of `a`. Sorted by `a`.
+    #[allow(clippy::too_many_arguments)]
+    pub fn match_resident(
+        &mut self,
+        img_a: ResidentImage,
+        a_rows: std::ops::Range<usize>,
+        a: &[Corner],
+        img_b: ResidentImage,
+        b_rows: std::ops::Range<usize>,
+        b: &[Corner],
+        offset_b: [i32; 2],
+        refine: Option<Refinement>,
+    ) -> Result<Vec<ResidentMatch>, FeatureError> {
+        img_a.check(&a_rows)?;
+        img_b.check(&b_rows)?;
+        let (na, nb) = (a.len(), b.len());
+        if na == 0 || nb == 0 || a_rows.is_empty() || b_rows.is_empty() {
+            return Ok(Vec::new());
+        }
+        if let Some(r) = &refine {
+            r.validate()?;
+        }
+        let sizes = [
+            (img_a.width, a_rows.len()),
+            (img_b.width, b_rows.len()),
+        ];
+        // B's band origin in A's band's pixels.
+        let shift = [
+            offset_b[0],
+            offset_b[1] + b_rows.start as i32 - a_rows.start as i32,
+        ];
+        self.prepare(na, nb, sizes, shift, refine)?;
+        let ctx = &self.ctx.clone();
+        // Positions in the bands: y less the first row (exact in f32 for
+        // image coordinates).
+        let band = |c: &Corner, y0: usize| Corner {
+            y: c.y - y0 as f32,
+            ..*c
+        };
+        let pos: Vec<[f32; 2]> = a
+            .iter()
+            .map(|c| sanitize(&band(c, a_rows.start)))
+            .chain(b.iter().map(|c| sanitize(&band(c, b_rows.start))))
+            .collect();
+        ctx.queue
+            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+        let px = std::mem::size_of::<Pixel>();
+        let (len_a, len_b) = (img_a.width * a_rows.len(), img_b.width * b_rows.len());
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(
+            img_a.pixels,
+            (a_rows.start * img_a.width * px) as u64,
+            self.pixels.get(),
+            0,
+            (len_a * px) as u64,
+        );
+        enc.copy_buffer_to_buffer(
+            img_b.pixels,
+            (b_rows.start * img_b.width * px) as u64,
+            self.pixels.get(),
+            (len_a * px) as u64,
+            (len_b * px) as u64,
+        );
+        self.encode(&mut enc, na, nb, true);
+        ctx.queue.submit([enc.finish()]);
+        let out: Vec<MatchOut> = ctx.read_buffer(self.matched.get(), na)?;
+        self.finish_timing()?;
+        let y0 = b_rows.start as f64;
+        Ok(out
+            .iter()
+            .enumerate()
+            .filter(|(_, m)| m.b != NO_INDEX)
+            .map(|(i, m)| ResidentMatch {
+                a: i,
+                b: m.b as usize,
+                score: m.score,
+                at: (refine.is_none() || m.refined == 1)
+                    .then_some([m.x as f64, m.y as f64 + y0]),
+            })
+            .collect())
+    }
+
+    /// Checks a problem of `na` and `nb` features in two images of
+    /// `sizes` (width, height) against the device's limits, grows the
+    /// buffers and writes the parameters.
+    fn prepare(
+        &mut self,
+        na: usize,
+        nb: usize,
+        sizes: [(usize, usize); 2],
+        shift_b: [i32; 2],
+        refine: Option<Refinement>,
+    ) -> Result<(), FeatureError> {
         let ctx = &self.ctx.clone();
         let lim = &ctx.limits;
         let max_groups = lim.max_compute_workgroups_per_dimension as usize;
@@ -250,12 +381,13 @@ impl NccMatcher {
                 max: ((limit / 4) as f64).sqrt() as usize,
             });
         }
-        let n_pix = img_a.data.len() + img_b.data.len();
+        let [(wa, ha), (wb, hb)] = sizes;
+        let n_pix = wa * ha + wb * hb;
         // Shader indices are u32.
         if (n_pix * 8) as u64 > limit || n_pix >= 1 << 28 {
             return Err(FeatureError::TooLarge {
-                width: img_a.width.max(img_b.width),
-                height: img_a.height + img_b.height,
+                width: wa.max(wb),
+                height: ha + hb,
                 reason: format!("two images need {} bytes, limit {limit}", n_pix * 8),
             });
         }
@@ -267,6 +399,9 @@ impl NccMatcher {
         changed |= self.ok.ensure(ctx, ((na + nb) * 4) as u64);
         changed |= self.scores.ensure(ctx, (na * nb * 4) as u64);
         changed |= self.best.ensure(ctx, ((na + nb) * 8) as u64);
+        changed |= self
+            .matched
+            .ensure(ctx, (na * std::mem::size_of::<MatchOut>()) as u64);
         if changed || self.bind.is_none() {
             let bufs = [
                 &self.params,
@@ -276,35 +411,46 @@ impl NccMatcher {
                 self.ok.get(),
                 self.scores.get(),
                 self.best.get(),
+                self.matched.get(),
             ];
             self.bind = Some(ctx.bind_buffers("ncc", &self.layout, &bufs)?);
         }
-
         let c = &self.config;
+        let r = refine.unwrap_or(Refinement {
+            window: 1,
+            max_shift: 0,
+            min_score: 0.0,
+        });
         let params = NccParams {
             na: na as u32,
             nb: nb as u32,
             stride: stride as u32,
             window: c.window,
-            wa: img_a.width as u32,
-            ha: img_a.height as u32,
-            wb: img_b.width as u32,
-            hb: img_b.height as u32,
-            offset_b: img_a.data.len() as u32,
+            wa: wa as u32,
+            ha: ha as u32,
+            wb: wb as u32,
+            hb: hb as u32,
+            offset_b: (wa * ha) as u32,
             radius2: c.search_radius.map_or(-1.0, |r| r * r),
             min_std: c.min_std,
             min_valid: c.min_valid,
+            min_score: c.min_score,
+            refine_on: refine.is_some() as u32,
+            refine_half: r.window / 2,
+            max_shift: r.max_shift,
+            refine_min: r.min_score,
+            shift_bx: shift_b[0] as f32,
+            shift_by: shift_b[1] as f32,
+            _pad2: 0,
         };
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
-        pixels.extend(pack_with_holes(img_b, None, false));
-        ctx.queue
-            .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
-        let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
-        ctx.queue
-            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+        Ok(())
+    }
 
+    /// Records the passes (vectorize, scores, bests; with `mutual`, the
+    /// mutual check and refinement) into `enc`.
+    fn encode(&mut self, enc: &mut wgpu::CommandEncoder, na: usize, nb: usize, mutual: bool) {
         let groups = [
             (workgroups((na + nb) as u32, WORKGROUP_1D), 1),
             (
@@ -314,10 +460,9 @@ impl NccMatcher {
             (na as u32, 1),
             (nb as u32, 1),
         ];
-        let bind = self.bind.as_ref().expect("bind group built above");
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let bind = self.bind.as_ref().expect("bind group built in prepare");
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
-            let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
+            let mut pass = compute_pass(enc, label, self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
             if label == "score" && !self.tiled {
                 pass.set_pipeline(&self.score_direct);
@@ -328,14 +473,22 @@ impl NccMatcher {
                 pass.dispatch_workgroups(gx, gy, 1);
             }
         }
+        if mutual {
+            let mut pass = compute_pass(enc, "mutual_refine", self.timer.as_mut());
+            pass.set_bind_group(0, bind, &[]);
+            pass.set_pipeline(&self.mutual_refine);
+            pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
+        }
         if let Some(t) = &self.timer {
-            t.resolve(&mut enc);
+            t.resolve(enc);
         }
-        ctx.queue.submit([enc.finish()]);
-        let best: Vec<Best> = ctx.read_buffer(self.best.get(), na + nb)?;
+    }
+
+    /// Reads the timestamps of the passes just run (when timing is on).
+    fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
-            self.last_timings = t.read(ctx)?;
+            self.last_timings = t.read(&self.ctx)?;
         }
-        Ok(mutual(&best[..na], &best[na..], c.min_score))
+        Ok(())
     }
 }

@@ -4,7 +4,7 @@
 //! the old positions and the displacements solved for the update.
 
 use super::profile::Texture;
-use super::view::{Placed, match_near};
+use super::view::{Placed, match_near, match_near_resident};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
 use crate::geometry::Pose;
@@ -89,26 +89,47 @@ impl Tracker {
         let t = std::time::Instant::now();
         let src: Vec<Corner> = on_object.iter().map(|&i| prev.corners[i]).collect();
         let margin = self.match_margin(self.config.it_search_px);
-        let (matches, ..) = match_near(
-            &mut self.it_matcher,
-            Placed::full(&prev.grey),
-            &src,
-            &frame.grey,
-            &frame.corners,
-            margin,
-        )?;
+        let matches = match self.resident.frames() {
+            (Some(now), Some(before)) => {
+                let full = Placed::full(&prev.grey).at;
+                match_near_resident(
+                    &mut self.it_matcher,
+                    (before, full),
+                    &src,
+                    now,
+                    &frame.corners,
+                    margin,
+                    None,
+                )?
+                .into_iter()
+                .map(|m| (m.a, m.b))
+                .collect::<Vec<_>>()
+            }
+            _ => match_near(
+                &mut self.it_matcher,
+                Placed::full(&prev.grey),
+                &src,
+                &frame.grey,
+                &frame.corners,
+                margin,
+            )?
+            .0
+            .into_iter()
+            .map(|m| (m.a, m.b))
+            .collect(),
+        };
         let timings = self.it_matcher.last_timings().clone();
         self.note_ncc("IT", timings);
         self.stages.it_ncc += t.elapsed();
         let obs: Vec<Correspondence> = matches
             .iter()
-            .map(|m| {
-                let a = &src[m.a];
+            .map(|&(ia, ib)| {
+                let a = &src[ia];
                 // Frame-to-frame, both images are equally sharp: the
                 // detected corners are unbiased against each other.
-                let b = &frame.corners[m.b];
+                let b = &frame.corners[ib];
                 self.correspondence(
-                    &samples[on_object[m.a]],
+                    &samples[on_object[ia]],
                     Vector2::new(a.x as f64, a.y as f64),
                     Vector2::new(b.x as f64, b.y as f64),
                     pose,

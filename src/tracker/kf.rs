@@ -3,13 +3,18 @@
 //! motion predictors are splatted in one pass; corners of the novel view
 //! matched to the frame's are solved for the correction.
 
-use super::view::{Placed, match_near};
+use super::view::{Placed, match_near, match_near_resident};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
-use crate::features::{Corner, GreyImage, Match, refine_match};
+use crate::features::resident::MAX_REFINE_WINDOW;
+use crate::features::{Corner, GreyImage, Match, NccMatcher, Refinement, refine_match};
+use crate::splat::Window;
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
 use crate::splat::{Attribute, Attributes};
 use nalgebra::Vector2;
+
+/// How far the sub-pixel refinement of a match searches, pixels.
+const REFINE_SHIFT: i32 = 2;
 
 /// How far the KF step searches for matches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -94,7 +99,16 @@ impl Tracker {
         let target = self.harris.colour_target(w, h)?;
         self.splatter
             .resolve_into(&self.ctx, &self.targets, Attribute::Color, &target)?;
-        let (corners, view) = self.harris.detect_resolved(w, h)?;
+        // Resident (the default): the view stays on the GPU for NCC and
+        // the refinement; else its grey levels come back for host crops.
+        let resident = self.resident.frames().0.is_some()
+            && self.config.refine_window <= MAX_REFINE_WINDOW;
+        let (corners, view) = if resident {
+            (self.harris.detect_resolved_resident(w, h)?, None)
+        } else {
+            let (c, v) = self.harris.detect_resolved(w, h)?;
+            (c, Some(v))
+        };
         let o = window.origin();
         let view_corners: Vec<Corner> = corners
             .into_iter()
@@ -112,56 +126,122 @@ impl Tracker {
             Search::Motion => self.config.it_search_px,
             Search::Refine => self.config.kf_search_px,
         });
+        // Each match: the view's corner and where it lies in the frame
+        // (`None`: its refinement failed).
+        let found: Vec<(usize, Option<Vector2<f64>>)> = match view {
+            None => self.kf_match_resident(window, &view_corners, &frame.corners, search, margin)?,
+            Some(view) => {
+                self.kf_match_host(window, &view, &view_corners, frame, search, margin)?
+            }
+        };
+        let timings = self.matcher(search).last_timings().clone();
+        self.note_ncc("KF", timings);
+        let pts: Vec<[f32; 2]> = found
+            .iter()
+            .map(|(a, _)| [view_corners[*a].x, view_corners[*a].y])
+            .collect();
+        let samples = self.gather_frame(&pts)?;
+        let obs: Vec<Correspondence> = found
+            .iter()
+            .zip(&samples)
+            .filter(|(_, s)| s.valid)
+            .filter_map(|((a, to), s)| {
+                let a = &view_corners[*a];
+                Some(self.correspondence(s, Vector2::new(a.x as f64, a.y as f64), (*to)?, pose))
+            })
+            .collect();
+        self.stages.kf_ncc += t.elapsed();
+        self.refine(&obs, pose, anchors).map(|s| (s, k))
+    }
+
+    /// The matcher of a search.
+    fn matcher(&mut self, search: Search) -> &mut NccMatcher {
+        match search {
+            Search::Recover => &mut self.recover_matcher,
+            Search::Motion => &mut self.it_matcher,
+            Search::Refine => &mut self.kf_matcher,
+        }
+    }
+
+    /// The KF matches on the GPU: the view Harris left there against the
+    /// resident frame, the mutual check and the refinement there too.
+    fn kf_match_resident(
+        &mut self,
+        window: Window,
+        view_corners: &[Corner],
+        frame_corners: &[Corner],
+        search: Search,
+        margin: Option<f64>,
+    ) -> Result<Vec<(usize, Option<Vector2<f64>>)>, StepError> {
+        let refine = (self.config.refine_window > 0).then_some(Refinement {
+            window: self.config.refine_window,
+            max_shift: REFINE_SHIFT as u32,
+            min_score: self.config.ncc.min_score * 0.8,
+        });
+        let (w, h) = (window.width as usize, window.height as usize);
+        let view = self.harris.resident_view(w, h)?;
+        let Some(now) = self.resident.frames().0 else {
+            return Ok(Vec::new());
+        };
         let matcher = match search {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
             Search::Refine => &mut self.kf_matcher,
         };
+        let matches = match_near_resident(
+            matcher,
+            (view, window),
+            view_corners,
+            now,
+            frame_corners,
+            margin,
+            refine,
+        )?;
+        Ok(matches
+            .into_iter()
+            .map(|m| (m.a, m.at.map(|p| Vector2::new(p[0], p[1]))))
+            .collect())
+    }
+
+    /// The KF matches on host crops (the view's grey levels read back),
+    /// refined on the host.
+    fn kf_match_host(
+        &mut self,
+        window: Window,
+        view: &GreyImage,
+        view_corners: &[Corner],
+        frame: &Frame,
+        search: Search,
+        margin: Option<f64>,
+    ) -> Result<Vec<(usize, Option<Vector2<f64>>)>, StepError> {
         let placed = Placed {
-            img: &view,
+            img: view,
             at: window,
         };
         let (matches, mw, view_m, frame_m) = match_near(
-            matcher,
+            self.matcher(search),
             placed,
-            &view_corners,
+            view_corners,
             &frame.grey,
             &frame.corners,
             margin,
         )?;
-        let pts: Vec<[f32; 2]> = matches
-            .iter()
-            .map(|m| [view_corners[m.a].x, view_corners[m.a].y])
-            .collect();
-        let timings = match search {
-            Search::Recover => &self.recover_matcher,
-            Search::Motion => &self.it_matcher,
-            Search::Refine => &self.kf_matcher,
-        }
-        .last_timings()
-        .clone();
-        self.note_ncc("KF", timings);
-        let samples = self.gather_frame(&pts)?;
         let mo = mw.origin();
         let local = |c: &Corner| Corner {
             x: c.x - mo[0],
             y: c.y - mo[1],
             score: c.score,
         };
-        let obs: Vec<Correspondence> = matches
+        Ok(matches
             .iter()
-            .zip(&samples)
-            .filter(|(_, s)| s.valid)
-            .filter_map(|(m, s): (&Match, _)| {
+            .map(|m: &Match| {
                 let a = &view_corners[m.a];
-                let to =
-                    self.match_target(&view_m, &local(a), &frame_m, &local(&frame.corners[m.b]))?
-                        + Vector2::new(mo[0] as f64, mo[1] as f64);
-                Some(self.correspondence(s, Vector2::new(a.x as f64, a.y as f64), to, pose))
+                let to = self
+                    .match_target(&view_m, &local(a), &frame_m, &local(&frame.corners[m.b]))
+                    .map(|p| p + Vector2::new(mo[0] as f64, mo[1] as f64));
+                (m.a, to)
             })
-            .collect();
-        self.stages.kf_ncc += t.elapsed();
-        self.refine(&obs, pose, anchors).map(|s| (s, k))
+            .collect())
     }
 
     /// Where the corner `a` of image `src` lies in the live frame: the
@@ -183,7 +263,7 @@ impl Tracker {
             live,
             [b.x, b.y],
             self.config.refine_window,
-            2,
+            REFINE_SHIFT,
             self.config.ncc.min_score * 0.8,
         )?;
         Some(Vector2::new(p[0] as f64, p[1] as f64))

@@ -326,6 +326,9 @@ pub struct Tracker {
     gpu_timer: Option<crate::gpu::GpuTimer>,
     /// The check's scoring on the GPU (issue 13).
     check: verify_gpu::GpuCheck,
+    /// The grey levels of the frame being tracked and of the previous one,
+    /// on the GPU for NCC and the refinement (issue 13; [`view::Resident`]).
+    resident: view::Resident,
 }
 
 impl Tracker {
@@ -443,6 +446,7 @@ impl Tracker {
             stages: StageTimes::default(),
             gpu_timer: None,
             check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
+            resident: view::Resident::default(),
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
@@ -541,6 +545,7 @@ impl Tracker {
         }
         let t0 = Instant::now();
         let read0 = (self.ctx.bytes_read(), self.ctx.readbacks());
+        self.resident.begin();
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
@@ -585,6 +590,9 @@ impl Tracker {
         } else {
             Vec::new()
         };
+        if texture {
+            self.resident.upload(&self.ctx, &grey);
+        }
         let frame = Frame { grey, corners };
         times.features = t_features.elapsed();
 
@@ -681,6 +689,7 @@ impl Tracker {
             self.lost_streak += 1;
         }
         self.prev = Some(frame);
+        self.resident.done();
         let sub = std::mem::take(&mut self.stages);
         times.it_render = sub.it_render;
         times.it_ncc = sub.it_ncc;

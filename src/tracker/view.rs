@@ -20,7 +20,10 @@
 //!   within it.
 
 use super::Tracker;
-use crate::features::{Corner, FeatureError, GreyImage, Match, NccMatcher};
+use crate::features::{
+    Corner, FeatureError, GpuGrey, GreyImage, Match, NccMatcher, Refinement, ResidentImage,
+    ResidentMatch,
+};
 use crate::geometry::{Intrinsics, Pose};
 use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
 
@@ -42,6 +45,61 @@ impl Kept {
     /// The targets of the kept render.
     pub(super) fn targets(&self) -> &SplatTargets {
         &self.targets
+    }
+}
+
+/// The frames' grey levels on the GPU (issue 13): the frame being
+/// tracked, uploaded once when its step starts and read by its IT and KF
+/// matchings, and the previous frame's, kept for the next IT step. Used
+/// only while `on` (the default; [`Tracker::set_resident_matching`]).
+pub(super) struct Resident {
+    on: bool,
+    images: [GpuGrey; 2],
+    /// The slot of the frame being tracked (set by `upload`, cleared by
+    /// `done`): a frame the steps see outside `track` (the search's) has
+    /// none, and is matched on the host.
+    current: Option<usize>,
+    /// The slot of the previous frame ([`Tracker::track`]'s `prev`).
+    previous: Option<usize>,
+}
+
+impl Default for Resident {
+    fn default() -> Self {
+        Self {
+            on: true,
+            images: [GpuGrey::new(), GpuGrey::new()],
+            current: None,
+            previous: None,
+        }
+    }
+}
+
+impl Resident {
+    /// Uploads the frame being tracked (when on), into the slot the
+    /// previous frame does not hold.
+    pub(super) fn upload(&mut self, ctx: &crate::gpu::GpuContext, grey: &GreyImage) {
+        if !self.on {
+            return;
+        }
+        let slot = self.previous.map_or(0, |p| 1 - p);
+        self.images[slot].upload(ctx, grey);
+        self.current = Some(slot);
+    }
+
+    /// A frame starts: no frame is resident until `upload`.
+    pub(super) fn begin(&mut self) {
+        self.current = None;
+    }
+
+    /// The frame is done: it becomes the previous frame.
+    pub(super) fn done(&mut self) {
+        self.previous = self.current.take();
+    }
+
+    /// The frame being tracked and the previous frame, where resident.
+    pub(super) fn frames(&self) -> (Option<ResidentImage<'_>>, Option<ResidentImage<'_>>) {
+        let get = |s: Option<usize>| s.and_then(|s| self.images[s].image());
+        (get(self.current), get(self.previous))
     }
 }
 
@@ -132,24 +190,7 @@ pub(super) fn match_near(
             GreyImage::filled(0, 0, 0.0),
         ));
     }
-    let (x0, y0, x1, y1) = a.iter().fold(
-        (
-            f64::INFINITY,
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-        ),
-        |(x0, y0, x1, y1), c| {
-            let (x, y) = (c.x as f64, c.y as f64);
-            (x0.min(x), y0.min(y), x1.max(x), y1.max(y))
-        },
-    );
-    let w = match (matcher.config().search_radius, margin) {
-        (Some(_), Some(m)) => {
-            Window::around([x0, y0, x1, y1], m, 1, full.width, full.height).unwrap_or(full)
-        }
-        _ => full,
-    };
+    let w = crop_window(matcher, a, margin, full);
     let o = w.origin();
     let inside = |c: &Corner| {
         c.x >= o[0] && c.y >= o[1] && c.x < o[0] + w.width as f32 && c.y < o[1] + w.height as f32
@@ -167,7 +208,103 @@ pub(super) fn match_near(
     Ok((matches, w, crop_a, crop_b))
 }
 
+/// The window of the frame `full` that [`match_near`] crops: the box of
+/// the features `a` grown by `margin`, or the whole frame (no search
+/// radius, no margin, or no box).
+fn crop_window(matcher: &NccMatcher, a: &[Corner], margin: Option<f64>, full: Window) -> Window {
+    let (x0, y0, x1, y1) = a.iter().fold(
+        (
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ),
+        |(x0, y0, x1, y1), c| {
+            let (x, y) = (c.x as f64, c.y as f64);
+            (x0.min(x), y0.min(y), x1.max(x), y1.max(y))
+        },
+    );
+    match (matcher.config().search_radius, margin) {
+        (Some(_), Some(m)) => {
+            Window::around([x0, y0, x1, y1], m, 1, full.width, full.height).unwrap_or(full)
+        }
+        _ => full,
+    }
+}
+
+/// [`match_near`] on images resident on the GPU: `img_a` placed at window
+/// `at` of the frame (the whole frame, or a novel view's window), the
+/// frame `img_b`; each takes part with the rows of the crop
+/// [`match_near`] would cut (its features outside the crop left out, as
+/// there), so the matches are the same. With `refine`, each match carries
+/// B's refined point (frame coordinates; `None` where the refinement
+/// fails), as [`crate::features::refine_match`] on the crops gives it.
+pub(super) fn match_near_resident(
+    matcher: &mut NccMatcher,
+    img_a: (ResidentImage, Window),
+    a: &[Corner],
+    img_b: ResidentImage,
+    b: &[Corner],
+    margin: Option<f64>,
+    refine: Option<Refinement>,
+) -> Result<Vec<ResidentMatch>, FeatureError> {
+    let full = Window {
+        x0: 0,
+        y0: 0,
+        width: img_b.width as u32,
+        height: img_b.height as u32,
+    };
+    if a.is_empty() || b.is_empty() {
+        return Ok(Vec::new());
+    }
+    let w = crop_window(matcher, a, margin, full);
+    let o = w.origin();
+    let inside = |c: &Corner| {
+        c.x >= o[0] && c.y >= o[1] && c.x < o[0] + w.width as f32 && c.y < o[1] + w.height as f32
+    };
+    let b_idx: Vec<usize> = (0..b.len()).filter(|&i| inside(&b[i])).collect();
+    let b_in: Vec<Corner> = b_idx.iter().map(|&i| b[i]).collect();
+    // A's features in its own pixels; its rows within the crop.
+    let (img, at) = img_a;
+    let a_own: Vec<Corner> = a.iter().map(|c| shifted(c, at.origin())).collect();
+    let a_rows = (w.y0.max(at.y0) - at.y0) as usize
+        ..((w.y0 + w.height).min(at.y0 + at.height)).saturating_sub(at.y0) as usize;
+    let b_rows = w.y0 as usize..(w.y0 + w.height) as usize;
+    if a_rows.start >= a_rows.end {
+        return Ok(Vec::new());
+    }
+    Ok(matcher
+        .match_resident(
+            img,
+            a_rows,
+            &a_own,
+            img_b,
+            b_rows,
+            &b_in,
+            [-(at.x0 as i32), -(at.y0 as i32)],
+            refine,
+        )?
+        .into_iter()
+        .map(|m| ResidentMatch { b: b_idx[m.b], ..m })
+        .collect())
+}
+
 impl Tracker {
+    /// Matches on GPU-resident images (`true`, the default): the frames'
+    /// grey levels uploaded once per frame, the novel view left on the GPU
+    /// by Harris, the mutual check and the KF step's sub-pixel refinement
+    /// on the GPU ([`NccMatcher::match_resident`]), so only a few values
+    /// per feature come back; or (`false`) on host crops uploaded per
+    /// call, with the view's grey levels read back and the refinement on
+    /// the host. The matches are the same.
+    pub fn set_resident_matching(&mut self, on: bool) {
+        self.resident.on = on;
+        if !on {
+            self.resident.current = None;
+            self.resident.previous = None;
+        }
+    }
+
     /// The window a render of the model at `pose` needs: every pixel it
     /// can cover, plus `margin` pixels.
     pub(super) fn view_window(&self, pose: &Pose) -> Window {

@@ -5,6 +5,7 @@ use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, sel
 use crate::features::FeatureError;
 use crate::features::gpu_data::{Candidate, Counters, HarrisParams, MAX_TAPS, RefineCorner};
 use crate::features::image::{GreyImage, check_mask};
+use crate::features::resident::ResidentImage;
 use crate::gpu::{
     GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
     WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
@@ -247,7 +248,7 @@ impl Harris {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
-        if let Input::Resolved { .. } = input {
+        if let Input::Resolved { keep_grey, .. } = input {
             for (pipeline, label) in [(&self.grey_f32, "grey"), (&self.pack_f32, "pack")] {
                 let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
                 pass.set_pipeline(pipeline);
@@ -256,13 +257,15 @@ impl Harris {
             }
             // The grey levels, before the integration passes reuse
             // `response`.
-            enc.copy_buffer_to_buffer(
-                self.response.get(),
-                0,
-                self.grey_out.get(),
-                0,
-                (w * h * 4) as u64,
-            );
+            if keep_grey {
+                enc.copy_buffer_to_buffer(
+                    self.response.get(),
+                    0,
+                    self.grey_out.get(),
+                    0,
+                    (w * h * 4) as u64,
+                );
+            }
         }
         for (pipeline, label) in self.passes.iter().zip(PASSES) {
             let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
@@ -344,9 +347,52 @@ impl Harris {
         if width == 0 || height == 0 {
             return Ok((Vec::new(), GreyImage::filled(width, height, 0.0)));
         }
-        let corners = self.detect_input(Input::Resolved { width, height }, None)?;
+        let input = Input::Resolved {
+            width,
+            height,
+            keep_grey: true,
+        };
+        let corners = self.detect_input(input, None)?;
         let data = self.ctx.read_buffer(self.grey_out.get(), width * height)?;
         Ok((corners, GreyImage::new(width, height, data)?))
+    }
+
+    /// [`Harris::detect_resolved`] without the grey image coming back: the
+    /// view stays on the GPU, packed (grey levels, pinholes flagged) as
+    /// NCC reads it, in [`Harris::resident_view`] until the next detection.
+    pub fn detect_resolved_resident(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        if width == 0 || height == 0 {
+            return Ok(Vec::new());
+        }
+        let input = Input::Resolved {
+            width,
+            height,
+            keep_grey: false,
+        };
+        self.detect_input(input, None)
+    }
+
+    /// The view of the last [`Harris::detect_resolved_resident`] (or
+    /// [`Harris::detect_resolved`]) of a `width x height` view, as packed
+    /// on the GPU (the pixels of [`GreyImage`] the host would pack with
+    /// its pinholes, every pixel allowed): valid until the next detection.
+    pub fn resident_view(
+        &self,
+        width: usize,
+        height: usize,
+    ) -> Result<ResidentImage<'_>, FeatureError> {
+        if self.pixels.size() == 0 {
+            return Err(FeatureError::Config("no view detected yet".into()));
+        }
+        Ok(ResidentImage {
+            pixels: self.pixels.get(),
+            width,
+            height,
+        })
     }
 
     fn detect_input(
@@ -444,6 +490,8 @@ enum Input<'i> {
     Resolved {
         width: usize,
         height: usize,
+        /// Copy the grey levels out for a readback.
+        keep_grey: bool,
     },
 }
 
@@ -452,7 +500,7 @@ impl Input<'_> {
         match self {
             Input::Grey(g) => (g.width, g.height),
             Input::Rgb(c) => (c.width() as usize, c.height() as usize),
-            Input::Resolved { width, height } => (*width, *height),
+            Input::Resolved { width, height, .. } => (*width, *height),
         }
     }
 }
