@@ -25,7 +25,7 @@
 // row_best / col_best: one workgroup per row / column reduces to the best
 //   score (ties: the lower index). The host keeps mutual bests.
 // mutual_refine (the resident path, NccMatcher::match_resident): one
-//   thread per feature of A keeps its row's best when it is mutual and
+//   workgroup per feature of A keeps its row's best when it is mutual and
 //   scores at least min_score, and (refine_on) moves B's point to the
 //   sub-pixel NCC peak as features::refine_match does on the host (CPU
 //   reference): the best integer shift within max_shift, then two
@@ -516,70 +516,134 @@ fn parabola_peak(a: f32, b: f32, c: f32) -> f32 {
     return clamp(0.5 * (a - c) / den, -0.5, 0.5);
 }
 
-// The sub-pixel refinement of B's point `pb` against A's window at `pa`:
-// (x, y, peak, 1), or w = 0 when it fails (as refine_match's None).
-fn refine_point(pa: vec2<f32>, pb: vec2<f32>) -> vec4<f32> {
-    let fail = vec4<f32>(pb, 0.0, 0.0);
-    let ta = window_stats(false, pa.x, pa.y);
-    if (ta.z < 0.0) {
-        return fail;
+// Threads of a mutual_refine workgroup (one workgroup per feature of A).
+const REFINE_GROUP: u32 = 32u;
+
+var<workgroup> wg_score: array<f32, REFINE_GROUP>;
+var<workgroup> wg_index: array<u32, REFINE_GROUP>;
+var<workgroup> wg_centre: vec2<f32>;
+var<workgroup> wg_peak: f32;
+// 1 while the refinement holds, 0 once it failed.
+var<workgroup> wg_state: u32;
+
+// One workgroup per feature of A: its row's best when mutual and at least
+// min_score; with refine_on, B's point refined (refine.rs's refine_match):
+// the (2 max_shift + 1)^2 integer shifts scored by the workgroup's threads
+// at once and reduced (ties: the first in raster order, as the host's
+// loop), then two parabola steps whose five scores run in parallel.
+// Every thread passes every barrier; what a thread computes is steered by
+// flags.
+@compute @workgroup_size(REFINE_GROUP)
+fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
+    let i = wid.x;
+    let t = lid.x;
+    var mutual = false;
+    var r = Best(NO_INDEX, NO_SCORE);
+    if (i < params.na) {
+        r = best[i];
+        mutual = r.index != NO_INDEX && r.score >= params.min_score
+            && best[params.na + r.index].index == i;
+    }
+    var pa = vec2<f32>(0.0);
+    var pb = vec2<f32>(0.0);
+    if (mutual) {
+        pa = positions[i];
+        pb = positions[params.na + r.index];
+    }
+    var live = mutual && params.refine_on != 0u;
+    var ta = vec3<f32>(0.0, 0.0, -1.0);
+    if (live) {
+        ta = window_stats(false, pa.x, pa.y);
+        live = ta.z >= 0.0;
     }
     let m = i32(params.max_shift);
+    let side = 2u * params.max_shift + 1u;
     var bs = -1.0e30;
-    var bx = 0;
-    var by = 0;
-    for (var dy = -m; dy <= m; dy++) {
-        for (var dx = -m; dx <= m; dx++) {
-            let s = refine_score(pa, ta, pb.x + f32(dx), pb.y + f32(dy));
+    var bk = NO_INDEX;
+    if (live) {
+        for (var k = t; k < side * side; k += REFINE_GROUP) {
+            let s = refine_score(pa, ta, pb.x + f32(i32(k % side) - m), pb.y + f32(i32(k / side) - m));
             if (s > -1.5 && s > bs) {
                 bs = s;
-                bx = dx;
-                by = dy;
+                bk = k;
             }
         }
     }
-    if (bs < params.refine_min || abs(bx) == m || abs(by) == m) {
-        return fail;
-    }
-    var centre = vec2<f32>(pb.x + f32(bx), pb.y + f32(by));
-    var peak = bs;
-    for (var k = 0u; k < 2u; k++) {
-        let step = select(0.5, 1.0, k == 0u);
-        let c = refine_score(pa, ta, centre.x, centre.y);
-        let l = refine_score(pa, ta, centre.x - step, centre.y);
-        let r = refine_score(pa, ta, centre.x + step, centre.y);
-        let u = refine_score(pa, ta, centre.x, centre.y - step);
-        let d = refine_score(pa, ta, centre.x, centre.y + step);
-        if (min(min(c, l), min(min(r, u), d)) < -1.5) {
-            return fail;
+    wg_score[t] = bs;
+    wg_index[t] = bk;
+    workgroupBarrier();
+    if (t == 0u) {
+        var s = -1.0e30;
+        var k = NO_INDEX;
+        for (var j = 0u; j < REFINE_GROUP; j++) {
+            let sj = wg_score[j];
+            let kj = wg_index[j];
+            if (kj != NO_INDEX && (sj > s || (sj == s && kj < k))) {
+                s = sj;
+                k = kj;
+            }
         }
-        centre.x = centre.x + parabola_peak(l, c, r) * step;
-        centre.y = centre.y + parabola_peak(u, c, d) * step;
-        peak = c;
-    }
-    return vec4<f32>(centre, peak, 1.0);
-}
-
-@compute @workgroup_size(WORKGROUP_1D)
-fn mutual_refine(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if (i >= params.na) {
-        return;
-    }
-    let r = best[i];
-    var out = MatchOut(NO_INDEX, r.score, 0.0, 0.0, 0.0, 0u);
-    if (r.index != NO_INDEX && r.score >= params.min_score && best[params.na + r.index].index == i) {
-        let pb = positions[params.na + r.index];
-        out.b = r.index;
-        out.x = pb.x;
-        out.y = pb.y;
-        if (params.refine_on != 0u) {
-            let q = refine_point(positions[i], pb);
-            out.x = q.x;
-            out.y = q.y;
-            out.peak = q.z;
-            out.refined = u32(q.w);
+        var state = 0u;
+        if (live && k != NO_INDEX) {
+            let dx = i32(k % side) - m;
+            let dy = i32(k / side) - m;
+            if (!(s < params.refine_min || abs(dx) == m || abs(dy) == m)) {
+                state = 1u;
+                wg_centre = pb + vec2<f32>(f32(dx), f32(dy));
+                wg_peak = s;
+            }
         }
+        wg_state = state;
     }
-    matched[i] = out;
+    workgroupBarrier();
+    // Centre, left, right, up, down.
+    let offsets = array<vec2<f32>, 5>(
+        vec2<f32>(0.0, 0.0),
+        vec2<f32>(-1.0, 0.0),
+        vec2<f32>(1.0, 0.0),
+        vec2<f32>(0.0, -1.0),
+        vec2<f32>(0.0, 1.0),
+    );
+    for (var n = 0u; n < 2u; n++) {
+        let step = select(0.5, 1.0, n == 0u);
+        let state = wg_state;
+        let centre = wg_centre;
+        if (state == 1u && t < 5u) {
+            let q = centre + offsets[t] * step;
+            wg_score[t] = refine_score(pa, ta, q.x, q.y);
+        }
+        workgroupBarrier();
+        if (t == 0u && state == 1u) {
+            let c = wg_score[0];
+            let l = wg_score[1];
+            let rr = wg_score[2];
+            let u = wg_score[3];
+            let d = wg_score[4];
+            if (min(min(c, l), min(min(rr, u), d)) < -1.5) {
+                wg_state = 0u;
+            } else {
+                wg_centre = vec2<f32>(
+                    centre.x + parabola_peak(l, c, rr) * step,
+                    centre.y + parabola_peak(u, c, d) * step,
+                );
+                wg_peak = c;
+            }
+        }
+        workgroupBarrier();
+    }
+    if (t == 0u && i < params.na) {
+        var out = MatchOut(NO_INDEX, r.score, 0.0, 0.0, 0.0, 0u);
+        if (mutual) {
+            out.b = r.index;
+            out.x = pb.x;
+            out.y = pb.y;
+            if (params.refine_on != 0u && wg_state == 1u) {
+                out.x = wg_centre.x;
+                out.y = wg_centre.y;
+                out.peak = wg_peak;
+                out.refined = 1u;
+            }
+        }
+        matched[i] = out;
+    }
 }

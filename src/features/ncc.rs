@@ -477,7 +477,8 @@ impl NccMatcher {
             let mut pass = compute_pass(enc, "mutual_refine", self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
             pass.set_pipeline(&self.mutual_refine);
-            pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
+            // One workgroup per feature of A.
+            pass.dispatch_workgroups(na as u32, 1, 1);
         }
         if let Some(t) = &self.timer {
             t.resolve(enc);
