@@ -177,7 +177,10 @@ fn resident_matches_and_refinements_equal_the_host_path() {
         }
         total += got.len();
     }
-    assert!(total > 60 && refined > 20, "{total} matches, {refined} refined");
+    assert!(
+        total > 60 && refined > 20,
+        "{total} matches, {refined} refined"
+    );
 }
 
 /// Smooth random texture, sampled analytically at any (x, y).
@@ -262,18 +265,24 @@ fn bad_rows_and_refinements_are_errors() {
     }];
     let mut m = NccMatcher::new(ctx(), NccConfig::default()).unwrap();
     let im = g.image().unwrap();
-    assert!(m.match_resident(im, 0..13, &c, im, 0..12, &c, [0, 0], None).is_err());
-    let big = ResidentImage {
-        height: 100,
-        ..im
-    };
-    assert!(m.match_resident(big, 0..12, &c, im, 0..12, &c, [0, 0], None).is_err());
+    assert!(
+        m.match_resident(im, 0..13, &c, im, 0..12, &c, [0, 0], None)
+            .is_err()
+    );
+    let big = ResidentImage { height: 100, ..im };
+    assert!(
+        m.match_resident(big, 0..12, &c, im, 0..12, &c, [0, 0], None)
+            .is_err()
+    );
     let r = Refinement {
         window: 65,
         max_shift: 2,
         min_score: 0.5,
     };
-    assert!(m.match_resident(im, 0..12, &c, im, 0..12, &c, [0, 0], Some(r)).is_err());
+    assert!(
+        m.match_resident(im, 0..12, &c, im, 0..12, &c, [0, 0], Some(r))
+            .is_err()
+    );
     assert!(
         m.match_resident(im, 3..3, &c, im, 0..12, &c, [0, 0], None)
             .unwrap()

@@ -415,3 +415,63 @@ fn the_resident_check_gives_the_host_checks_poses() {
         assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
     }
 }
+
+#[test]
+fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
+    // NCC on the GPU-resident frame and novel view, the mutual check and
+    // the KF refinement on the GPU (the default on GPUs), against host
+    // crops, the view's grey levels read back and the refinement on the
+    // host (the default on CPU adapters): from the same pose, the same
+    // statuses and inliers and poses within f32 rounding of the refined
+    // points (tests/features_resident.rs: within 1e-3 px; here within
+    // 3e-5 px), over a KF-only frame and a KF+IT frame. (Over a longer
+    // run the two drift apart by such roundings until a threshold flips:
+    // the real cube's 99 frames end within 3.4e-4 of each other in every
+    // pose entry, 4 frames with other inlier counts, the same errors.)
+    // Only a few values per feature come back instead of the view. A
+    // context of its own, so that other tests' readbacks are not counted.
+    use splattrack::gpu::{AdapterChoice, GpuContext};
+    let f = fixture();
+    let ctx = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let make = |resident: bool, start: usize| {
+        let mut t = Tracker::new(
+            &ctx,
+            f.scene.model.clone(),
+            f.scene.cam,
+            Some(f.store.clone()),
+            TrackerConfig::default(),
+            f.frames[start].pose,
+        )
+        .expect("tracker");
+        t.set_resident_matching(resident);
+        t
+    };
+    let (mut read_gpu, mut read_host) = (0u64, 0u64);
+    for start in [0, 2, 4] {
+        let (mut gpu, mut host) = (make(true, start), make(false, start));
+        for (i, fr) in f.frames[start..start + 2].iter().enumerate() {
+            let r0 = ctx.bytes_read();
+            let a = gpu.track(&fr.image).unwrap();
+            let r1 = ctx.bytes_read();
+            let b = host.track(&fr.image).unwrap();
+            read_gpu += r1 - r0;
+            read_host += ctx.bytes_read() - r1;
+            let at = format!("frames from {start}, frame {i}");
+            assert_eq!((a.status, a.inliers), (b.status, b.inliers), "{at}");
+            let e = a.pose.rotation_error_deg(&b.pose);
+            assert!(e < 1e-3, "{at}: {e} degrees apart");
+            let dt = (a.pose.translation - b.pose.translation).norm();
+            assert!(dt < 1e-5, "{at}: {dt} apart");
+            assert!(a.times.readbacks < b.times.readbacks, "{at}");
+            assert_eq!(a.times.readback_bytes as u64, r1 - r0, "{at}");
+        }
+    }
+    // The host path reads back the view's grey levels (4 bytes a pixel of
+    // its window) at every KF step, 20% of what the step reads back here.
+    assert!(
+        (read_gpu as f64) < 0.9 * read_host as f64,
+        "{read_gpu} bytes read back against {read_host}"
+    );
+}

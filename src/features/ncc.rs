@@ -3,9 +3,9 @@
 
 use super::FeatureError;
 use super::gpu_data::{Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
-use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
+use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use crate::gpu::{
     GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
     compute_entry, compute_pass, storage, workgroups,
@@ -241,10 +241,7 @@ impl NccMatcher {
         if na == 0 || nb == 0 || img_a.is_empty() || img_b.is_empty() {
             return Ok(Vec::new());
         }
-        let sizes = [
-            (img_a.width, img_a.height),
-            (img_b.width, img_b.height),
-        ];
+        let sizes = [(img_a.width, img_a.height), (img_b.width, img_b.height)];
         self.prepare(na, nb, sizes, [0, 0], None)?;
         let ctx = &self.ctx.clone();
         let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
@@ -294,10 +291,7 @@ impl NccMatcher {
         if let Some(r) = &refine {
             r.validate()?;
         }
-        let sizes = [
-            (img_a.width, a_rows.len()),
-            (img_b.width, b_rows.len()),
-        ];
+        let sizes = [(img_a.width, a_rows.len()), (img_b.width, b_rows.len())];
         // B's band origin in A's band's pixels.
         let shift = [
             offset_b[0],
@@ -348,8 +342,7 @@ impl NccMatcher {
                 a: i,
                 b: m.b as usize,
                 score: m.score,
-                at: (refine.is_none() || m.refined == 1)
-                    .then_some([m.x as f64, m.y as f64 + y0]),
+                at: (refine.is_none() || m.refined == 1).then_some([m.x as f64, m.y as f64 + y0]),
             })
             .collect())
     }

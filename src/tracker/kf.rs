@@ -7,11 +7,15 @@ use super::view::{Placed, match_near, match_near_resident};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::resident::MAX_REFINE_WINDOW;
 use crate::features::{Corner, GreyImage, Match, NccMatcher, Refinement, refine_match};
-use crate::splat::Window;
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
+use crate::splat::Window;
 use crate::splat::{Attribute, Attributes};
 use nalgebra::Vector2;
+
+/// A KF match: the view's corner, and where it lies in the frame
+/// (`None`: its refinement failed).
+type Found = (usize, Option<Vector2<f64>>);
 
 /// How far the sub-pixel refinement of a match searches, pixels.
 const REFINE_SHIFT: i32 = 2;
@@ -101,8 +105,8 @@ impl Tracker {
             .resolve_into(&self.ctx, &self.targets, Attribute::Color, &target)?;
         // Resident (the default): the view stays on the GPU for NCC and
         // the refinement; else its grey levels come back for host crops.
-        let resident = self.resident.frames().0.is_some()
-            && self.config.refine_window <= MAX_REFINE_WINDOW;
+        let resident =
+            self.resident.frames().0.is_some() && self.config.refine_window <= MAX_REFINE_WINDOW;
         let (corners, view) = if resident {
             (self.harris.detect_resolved_resident(w, h)?, None)
         } else {
@@ -128,8 +132,10 @@ impl Tracker {
         });
         // Each match: the view's corner and where it lies in the frame
         // (`None`: its refinement failed).
-        let found: Vec<(usize, Option<Vector2<f64>>)> = match view {
-            None => self.kf_match_resident(window, &view_corners, &frame.corners, search, margin)?,
+        let found: Vec<Found> = match view {
+            None => {
+                self.kf_match_resident(window, &view_corners, &frame.corners, search, margin)?
+            }
             Some(view) => {
                 self.kf_match_host(window, &view, &view_corners, frame, search, margin)?
             }
@@ -172,7 +178,7 @@ impl Tracker {
         frame_corners: &[Corner],
         search: Search,
         margin: Option<f64>,
-    ) -> Result<Vec<(usize, Option<Vector2<f64>>)>, StepError> {
+    ) -> Result<Vec<Found>, StepError> {
         let refine = (self.config.refine_window > 0).then_some(Refinement {
             window: self.config.refine_window,
             max_shift: REFINE_SHIFT as u32,
@@ -213,7 +219,7 @@ impl Tracker {
         frame: &Frame,
         search: Search,
         margin: Option<f64>,
-    ) -> Result<Vec<(usize, Option<Vector2<f64>>)>, StepError> {
+    ) -> Result<Vec<Found>, StepError> {
         let placed = Placed {
             img: view,
             at: window,

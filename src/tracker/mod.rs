@@ -446,7 +446,7 @@ impl Tracker {
             stages: StageTimes::default(),
             gpu_timer: None,
             check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
-            resident: view::Resident::default(),
+            resident: view::Resident::new(!ctx.is_cpu()),
         };
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
