@@ -53,7 +53,7 @@ struct NccParams {
     refine_min: f32,
     shift_bx: f32,
     shift_by: f32,
-    _pad2: u32,
+    pad2: u32,
 }
 
 // A raw sample that touches an invalid pixel (grey values are in 0..1).
