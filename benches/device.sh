@@ -6,7 +6,10 @@
 #   sh benches/device.sh run OUT [BENCHES]  # there: results and logs in OUT/
 #
 # BENCHES defaults to "splat features pose tracker". Criterion's results go
-# to OUT/criterion (tabulate them with examples/bench_report.rs).
+# to OUT/criterion (tabulate them with examples/bench_report.rs). The name
+# "profile" instead runs `splattrack track --profile` on a synthetic 100k-
+# point blob (40 frames, 640x480): the step per stage, the GPU passes and
+# the bytes read back per frame, in OUT/profile_blob100k.txt.
 set -eu
 case "${1:-}" in
 build)
@@ -40,6 +43,15 @@ run)
     target/device/splattrack info >"$out/info.txt" 2>&1
     for b in ${*:-splat features pose tracker}; do
         echo "== $b" >&2
+        if [ "$b" = profile ]; then
+            s=$(mktemp -d)/blob100k
+            target/device/splattrack synth --object blob --frames 40 --width 640 --height 480 \
+                --points 100000 --out "$s" >"$out/profile.log" 2>&1 &&
+                target/device/splattrack track --model "$s/model.ply" --sequence "$s" \
+                    --out "$out/blob100k.csv" --profile >"$out/profile_blob100k.txt" 2>&1 ||
+                echo "profile failed: see $out/profile.log, $out/profile_blob100k.txt" >&2
+            continue
+        fi
         target/device/"$b" --bench >"$out/$b.log" 2>&1 || echo "$b failed: see $out/$b.log" >&2
     done
     ;;
