@@ -347,6 +347,17 @@ fn the_windowed_silhouette_is_the_whole_frame_one() {
 
 #[test]
 fn the_steady_loop_allocates_no_gpu_buffers() {
+    steady_loop_allocates_nothing(false);
+}
+
+#[test]
+fn the_steady_loop_allocates_no_gpu_buffers_with_everything_resident() {
+    // The GPU's default: the check scored and the matching done on the GPU
+    // (resident frames, the view left on the GPU, refinement there).
+    steady_loop_allocates_nothing(true);
+}
+
+fn steady_loop_allocates_nothing(resident: bool) {
     // Issue 13: read/gather outputs, staging buffers, Harris and NCC
     // buffers and render targets (one set per window size) are kept and
     // reused across frames. Frames 0..8 and back: going back, every
@@ -367,6 +378,8 @@ fn the_steady_loop_allocates_no_gpu_buffers() {
         f.frames[0].pose,
     )
     .expect("tracker");
+    t.set_resident_check(resident);
+    t.set_resident_matching(resident);
     let order: Vec<usize> = (0..8).chain((0..7).rev()).collect();
     let made: Vec<u64> = order
         .iter()

@@ -54,30 +54,31 @@ pub const PINHOLE_NEIGHBOURS: usize = 6;
 /// [`PINHOLE_NEIGHBOURS`] of its 8 neighbours valid, not on the image
 /// border).
 pub fn pinholes(img: &crate::features::GreyImage) -> Vec<bool> {
+    (0..img.data.len()).map(|i| is_pinhole(img, i)).collect()
+}
+
+/// Whether pixel `i` of `img` is a pinhole ([`pinholes`]).
+fn is_pinhole(img: &crate::features::GreyImage, i: usize) -> bool {
     let (w, h) = (img.width, img.height);
     let valid = |x: usize, y: usize| img.data[y * w + x].is_finite();
-    (0..w * h)
-        .map(|i| {
-            let (x, y) = (i % w, i / w);
-            if img.data[i].is_finite() || x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
-                return false;
-            }
-            let n = [
-                (x - 1, y - 1),
-                (x, y - 1),
-                (x + 1, y - 1),
-                (x - 1, y),
-                (x + 1, y),
-                (x - 1, y + 1),
-                (x, y + 1),
-                (x + 1, y + 1),
-            ]
-            .iter()
-            .filter(|&&(a, b)| valid(a, b))
-            .count();
-            n >= PINHOLE_NEIGHBOURS
-        })
-        .collect()
+    let (x, y) = (i % w, i / w);
+    if img.data[i].is_finite() || x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+        return false;
+    }
+    let n = [
+        (x - 1, y - 1),
+        (x, y - 1),
+        (x + 1, y - 1),
+        (x - 1, y),
+        (x + 1, y),
+        (x - 1, y + 1),
+        (x, y + 1),
+        (x + 1, y + 1),
+    ]
+    .iter()
+    .filter(|&&(a, b)| valid(a, b))
+    .count();
+    n >= PINHOLE_NEIGHBOURS
 }
 
 /// The pixels of `img` as the kernels read them ([`Pixel::new`]), with
@@ -88,18 +89,27 @@ pub fn pack_with_holes(
     mask: Option<&[bool]>,
     allow: bool,
 ) -> Vec<Pixel> {
-    let holes = pinholes(img);
-    img.data
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            let mut p = Pixel::new(v, allow && mask.is_none_or(|m| m[i]));
-            if holes[i] {
-                p.flags |= PIXEL_HOLE;
-            }
-            p
-        })
-        .collect()
+    let mut out = Vec::new();
+    pack_with_holes_into(img, mask, allow, &mut out);
+    out
+}
+
+/// [`pack_with_holes`] into `out` (cleared first; its allocation reused,
+/// so a per-frame caller allocates nothing once it has grown).
+pub fn pack_with_holes_into(
+    img: &crate::features::GreyImage,
+    mask: Option<&[bool]>,
+    allow: bool,
+    out: &mut Vec<Pixel>,
+) {
+    out.clear();
+    out.extend(img.data.iter().enumerate().map(|(i, &v)| {
+        let mut p = Pixel::new(v, allow && mask.is_none_or(|m| m[i]));
+        if !v.is_finite() && is_pinhole(img, i) {
+            p.flags |= PIXEL_HOLE;
+        }
+        p
+    }));
 }
 
 impl Pixel {

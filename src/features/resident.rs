@@ -5,7 +5,7 @@
 //! without coming back to the host ([`super::NccMatcher::match_resident`]).
 
 use super::FeatureError;
-use super::gpu_data::{Pixel, pack_with_holes};
+use super::gpu_data::{Pixel, pack_with_holes_into};
 use super::image::GreyImage;
 use crate::gpu::{GpuContext, GrowBuffer, STORAGE_IN};
 
@@ -43,6 +43,8 @@ pub struct GpuGrey {
     buf: GrowBuffer,
     width: usize,
     height: usize,
+    /// The packed pixels on the host, kept between uploads.
+    packed: Vec<Pixel>,
 }
 
 impl Default for GpuGrey {
@@ -58,17 +60,19 @@ impl GpuGrey {
             buf: GrowBuffer::new("resident grey", STORAGE_IN),
             width: 0,
             height: 0,
+            packed: Vec::new(),
         }
     }
 
     /// Uploads `img` (packed as NCC packs a host image: NaN invalid,
-    /// pinholes flagged), growing the buffer if needed.
+    /// pinholes flagged), growing the buffer if needed (on the GPU and on
+    /// the host: once grown, an upload allocates nothing).
     pub fn upload(&mut self, ctx: &GpuContext, img: &GreyImage) {
         let px = std::mem::size_of::<Pixel>();
         self.buf.ensure(ctx, (img.data.len().max(1) * px) as u64);
-        let packed = pack_with_holes(img, None, false);
+        pack_with_holes_into(img, None, false, &mut self.packed);
         ctx.queue
-            .write_buffer(self.buf.get(), 0, bytemuck::cast_slice(&packed));
+            .write_buffer(self.buf.get(), 0, bytemuck::cast_slice(&self.packed));
         (self.width, self.height) = (img.width, img.height);
     }
 
