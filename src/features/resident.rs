@@ -24,13 +24,20 @@ pub struct ResidentImage<'a> {
 impl ResidentImage<'_> {
     /// Checks that `rows` lie in the image and the buffer holds them.
     pub(crate) fn check(&self, rows: &std::ops::Range<usize>) -> Result<(), FeatureError> {
-        let need = (self.width * self.height * std::mem::size_of::<Pixel>()) as u64;
-        if rows.end > self.height || rows.start > rows.end || need > self.pixels.size() {
+        let px = std::mem::size_of::<Pixel>() as u64;
+        let need = (self.width * self.height) as u64 * px;
+        if need > self.pixels.size() {
             return Err(FeatureError::ImageSize {
                 width: self.width,
                 height: self.height,
-                len: (self.pixels.size() / std::mem::size_of::<Pixel>() as u64) as usize,
+                len: (self.pixels.size() / px) as usize,
             });
+        }
+        if rows.end > self.height || rows.start > rows.end {
+            return Err(FeatureError::Config(format!(
+                "rows {}..{} of an image of {} rows",
+                rows.start, rows.end, self.height
+            )));
         }
         Ok(())
     }
