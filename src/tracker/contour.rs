@@ -5,7 +5,10 @@
 //!
 //! How it works, per iteration (coarse to fine: long lines first, then
 //! shorter ones, each iteration re-rendered at the newest estimate):
-//! 1. The model is splatted at the pose (coverage, depth, predictors); the
+//! 1. The model is splatted at the pose, depth only (the visibility pass
+//!    alone: coverage and depth, [`crate::splat::Splatter::render_depth`];
+//!    the predictors follow from the depth, the limb normals from the
+//!    model's points, [`ModelNormals`]); the
 //!    covered pixels with an uncovered 4-neighbour are the silhouette. One
 //!    point per `spacing_px` cell is kept ([`extract_contour`]); its outward
 //!    normal is the gradient of the coverage over an 11x11 window, and its edge
