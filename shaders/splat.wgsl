@@ -79,6 +79,32 @@ fn fs_visibility(in: VsOut) -> @builtin(frag_depth) f32 {
     return depth_of(hit.x.z + cam.params.x * in.radius / hit.ray_len);
 }
 
+// The visibility pass of a depth-only render (`Splatter::render_depth`):
+// the same depth as `fs_visibility`, and the colour of the fragment that
+// wins the depth test (written without blending, so the nearest one
+// stays): a weight of 1 in T0 and the pushed-back camera-space z in T1,
+// what the normalisation reads as the depth. One pass over the splats
+// instead of two.
+struct OutVisDepth {
+    @builtin(frag_depth) depth: f32,
+    @location(0) t0: vec4<f32>,
+    @location(1) t1: vec4<f32>,
+}
+
+@fragment
+fn fs_visibility_depth(in: VsOut) -> OutVisDepth {
+    let hit = intersect(in, in.position);
+    if hit.w <= 0.0 {
+        discard;
+    }
+    let z = hit.x.z + cam.params.x * in.radius / hit.ray_len;
+    var out: OutVisDepth;
+    out.depth = depth_of(z);
+    out.t0 = vec4<f32>(0.0, 0.0, 0.0, 1.0);
+    out.t1 = vec4<f32>(z, 0.0, 0.0, 0.0);
+    return out;
+}
+
 // Motion predictors l_1..l_6 at X (Dehais et al. 2010, eq. 5; the same
 // formulas as `Intrinsics::motion_predictors`): translation j: J(X) e_j;
 // rotation j: J(X) (e_j x X).

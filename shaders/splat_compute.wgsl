@@ -417,3 +417,26 @@ fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
         atomicStore(&acc[base + k], 0);
     }
 }
+
+// The last kernel of a depth-only render (`Splatter::render_depth`), in
+// place of `accumulate` and `finish`: over the splats' bounding box, a
+// weight of 1 in T0 and the visibility depth (camera-space z, pushed back
+// as pass 1 wrote it) in T1 where a splat covers the pixel, what the
+// normalisation reads as the depth; the depth keys are cleared for the
+// next render (the sums were never touched).
+@compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
+fn finish_depth(@builtin(global_invocation_id) gid: vec3<u32>) {
+    let id = gid.xy + vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
+    if id.x >= min(params.width, atomicLoad(&bounds[2])) || id.y >= min(params.height, atomicLoad(&bounds[3])) {
+        return;
+    }
+    let pixel = id.y * params.width + id.x;
+    let key = atomicLoad(&depth_key[pixel]);
+    if key == 0u {
+        return;
+    }
+    let p = vec2<i32>(id.xy);
+    textureStore(t0, p, vec4<f32>(0.0, 0.0, 0.0, 1.0));
+    textureStore(t1, p, vec4<f32>(visible_z(DEPTH_ONE - key), 0.0, 0.0, 0.0));
+    atomicStore(&depth_key[pixel], 0u);
+}

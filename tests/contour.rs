@@ -14,8 +14,8 @@ use splattrack::splat::{
     Attribute, Attributes, GatherMode, GpuModel, SplatImage, SplatTargets, Splatter,
 };
 use splattrack::tracker::contour::{
-    ColourModel, ContourConfig, contour_predictors, extract_contour, inset, limb_normals,
-    search_line,
+    ColourModel, ContourConfig, ModelNormals, contour_predictors, extract_contour, inset,
+    limb_normals, limb_normals_with, search_line,
 };
 
 fn ctx() -> &'static GpuContext {
@@ -260,6 +260,112 @@ fn contour_rows_agree_with_finite_differences_of_the_exact_outline() {
     assert!(
         median.abs() < 0.2,
         "inset contour points lie {median:.2} px off the exact outline (median)"
+    );
+}
+
+/// The exact outline's unit image normal at `x` (outward: the outline
+/// angle grows outward), by central differences.
+fn outline_normal(cam: &Intrinsics, x: &Vector2<f64>, c: &Vector3<f64>) -> Vector2<f64> {
+    let h = 1e-3;
+    let d = |e: Vector2<f64>| {
+        (outline_angle(cam, &(x + e * h), c) - outline_angle(cam, &(x - e * h), c)) / (2.0 * h)
+    };
+    Vector2::new(d(Vector2::x()), d(Vector2::y())).normalize()
+}
+
+#[test]
+fn a_depth_only_render_gives_the_full_renders_contour_with_model_limb_normals() {
+    // The contour's renders are depth-only (the visibility pass alone) and
+    // their limb normals come from the model's points: the same silhouette
+    // (the same points), rows within the push-back of the full render's,
+    // and limb normals as close to the exact outline's as the splatted
+    // ones.
+    let cam = camera();
+    let pose = pose();
+    let model = sphere();
+    let (full, splatter, targets) = render(&model, &cam, &pose);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    splatter
+        .render_depth(ctx(), &gm, &cam, &pose, &mut t, None)
+        .unwrap();
+    let depth = splatter.read(ctx(), &t, Attribute::Depth).unwrap();
+    assert_eq!(coverage(&depth), coverage(&full), "the same silhouette");
+    let (w, h) = (cam.width as usize, cam.height as usize);
+    let mut splatted = extract_contour(&coverage(&full), w, h, 4);
+    let mut from_model = extract_contour(&coverage(&depth), w, h, 4);
+    assert_eq!(splatted, from_model);
+    assert!(splatted.len() > 30);
+    limb_normals(
+        &cam,
+        &splatter.read(ctx(), &targets, Attribute::Normal).unwrap(),
+        &mut splatted,
+    );
+    let grid = ModelNormals::new(&model).unwrap();
+    let inv = pose.inverse();
+    let eye = inv.translation;
+    let eye = Vec3::new(eye.x as f32, eye.y as f32, eye.z as f32);
+    let mut looked_up = 0;
+    limb_normals_with(&cam, &mut from_model, true, |p| {
+        let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
+        let xo = inv.transform_point(
+            &cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z),
+        );
+        let n = grid.normal_at(
+            &model,
+            Vec3::new(xo.x as f32, xo.y as f32, xo.z as f32),
+            eye,
+        )?;
+        looked_up += 1;
+        Some(pose.rotation * Vector3::new(n.x as f64, n.y as f64, n.z as f64))
+    });
+    assert_eq!(looked_up, from_model.len(), "every point near the model");
+    let c = pose.translation;
+    let angles = |pts: &[splattrack::tracker::contour::ContourPoint]| {
+        let mut a: Vec<f64> = pts
+            .iter()
+            .map(|p| {
+                let n = outline_normal(&cam, &p.position, &c);
+                n.dot(&p.normal).clamp(-1.0, 1.0).acos().to_degrees()
+            })
+            .collect();
+        a.sort_by(f64::total_cmp);
+        (a[a.len() / 2], a[a.len() * 9 / 10], a[a.len() - 1])
+    };
+    let (s_med, s_90, s_max) = angles(&splatted);
+    let (m_med, m_90, m_max) = angles(&from_model);
+    eprintln!(
+        "limb normals off the exact outline's: splatted median {s_med:.2} 90% {s_90:.2} max \
+         {s_max:.2} deg, from the model median {m_med:.2} 90% {m_90:.2} max {m_max:.2} deg"
+    );
+    // Measured: splatted 0.17 median, 0.40 at 90%, 0.68 max; from the
+    // model 0.04 median but 4.6 at 90% and 7.0 max: more than a tenth of
+    // the points keep the coverage's normal (why is open: README
+    // "Contour").
+    assert!(
+        m_med < 0.5 && m_90 < 6.0 && m_max < 10.0,
+        "model normals {m_med:.2} / {m_90:.2} / {m_max:.2} deg"
+    );
+    // Rows: the visibility depth lies at most a splat radius (epsilon = 1
+    // radius along the ray) behind the averaged one: the rows agree to the
+    // relative depth difference, here well under 1% of the typical
+    // predictor.
+    let rows_full = contour_predictors(&cam, &full, &splatted);
+    let rows_depth = contour_predictors(&cam, &depth, &splatted);
+    let mut worst = 0.0f64;
+    for (a, b) in rows_full.iter().zip(&rows_depth) {
+        for j in 0..6 {
+            let scale = if j < 3 {
+                150.0 / 0.5
+            } else {
+                150.0 * RADIUS / 0.5
+            };
+            worst = worst.max((a.predictors[(0, j)] - b.predictors[(0, j)]).abs() / scale);
+        }
+    }
+    assert!(
+        worst < 0.01,
+        "rows differ by {worst:.4} of the typical predictor"
     );
 }
 

@@ -173,6 +173,15 @@ pub struct Tuning {
     /// weakly, and damping holds them back; 0.001 steadies the real dragon).
     #[arg(long)]
     pub contour_damping: Option<f64>,
+    /// Contour: splat depth and normals for the silhouette, as before the
+    /// depth-only renders (for comparison; about 3x the contour's GPU time).
+    #[arg(long)]
+    pub contour_full_render: bool,
+    /// Contour: a later round moves the previous round's points instead of
+    /// rendering when no point moved more than this (pixels, along its
+    /// normal; 0 renders every round).
+    #[arg(long)]
+    pub contour_reproject: Option<f64>,
     /// The frame loop as it was before issue 13, for comparison: render,
     /// detect and match over the whole image every time instead of the
     /// object's projected region, and render the IT step's view anew
@@ -219,6 +228,10 @@ impl Tuning {
         set(&mut c.contour.rounds, self.contour_rounds);
         set(&mut c.contour.spacing_px, self.contour_spacing);
         set(&mut c.contour.damping, self.contour_damping);
+        set(&mut c.contour.reproject_px, self.contour_reproject);
+        if self.contour_full_render {
+            c.contour.depth_only = false;
+        }
         if self.full_frame {
             c.windows = false;
         }
@@ -247,8 +260,9 @@ pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 11] = [
+const FLAGS: [(&str, &str); 12] = [
     ("contour.rounds", "contour-rounds"),
+    ("contour.reproject_px", "contour-reproject"),
     ("contour.spacing_px", "contour-spacing"),
     ("contour.damping", "contour-damping"),
     ("harris.relative_threshold", "harris-threshold"),

@@ -106,6 +106,8 @@ pub(super) struct ComputeSplatter {
     accumulate_big: wgpu::ComputePipeline,
     finish_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
+    /// The last kernel of a depth-only render.
+    finish_depth: wgpu::ComputePipeline,
 }
 
 impl ComputeSplatter {
@@ -177,6 +179,7 @@ impl ComputeSplatter {
             visibility_big: pipeline("visibility_big", &one)?,
             accumulate_big: pipeline("accumulate_big", &one)?,
             finish: pipeline("finish", &one)?,
+            finish_depth: pipeline("finish_depth", &one)?,
             finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
             args_layout,
@@ -186,15 +189,26 @@ impl ComputeSplatter {
     /// Passes 1 and 2 into `targets` (checked by the caller to be the
     /// camera's size), timed as "visibility" and "attributes" like the
     /// render pass (the conversion into the targets counts as attributes).
+    /// `depth_only`: pass 1 only, then `finish_depth` (timed as "depth")
+    /// writes the visibility depth and a unit weight
+    /// ([`super::Splatter::render_depth`]); `attrs` is then ignored.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn render(
         &self,
         ctx: &GpuContext,
         model: &GpuModel,
         uniform: &CameraUniform,
         attrs: Attributes,
+        depth_only: bool,
         targets: &mut SplatTargets,
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
+        let attrs = if depth_only {
+            // The targets a depth-only render writes: T0 and T1.
+            Attributes::GEOMETRY
+        } else {
+            attrs
+        };
         if targets.compute.is_none() {
             targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
         }
@@ -225,8 +239,12 @@ impl ComputeSplatter {
             width: targets.width,
             height: targets.height,
             count: model.count,
-            flags: if attrs.geometry { COMPUTE_GEOMETRY } else { 0 }
-                | if attrs.motion { COMPUTE_MOTION } else { 0 },
+            flags: if depth_only {
+                0
+            } else {
+                (if attrs.geometry { COMPUTE_GEOMETRY } else { 0 })
+                    | (if attrs.motion { COMPUTE_MOTION } else { 0 })
+            },
         };
         ctx.queue
             .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
@@ -307,7 +325,16 @@ impl ComputeSplatter {
             pass.set_bind_group(1, &finish_bind, &[]);
             pass.dispatch_workgroups(1, 1, 1);
         }
-        {
+        if depth_only {
+            // The large splats' visibility, then the depth into the
+            // targets (a pass of its own for the reason below).
+            let mut pass = compute_pass(&mut enc, "depth", timer.as_deref_mut());
+            pass.set_bind_group(0, &bind, &[]);
+            pass.set_pipeline(&self.visibility_big);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.set_pipeline(&self.finish_depth);
+            pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
+        } else {
             // The large splats' visibility opens this pass: their dispatch
             // reads arguments that `finish_dispatch` wrote through group 1,
             // which is not bound here.

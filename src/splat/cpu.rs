@@ -209,19 +209,7 @@ pub fn splat_packed(model: &PackedModel, uniform: &CameraUniform) -> Accumulator
         .filter_map(|(s, &c)| setup(&v, s, c))
         .collect();
     let uv = |x: u32, y: u32| Vec2::new(x as f32, y as f32);
-    // Pass 1: visibility.
-    let mut depth = vec![1.0f32; w * h];
-    for s in &setups {
-        for (x, y) in pixels(&v, s) {
-            if let Some((xx, _, len)) = intersect(&v, s, uv(x, y)) {
-                let dd = v.depth_of(xx.z + v.eps * s.r / len);
-                let i = y as usize * w + x as usize;
-                if dd < depth[i] {
-                    depth[i] = dd;
-                }
-            }
-        }
-    }
+    let (depth, _) = visibility(&v, &setups);
     // Pass 2: attributes, depth test less-or-equal, no depth writes.
     let mut t: [Vec<[f32; 4]>; 5] = std::array::from_fn(|_| vec![[0.0; 4]; w * h]);
     for s in &setups {
@@ -250,6 +238,52 @@ pub fn splat_packed(model: &PackedModel, uniform: &CameraUniform) -> Accumulator
         width: w as u32,
         height: h as u32,
         targets: t,
+    }
+}
+
+/// Pass 1 (visibility): per pixel, the nearest depth ([0, 1], 1 where
+/// empty) pushed back by epsilon along the ray, and the camera-space z it
+/// stands for (the pushed-back z of the first splat to reach it, in the
+/// order the rasteriser draws them; NaN where empty).
+fn visibility(v: &View, setups: &[Setup]) -> (Vec<f32>, Vec<f32>) {
+    let (w, h) = (v.w as usize, v.h as usize);
+    let uv = |x: u32, y: u32| Vec2::new(x as f32, y as f32);
+    let mut depth = vec![1.0f32; w * h];
+    let mut z = vec![f32::NAN; w * h];
+    for s in setups {
+        for (x, y) in pixels(v, s) {
+            if let Some((xx, _, len)) = intersect(v, s, uv(x, y)) {
+                let zp = xx.z + v.eps * s.r / len;
+                let dd = v.depth_of(zp);
+                let i = y as usize * w + x as usize;
+                if dd < depth[i] {
+                    depth[i] = dd;
+                    z[i] = zp;
+                }
+            }
+        }
+    }
+    (depth, z)
+}
+
+/// The reference of [`super::Splatter::render_depth`] read as
+/// [`Attribute::Depth`]: the visibility pass alone, one channel, the
+/// pushed-back camera-space z of the nearest surface, NaN where no splat
+/// covers the pixel.
+pub fn visibility_depth(model: &PackedModel, uniform: &CameraUniform) -> SplatImage {
+    let v = View::new(uniform);
+    let setups: Vec<Setup> = model
+        .splats
+        .iter()
+        .zip(&model.colors)
+        .filter_map(|(s, &c)| setup(&v, s, c))
+        .collect();
+    let (_, data) = visibility(&v, &setups);
+    SplatImage {
+        width: v.w as u32,
+        height: v.h as u32,
+        channels: 1,
+        data,
     }
 }
 

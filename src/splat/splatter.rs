@@ -22,6 +22,9 @@ pub struct Splatter {
     params: SplatParams,
     render_layout: wgpu::BindGroupLayout,
     visibility: wgpu::RenderPipeline,
+    /// The visibility pass of [`Splatter::render_depth`]: depth, and the
+    /// nearest fragment's depth and unit weight into T1 and T0.
+    visibility_depth: wgpu::RenderPipeline,
     /// Indexed by [`Attributes::index`].
     attribute: Vec<wgpu::RenderPipeline>,
     resolve_layout: wgpu::BindGroupLayout,
@@ -173,6 +176,19 @@ impl Splatter {
                 })
             };
         let visibility = pipeline("splat visibility", "fs_visibility", true, &[])?;
+        // No blending: the fragment that passes the depth test last (the
+        // nearest) leaves its values.
+        let replace = Some(wgpu::ColorTargetState {
+            format: ACC_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::ALL,
+        });
+        let visibility_depth = pipeline(
+            "splat visibility depth",
+            "fs_visibility_depth",
+            true,
+            &target_slots(Attributes::GEOMETRY).map(|on| if on { replace.clone() } else { None }),
+        )?;
         let additive = Some(wgpu::ColorTargetState {
             format: ACC_FORMAT,
             blend: Some(wgpu::BlendState {
@@ -223,6 +239,7 @@ impl Splatter {
             params,
             render_layout,
             visibility,
+            visibility_depth,
             attribute,
             resolve_layout,
             resolve,
@@ -315,8 +332,9 @@ impl Splatter {
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
-            compute.render(ctx, model, &uniform, attrs, targets, timer)?;
+            compute.render(ctx, model, &uniform, attrs, false, targets, timer)?;
             targets.rendered = Some(attrs);
+            targets.depth_only = false;
             return Ok(());
         }
         ctx.queue
@@ -390,6 +408,108 @@ impl Splatter {
         }
         ctx.queue.submit([enc.finish()]);
         targets.rendered = Some(attrs);
+        targets.depth_only = false;
+        Ok(())
+    }
+
+    /// A depth-only render: the visibility pass alone (one pass over the
+    /// splats instead of two, no attribute sums). Afterwards
+    /// [`Splatter::read`] gives [`Attribute::Depth`], the depth of the
+    /// nearest surface pushed back by the visibility epsilon (`epsilon *
+    /// r` along the ray, [`SplatParams::epsilon`]: what the attribute pass
+    /// tests against, within a splat radius behind the averaged depth of a
+    /// full render), and [`Attribute::Weight`], 1 where covered; the
+    /// coverage is exactly a full render's (a pixel is covered when a
+    /// splat's kernel reaches it, and the nearest such splat passes the
+    /// attribute pass's test). Other reads fail with
+    /// [`SplatError::NotRendered`]. [`cpu::visibility_depth`](super::cpu::visibility_depth)
+    /// is the reference. Timed as "visibility" (and, on the compute back
+    /// end, "depth": its large splats and the conversion).
+    #[allow(clippy::too_many_arguments)]
+    pub fn render_depth(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        targets: &mut SplatTargets,
+        mut timer: Option<&mut GpuTimer>,
+    ) -> Result<(), SplatError> {
+        if targets.width != cam.width || targets.height != cam.height {
+            return Err(SplatError::SizeMismatch {
+                got_w: targets.width,
+                got_h: targets.height,
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        let uniform = model.bounds.view(cam, pose, &self.params)?;
+        if let Some(compute) = &self.compute
+            && self.backend_for(model, cam, pose) == Backend::Compute
+        {
+            compute.render(
+                ctx,
+                model,
+                &uniform,
+                Attributes::GEOMETRY,
+                true,
+                targets,
+                timer,
+            )?;
+            targets.rendered = None;
+            targets.depth_only = true;
+            return Ok(());
+        }
+        ctx.queue
+            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(&uniform));
+        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat"),
+            layout: &self.render_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: targets.uniform.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: model.geometry.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: model.colors.as_entire_binding(),
+                },
+            ],
+        });
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let colors = cleared_attachments(targets, Attributes::GEOMETRY);
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("splat visibility depth"),
+                color_attachments: &colors,
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &targets.depth_view,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Store,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: timer
+                    .as_deref_mut()
+                    .and_then(|t| t.render_pass("visibility")),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.visibility_depth);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.draw(0..4, 0..model.count);
+        }
+        if let Some(t) = timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        targets.rendered = None;
+        targets.depth_only = true;
         Ok(())
     }
 

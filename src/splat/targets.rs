@@ -19,6 +19,9 @@ pub struct SplatTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) uniform: wgpu::Buffer,
     pub(super) rendered: Option<Attributes>,
+    /// The last render was [`super::Splatter::render_depth`]'s: only the
+    /// depth and the coverage can be read.
+    pub(super) depth_only: bool,
     /// Scratch of the compute back end, made on its first render here.
     pub(super) compute: Option<super::compute::Scratch>,
 }
@@ -78,6 +81,7 @@ impl SplatTargets {
             depth_view,
             uniform,
             rendered: None,
+            depth_only: false,
             compute: None,
         }
     }
@@ -111,9 +115,16 @@ impl SplatTargets {
         self.height
     }
 
-    /// The attribute groups of the last render, if any.
+    /// The attribute groups of the last render, if any (`None` after a
+    /// depth-only render too: [`Self::depth_only`]).
     pub fn rendered(&self) -> Option<Attributes> {
         self.rendered
+    }
+
+    /// Whether the last render was depth-only
+    /// ([`super::Splatter::render_depth`]).
+    pub fn depth_only(&self) -> bool {
+        self.depth_only
     }
 
     /// The raw accumulation textures (weighted sums; layout in the module
@@ -123,6 +134,12 @@ impl SplatTargets {
     }
 
     pub(super) fn check(&self, need: Attributes, what: Attribute) -> Result<(), SplatError> {
+        if self.depth_only {
+            return match what {
+                Attribute::Depth | Attribute::Weight => Ok(()),
+                _ => Err(SplatError::NotRendered(what)),
+            };
+        }
         match self.rendered {
             Some(r) if r.contains(need) => Ok(()),
             _ => Err(SplatError::NotRendered(what)),

@@ -318,6 +318,9 @@ pub struct Tracker {
     colours: contour::ColourModel,
     /// Contour: the coverage of its last render, to learn the colours from.
     contour_mask: Option<Vec<bool>>,
+    /// Contour: the model's normals for limbs of depth-only renders
+    /// (made on first use).
+    model_normals: Option<contour::ModelNormals>,
     /// The inliers of this frame's last KF step (for the fused solve).
     kf_anchors: Vec<Anchor>,
     /// The sub-stage times of the frame being tracked.
@@ -442,6 +445,7 @@ impl Tracker {
             ctx: ctx.clone(),
             colours: contour::ColourModel::new(config_bins),
             contour_mask: None,
+            model_normals: None,
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
