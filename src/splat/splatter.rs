@@ -3,7 +3,7 @@
 
 use super::compute::ComputeSplatter;
 use super::gpu_data::{
-    GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
+    CameraUniform, GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
 };
 use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, cleared_attachments, target_slots};
 use super::{
@@ -320,15 +320,7 @@ impl Splatter {
         targets: &mut SplatTargets,
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
-        if targets.width != cam.width || targets.height != cam.height {
-            return Err(SplatError::SizeMismatch {
-                got_w: targets.width,
-                got_h: targets.height,
-                want_w: cam.width,
-                want_h: cam.height,
-            });
-        }
-        let uniform = model.bounds.view(cam, pose, &self.params)?;
+        let uniform = self.checked_view(model, cam, pose, targets)?;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
@@ -337,49 +329,16 @@ impl Splatter {
             targets.depth_only = false;
             return Ok(());
         }
-        ctx.queue
-            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(&uniform));
-        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("splat"),
-            layout: &self.render_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: targets.uniform.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: model.geometry.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: model.colors.as_entire_binding(),
-                },
-            ],
-        });
+        let bind = self.render_bind(ctx, model, targets, &uniform);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("splat visibility"),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.render_pass("visibility")),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.visibility);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.draw(0..4, 0..model.count);
-        }
+        self.visibility_pass(
+            &mut enc,
+            (&self.visibility, "splat visibility", &[]),
+            &bind,
+            model,
+            targets,
+            timer.as_deref_mut(),
+        );
         {
             let colors = cleared_attachments(targets, attrs);
             let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -435,15 +394,7 @@ impl Splatter {
         targets: &mut SplatTargets,
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
-        if targets.width != cam.width || targets.height != cam.height {
-            return Err(SplatError::SizeMismatch {
-                got_w: targets.width,
-                got_h: targets.height,
-                want_w: cam.width,
-                want_h: cam.height,
-            });
-        }
-        let uniform = model.bounds.view(cam, pose, &self.params)?;
+        let uniform = self.checked_view(model, cam, pose, targets)?;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
@@ -460,9 +411,58 @@ impl Splatter {
             targets.depth_only = true;
             return Ok(());
         }
+        let bind = self.render_bind(ctx, model, targets, &uniform);
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let colors = cleared_attachments(targets, Attributes::GEOMETRY);
+        self.visibility_pass(
+            &mut enc,
+            (&self.visibility_depth, "splat visibility depth", &colors),
+            &bind,
+            model,
+            targets,
+            timer.as_deref_mut(),
+        );
+        if let Some(t) = timer {
+            t.resolve(&mut enc);
+        }
+        ctx.queue.submit([enc.finish()]);
+        targets.rendered = None;
+        targets.depth_only = true;
+        Ok(())
+    }
+
+    /// The camera uniform of a render of `model` at `pose`, once `targets`
+    /// are checked to be the camera's size.
+    fn checked_view(
+        &self,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        targets: &SplatTargets,
+    ) -> Result<CameraUniform, SplatError> {
+        if targets.width != cam.width || targets.height != cam.height {
+            return Err(SplatError::SizeMismatch {
+                got_w: targets.width,
+                got_h: targets.height,
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        model.bounds.view(cam, pose, &self.params)
+    }
+
+    /// The render pass back end's bind group, with `uniform` written to
+    /// the targets' uniform buffer.
+    fn render_bind(
+        &self,
+        ctx: &GpuContext,
+        model: &GpuModel,
+        targets: &SplatTargets,
+        uniform: &CameraUniform,
+    ) -> wgpu::BindGroup {
         ctx.queue
-            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(&uniform));
-        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat"),
             layout: &self.render_layout,
             entries: &[
@@ -479,38 +479,44 @@ impl Splatter {
                     resource: model.colors.as_entire_binding(),
                 },
             ],
-        });
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let colors = cleared_attachments(targets, Attributes::GEOMETRY);
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("splat visibility depth"),
-                color_attachments: &colors,
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth_view,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Store,
-                    }),
-                    stencil_ops: None,
+        })
+    }
+
+    /// The render pass back end's visibility pass into a cleared depth
+    /// buffer: `pipeline`, its label and colour attachments (none for a
+    /// full render's first pass, the depth-only render's targets for
+    /// [`Splatter::render_depth`]); timed as "visibility".
+    fn visibility_pass(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        (pipeline, label, colors): (
+            &wgpu::RenderPipeline,
+            &str,
+            &[Option<wgpu::RenderPassColorAttachment<'_>>],
+        ),
+        bind: &wgpu::BindGroup,
+        model: &GpuModel,
+        targets: &SplatTargets,
+        timer: Option<&mut GpuTimer>,
+    ) {
+        let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some(label),
+            color_attachments: colors,
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &targets.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Store,
                 }),
-                timestamp_writes: timer
-                    .as_deref_mut()
-                    .and_then(|t| t.render_pass("visibility")),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.visibility_depth);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.draw(0..4, 0..model.count);
-        }
-        if let Some(t) = timer {
-            t.resolve(&mut enc);
-        }
-        ctx.queue.submit([enc.finish()]);
-        targets.rendered = None;
-        targets.depth_only = true;
-        Ok(())
+                stencil_ops: None,
+            }),
+            timestamp_writes: timer.and_then(|t| t.render_pass("visibility")),
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, bind, &[]);
+        pass.draw(0..4, 0..model.count);
     }
 
     /// The bind group of a resolve or gather into `out` from `targets`,
