@@ -183,30 +183,9 @@ fn resident_matches_and_refinements_equal_the_host_path() {
     );
 }
 
-/// Smooth random texture, sampled analytically at any (x, y).
-fn texture(seed: u64) -> impl Fn(f32, f32) -> f32 {
-    let mut rng = Rng::new(seed);
-    let waves: Vec<(f32, f32, f32, f32)> = (0..24)
-        .map(|_| {
-            (
-                rng.uniform(-0.7, 0.7) as f32,
-                rng.uniform(-0.7, 0.7) as f32,
-                rng.uniform(0.0, 6.3) as f32,
-                rng.uniform(0.02, 0.06) as f32,
-            )
-        })
-        .collect();
-    move |x, y| {
-        0.5 + waves
-            .iter()
-            .map(|(kx, ky, ph, a)| a * (kx * x + ky * y + ph).sin())
-            .sum::<f32>()
-    }
-}
-
 #[test]
 fn the_gpu_refinement_recovers_a_known_subpixel_shift() {
-    let f = texture(3);
+    let f = patterns::waves(3);
     let (w, h) = (72usize, 64usize);
     let a = GreyImage::from_fn(w, h, |x, y| f(x as f32, y as f32));
     let (sx, sy) = (0.37f32, -0.22f32);

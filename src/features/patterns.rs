@@ -26,6 +26,29 @@ pub fn render(width: usize, height: usize, f: impl Fn(f32, f32) -> f32) -> GreyI
     })
 }
 
+/// A smooth random texture, a sum of 24 plane waves (grey about 0.5 +-
+/// 0.5), sampled analytically at any continuous (x, y): shifted copies are
+/// exact, for sub-pixel known answers.
+pub fn waves(seed: u64) -> impl Fn(f32, f32) -> f32 {
+    let mut rng = Rng::new(seed);
+    let waves: Vec<(f32, f32, f32, f32)> = (0..24)
+        .map(|_| {
+            (
+                rng.uniform(-0.7, 0.7) as f32,
+                rng.uniform(-0.7, 0.7) as f32,
+                rng.uniform(0.0, 6.3) as f32,
+                rng.uniform(0.02, 0.06) as f32,
+            )
+        })
+        .collect();
+    move |x, y| {
+        0.5 + waves
+            .iter()
+            .map(|(kx, ky, ph, a)| a * (kx * x + ky * y + ph).sin())
+            .sum::<f32>()
+    }
+}
+
 /// Uniform noise smoothed by a Gaussian of `sigma` pixels and stretched to
 /// 0..1: texture with corners at the scale of `sigma`.
 pub fn smooth_noise(width: usize, height: usize, sigma: f32, seed: u64) -> GreyImage {

@@ -112,32 +112,10 @@ pub fn refine_match(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::rng::Rng;
-
-    /// Smooth random texture, sampled analytically at any (x, y).
-    fn texture(seed: u64) -> impl Fn(f32, f32) -> f32 {
-        let mut rng = Rng::new(seed);
-        let waves: Vec<(f32, f32, f32, f32)> = (0..24)
-            .map(|_| {
-                (
-                    rng.uniform(-0.7, 0.7) as f32,
-                    rng.uniform(-0.7, 0.7) as f32,
-                    rng.uniform(0.0, 6.3) as f32,
-                    rng.uniform(0.02, 0.06) as f32,
-                )
-            })
-            .collect();
-        move |x, y| {
-            0.5 + waves
-                .iter()
-                .map(|(kx, ky, ph, a)| a * (kx * x + ky * y + ph).sin())
-                .sum::<f32>()
-        }
-    }
 
     #[test]
     fn recovers_a_known_subpixel_shift_despite_blur() {
-        let f = texture(3);
+        let f = crate::features::patterns::waves(3);
         let (w, h) = (64usize, 64usize);
         // `a` is a blurred copy (3x3 box of sub-samples) of the texture;
         // `b` is the sharp texture shifted by (0.37, -0.22).
@@ -166,7 +144,7 @@ mod tests {
 
     #[test]
     fn invalid_windows_and_borders_give_none() {
-        let f = texture(4);
+        let f = crate::features::patterns::waves(4);
         let a = GreyImage::from_fn(32, 32, |x, y| f(x as f32, y as f32));
         let mut b = a.clone();
         b.data[16 * 32 + 16] = f32::NAN;
