@@ -110,6 +110,12 @@ struct MatchOut {
 // outside the image or one of the four is another invalid pixel (the
 // window is then void). Mirrors GreyImage::bilinear.
 fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
+    return sample_with(offset, w, h, x, y, false);
+}
+
+// `sample`, or with `strict` `sample_strict`: a pinhole voids the sample
+// as any invalid pixel does.
+fn sample_with(offset: u32, w: u32, h: u32, x: f32, y: f32, strict: bool) -> vec2<f32> {
     if (w < 2u || h < 2u || !(x >= 0.0 && y >= 0.0) || x > f32(w - 1u) || y > f32(h - 1u)) {
         return vec2<f32>(0.0, -1.0);
     }
@@ -125,7 +131,7 @@ fn sample(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
     if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
         let hard = !(pixel_valid(p00) || pixel_hole(p00)) || !(pixel_valid(p10) || pixel_hole(p10))
             || !(pixel_valid(p01) || pixel_hole(p01)) || !(pixel_valid(p11) || pixel_hole(p11));
-        return vec2<f32>(0.0, select(0.0, -1.0, hard));
+        return vec2<f32>(0.0, select(0.0, -1.0, hard || strict));
     }
     let top = p00.value + fx * (p10.value - p00.value);
     let bottom = p01.value + fx * (p11.value - p01.value);
@@ -428,24 +434,7 @@ fn col_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id)
 // pixel (pinholes included) or the outside voids: (value, 1), else
 // (0, -1). Mirrors GreyImage::bilinear.
 fn sample_strict(offset: u32, w: u32, h: u32, x: f32, y: f32) -> vec2<f32> {
-    if (w < 2u || h < 2u || !(x >= 0.0 && y >= 0.0) || x > f32(w - 1u) || y > f32(h - 1u)) {
-        return vec2<f32>(0.0, -1.0);
-    }
-    let x0 = min(u32(floor(x)), w - 2u);
-    let y0 = min(u32(floor(y)), h - 2u);
-    let fx = x - f32(x0);
-    let fy = y - f32(y0);
-    let i = offset + y0 * w + x0;
-    let p00 = pixels[i];
-    let p10 = pixels[i + 1u];
-    let p01 = pixels[i + w];
-    let p11 = pixels[i + w + 1u];
-    if (!(pixel_valid(p00) && pixel_valid(p10) && pixel_valid(p01) && pixel_valid(p11))) {
-        return vec2<f32>(0.0, -1.0);
-    }
-    let top = p00.value + fx * (p10.value - p00.value);
-    let bottom = p01.value + fx * (p11.value - p01.value);
-    return vec2<f32>(top + fy * (bottom - top), 1.0);
+    return sample_with(offset, w, h, x, y, true);
 }
 
 // Mean and norm (of the centred samples) of the strict window at (x, y)
