@@ -18,7 +18,7 @@
 use glam::Vec3;
 use nalgebra::{Vector2, Vector3};
 use splattrack::geometry::{Intrinsics, Pose, look_at};
-use splattrack::gpu::{self, GpuContext, GpuTimer};
+use splattrack::gpu::GpuTimer;
 use splattrack::model::{AttributeSource, PointModel, TriangleMesh, shapes};
 use splattrack::rng::Rng;
 use splattrack::splat::{
@@ -27,39 +27,8 @@ use splattrack::splat::{
 };
 use splattrack::synth::raster;
 
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
-
-fn splatter(backend: Backend) -> Splatter {
-    let s = Splatter::with_params(
-        ctx(),
-        SplatParams {
-            backend,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(s.backend(), backend);
-    s
-}
-
-fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsics, Pose) {
-    let w = 80 + rng.below(120) as u32;
-    let h = 60 + rng.below(100) as u32;
-    let f = rng.uniform(0.8, 1.6) * w as f64;
-    let cam = Intrinsics::new(
-        w,
-        h,
-        f,
-        f * rng.uniform(0.9, 1.1),
-        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-    );
-    let eye = target + rng.unit_vector() * dist;
-    let pose = look_at(&eye, &target, &rng.unit_vector());
-    (cam, pose)
-}
+mod splat_common;
+use splat_common::{ctx, random_view, splatter};
 
 const READ: [Attribute; 5] = [
     Attribute::Color,

@@ -15,7 +15,7 @@
 use glam::Vec3;
 use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, Pose, look_at};
-use splattrack::gpu::{self, GpuContext, GpuTimer};
+use splattrack::gpu::GpuTimer;
 use splattrack::model::{PointModel, shapes};
 use splattrack::rng::Rng;
 use splattrack::splat::{
@@ -23,38 +23,8 @@ use splattrack::splat::{
     SplatParams, SplatTargets, Splatter, cpu, pack_model,
 };
 
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
-
-fn splatter(backend: Backend) -> Splatter {
-    let s = Splatter::with_params(
-        ctx(),
-        SplatParams {
-            backend,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    assert_eq!(s.backend(), backend);
-    s
-}
-
-fn random_view(rng: &mut Rng, dist: f64) -> (Intrinsics, Pose) {
-    let w = 80 + rng.below(120) as u32;
-    let h = 60 + rng.below(100) as u32;
-    let f = rng.uniform(0.8, 1.6) * w as f64;
-    let cam = Intrinsics::new(
-        w,
-        h,
-        f,
-        f * rng.uniform(0.9, 1.1),
-        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-    );
-    let eye = rng.unit_vector() * dist;
-    (cam, look_at(&eye, &Vector3::zeros(), &rng.unit_vector()))
-}
+mod splat_common;
+use splat_common::{ctx, random_view, splatter};
 
 /// The depth-only render read back: depth and weight.
 fn depth_render(
@@ -105,7 +75,7 @@ fn depth_only_renders_match_the_cpu_reference_on_both_back_ends() {
         // workgroup on the compute back end).
         let model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, n, 0.005, 0.3);
         let dist = rng.uniform(2.5, 6.0);
-        let (cam, pose) = random_view(&mut rng, dist);
+        let (cam, pose) = random_view(&mut rng, Vector3::zeros(), dist);
         let want = reference(&model, &cam, &pose);
         for backend in [Backend::Compute, Backend::RenderPass] {
             let (depth, weight) = depth_render(&splatter(backend), &model, &cam, &pose);
@@ -132,7 +102,7 @@ fn depth_only_coverage_is_the_full_renders() {
     let mut rng = Rng::new(7);
     let model = shapes::sphere(Vec3::new(0.1, 0.0, -0.2), 1.0, 6000, 1.2);
     let r_max = model.radii.iter().fold(0.0f32, |m, &r| m.max(r));
-    let (cam, pose) = random_view(&mut rng, 3.5);
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.5);
     for backend in [Backend::Compute, Backend::RenderPass] {
         let s = splatter(backend);
         let (depth, _) = depth_render(&s, &model, &cam, &pose);

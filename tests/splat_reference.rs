@@ -12,8 +12,7 @@
 
 use glam::Vec3;
 use nalgebra::Vector3;
-use splattrack::geometry::{Intrinsics, Pose, look_at};
-use splattrack::gpu::{self, GpuContext};
+use splattrack::geometry::{Intrinsics, Pose};
 use splattrack::model::{PointModel, shapes};
 use splattrack::rng::Rng;
 use splattrack::splat::{
@@ -21,26 +20,8 @@ use splattrack::splat::{
     cpu,
 };
 
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
-
-fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsics, Pose) {
-    let w = 80 + rng.below(120) as u32;
-    let h = 60 + rng.below(100) as u32;
-    let f = rng.uniform(0.8, 1.6) * w as f64;
-    let cam = Intrinsics::new(
-        w,
-        h,
-        f,
-        f * rng.uniform(0.9, 1.1),
-        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
-    );
-    let eye = target + rng.unit_vector() * dist;
-    let pose = look_at(&eye, &target, &rng.unit_vector());
-    (cam, pose)
-}
+mod splat_common;
+use splat_common::{ctx, random_view};
 
 #[derive(Debug, Default)]
 struct Agreement {

@@ -1,0 +1,47 @@
+//! Helpers shared by the `splat_*` integration tests: the shared lavapipe
+//! context, a splatter on a given back end, and random views of a target.
+#![allow(dead_code)]
+
+use nalgebra::Vector3;
+use splattrack::geometry::{Intrinsics, Pose, look_at};
+use splattrack::gpu::{self, GpuContext};
+use splattrack::rng::Rng;
+use splattrack::splat::{Backend, SplatParams, Splatter};
+
+pub fn ctx() -> &'static GpuContext {
+    gpu::shared_test_context()
+}
+
+/// A splatter on `backend` (checked to be the one it runs).
+pub fn splatter(backend: Backend) -> Splatter {
+    let s = Splatter::with_params(
+        ctx(),
+        SplatParams {
+            backend,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(s.backend(), backend);
+    s
+}
+
+/// A random camera (80-199 x 60-159 pixels, focal 0.8-1.6 widths, a
+/// principal point within 8 px of the centre) looking at `target` from
+/// `dist` away in a random direction, with a random up vector.
+pub fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsics, Pose) {
+    let w = 80 + rng.below(120) as u32;
+    let h = 60 + rng.below(100) as u32;
+    let f = rng.uniform(0.8, 1.6) * w as f64;
+    let cam = Intrinsics::new(
+        w,
+        h,
+        f,
+        f * rng.uniform(0.9, 1.1),
+        w as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+        h as f64 / 2.0 + rng.uniform(-8.0, 8.0),
+    );
+    let eye = target + rng.unit_vector() * dist;
+    let pose = look_at(&eye, &target, &rng.unit_vector());
+    (cam, pose)
+}
