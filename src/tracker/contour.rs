@@ -805,6 +805,52 @@ pub fn contour_predictors(
         .collect()
 }
 
+/// The contour rows of `found` at `twist`: each line searched where the
+/// twist moved its point (to first order, `n^T L twist` along the normal),
+/// in order, the lines without a boundary left out. The lines are
+/// independent: long lists are split over the CPU's cores (the results
+/// are the same as in one thread, in the same order).
+fn search_lines(
+    frame: &image::RgbImage,
+    colours: &ColourModel,
+    found: &[Lifted],
+    twist: &Vector6<f64>,
+    half: f32,
+    slope: f32,
+) -> Vec<Observation> {
+    let one = |l: &Lifted| {
+        let (p, row) = (&l.point, &l.row);
+        let moved = (row.predictors * twist)[0];
+        search_line(
+            frame,
+            colours,
+            p.position + p.normal * moved,
+            p.normal,
+            half,
+            slope,
+        )
+        .map(|d| Observation {
+            displacement: Vector2::new(moved + d, 0.0),
+            ..*row
+        })
+    };
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(8));
+    if threads < 2 || found.len() < 64 {
+        return found.iter().filter_map(one).collect();
+    }
+    let chunk = found.len().div_ceil(threads);
+    std::thread::scope(|scope| {
+        let parts: Vec<_> = found
+            .chunks(chunk)
+            .map(|c| scope.spawn(move || c.iter().filter_map(one).collect::<Vec<_>>()))
+            .collect();
+        parts
+            .into_iter()
+            .flat_map(|h| h.join().expect("a line search panicked"))
+            .collect()
+    })
+}
+
 /// The robust-scale groups of the fused solve.
 const GROUP_TEXTURE: u8 = 0;
 const GROUP_CONTOUR: u8 = 1;
@@ -1075,25 +1121,8 @@ impl Tracker {
         let mut last = None;
         for &half in levels {
             let half = if long { half * cfg.long_factor } else { half };
-            let mut obs = Vec::with_capacity(found.len() + texture.len());
-            for l in found {
-                let (p, row) = (&l.point, &l.row);
-                // Where the contour point is at the current twist.
-                let moved = (row.predictors * twist)[0];
-                if let Some(d) = search_line(
-                    frame,
-                    &self.colours,
-                    p.position + p.normal * moved,
-                    p.normal,
-                    half,
-                    cfg.slope_px,
-                ) {
-                    obs.push(Observation {
-                        displacement: Vector2::new(moved + d, 0.0),
-                        ..*row
-                    });
-                }
-            }
+            let mut obs = search_lines(frame, &self.colours, found, &twist, half, cfg.slope_px);
+            obs.reserve(texture.len());
             let n_contour = obs.len();
             log::debug!(
                 "contour: {n_contour} of {} points, half-length {half} px, {:.1} ms",
@@ -1283,6 +1312,61 @@ mod tests {
         }
         let rms = (sq / trials as f64).sqrt();
         assert!(rms < 0.05, "rms {rms:.3} px");
+    }
+
+    #[test]
+    fn lines_searched_on_several_cores_give_one_threads_rows_in_order() {
+        let mut rng = crate::rng::Rng::new(9);
+        let n = Vector2::new(0.6, 0.8);
+        let (frame, coverage) = half_plane(n, Vector2::new(32.0, 32.0), &mut rng);
+        let mut colours = ColourModel::new(16);
+        colours.learn(&frame, &coverage, (0, 0, 63, 63), 2, 1.0);
+        let cam = crate::geometry::Intrinsics::new(64, 64, 60.0, 60.0, 31.5, 31.5);
+        // 150 lines across the edge, some off the image (no row).
+        let found: Vec<Lifted> = (0..150)
+            .map(|i| {
+                let t = i as f64 * 0.6 - 45.0;
+                let pos = Vector2::new(32.0, 32.0) + Vector2::new(-n.y, n.x) * t
+                    - n * rng.uniform(-2.0, 2.0);
+                let xc = cam.unproject(&pos, 1.0);
+                Lifted {
+                    point: ContourPoint {
+                        pixel: [pos.x.max(0.0) as u32, pos.y.max(0.0) as u32],
+                        position: pos,
+                        normal: n,
+                    },
+                    xc,
+                    row: contour_row(&cam.motion_predictors(&xc), &n, 0.0),
+                }
+            })
+            .collect();
+        let twist = Vector6::new(0.001, -0.002, 0.0, 0.0, 0.0, 0.01);
+        let rows = search_lines(&frame, &colours, &found, &twist, 5.0, 1.0);
+        let one: Vec<Observation> = found
+            .iter()
+            .filter_map(|l| {
+                let moved = (l.row.predictors * twist)[0];
+                let p = &l.point;
+                search_line(
+                    &frame,
+                    &colours,
+                    p.position + p.normal * moved,
+                    p.normal,
+                    5.0,
+                    1.0,
+                )
+                .map(|d| Observation {
+                    displacement: Vector2::new(moved + d, 0.0),
+                    ..l.row
+                })
+            })
+            .collect();
+        assert!(
+            one.len() > 64 && one.len() < found.len(),
+            "{} rows",
+            one.len()
+        );
+        assert_eq!(rows, one);
     }
 
     #[test]
