@@ -161,10 +161,15 @@ pub struct Tuning {
     /// cube, hurts it on the synthetic box).
     #[arg(long)]
     pub it_interior: Option<f32>,
-    /// Contour: renders per frame (default 2; the first searches long then
-    /// short lines, the others short lines at the newest estimate).
+    /// Contour: most renders per frame (default 4; the first searches long
+    /// then short lines, the others short lines at the newest estimate).
     #[arg(long)]
     pub contour_rounds: Option<usize>,
+    /// Contour: from the second render on, a round that moved the outline
+    /// less than this (mean, pixels) ends the frame's step (default 0.25;
+    /// 0: always --contour-rounds renders).
+    #[arg(long)]
+    pub contour_converged: Option<f64>,
     /// Contour: one contour point per cell of this side, pixels (default 4).
     #[arg(long)]
     pub contour_spacing: Option<u32>,
@@ -226,6 +231,7 @@ impl Tuning {
         set(&mut c.max_it_only_frames, self.max_it_only);
         set(&mut c.it_interior_px, self.it_interior);
         set(&mut c.contour.rounds, self.contour_rounds);
+        set(&mut c.contour.converged_px, self.contour_converged);
         set(&mut c.contour.spacing_px, self.contour_spacing);
         set(&mut c.contour.damping, self.contour_damping);
         set(&mut c.contour.reproject_px, self.contour_reproject);
@@ -260,8 +266,9 @@ pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 12] = [
+const FLAGS: [(&str, &str); 13] = [
     ("contour.rounds", "contour-rounds"),
+    ("contour.converged_px", "contour-converged"),
     ("contour.reproject_px", "contour-reproject"),
     ("contour.spacing_px", "contour-spacing"),
     ("contour.damping", "contour-damping"),
@@ -586,6 +593,9 @@ fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
         "  {:<26} {:8.0} bytes in {:.1} readbacks\n",
         "read back from the GPU", t.readback_bytes, t.readbacks
     );
+    if t.contour_rounds > 0.0 {
+        out += &format!("  {:<26} {:8.2}\n", "contour rounds", t.contour_rounds);
+    }
     if !t.gpu.is_empty() {
         out += "GPU passes per frame (mean, timestamp queries):\n";
         for (name, v) in &t.gpu {

@@ -31,6 +31,11 @@
 //!    [`crate::pose::irls_grouped`], each modality with its own robust
 //!    scale; undamped alone, damped towards a trusted KF estimate it
 //!    refines ([`ContourConfig::fused_damping`]).
+//! 4. The frame is rendered again at the newest estimate and the finest
+//!    lines searched again while a round still moves the outline
+//!    ([`ContourConfig::converged_px`]; two renders at least, at most
+//!    [`ContourConfig::rounds`]): a large jump is not reached from one
+//!    linearisation.
 
 use super::{ConfigError, Estimate, StepError, StepOutcome, Tracker};
 use crate::geometry::Pose;
@@ -65,9 +70,15 @@ pub struct ContourConfig {
     pub slope_px: f32,
     /// Fewer usable contour points than this: the step fails.
     pub min_points: usize,
-    /// Renders per frame: the first searches every line length of
+    /// Most renders per frame: the first searches every line length of
     /// `search_px`, later ones (at the newest estimate) the finest only.
     pub rounds: usize,
+    /// From the second render on, a round whose correction moved the
+    /// contour points less than this along their normals (mean, pixels)
+    /// ends the step: a frame whose pose has converged stops, one that
+    /// moved far (the first estimate linearised too far from it) renders
+    /// again, up to [`Self::rounds`]. 0: always `rounds` renders.
+    pub converged_px: f64,
     /// Levenberg-Marquardt damping of each solve, as a fraction of the
     /// normal matrix's diagonal: it keeps a motion the silhouette hardly
     /// sees (a rotation of a nearly symmetric outline) from jumping, but
@@ -116,7 +127,8 @@ impl Default for ContourConfig {
             inset_px: 0.65,
             slope_px: 1.0,
             min_points: 24,
-            rounds: 2,
+            rounds: 4,
+            converged_px: 0.25,
             damping: 0.0,
             fused_damping: 0.1,
             refine_texture: true,
@@ -182,6 +194,13 @@ impl ContourConfig {
         }
         if !(1..=10).contains(&self.rounds) {
             return bad("contour.rounds", self.rounds.to_string(), "in [1, 10]");
+        }
+        if !(self.converged_px.is_finite() && self.converged_px >= 0.0) {
+            return bad(
+                "contour.converged_px",
+                self.converged_px.to_string(),
+                ">= 0",
+            );
         }
         if !(self.damping.is_finite() && self.damping >= 0.0) {
             return bad("contour.damping", self.damping.to_string(), ">= 0");
@@ -956,8 +975,21 @@ impl Tracker {
                 damping,
                 anchors,
             )?;
+            // How far this round moved the contour (to first order; the
+            // mean of the points' motions along their normals).
+            let twist = step.pose.compose(&pose.inverse()).log();
+            let moved = lifted
+                .iter()
+                .map(|l| (l.row.predictors * twist)[0].abs())
+                .sum::<f64>()
+                / lifted.len().max(1) as f64;
+            log::debug!("contour: round {round} moved the outline {moved:.2} px (mean)");
+            self.contour_rounds += 1;
             pose = step.pose;
             last = Some(step);
+            if round >= 1 && moved < cfg.converged_px {
+                break;
+            }
         }
         last.ok_or(StepError::Solve(SolveError::TooFewMatches {
             got: 0,

@@ -111,6 +111,10 @@ pub struct StageTimes {
     /// ([`GpuContext::readbacks`]).
     #[serde(default)]
     pub readbacks: f64,
+    /// Rounds (renders, searches and solves) of the contour step during
+    /// the call (a mean over frames is fractional).
+    #[serde(default)]
+    pub contour_rounds: f64,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -137,6 +141,7 @@ impl StageTimes {
         }
         self.readback_bytes += other.readback_bytes * k;
         self.readbacks += other.readbacks * k;
+        self.contour_rounds += other.contour_rounds * k;
         for (label, ms) in &other.gpu {
             profile::add(&mut self.gpu, label, ms * k);
         }
@@ -321,6 +326,8 @@ pub struct Tracker {
     /// Contour: the model's normals for limbs of depth-only renders
     /// (made on first use).
     model_normals: Option<contour::ModelNormals>,
+    /// Contour: the rounds (renders) of the frame being tracked.
+    contour_rounds: usize,
     /// The inliers of this frame's last KF step (for the fused solve).
     kf_anchors: Vec<Anchor>,
     /// The sub-stage times of the frame being tracked.
@@ -446,6 +453,7 @@ impl Tracker {
             colours: contour::ColourModel::new(config_bins),
             contour_mask: None,
             model_normals: None,
+            contour_rounds: 0,
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
@@ -550,6 +558,7 @@ impl Tracker {
         let t0 = Instant::now();
         let read0 = (self.ctx.bytes_read(), self.ctx.readbacks());
         self.resident.begin();
+        self.contour_rounds = 0;
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
@@ -703,6 +712,7 @@ impl Tracker {
         times.gpu = sub.gpu;
         times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
+        times.contour_rounds = self.contour_rounds as f64;
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
