@@ -161,13 +161,13 @@ pub struct Tuning {
     /// cube, hurts it on the synthetic box).
     #[arg(long)]
     pub it_interior: Option<f32>,
-    /// Contour: most renders per frame (default 4; the first searches long
+    /// Contour: most rounds per frame (default 4; the first searches long
     /// then short lines, the others short lines at the newest estimate).
     #[arg(long)]
     pub contour_rounds: Option<usize>,
-    /// Contour: from the second render on, a round that moved the outline
+    /// Contour: from the second round on, a round that moved the outline
     /// less than this (mean, pixels) ends the frame's step (default 0.25;
-    /// 0: always --contour-rounds renders).
+    /// 0: always --contour-rounds rounds).
     #[arg(long)]
     pub contour_converged: Option<f64>,
     /// Contour: one contour point per cell of this side, pixels (default 4).
@@ -182,9 +182,9 @@ pub struct Tuning {
     /// depth-only renders (for comparison; about 3x the contour's GPU time).
     #[arg(long)]
     pub contour_full_render: bool,
-    /// Contour: a later round moves the previous round's points instead of
-    /// rendering when no point moved more than this (pixels, along its
-    /// normal; 0 renders every round).
+    /// Contour: a later round moves the last render's points instead of
+    /// rendering when no point moved more than this since (pixels, along
+    /// its normal; default 1; 0 renders every round).
     #[arg(long)]
     pub contour_reproject: Option<f64>,
     /// The frame loop as it was before issue 13, for comparison: render,
@@ -594,7 +594,10 @@ fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
         "read back from the GPU", t.readback_bytes, t.readbacks
     );
     if t.contour_rounds > 0.0 {
-        out += &format!("  {:<26} {:8.2}\n", "contour rounds", t.contour_rounds);
+        out += &format!(
+            "  {:<26} {:8.2} ({:.2} renders)\n",
+            "contour rounds", t.contour_rounds, t.contour_renders
+        );
     }
     if !t.gpu.is_empty() {
         out += "GPU passes per frame (mean, timestamp queries):\n";

@@ -31,11 +31,12 @@
 //!    [`crate::pose::irls_grouped`], each modality with its own robust
 //!    scale; undamped alone, damped towards a trusted KF estimate it
 //!    refines ([`ContourConfig::fused_damping`]).
-//! 4. The frame is rendered again at the newest estimate and the finest
-//!    lines searched again while a round still moves the outline
-//!    ([`ContourConfig::converged_px`]; two renders at least, at most
-//!    [`ContourConfig::rounds`]): a large jump is not reached from one
-//!    linearisation.
+//! 4. The finest lines are searched again at the newest estimate while a
+//!    round still moves the outline ([`ContourConfig::converged_px`]; two
+//!    rounds at least, at most [`ContourConfig::rounds`]): a large jump is
+//!    not reached from one linearisation. A round renders again unless
+//!    the last render's points moved little since
+//!    ([`ContourConfig::reproject_px`]: then they are moved instead).
 
 use super::{ConfigError, Estimate, StepError, StepOutcome, Tracker};
 use crate::geometry::Pose;
@@ -70,14 +71,16 @@ pub struct ContourConfig {
     pub slope_px: f32,
     /// Fewer usable contour points than this: the step fails.
     pub min_points: usize,
-    /// Most renders per frame: the first searches every line length of
-    /// `search_px`, later ones (at the newest estimate) the finest only.
+    /// Most rounds per frame, each a render (or the last render's points
+    /// moved, [`Self::reproject_px`]), line searches and a solve: the
+    /// first searches every line length of `search_px`, later ones (at the
+    /// newest estimate) the finest only.
     pub rounds: usize,
-    /// From the second render on, a round whose correction moved the
+    /// From the second round on, a round whose correction moved the
     /// contour points less than this along their normals (mean, pixels)
     /// ends the step: a frame whose pose has converged stops, one that
-    /// moved far (the first estimate linearised too far from it) renders
-    /// again, up to [`Self::rounds`]. 0: always `rounds` renders.
+    /// moved far (the first estimate linearised too far from it) searches
+    /// again, up to [`Self::rounds`]. 0: always `rounds` rounds.
     pub converged_px: f64,
     /// Levenberg-Marquardt damping of each solve, as a fraction of the
     /// normal matrix's diagonal: it keeps a motion the silhouette hardly
@@ -105,13 +108,14 @@ pub struct ContourConfig {
     /// taken from the model's points ([`ModelNormals`]); else depth and
     /// normals are splatted (the former way, for comparison).
     pub depth_only: bool,
-    /// A later round moves the previous round's contour points to the new
+    /// A later round moves the last render's contour points to the newest
     /// estimate (lifted to 3-D at their depth, projected again) instead of
-    /// rendering, when no point's normal motion between the two exceeds
-    /// this many pixels (0, the default: always render). It saves a
-    /// render but was measured less accurate where the contour tracks
-    /// alone (README "Contour": at 1 px the synthetic `plain` object's
-    /// first 8 frames at 320x240 end 4.6 degrees off instead of 2.7).
+    /// rendering, when no point's normal motion since that render exceeds
+    /// this many pixels (0: always render). After a small correction the
+    /// outline is nearly the same points of the surface; keeping them also
+    /// keeps the points' sampling of the frame (a new render picks other
+    /// pixels of the outline, whose line noise moves the weakly seen
+    /// rotations; README "Contour": the real dragon fused 98.8% to 100%).
     pub reproject_px: f64,
 }
 
@@ -134,7 +138,7 @@ impl Default for ContourConfig {
             refine_texture: true,
             min_inlier_fraction: 0.5,
             depth_only: true,
-            reproject_px: 0.0,
+            reproject_px: 1.0,
         }
     }
 }
@@ -937,8 +941,11 @@ impl Tracker {
             cfg.fused_damping
         };
         let mut pose = *start;
-        let mut lifted: Vec<Lifted> = Vec::new();
-        let mut lifted_at = pose;
+        // The last render's points and its pose, and the points of this
+        // round (those, or them moved to the round's pose).
+        let mut rendered: Vec<Lifted> = Vec::new();
+        let mut rendered_at = pose;
+        let mut lifted: Vec<Lifted>;
         let mut last = None;
         for round in 0..cfg.rounds.max(1) {
             // The first round goes coarse to fine; later ones (at the
@@ -950,22 +957,24 @@ impl Tracker {
             };
             // After a small correction the outline is nearly the same
             // points of the surface: move them instead of rendering.
-            let motion = pose.compose(&lifted_at.inverse());
+            let motion = pose.compose(&rendered_at.inverse());
             let twist = motion.log();
             let small = round > 0
                 && cfg.reproject_px > 0.0
-                && lifted
+                && rendered
                     .iter()
                     .all(|l| (l.row.predictors * twist)[0].abs() <= cfg.reproject_px);
             if small {
-                lifted = lifted
+                lifted = rendered
                     .iter()
                     .filter_map(|l| l.moved(&motion, &self.cam))
                     .collect();
             } else {
-                lifted = self.contour_points(frame, &pose)?;
+                rendered = self.contour_points(frame, &pose)?;
+                rendered_at = pose;
+                self.contour_renders += 1;
+                lifted = rendered.clone();
             }
-            lifted_at = pose;
             let step = self.contour_solve(
                 frame,
                 &pose,

@@ -111,10 +111,14 @@ pub struct StageTimes {
     /// ([`GpuContext::readbacks`]).
     #[serde(default)]
     pub readbacks: f64,
-    /// Rounds (renders, searches and solves) of the contour step during
-    /// the call (a mean over frames is fractional).
+    /// Rounds (searches and solves) of the contour step during the call
+    /// (a mean over frames is fractional).
     #[serde(default)]
     pub contour_rounds: f64,
+    /// The renders of those rounds (a round after a small correction moves
+    /// the last render's points instead).
+    #[serde(default)]
+    pub contour_renders: f64,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -142,6 +146,7 @@ impl StageTimes {
         self.readback_bytes += other.readback_bytes * k;
         self.readbacks += other.readbacks * k;
         self.contour_rounds += other.contour_rounds * k;
+        self.contour_renders += other.contour_renders * k;
         for (label, ms) in &other.gpu {
             profile::add(&mut self.gpu, label, ms * k);
         }
@@ -326,8 +331,10 @@ pub struct Tracker {
     /// Contour: the model's normals for limbs of depth-only renders
     /// (made on first use).
     model_normals: Option<contour::ModelNormals>,
-    /// Contour: the rounds (renders) of the frame being tracked.
+    /// Contour: the rounds of the frame being tracked.
     contour_rounds: usize,
+    /// Contour: the renders of the frame being tracked.
+    contour_renders: usize,
     /// The inliers of this frame's last KF step (for the fused solve).
     kf_anchors: Vec<Anchor>,
     /// The sub-stage times of the frame being tracked.
@@ -454,6 +461,7 @@ impl Tracker {
             contour_mask: None,
             model_normals: None,
             contour_rounds: 0,
+            contour_renders: 0,
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
@@ -559,6 +567,7 @@ impl Tracker {
         let read0 = (self.ctx.bytes_read(), self.ctx.readbacks());
         self.resident.begin();
         self.contour_rounds = 0;
+        self.contour_renders = 0;
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
@@ -713,6 +722,7 @@ impl Tracker {
         times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.contour_rounds = self.contour_rounds as f64;
+        times.contour_renders = self.contour_renders as f64;
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
