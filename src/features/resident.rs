@@ -9,8 +9,9 @@ use super::gpu_data::{Pixel, pack_with_holes_into};
 use super::image::GreyImage;
 use crate::gpu::{GpuContext, GrowBuffer, STORAGE_IN};
 
-/// An image on the GPU: `width x height` [`Pixel`]s, row-major (grey
-/// value and flags, pinholes flagged, as [`pack_with_holes`] packs them).
+/// An image on the GPU: `width x height` packed pixels, row-major (8 bytes
+/// each: the grey value and flags, pinholes flagged, as the host's
+/// packing for NCC packs them).
 #[derive(Clone, Copy)]
 pub struct ResidentImage<'a> {
     /// The pixels (at least `width x height` of them).

@@ -347,7 +347,7 @@ fn estimate_on(
     Ok(())
 }
 
-/// Neighbours per point that [`close_gaps`] looks at: enough that the
+/// Neighbours per point that `close_gaps` looks at: enough that the
 /// Voronoi cell of a randomly (Poisson) sampled point is bounded by them
 /// (its farthest vertex is rarely beyond half the distance to the 24th
 /// neighbour), few enough to stay cheap.
@@ -363,7 +363,7 @@ pub const GAP_NEIGHBOURS: usize = 24;
 /// small changes of the closed radii moved KF+IT by 0.02 degree.
 pub const GAP_MODEL_FRACTION: f64 = 0.1;
 
-/// What [`close_gaps`] changed.
+/// What `close_gaps` changed.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GapClosure {
     /// Points whose radius grew.

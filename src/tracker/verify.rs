@@ -22,7 +22,7 @@
 //!
 //! This file holds the pure scoring ([`score`], testable without a GPU,
 //! from a view, its coverage and the frame) and the rule ([`judge`]); the
-//! tracker renders the view ([`super::Tracker::verify_pose`]).
+//! tracker renders the view (`Tracker::verify_pose`).
 
 use crate::features::GreyImage;
 use std::fmt;
