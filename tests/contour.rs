@@ -369,52 +369,77 @@ fn a_depth_only_render_gives_the_full_renders_contour_with_model_limb_normals() 
     );
 }
 
+/// The untextured `plain` object on a Fig. 10 trajectory of `length` frames
+/// seen by `camera`: its model (30k points) and the first `n` frames.
+fn plain_frames(
+    camera: Intrinsics,
+    length: usize,
+    n: usize,
+) -> (PointModel, Vec<splattrack::synth::SynthFrame>) {
+    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
+    let cfg = SynthConfig {
+        object: "plain".into(),
+        trajectory: Trajectory::Fig10,
+        frames: length,
+        camera,
+        ..Default::default()
+    };
+    let object = SynthObject::by_name(&cfg.object).unwrap();
+    let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
+    let bg = background(&cfg.camera, cfg.seed);
+    let frames = (0..n)
+        .map(|i| render_frame(&cfg, &object, &bg, i))
+        .collect();
+    (model, frames)
+}
+
+/// Tracks `frames` from the first one's true pose: each frame's result and
+/// its rotation error, degrees.
+fn track_frames(
+    model: &PointModel,
+    camera: Intrinsics,
+    frames: &[splattrack::synth::SynthFrame],
+    config: splattrack::tracker::TrackerConfig,
+) -> Vec<(splattrack::tracker::TrackResult, f64)> {
+    let mut t = splattrack::tracker::Tracker::new(
+        ctx(),
+        model.clone(),
+        camera,
+        None,
+        config,
+        frames[0].pose,
+    )
+    .unwrap();
+    frames
+        .iter()
+        .map(|f| {
+            let r = t.track(&f.image).unwrap();
+            let e = r.pose.rotation_error_deg(&f.pose);
+            (r, e)
+        })
+        .collect()
+}
+
 /// The untextured object (one plain colour over clutter, moving light), a
 /// short Fig. 10 start at 320x240: the contour modality tracks every frame
 /// within 3 degrees (texture alone loses this object: its only corners are
 /// shading). Figures on longer runs are in the README ("Contour").
 #[test]
 fn contour_holds_the_untextured_object_that_texture_loses() {
-    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
-    use splattrack::tracker::{Modalities, Status, Tracker, TrackerConfig};
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        trajectory: Trajectory::Fig10,
-        frames: 60,
-        camera: Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5),
+    use splattrack::tracker::{Modalities, Status, TrackerConfig};
+    let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
+    // The first 8 of 60 frames: a translation along x.
+    let (model, frames) = plain_frames(camera, 60, 8);
+    let config = TrackerConfig {
+        modalities: Modalities::CONTOUR,
         ..Default::default()
     };
-    let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
-    let bg = background(&cfg.camera, cfg.seed);
-    // The first 8 of 60 frames: a translation along x.
-    let frames: Vec<_> = (0..8)
-        .map(|i| render_frame(&cfg, &object, &bg, i))
-        .collect();
-    let run = |modalities| {
-        let config = TrackerConfig {
-            modalities,
-            ..Default::default()
-        };
-        let mut t = Tracker::new(
-            ctx(),
-            model.clone(),
-            cfg.camera,
-            None,
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
-        let mut worst = 0.0f64;
-        let mut lost = 0;
-        for f in &frames {
-            let r = t.track(&f.image).unwrap();
-            lost += usize::from(r.status == Status::Lost);
-            worst = worst.max(r.pose.rotation_error_deg(&f.pose));
-        }
-        (lost, worst)
-    };
-    let (lost, worst) = run(Modalities::CONTOUR);
+    let results = track_frames(&model, camera, &frames, config);
+    let lost = results
+        .iter()
+        .filter(|(r, _)| r.status == Status::Lost)
+        .count();
+    let worst = results.iter().map(|(_, e)| *e).fold(0.0f64, f64::max);
     eprintln!("contour: {lost} lost, worst rotation error {worst:.2} deg");
     assert_eq!(lost, 0, "contour lost frames");
     assert!(worst < 3.0, "worst rotation error {worst:.2} deg");
@@ -430,44 +455,23 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
 /// and frame 0, at its true pose, stops after two rounds.
 #[test]
 fn the_contour_renders_again_until_its_pose_converges() {
-    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
-    use splattrack::tracker::{ContourConfig, Modalities, Tracker, TrackerConfig};
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        trajectory: Trajectory::Fig10,
-        frames: 40,
-        ..Default::default()
-    };
-    let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
-    let bg = background(&cfg.camera, cfg.seed);
-    let frames: Vec<_> = (0..6)
-        .map(|i| render_frame(&cfg, &object, &bg, i))
-        .collect();
+    use splattrack::tracker::{ContourConfig, Modalities, TrackerConfig};
+    let camera = splattrack::synth::SynthConfig::default().camera;
+    let (model, frames) = plain_frames(camera, 40, 6);
     let run = |contour: ContourConfig| {
         let config = TrackerConfig {
             modalities: Modalities::CONTOUR,
             contour,
             ..Default::default()
         };
-        let mut t = Tracker::new(
-            ctx(),
-            model.clone(),
-            cfg.camera,
-            None,
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
-        let (mut sum, mut worst, mut rounds) = (0.0, 0.0f64, Vec::new());
-        for f in &frames {
-            let r = t.track(&f.image).unwrap();
-            let e = r.pose.rotation_error_deg(&f.pose);
-            sum += e;
-            worst = worst.max(e);
-            rounds.push((r.times.contour_rounds, r.times.contour_renders));
-        }
-        (sum / frames.len() as f64, worst, rounds)
+        let results = track_frames(&model, camera, &frames, config);
+        let mean = results.iter().map(|(_, e)| e).sum::<f64>() / results.len() as f64;
+        let worst = results.iter().map(|(_, e)| *e).fold(0.0f64, f64::max);
+        let rounds: Vec<(f64, f64)> = results
+            .iter()
+            .map(|(r, _)| (r.times.contour_rounds, r.times.contour_renders))
+            .collect();
+        (mean, worst, rounds)
     };
     let (mean2, worst2, _) = run(ContourConfig {
         rounds: 2,

@@ -7,22 +7,10 @@ use splattrack::features::{
     Corner, FeatureError, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher,
     harris_cpu, ncc_match_cpu,
 };
-use splattrack::gpu::{self, GpuContext};
 use splattrack::rng::Rng;
 
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
-
-fn random_points(rng: &mut Rng, n: usize, w: usize, h: usize) -> Vec<Corner> {
-    (0..n)
-        .map(|_| Corner {
-            x: rng.uniform(-3.0, w as f64 + 3.0) as f32,
-            y: rng.uniform(-3.0, h as f64 + 3.0) as f32,
-            score: 1.0,
-        })
-        .collect()
-}
+mod features_common;
+use features_common::{ctx, random_points};
 
 /// Same matches; scores within 1e-4 (f32 dot products of 81 terms in the
 /// same order; the GPU may fuse multiply-adds).

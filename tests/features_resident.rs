@@ -9,22 +9,10 @@ use splattrack::features::patterns::{self, Warp};
 use splattrack::features::{
     Corner, GpuGrey, GreyImage, NccConfig, NccMatcher, Refinement, ResidentImage, refine_match,
 };
-use splattrack::gpu::{self, GpuContext};
 use splattrack::rng::Rng;
 
-fn ctx() -> &'static GpuContext {
-    gpu::shared_test_context()
-}
-
-fn random_points(rng: &mut Rng, n: usize, w: usize, h: usize) -> Vec<Corner> {
-    (0..n)
-        .map(|_| Corner {
-            x: rng.uniform(-3.0, w as f64 + 3.0) as f32,
-            y: rng.uniform(-3.0, h as f64 + 3.0) as f32,
-            score: 1.0,
-        })
-        .collect()
-}
+mod features_common;
+use features_common::{ctx, random_points};
 
 /// `img` with every row outside `rows` invalid (NaN): what matching on
 /// those rows only sees, as a host image of the whole size.

@@ -391,12 +391,7 @@ fn reused_targets_keep_nothing_of_the_previous_render() {
     let fresh = images(&s, &model, &cam, &far);
     // Integer sums do not depend on the order of the atomics: bit for bit.
     for (k, (a, b)) in reused.iter().zip(&fresh).enumerate() {
-        let differ = a
-            .data
-            .iter()
-            .zip(&b.data)
-            .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
-            .count();
+        let differ = splat_common::differing(a, b);
         assert_eq!(differ, 0, "{:?}: {differ} values differ", READ[k]);
     }
     let (covered, bad) = disagreement(&reused, &cpu_images(&model, &cam, &far));

@@ -218,15 +218,8 @@ fn after_a_depth_only_render_only_depth_and_weight_read_and_full_renders_are_unc
         ));
         let depth = s.read(ctx(), &t, Attribute::Depth).unwrap();
         let (alone, _) = depth_render(&s, &model, &cam, &near);
-        let same = |a: &SplatImage, b: &SplatImage| {
-            a.data
-                .iter()
-                .zip(&b.data)
-                .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
-                .count()
-        };
         assert_eq!(
-            same(&depth, &alone),
+            splat_common::differing(&depth, &alone),
             0,
             "{backend}: depth after a full render"
         );
@@ -248,7 +241,7 @@ fn after_a_depth_only_render_only_depth_and_weight_read_and_full_renders_are_unc
                 s.read(ctx(), &fresh, a).unwrap(),
             );
             assert_eq!(
-                same(&x, &y),
+                splat_common::differing(&x, &y),
                 0,
                 "{backend}: {a:?} after a depth-only render"
             );

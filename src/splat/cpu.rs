@@ -198,16 +198,21 @@ fn motion(v: &View, x: Vec3) -> [f32; 12] {
     out
 }
 
+/// The splats of `model` that reach the view, set up for rasterising.
+fn setups(v: &View, model: &PackedModel) -> Vec<Setup> {
+    model
+        .splats
+        .iter()
+        .zip(&model.colors)
+        .filter_map(|(s, &c)| setup(v, s, c))
+        .collect()
+}
+
 /// Splats a packed model with a view uniform: passes 1 and 2.
 pub fn splat_packed(model: &PackedModel, uniform: &CameraUniform) -> Accumulators {
     let v = View::new(uniform);
     let (w, h) = (v.w as usize, v.h as usize);
-    let setups: Vec<Setup> = model
-        .splats
-        .iter()
-        .zip(&model.colors)
-        .filter_map(|(s, &c)| setup(&v, s, c))
-        .collect();
+    let setups = setups(&v, model);
     let uv = |x: u32, y: u32| Vec2::new(x as f32, y as f32);
     let (depth, _) = visibility(&v, &setups);
     // Pass 2: attributes, depth test less-or-equal, no depth writes.
@@ -272,12 +277,7 @@ fn visibility(v: &View, setups: &[Setup]) -> (Vec<f32>, Vec<f32>) {
 /// covers the pixel.
 pub fn visibility_depth(model: &PackedModel, uniform: &CameraUniform) -> SplatImage {
     let v = View::new(uniform);
-    let setups: Vec<Setup> = model
-        .splats
-        .iter()
-        .zip(&model.colors)
-        .filter_map(|(s, &c)| setup(&v, s, c))
-        .collect();
+    let setups = setups(&v, model);
     let (_, data) = visibility(&v, &setups);
     SplatImage {
         width: v.w as u32,

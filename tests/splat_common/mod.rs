@@ -45,3 +45,12 @@ pub fn random_view(rng: &mut Rng, target: Vector3<f64>, dist: f64) -> (Intrinsic
     let pose = look_at(&eye, &target, &rng.unit_vector());
     (cam, pose)
 }
+
+/// How many values of two images differ bit for bit (NaN equal to NaN).
+pub fn differing(a: &splattrack::splat::SplatImage, b: &splattrack::splat::SplatImage) -> usize {
+    a.data
+        .iter()
+        .zip(&b.data)
+        .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
+        .count()
+}
