@@ -451,7 +451,7 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
 /// moves the outline by a quarter pixel (`converged_px`, at most `rounds`
 /// rounds, each rendering unless the last render's points moved less than
 /// `reproject_px`) follows the jump of frame 1 that two rounds stop short
-/// of (measured: 0.25 / 0.38 degrees mean / worst against 2.60 / 9.91),
+/// of (measured: 0.27 / 0.53 degrees mean / worst against 2.80 / 12.2),
 /// and frame 0, at its true pose, stops after two rounds.
 #[test]
 fn the_contour_renders_again_until_its_pose_converges() {
@@ -506,9 +506,12 @@ fn the_contour_renders_again_until_its_pose_converges() {
 /// synthetic rasteriser from its mesh, 640x480, anti-aliased, with sensor
 /// noise), the boundaries that the line searches find lie on the mesh's
 /// exact outline (rasterised at 8x): the ground truth owes nothing to the
-/// splatter. Before the boundary was placed within its pixels by the mixed
-/// colours (the posterior alone) the 75th percentile was 0.22 px and the
-/// 90th 0.43 px on this frame.
+/// splatter (measured: 0.056 / 0.092 / 0.129 px, median / 75% / 90%).
+/// Before the boundary was placed within its pixels by the mixed colours
+/// (the posterior alone) the 75th percentile was 0.22 px and the 90th
+/// 0.43 px on this frame; with the mixed colours placed on the segment
+/// between object and background, which takes the darkening of the
+/// object's limbs for background, 0.077 / 0.14 / 0.29 px.
 #[test]
 fn boundaries_found_at_the_true_pose_lie_on_the_exact_outline() {
     use splattrack::synth::{
@@ -586,5 +589,5 @@ fn boundaries_found_at_the_true_pose_lie_on_the_exact_outline() {
         q(0.9),
         errs.len()
     );
-    assert!(q(0.5) < 0.12 && q(0.75) < 0.18 && q(0.9) < 0.35);
+    assert!(q(0.5) < 0.08 && q(0.75) < 0.12 && q(0.9) < 0.18);
 }

@@ -536,8 +536,15 @@ const MIX_REACH: i64 = 2;
 const MIX_STEP: f64 = 0.25;
 
 /// A sample farther than this fraction of the two colours' distance from
-/// the segment between them shows a third colour: no mixed boundary.
+/// its mix of them (on the segment between them, or of the object's shade
+/// and the background) shows a third colour: no mixed boundary.
 const MIX_OFF_SEGMENT: f64 = 0.25;
+
+/// A shade of the object's side is told from the background's share
+/// when the background's colour lies at least this fraction of the two
+/// colours' distance from every shade of the object's (else its share
+/// would be noisier than on the segment between them).
+const MIX_MIN_SHADE_DISTANCE: f64 = 0.5;
 
 /// Colours closer than this (RGB distance, 0..255 units) do not place the
 /// boundary within a pixel: image noise would.
@@ -552,8 +559,11 @@ const MIX_MIN_CONTRAST: f64 = 30.0;
 /// background's in proportion to the object's share `alpha`. With the
 /// samples [`MIX_REACH`] pixels either side of `d0` (the posterior's
 /// estimate, offsets along the line from `position`) standing for the
-/// pure colours, each sample between is placed on the segment between
-/// them, and the boundary is where a sharp step of the same area lies:
+/// pure colours, each sample between is split into its shares of them
+/// (the object's side scaled by a free shade where the background lies
+/// away from its shades: a limb darkens towards the outline; else on the
+/// segment between them),
+/// and the boundary is where a sharp step of the same area lies:
 /// for samples every `h` from `a` to `b`, `alpha(a) = 1`, `alpha(b) = 0`,
 /// a step at `e` covers `h sum alpha = e - a + h / 2`. (Fine steps make
 /// this hold for any blur across the boundary, a pixel's footprint seen
@@ -589,14 +599,47 @@ fn mixed_boundary(
     if len2 < MIX_MIN_CONTRAST * MIX_MIN_CONTRAST {
         return None;
     }
+    // The object's side darkens towards a limb (its surface turns away
+    // from the light): a mixed sample is then `s inside` and the
+    // background over their shares, with an unknown shade `s`. Where the
+    // background's colour lies away from every shade of the object's (the
+    // ray through `inside`), `v = p inside + q outside` is solved for
+    // (p, q) by least squares and the object's share is `1 - q` (the
+    // background's share is what the shade cannot change). The standard
+    // deviation of `q` is the noise over that distance, against the noise
+    // over the colours' distance on the segment: nearer than
+    // [`MIX_MIN_SHADE_DISTANCE`] of it (colours apart in brightness
+    // more than in hue), the shade and the share are told apart too
+    // poorly, and the sample is placed on the segment between them.
+    let gram = nalgebra::Matrix2::new(
+        inside.norm_squared(),
+        inside.dot(&outside),
+        inside.dot(&outside),
+        outside.norm_squared(),
+    );
+    let off_shades2 = gram.determinant() / gram[(0, 0)].max(1e-9);
+    let shaded = (off_shades2 >= MIX_MIN_SHADE_DISTANCE * MIX_MIN_SHADE_DISTANCE * len2)
+        .then(|| gram.try_inverse())
+        .flatten();
     let steps = ((b - a) as f64 / MIX_STEP).round() as i64;
     let mut area = 1.0; // alpha(a)
     for j in 1..steps {
         let o = a as f64 + j as f64 * MIX_STEP;
-        let v = colour(o)? - outside;
-        let t = v.dot(&span) / len2;
+        let c = colour(o)?;
+        let (t, off) = match &shaded {
+            Some(inv) => {
+                let pq = inv * nalgebra::Vector2::new(inside.dot(&c), outside.dot(&c));
+                let (p, q) = (pq[0].max(0.0), pq[1].clamp(0.0, 1.0));
+                (1.0 - q, c - inside * p - outside * q)
+            }
+            None => {
+                let v = c - outside;
+                let t = v.dot(&span) / len2;
+                (t, v - span * t)
+            }
+        };
         // A third colour (texture, clutter) is not a mix of the two.
-        if (v - span * t).norm_squared() > MIX_OFF_SEGMENT * MIX_OFF_SEGMENT * len2 {
+        if off.norm_squared() > MIX_OFF_SEGMENT * MIX_OFF_SEGMENT * len2 {
             return None;
         }
         area += t.clamp(0.0, 1.0);
@@ -1300,24 +1343,41 @@ mod tests {
         p0: Vector2<f64>,
         rng: &mut crate::rng::Rng,
     ) -> (image::RgbImage, Vec<bool>) {
+        half_plane_shaded(n, p0, 0.0, rng)
+    }
+
+    /// [`half_plane`] with the object's colour darkened towards its edge,
+    /// as a limb is: by `darken` at the edge, `darken / e` a pixel inside.
+    fn half_plane_shaded(
+        n: Vector2<f64>,
+        p0: Vector2<f64>,
+        darken: f64,
+        rng: &mut crate::rng::Rng,
+    ) -> (image::RgbImage, Vec<bool>) {
         let (w, h) = (64u32, 64u32);
         let (fg, bg) = ([200.0, 160.0, 40.0], [60.0, 40.0, 120.0]);
-        let inside = |x: f64, y: f64| n.dot(&(Vector2::new(x, y) - p0)) < 0.0;
+        let depth = |x: f64, y: f64| -n.dot(&(Vector2::new(x, y) - p0));
+        let inside = |x: f64, y: f64| depth(x, y) > 0.0;
         let mut frame = image::RgbImage::new(w, h);
         for (x, y, px) in frame.enumerate_pixels_mut() {
             let s = 16;
-            let mut share = 0.0;
+            let mut sum = [0.0; 3];
             for i in 0..s {
                 for j in 0..s {
                     let u = x as f64 - 0.5 + (i as f64 + 0.5) / s as f64;
                     let v = y as f64 - 0.5 + (j as f64 + 0.5) / s as f64;
-                    share += f64::from(u8::from(inside(u, v)));
+                    let d = depth(u, v);
+                    for k in 0..3 {
+                        sum[k] += if d > 0.0 {
+                            fg[k] * (1.0 - darken * (-d).exp())
+                        } else {
+                            bg[k]
+                        };
+                    }
                 }
             }
-            share /= (s * s) as f64;
-            let mut c = |k: usize| {
-                (share * fg[k] + (1.0 - share) * bg[k] + 2.0 * rng.normal()).clamp(0.0, 255.0) as u8
-            };
+            let mut c =
+                |k: usize| (sum[k] / (s * s) as f64 + 2.0 * rng.normal()).clamp(0.0, 255.0) as u8;
             *px = image::Rgb([c(0), c(1), c(2)]);
         }
         let coverage = (0..w * h)
@@ -1353,6 +1413,37 @@ mod tests {
         }
         let rms = (sq / trials as f64).sqrt();
         assert!(rms < 0.05, "rms {rms:.3} px");
+    }
+
+    #[test]
+    fn a_limb_darkening_towards_the_edge_does_not_pull_the_boundary_in() {
+        // The object's side darkens towards its outline (half as bright at
+        // the edge, as the synthetic `plain` object's limbs are under its
+        // light): its shade is not a share of the background. Placed on
+        // the segment between the two colours, as before, the darker
+        // mixed samples read as background (the first of these edges was
+        // found 0.30 px inside the true one).
+        let mut rng = crate::rng::Rng::new(7);
+        let mut sq = 0.0;
+        let trials = 40;
+        for _ in 0..trials {
+            let a = rng.uniform(0.0, std::f64::consts::TAU);
+            let n = Vector2::new(a.cos(), a.sin());
+            let p0 = Vector2::new(rng.uniform(30.0, 34.0), rng.uniform(30.0, 34.0));
+            let (frame, coverage) = half_plane_shaded(n, p0, 0.5, &mut rng);
+            let mut colours = ColourModel::new(16);
+            colours.learn(&frame, &coverage, (0, 0, 63, 63), 2, 1.0);
+            let off = rng.uniform(-2.0, 2.0);
+            let d = search_line(&frame, &colours, p0 - n * off, n, 8.0, 1.0).unwrap();
+            let err = d - off;
+            assert!(
+                err.abs() < 0.12,
+                "angle {a:.2}, offset {off:.2}: found {d:.3}"
+            );
+            sq += err * err;
+        }
+        let rms = (sq / trials as f64).sqrt();
+        assert!(rms < 0.06, "rms {rms:.3} px");
     }
 
     #[test]
