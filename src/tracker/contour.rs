@@ -988,7 +988,7 @@ impl Tracker {
         // round (those, or them moved to the round's pose).
         let mut rendered: Vec<Lifted> = Vec::new();
         let mut rendered_at = pose;
-        let mut lifted: Vec<Lifted>;
+        let mut moved: Vec<Lifted> = Vec::new();
         let mut last = None;
         for round in 0..cfg.rounds.max(1) {
             // The first round goes coarse to fine; later ones (at the
@@ -1008,20 +1008,18 @@ impl Tracker {
                     .iter()
                     .all(|l| (l.row.predictors * twist)[0].abs() <= cfg.reproject_px);
             if small {
-                lifted = rendered
-                    .iter()
-                    .filter_map(|l| l.moved(&motion, &self.cam))
-                    .collect();
+                moved.clear();
+                moved.extend(rendered.iter().filter_map(|l| l.moved(&motion, &self.cam)));
             } else {
                 rendered = self.contour_points(frame, &pose)?;
                 rendered_at = pose;
                 self.contour_renders += 1;
-                lifted = rendered.clone();
             }
+            let lifted: &[Lifted] = if small { &moved } else { &rendered };
             let step = self.contour_solve(
                 frame,
                 &pose,
-                &lifted,
+                lifted,
                 levels,
                 long && round == 0,
                 damping,
@@ -1099,17 +1097,21 @@ impl Tracker {
         let local: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
         let (ww, wh) = (window.width as usize, window.height as usize);
         let (x0, y0) = (window.x0 as usize, window.y0 as usize);
-        let mut coverage = vec![false; w * h];
+        // The whole frame's coverage, in the buffer of the last render.
+        let coverage = &mut self.contour_mask;
+        coverage.clear();
+        coverage.resize(w * h, false);
         for y in 0..wh {
             coverage[(y0 + y) * w + x0..(y0 + y) * w + x0 + ww]
                 .copy_from_slice(&local[y * ww..(y + 1) * ww]);
         }
+        self.contour_mask_fresh = true;
         if !self.colours.is_learned()
             && let Some(rect) = self.roi(pose)
         {
             self.colours.learn(
                 frame,
-                &coverage,
+                &self.contour_mask,
                 rect,
                 cfg.learn_margin_px,
                 cfg.learning_rate,
@@ -1165,7 +1167,6 @@ impl Tracker {
                 }
             })
             .collect();
-        self.contour_mask = Some(coverage);
         log::debug!(
             "contour: render, read, extract, gather {:.1} ms",
             t0.elapsed().as_secs_f64() * 1e3
@@ -1249,10 +1250,16 @@ impl Tracker {
     /// Learns the colours of `frame` at the last contour render (after a
     /// tracked frame).
     pub(super) fn learn_colours(&mut self, frame: &image::RgbImage, pose: &Pose) {
-        if let (Some(mask), Some(rect)) = (self.contour_mask.take(), self.roi(pose)) {
+        let fresh = std::mem::take(&mut self.contour_mask_fresh);
+        if let (true, Some(rect)) = (fresh, self.roi(pose)) {
             let c = &self.config.contour;
-            self.colours
-                .learn(frame, &mask, rect, c.learn_margin_px, c.learning_rate);
+            self.colours.learn(
+                frame,
+                &self.contour_mask,
+                rect,
+                c.learn_margin_px,
+                c.learning_rate,
+            );
         }
     }
 }

@@ -326,8 +326,12 @@ pub struct Tracker {
     ctx: GpuContext,
     /// Contour: the object's and the background's colours, learnt online.
     colours: contour::ColourModel,
-    /// Contour: the coverage of its last render, to learn the colours from.
-    contour_mask: Option<Vec<bool>>,
+    /// Contour: the coverage of its last render, to learn the colours from
+    /// (the frame's size; a buffer kept between frames).
+    contour_mask: Vec<bool>,
+    /// Contour: whether `contour_mask` is this frame's (a render of this
+    /// frame's contour step; cleared when the frame starts and once learnt).
+    contour_mask_fresh: bool,
     /// Contour: the model's normals for limbs of depth-only renders
     /// (made on first use).
     model_normals: Option<contour::ModelNormals>,
@@ -458,7 +462,8 @@ impl Tracker {
             searching: false,
             ctx: ctx.clone(),
             colours: contour::ColourModel::new(config_bins),
-            contour_mask: None,
+            contour_mask: Vec::new(),
+            contour_mask_fresh: false,
             model_normals: None,
             contour_rounds: 0,
             contour_renders: 0,
@@ -568,6 +573,7 @@ impl Tracker {
         self.resident.begin();
         self.contour_rounds = 0;
         self.contour_renders = 0;
+        self.contour_mask_fresh = false;
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
         // No pose yet, or lost for a while: search the whole frame.
