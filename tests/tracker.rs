@@ -266,7 +266,12 @@ fn kf_mode_needs_keyframes_or_model_colours() {
 /// give the full image's pixels up to f32 rounding
 /// (tests/splat_window.rs), which may move a corner by a rounding or flip
 /// a match at its threshold: the poses agree within 0.05 degrees and 0.05%
-/// of the diameter, every status is the same.
+/// of the diameter, every status is the same. With the contour, within
+/// 0.15 degrees and 0.1%: a covered pixel at a splat's very edge may flip
+/// with the rounding, which moves a contour point within its cell, and
+/// the frames after follow from poses 1e-5 degrees apart (measured
+/// 0.04-0.08 degrees on frames 1-3 since the mixed boundary's shade, 1e-5
+/// before it).
 #[test]
 fn windows_give_the_poses_of_the_whole_image() {
     let f = fixture();
@@ -299,8 +304,9 @@ fn windows_give_the_poses_of_the_whole_image() {
                 ra.inliers, rb.inliers
             );
             assert_eq!(ra.status, rb.status, "contour {contour}, frame {i}");
+            let (most_rot, most_tr) = if contour { (0.15, 0.1) } else { (0.05, 0.05) };
             assert!(
-                rot < 0.05 && tr < 0.05,
+                rot < most_rot && tr < most_tr,
                 "contour {contour}, frame {i}: {rot} deg, {tr}%"
             );
         }
