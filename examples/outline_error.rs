@@ -11,7 +11,6 @@
 //! outline on average, 0.3-0.7 px on darkened limbs (README "Contour").
 //!
 //! `cargo run --release --example outline_error -- OBJECT FRAME[,FRAME...] [OUT_DIR]`
-use nalgebra::Vector2;
 use splattrack::gpu::{AdapterChoice, GpuContext};
 use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets, Splatter};
 use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, raster, render_frame};
@@ -64,23 +63,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.learn_margin_px,
             1.0,
         );
-        let s = 8.0;
-        let mut big = cam;
-        (big.width, big.height) = (cam.width * 8, cam.height * 8);
-        (big.fx, big.fy) = (cam.fx * s, cam.fy * s);
-        (big.cx, big.cy) = (s * (cam.cx + 0.5) - 0.5, s * (cam.cy + 0.5) - 0.5);
-        let exact = raster::depth(&object.mesh, &f.pose, &big);
-        let inside = |p: Vector2<f64>| {
-            let (x, y) = (
-                (s * (p.x + 0.5) - 0.5).round(),
-                (s * (p.y + 0.5) - 0.5).round(),
-            );
-            x >= 0.0
-                && y >= 0.0
-                && x < big.width as f64
-                && y < big.height as f64
-                && exact[y as usize * big.width as usize + x as usize].is_finite()
-        };
+        let exact = raster::ExactOutline::new(&object.mesh, &f.pose, &cam, 8);
         let mut out = match &out_dir {
             Some(dir) => {
                 let mut f = std::fs::File::create(dir.join(format!("outline_{obj}_{k}.csv")))?;
@@ -91,14 +74,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         };
         let (mut bs, mut ds) = (Vec::new(), Vec::new());
         for p in &points {
-            let boundary = (-80..=80)
-                .map(|i| i as f64 * 0.05)
-                .collect::<Vec<_>>()
-                .windows(2)
-                .find(|o| {
-                    inside(p.position + p.normal * o[0]) && !inside(p.position + p.normal * o[1])
-                })
-                .map(|o| 0.5 * (o[0] + o[1]));
+            let boundary = exact.boundary_along(p.position, p.normal, 4.0);
             let found = search_line(&f.image, &colours, p.position, p.normal, 5.0, c.slope_px);
             if let (Some(b), Some(d)) = (boundary, found) {
                 if let Some(out) = out.as_mut() {

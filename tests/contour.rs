@@ -540,35 +540,13 @@ fn boundaries_found_at_the_true_pose_lie_on_the_exact_outline() {
     let mut colours = ColourModel::new(c.bins);
     let all = (0, 0, cam.width as usize - 1, cam.height as usize - 1);
     colours.learn(&f.image, &mask, all, c.learn_margin_px, 1.0);
-    // The exact outline: the mesh's coverage at 8x, pixel centres mapped
-    // as OpenCV's (x' = 8 (x + 1/2) - 1/2).
-    let s = 8.0;
-    let mut big = cam;
-    (big.width, big.height) = (cam.width * 8, cam.height * 8);
-    (big.fx, big.fy) = (cam.fx * s, cam.fy * s);
-    (big.cx, big.cy) = (s * (cam.cx + 0.5) - 0.5, s * (cam.cy + 0.5) - 0.5);
-    let exact = raster::depth(&object.mesh, &f.pose, &big);
-    let inside = |p: Vector2<f64>| {
-        let (x, y) = (
-            (s * (p.x + 0.5) - 0.5).round(),
-            (s * (p.y + 0.5) - 0.5).round(),
-        );
-        x >= 0.0
-            && y >= 0.0
-            && x < big.width as f64
-            && y < big.height as f64
-            && exact[y as usize * big.width as usize + x as usize].is_finite()
-    };
+    // The exact outline: the mesh's coverage at 8x.
+    let exact = raster::ExactOutline::new(&object.mesh, &f.pose, &cam, 8);
     let mut errs = Vec::new();
     for p in &points {
         // The exact boundary along the line: the first step outward (every
         // 1/20 px from 4 px inside) from covered to empty.
-        let boundary = (-80..=80)
-            .map(|i| i as f64 * 0.05)
-            .collect::<Vec<_>>()
-            .windows(2)
-            .find(|o| inside(p.position + p.normal * o[0]) && !inside(p.position + p.normal * o[1]))
-            .map(|o| 0.5 * (o[0] + o[1]));
+        let boundary = exact.boundary_along(p.position, p.normal, 4.0);
         let found = search_line(&f.image, &colours, p.position, p.normal, 5.0, c.slope_px);
         if let (Some(b), Some(d)) = (boundary, found) {
             errs.push((d - b).abs());

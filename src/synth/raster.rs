@@ -158,6 +158,62 @@ fn rasterise(mesh: &TriangleMesh, pose: &Pose, cam: &Intrinsics, s: usize) -> Sa
     }
 }
 
+/// A mesh's exact outline, to compare image positions against: its
+/// coverage rasterised at `scale` times the camera's resolution (pixel
+/// centres mapped as OpenCV's, `x' = scale (x + 1/2) - 1/2`), independent
+/// of the splatter.
+pub struct ExactOutline {
+    scale: f64,
+    width: usize,
+    height: usize,
+    depth: Vec<f32>,
+}
+
+impl ExactOutline {
+    /// The outline of `mesh` at `pose` seen by `cam`, at `scale` (an
+    /// integer factor) times its resolution.
+    pub fn new(mesh: &TriangleMesh, pose: &Pose, cam: &Intrinsics, scale: u32) -> Self {
+        let s = scale as f64;
+        let mut big = *cam;
+        (big.width, big.height) = (cam.width * scale, cam.height * scale);
+        (big.fx, big.fy) = (cam.fx * s, cam.fy * s);
+        (big.cx, big.cy) = (s * (cam.cx + 0.5) - 0.5, s * (cam.cy + 0.5) - 0.5);
+        Self {
+            scale: s,
+            width: big.width as usize,
+            height: big.height as usize,
+            depth: depth(mesh, pose, &big),
+        }
+    }
+
+    /// Whether the mesh covers the image point `p` (camera pixels; to the
+    /// nearest fine sample).
+    pub fn covers(&self, p: Vector2<f64>) -> bool {
+        let s = self.scale;
+        let (x, y) = (
+            (s * (p.x + 0.5) - 0.5).round(),
+            (s * (p.y + 0.5) - 0.5).round(),
+        );
+        x >= 0.0
+            && y >= 0.0
+            && x < self.width as f64
+            && y < self.height as f64
+            && self.depth[y as usize * self.width + x as usize].is_finite()
+    }
+
+    /// Where the outline crosses the line from `p` along the unit `normal`
+    /// (offset, pixels, positive along `normal`): the first step from
+    /// covered to empty, every 1/20 px from `reach` px behind `p` to
+    /// `reach` px ahead, at the step's middle; `None` without one.
+    pub fn boundary_along(&self, p: Vector2<f64>, normal: Vector2<f64>, reach: f64) -> Option<f64> {
+        let n = (reach / 0.05).round() as i64;
+        (-n..n)
+            .map(|i| (i as f64 * 0.05, (i + 1) as f64 * 0.05))
+            .find(|&(a, b)| self.covers(p + normal * a) && !self.covers(p + normal * b))
+            .map(|(a, b)| 0.5 * (a + b))
+    }
+}
+
 /// Renders `object` at `pose` over `background` (linear RGB, the camera's
 /// size, row-major) with `samples` x `samples` supersampling. Shading uses
 /// the mesh's vertex normals (its face normals where it has none).

@@ -1393,32 +1393,38 @@ mod tests {
         (frame, coverage)
     }
 
-    #[test]
-    fn the_boundary_is_found_within_its_pixel() {
-        // Straight edges at random angles and sub-pixel places, searched
-        // from a point a known distance off: the offset found is that
-        // distance. Without the mixed colours (the posterior alone) the
-        // errors reach a quarter of a pixel.
-        let mut rng = crate::rng::Rng::new(5);
+    /// Straight edges at random angles and sub-pixel places (darkened by
+    /// `darken` towards the edge, [`half_plane_shaded`]), searched from a
+    /// point a known distance off: every offset found is within `most` px
+    /// of that distance; returns their rms error.
+    fn edge_search_rms(seed: u64, darken: f64, most: f64) -> f64 {
+        let mut rng = crate::rng::Rng::new(seed);
         let mut sq = 0.0;
         let trials = 40;
         for _ in 0..trials {
             let a = rng.uniform(0.0, std::f64::consts::TAU);
             let n = Vector2::new(a.cos(), a.sin());
             let p0 = Vector2::new(rng.uniform(30.0, 34.0), rng.uniform(30.0, 34.0));
-            let (frame, coverage) = half_plane(n, p0, &mut rng);
+            let (frame, coverage) = half_plane_shaded(n, p0, darken, &mut rng);
             let mut colours = ColourModel::new(16);
             colours.learn(&frame, &coverage, (0, 0, 63, 63), 2, 1.0);
             let off = rng.uniform(-2.0, 2.0);
             let d = search_line(&frame, &colours, p0 - n * off, n, 8.0, 1.0).unwrap();
             let err = d - off;
             assert!(
-                err.abs() < 0.1,
+                err.abs() < most,
                 "angle {a:.2}, offset {off:.2}: found {d:.3}"
             );
             sq += err * err;
         }
-        let rms = (sq / trials as f64).sqrt();
+        (sq / trials as f64).sqrt()
+    }
+
+    #[test]
+    fn the_boundary_is_found_within_its_pixel() {
+        // Without the mixed colours (the posterior alone) the errors reach
+        // a quarter of a pixel.
+        let rms = edge_search_rms(5, 0.0, 0.1);
         assert!(rms < 0.05, "rms {rms:.3} px");
     }
 
@@ -1430,26 +1436,7 @@ mod tests {
         // the segment between the two colours, as before, the darker
         // mixed samples read as background (the first of these edges was
         // found 0.30 px inside the true one).
-        let mut rng = crate::rng::Rng::new(7);
-        let mut sq = 0.0;
-        let trials = 40;
-        for _ in 0..trials {
-            let a = rng.uniform(0.0, std::f64::consts::TAU);
-            let n = Vector2::new(a.cos(), a.sin());
-            let p0 = Vector2::new(rng.uniform(30.0, 34.0), rng.uniform(30.0, 34.0));
-            let (frame, coverage) = half_plane_shaded(n, p0, 0.5, &mut rng);
-            let mut colours = ColourModel::new(16);
-            colours.learn(&frame, &coverage, (0, 0, 63, 63), 2, 1.0);
-            let off = rng.uniform(-2.0, 2.0);
-            let d = search_line(&frame, &colours, p0 - n * off, n, 8.0, 1.0).unwrap();
-            let err = d - off;
-            assert!(
-                err.abs() < 0.12,
-                "angle {a:.2}, offset {off:.2}: found {d:.3}"
-            );
-            sq += err * err;
-        }
-        let rms = (sq / trials as f64).sqrt();
+        let rms = edge_search_rms(7, 0.5, 0.12);
         assert!(rms < 0.06, "rms {rms:.3} px");
     }
 
