@@ -12,7 +12,9 @@
 //
 // The sums, in this order: covered pixels, ZNCC pairs n, sum a, sum b,
 // sum aa, sum bb, sum ab (a: the view's grey, b: the frame's), contour
-// pixels, supported contour pixels.
+// pixels, supported contour pixels, then the texture's pixels (covered,
+// with the four pixels TEXTURE_STEP away covered) and the sum over them of
+// the view grey's squared Laplacian at that step.
 
 // Twin: `CheckParams` in src/tracker/verify_gpu.rs.
 struct CheckParams {
@@ -118,6 +120,9 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
     var sab = 0.0;
     var contour = 0.0;
     var hits = 0.0;
+    var texture_px = 0.0;
+    var lap2 = 0.0;
+    let d = TEXTURE_STEP;
     for (var x = 0u; x < w; x++) {
         if !covered(x, y) {
             continue;
@@ -138,6 +143,13 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
             saa += a * a;
             sbb += b * b;
             sab += a * b;
+            if x >= d && y >= d && x + d < w && y + d < h && covered(x - d, y)
+                && covered(x + d, y) && covered(x, y - d) && covered(x, y + d) {
+                let lap = 4.0 * view_grey(i) - (view_grey(i - d) + view_grey(i + d)
+                    + view_grey(i - d * w) + view_grey(i + d * w));
+                texture_px += 1.0;
+                lap2 += lap * lap;
+            }
             continue;
         }
         let m = mask_sobel(x, y);
@@ -158,6 +170,8 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
     partial[o + 6u] = sab;
     partial[o + 7u] = contour;
     partial[o + 8u] = hits;
+    partial[o + 9u] = texture_px;
+    partial[o + 10u] = lap2;
 }
 
 // One thread per sum, over the rows.

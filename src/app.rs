@@ -345,6 +345,9 @@ pub struct RunStats {
     pub frames: usize,
     /// Of which lost.
     pub lost: usize,
+    /// Frames whose texture steps were set aside for the contour alone
+    /// ([`crate::tracker::TrackResult::texture_set_aside`]).
+    pub texture_set_aside: usize,
     /// Mean milliseconds per frame: features, IT, KF, total.
     pub mean_ms: [f64; 4],
     /// Mean milliseconds per frame of the contour step.
@@ -590,6 +593,10 @@ impl<'a> TrackRun<'a> {
                     frame: frame_name(&frame),
                     source: Box::new(source),
                 })?;
+            if r.texture_set_aside {
+                stats.texture_set_aside += 1;
+                log::info!("frame {i}: texture set aside, the contour alone passed the check");
+            }
             if r.status == Status::Lost {
                 stats.lost += 1;
                 log::info!(

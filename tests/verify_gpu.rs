@@ -83,9 +83,15 @@ fn gpu_scores_are_the_cpu_reference_on_random_views() {
             (Some(a), Some(b)) => assert!((a - b).abs() < 0.01, "case {case}: {a} vs {b}"),
             (a, b) => assert_eq!(a, b, "case {case}"),
         }
+        // The view's texture within 1e-5 relative (f32 sums of squared
+        // Laplacians of up to 4 grey levels; measured 2e-7).
+        match (got.view_texture, want.view_texture) {
+            (Some(a), Some(b)) => assert!((a - b).abs() < 1e-5 * b, "case {case}: {a} vs {b}"),
+            (a, b) => assert_eq!(a, b, "case {case}"),
+        }
         // Without a texture: no ZNCC, the same edges.
         let bare = check.score_host(&frame, &weight, None, 0.9, &cfg).unwrap();
-        assert_eq!(bare.zncc, None);
+        assert_eq!((bare.zncc, bare.view_texture), (None, None));
         assert_eq!(bare.edge_support, got.edge_support);
     }
 }
@@ -133,4 +139,41 @@ fn a_textured_square_at_its_place_scores_one() {
             );
         }
     }
+}
+
+#[test]
+fn the_views_texture_is_zero_on_a_ramp_and_known_on_a_square_wave() {
+    // Known answers (as `verify`'s unit test): a linear ramp has no
+    // Laplacian; a square wave of amplitude a and period 2 TEXTURE_STEP
+    // along x has 4 a at every pixel far enough inside.
+    use splattrack::tracker::verify::TEXTURE_STEP;
+    let (w, h) = (40, 30);
+    let frame = GreyImage::from_fn(w, h, |x, y| 0.3 + 0.01 * ((x * y) % 7) as f32);
+    let weight: Vec<f32> = (0..w * h)
+        .map(|i| {
+            let inside = (1..w - 1).contains(&(i % w)) && (1..h - 1).contains(&(i / w));
+            if inside { 1.0 } else { f32::NAN }
+        })
+        .collect();
+    let grey = |g: &dyn Fn(usize, usize) -> f32| -> Vec<f32> {
+        (0..w * h).flat_map(|i| [g(i % w, i / w); 3]).collect()
+    };
+    let ramp = grey(&|x, y| 0.2 + 0.01 * x as f32 + 0.005 * y as f32);
+    let a = 0.05f32;
+    let d = TEXTURE_STEP;
+    let wave = grey(&|x, _| if x % (2 * d) < d { 0.5 + a } else { 0.5 - a });
+    let cfg = VerifyConfig::default();
+    let mut check = GpuCheck::new(shared_test_context()).unwrap();
+    let t = check
+        .score_host(&frame, &weight, Some(&ramp), 1.0, &cfg)
+        .unwrap()
+        .view_texture
+        .unwrap();
+    assert!(t < 1e-5, "ramp: {t}");
+    let t = check
+        .score_host(&frame, &weight, Some(&wave), 1.0, &cfg)
+        .unwrap()
+        .view_texture
+        .unwrap();
+    assert!((t - 4.0 * a as f64).abs() < 1e-5, "square wave: {t}");
 }

@@ -48,6 +48,7 @@ fn result(status: Status) -> TrackResult {
             ..Default::default()
         },
         verify: None,
+        texture_set_aside: false,
     }
 }
 

@@ -428,8 +428,12 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         r => r?,
     };
     let wall = wall.elapsed().as_secs_f64();
+    let aside = match stats.texture_set_aside {
+        0 => String::new(),
+        n => format!(" ({n} tracked by the contour alone, their texture set aside)"),
+    };
     println!(
-        "tracked {} frames ({} mode, {}): {} lost; {:.1} ms per frame (median {:.1}); poses in {}",
+        "tracked {} frames ({} mode, {}): {} lost{aside}; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,
         args.mode.name(),
         ctx.describe(),

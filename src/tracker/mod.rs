@@ -178,6 +178,12 @@ pub struct TrackResult {
     /// when it did not run: verification off, or no pose to check).
     #[serde(default)]
     pub verify: Option<VerifyScores>,
+    /// Whether the texture steps were trusted but their pose failed the
+    /// check on its appearance, so that the contour alone gave this
+    /// frame's pose (checked by its edges): the texture matched something
+    /// the keyframes do not show, such as an untextured object's shading.
+    #[serde(default)]
+    pub texture_set_aside: bool,
 }
 
 /// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
@@ -603,6 +609,7 @@ impl Tracker {
                         keyframe: None,
                         times,
                         verify: None,
+                        texture_set_aside: false,
                     });
                 }
                 None => {}
@@ -679,8 +686,10 @@ impl Tracker {
         );
         // Every pose reported `tracking` is checked against the image.
         let mut scores = None;
+        let mut texture_set_aside = false;
         let t_verify = Instant::now();
-        let d = if d.status == Status::Tracking && self.config.verify.enabled {
+        let mut d = d;
+        if d.status == Status::Tracking && self.config.verify.enabled {
             let check = if frozen {
                 Err(Unverified::FrozenFrame)
             } else {
@@ -696,10 +705,28 @@ impl Tracker {
                     verify::judge(&s, &self.config.verify)
                 }
             };
-            verified(d, check)
-        } else {
-            d
-        };
+            // A trusted texture step whose pose does not look like the
+            // frame matched something the keyframes do not show (on an
+            // untextured object, the shading of a moving light): set the
+            // texture aside and let the contour alone solve from that
+            // pose, checked as when no texture step is trusted.
+            let aside = match &check {
+                Err(Unverified::Appearance { .. })
+                    if self.config.modalities.contour && texture_held =>
+                {
+                    self.contour_alone(&rules, &frame.grey, rgb, &d, first_frame)?
+                }
+                _ => None,
+            };
+            match aside {
+                Some((alone, s)) => {
+                    scores = Some(s);
+                    texture_set_aside = true;
+                    d = alone;
+                }
+                None => d = verified(d, check),
+            }
+        }
         times.verify = t_verify.elapsed();
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
@@ -739,7 +766,55 @@ impl Tracker {
             keyframe,
             times,
             verify: scores,
+            texture_set_aside,
         })
+    }
+
+    /// The contour alone from the pose of decision `d` (whose texture
+    /// steps were trusted but whose check failed on appearance), decided
+    /// as if no texture step had run and checked by the contour's edges
+    /// ([`verify::judge_with_contour`]): the decision and its scores when
+    /// that pose passes, `None` when it does not (the frame stays lost).
+    fn contour_alone(
+        &mut self,
+        rules: &Rules,
+        grey: &GreyImage,
+        rgb: &image::RgbImage,
+        d: &Decision,
+        first_frame: bool,
+    ) -> Result<Option<(Decision, VerifyScores)>, TrackError> {
+        let Some(from) = d.pose else {
+            return Ok(None);
+        };
+        let contour = self.contour_stage(rgb, &from, false, &[]);
+        let alone = decide(
+            rules,
+            &FrameSteps {
+                it: StepOutcome::default(),
+                kf: StepOutcome::default(),
+                contour,
+                first_frame,
+                it_only_streak: 0,
+            },
+        );
+        let Some(pose) = alone.pose.filter(|_| alone.status == Status::Tracking) else {
+            return Ok(None);
+        };
+        let s = self.verify_scores(grey, &pose)?;
+        log::debug!("verify (contour alone): {s:?}");
+        match verify::judge_with_contour(&s, &self.config.verify) {
+            Ok(()) => {
+                log::debug!(
+                    "texture set aside (its pose did not look like the frame); the contour alone: {:.2} deg from it",
+                    pose.rotation_error_deg(&from)
+                );
+                Ok(Some((alone, s)))
+            }
+            Err(why) => {
+                log::debug!("the contour alone does not pass either: {why}");
+                Ok(None)
+            }
+        }
     }
 
     /// The model's coverage mask at `pose` (for overlays and the live
@@ -886,6 +961,7 @@ mod tests {
                 ..Default::default()
             },
             verify: None,
+            texture_set_aside: true,
         };
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains(r#""residual_px":null"#), "{json}");
@@ -894,6 +970,7 @@ mod tests {
         // serde_json reads floats to within an ulp.
         assert!((back.pose.to_matrix4() - r.pose.to_matrix4()).amax() < 1e-15);
         assert_eq!((back.inliers, back.keyframe), (r.inliers, r.keyframe));
+        assert!(back.texture_set_aside);
         assert_eq!(
             (back.status, back.reason, back.times),
             (r.status, r.reason, r.times)

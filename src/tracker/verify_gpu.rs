@@ -6,7 +6,7 @@
 //! reference is [`super::verify::score`]; `tests/verify_gpu.rs` compares
 //! the two on random views and frames.
 
-use super::verify::{VerifyConfig, VerifyScores, zncc_of_sums};
+use super::verify::{VerifyConfig, VerifyScores, laplacian_rms, zncc_of_sums};
 use crate::features::GreyImage;
 use crate::gpu::{
     GpuContext, GpuError, GrowBuffer, STORAGE_IN, STORAGE_OUT, compute_entry, compute_pass, storage,
@@ -15,7 +15,7 @@ use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
 /// Floats each row (and the whole window) reduces to (shaders/verify.wgsl).
-pub const CHECK_SUMS: u32 = 9;
+pub const CHECK_SUMS: u32 = 11;
 /// Threads (rows) per workgroup of the check's row pass.
 pub const CHECK_WORKGROUP: u32 = 64;
 
@@ -221,6 +221,11 @@ impl GpuCheck {
                 None
             },
             edge_support: (w >= 3 && h >= 3 && contour >= 20).then(|| s[8] / s[7]),
+            view_texture: if textured {
+                laplacian_rms(s[9], s[10])
+            } else {
+                None
+            },
         })
     }
 
