@@ -13,7 +13,7 @@
 // The sums, in this order: covered pixels, ZNCC pairs n, sum a, sum b,
 // sum aa, sum bb, sum ab (a: the view's grey, b: the frame's), contour
 // pixels, supported contour pixels, then the texture's pixels (covered,
-// with the four pixels TEXTURE_STEP away covered) and the sum over them of
+// with the four pixels `texture_step` away covered) and the sum over them of
 // the view grey's squared Laplacian at that step.
 
 // Twin: `CheckParams` in src/tracker/verify_gpu.rs.
@@ -25,7 +25,8 @@ struct CheckParams {
     // VerifyConfig::edge_gradient.
     gradient: f32,
     centre: f32,
-    pad0: u32,
+    // verify::texture_step of the object's projected size.
+    texture_step: u32,
     pad1: u32,
     pad2: u32,
 }
@@ -122,7 +123,7 @@ fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
     var hits = 0.0;
     var texture_px = 0.0;
     var lap2 = 0.0;
-    let d = TEXTURE_STEP;
+    let d = max(params.texture_step, 1u);
     for (var x = 0u; x < w; x++) {
         if !covered(x, y) {
             continue;

@@ -98,10 +98,6 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("BIG_SPLAT_PIXELS", U32(s::BIG_SPLAT_PIXELS)),
         ("CHECK_SUMS", U32(crate::tracker::verify_gpu::CHECK_SUMS)),
         (
-            "TEXTURE_STEP",
-            U32(crate::tracker::verify::TEXTURE_STEP as u32),
-        ),
-        (
             "CHECK_WORKGROUP",
             U32(crate::tracker::verify_gpu::CHECK_WORKGROUP),
         ),

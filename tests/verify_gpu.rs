@@ -46,10 +46,16 @@ fn random_case(rng: &mut Rng, w: usize, h: usize) -> (GreyImage, Vec<f32>, Vec<f
     (GreyImage::new(w, h, frame).unwrap(), weight, colour)
 }
 
-fn cpu(frame: &GreyImage, weight: &[f32], colour: &[f32], cfg: &VerifyConfig) -> VerifyScores {
+fn cpu(
+    frame: &GreyImage,
+    weight: &[f32],
+    colour: &[f32],
+    step: usize,
+    cfg: &VerifyConfig,
+) -> VerifyScores {
     let covered: Vec<bool> = weight.iter().map(|v| *v > 0.0 && !v.is_nan()).collect();
     let view = GreyImage::from_rgb_f32(frame.width, frame.height, colour).unwrap();
-    score(frame, &covered, Some(&view.data), 0.9, cfg)
+    score(frame, &covered, Some(&view.data), 0.9, step, cfg)
 }
 
 #[test]
@@ -68,9 +74,10 @@ fn gpu_scores_are_the_cpu_reference_on_random_views() {
             ..Default::default()
         };
         let (frame, weight, colour) = random_case(&mut rng, w, h);
-        let want = cpu(&frame, &weight, &colour, &cfg);
+        let step = 1 + case % 6;
+        let want = cpu(&frame, &weight, &colour, step, &cfg);
         let got = check
-            .score_host(&frame, &weight, Some(&colour), 0.9, &cfg)
+            .score_host(&frame, &weight, Some(&colour), 0.9, step, &cfg)
             .unwrap();
         eprintln!("case {case} ({w}x{h}): CPU {want:?}, GPU {got:?}");
         assert_eq!(got.covered_px, want.covered_px, "case {case}");
@@ -90,7 +97,9 @@ fn gpu_scores_are_the_cpu_reference_on_random_views() {
             (a, b) => assert_eq!(a, b, "case {case}"),
         }
         // Without a texture: no ZNCC, the same edges.
-        let bare = check.score_host(&frame, &weight, None, 0.9, &cfg).unwrap();
+        let bare = check
+            .score_host(&frame, &weight, None, 0.9, step, &cfg)
+            .unwrap();
         assert_eq!((bare.zncc, bare.view_texture), (None, None));
         assert_eq!(bare.edge_support, got.edge_support);
     }
@@ -124,7 +133,7 @@ fn a_textured_square_at_its_place_scores_one() {
             })
             .collect();
         let s = check
-            .score_host(&frame, &weight, Some(&colour), 1.0, &cfg)
+            .score_host(&frame, &weight, Some(&colour), 1.0, 4, &cfg)
             .unwrap();
         assert_eq!(s.covered_px, 24 * 24);
         if dx == 0 {
@@ -135,7 +144,7 @@ fn a_textured_square_at_its_place_scores_one() {
             assert!(s.edge_support.unwrap() < cfg.strong_edge_support, "{s:?}");
             assert_eq!(
                 s.edge_support,
-                cpu(&frame, &weight, &colour, &cfg).edge_support
+                cpu(&frame, &weight, &colour, 4, &cfg).edge_support
             );
         }
     }
@@ -144,9 +153,8 @@ fn a_textured_square_at_its_place_scores_one() {
 #[test]
 fn the_views_texture_is_zero_on_a_ramp_and_known_on_a_square_wave() {
     // Known answers (as `verify`'s unit test): a linear ramp has no
-    // Laplacian; a square wave of amplitude a and period 2 TEXTURE_STEP
+    // Laplacian; a square wave of amplitude a and period twice the step
     // along x has 4 a at every pixel far enough inside.
-    use splattrack::tracker::verify::TEXTURE_STEP;
     let (w, h) = (40, 30);
     let frame = GreyImage::from_fn(w, h, |x, y| 0.3 + 0.01 * ((x * y) % 7) as f32);
     let weight: Vec<f32> = (0..w * h)
@@ -160,18 +168,18 @@ fn the_views_texture_is_zero_on_a_ramp_and_known_on_a_square_wave() {
     };
     let ramp = grey(&|x, y| 0.2 + 0.01 * x as f32 + 0.005 * y as f32);
     let a = 0.05f32;
-    let d = TEXTURE_STEP;
+    let d = 3;
     let wave = grey(&|x, _| if x % (2 * d) < d { 0.5 + a } else { 0.5 - a });
     let cfg = VerifyConfig::default();
     let mut check = GpuCheck::new(shared_test_context()).unwrap();
     let t = check
-        .score_host(&frame, &weight, Some(&ramp), 1.0, &cfg)
+        .score_host(&frame, &weight, Some(&ramp), 1.0, d, &cfg)
         .unwrap()
         .view_texture
         .unwrap();
     assert!(t < 1e-5, "ramp: {t}");
     let t = check
-        .score_host(&frame, &weight, Some(&wave), 1.0, &cfg)
+        .score_host(&frame, &weight, Some(&wave), 1.0, d, &cfg)
         .unwrap()
         .view_texture
         .unwrap();

@@ -543,6 +543,13 @@ impl Tracker {
         self.store.as_ref()
     }
 
+    /// The radius, pixels, of the object's bounding sphere seen at `pose`
+    /// (at its centre's depth; not positive behind the camera).
+    pub(super) fn radius_px(&self, pose: &Pose) -> f64 {
+        let c = pose.transform_point(&self.center);
+        self.cam.fx.max(self.cam.fy) * self.radius / c.z
+    }
+
     /// The object's projected bounding circle plus the margin, as a pixel
     /// rectangle (x0, y0, x1, y1) clipped to the image; `None` when the
     /// object is behind the camera or wholly outside the image.

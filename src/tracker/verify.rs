@@ -54,10 +54,11 @@ pub struct VerifyConfig {
     /// A novel view whose own texture ([`VerifyScores::view_texture`]) is
     /// below this shows no more than shading: with the contour, strong
     /// edges may pass it despite a low ZNCC ([`judge_with_contour`]).
-    /// Measured (`track --modalities texture,contour`, every frame):
-    /// untextured synthetic objects 0.04-0.114, the textured blob
-    /// 0.178-0.232, box 0.33-0.41, real cube 0.187-0.228, real dragon
-    /// 0.120-0.144.
+    /// Measured (`track --modalities texture,contour`, every frame, at
+    /// 320x240 and 640x480): untextured synthetic objects 0.023-0.114,
+    /// the textured blob 0.135-0.232, box 0.266-0.330, real cube
+    /// 0.153-0.192, real dragon 0.077-0.098 (untextured by this measure;
+    /// its ZNCC is high anyway).
     pub untextured_below: f64,
     /// Least frame gradient along the contour normal (grey levels 0..1 per
     /// pixel, Sobel / 8) that counts as an edge.
@@ -75,7 +76,7 @@ impl Default for VerifyConfig {
             min_zncc: 0.4,
             min_edge_support: 0.4,
             strong_edge_support: 0.7,
-            untextured_below: 0.14,
+            untextured_below: 0.125,
             edge_gradient: 0.02,
             edge_search_px: 2,
         }
@@ -98,7 +99,7 @@ pub struct VerifyScores {
     /// `None` without a contour.
     pub edge_support: Option<f64>,
     /// The novel view's own texture: the RMS of its grey Laplacian at a
-    /// step of [`TEXTURE_STEP`] pixels (`4 v - ` the four pixels that far,
+    /// step of [`texture_step`] pixels (`4 v - ` the four pixels that far,
     /// grey levels 0..1) over the ZNCC's pixels whose four are covered;
     /// `None` without a view or under 50 such pixels. Smooth shading has
     /// little, a printed texture a lot: where this is low the ZNCC has
@@ -169,6 +170,7 @@ pub fn score(
     covered: &[bool],
     view: Option<&[f32]>,
     visible: f64,
+    texture_step: usize,
     cfg: &VerifyConfig,
 ) -> VerifyScores {
     let (w, h) = (frame.width, frame.height);
@@ -194,7 +196,7 @@ pub fn score(
         )
     });
     let view_texture = view.and_then(|v| {
-        let d = TEXTURE_STEP;
+        let d = texture_step.max(1);
         let (mut n, mut sum) = (0usize, 0.0f64);
         for y in d..h.saturating_sub(d) {
             for x in d..w.saturating_sub(d) {
@@ -218,12 +220,30 @@ pub fn score(
     }
 }
 
-/// The step of [`VerifyScores::view_texture`]'s Laplacian, pixels: at 1
-/// the keyframes' noise (baked into the points' colours) weighs as much as
-/// a texture; 4 parts the untextured synthetic objects (at most 0.114)
-/// from the textured ones (at least 0.178 on the blob, 0.187 on the real
-/// cube), where 1 left them 1.0x apart.
-pub const TEXTURE_STEP: usize = 4;
+/// The step of [`VerifyScores::view_texture`]'s Laplacian for an object
+/// whose bounding sphere projects to a circle of `radius_px` pixels: one
+/// step per [`PIXELS_PER_TEXTURE_STEP`], 1 to 8, so that the measure is
+/// the same for an object seen nearer or at a finer resolution (a
+/// Laplacian at a fixed step grows 4x for the shading of an object half
+/// as large). At a step of 1 the keyframes' noise (baked into the points'
+/// colours) weighs as much as a texture.
+pub fn texture_step(radius_px: f64) -> usize {
+    if radius_px.is_finite() {
+        (radius_px / PIXELS_PER_TEXTURE_STEP)
+            .round()
+            .clamp(1.0, 8.0) as usize
+    } else {
+        1
+    }
+}
+
+/// See [`texture_step`]. Measured (`track --modalities texture,contour`,
+/// every frame, 320x240 and 640x480): the untextured synthetic objects at
+/// most 0.114, the textured ones at least 0.135 (blob), 0.153 (real
+/// cube), 0.266 (box); with a fixed step of 4 the untextured object at
+/// 320x240 reached 0.171, next to the blob at 640x480 (0.178), and a step of
+/// 2 at 640x480 left 0.070 against 0.097.
+pub const PIXELS_PER_TEXTURE_STEP: f64 = 30.0;
 
 /// [`VerifyScores::view_texture`] from the count of inner pixels and the
 /// sum of their squared Laplacians; `None` under 50 pixels.
@@ -408,6 +428,7 @@ impl super::Tracker {
     ) -> Result<VerifyScores, super::TrackError> {
         use crate::splat::{Attribute, Attributes};
         let visible = self.visible_fraction(pose);
+        let step = texture_step(self.radius_px(pose));
         if visible < self.config.verify.min_visible {
             return Ok(VerifyScores {
                 visible,
@@ -440,7 +461,7 @@ impl super::Tracker {
             self.keep_render(*pose);
             let s = self
                 .check
-                .score(&frame, textured, visible, &self.config.verify)
+                .score(&frame, textured, visible, step, &self.config.verify)
                 .map_err(crate::splat::SplatError::from)?;
             if self.gpu_timer.is_some() {
                 let r = self.check.last_timings().clone();
@@ -470,6 +491,7 @@ impl super::Tracker {
             &covered,
             view.as_deref(),
             visible,
+            step,
             &self.config.verify,
         ))
     }
@@ -506,7 +528,7 @@ mod tests {
     fn the_right_pose_scores_high_and_passes() {
         let cfg = VerifyConfig::default();
         let (frame, covered, view) = scene(0);
-        let s = score(&frame, &covered, Some(&view), 1.0, &cfg);
+        let s = score(&frame, &covered, Some(&view), 1.0, 4, &cfg);
         assert_eq!(s.covered_px, 24 * 24);
         // Gain and offset do not matter.
         assert!((s.zncc.unwrap() - 1.0).abs() < 1e-9, "{s:?}");
@@ -518,7 +540,7 @@ mod tests {
     fn a_shifted_pose_loses_edges_and_correlation() {
         let cfg = VerifyConfig::default();
         let (frame, covered, view) = scene(8);
-        let s = score(&frame, &covered, Some(&view), 1.0, &cfg);
+        let s = score(&frame, &covered, Some(&view), 1.0, 4, &cfg);
         // Only the top and bottom edges' overlap (16 of 24 columns) and the
         // left edge are still on frame edges: well under the strong level.
         let e = s.edge_support.unwrap();
@@ -630,7 +652,7 @@ mod tests {
 
     /// Known answers of the view's texture: zero on a linear ramp (any
     /// shading that varies linearly), and on a square wave of amplitude
-    /// `a` and period `2 TEXTURE_STEP` along x each pixel's Laplacian is
+    /// `a` and period twice the step along x each pixel's Laplacian is
     /// `4 v` (its two neighbours along x the opposite value, along y the
     /// same), so the RMS is exactly `4 a`. Pixels nearer the silhouette's
     /// edge than the step are left out.
@@ -638,7 +660,7 @@ mod tests {
     fn view_texture_is_zero_on_a_ramp_and_known_on_a_square_wave() {
         let (w, h) = (40, 30);
         let frame = GreyImage::from_fn(w, h, |x, y| 0.3 + 0.01 * ((x * y) % 7) as f32);
-        let d = TEXTURE_STEP;
+        let d = 4;
         // Covered: a rectangle one pixel inside the image.
         let covered: Vec<bool> = (0..w * h)
             .map(|i| (1..w - 1).contains(&(i % w)) && (1..h - 1).contains(&(i / w)))
@@ -647,7 +669,7 @@ mod tests {
         let ramp: Vec<f32> = (0..w * h)
             .map(|i| 0.2 + 0.01 * (i % w) as f32 + 0.005 * (i / w) as f32)
             .collect();
-        let t = score(&frame, &covered, Some(&ramp), 1.0, &cfg)
+        let t = score(&frame, &covered, Some(&ramp), 1.0, d, &cfg)
             .view_texture
             .unwrap();
         assert!(t < 1e-5, "{t}");
@@ -661,17 +683,31 @@ mod tests {
                 }
             })
             .collect();
-        let t = score(&frame, &covered, Some(&wave), 1.0, &cfg)
+        let t = score(&frame, &covered, Some(&wave), 1.0, d, &cfg)
             .view_texture
             .unwrap();
         assert!((t - 4.0 * a as f64).abs() < 1e-5, "{t}");
         // Without a view, or with too few pixels far enough inside: none.
-        assert_eq!(score(&frame, &covered, None, 1.0, &cfg).view_texture, None);
-        let sliver: Vec<bool> = (0..w * h).map(|i| i / w == h / 2).collect();
         assert_eq!(
-            score(&frame, &sliver, Some(&wave), 1.0, &cfg).view_texture,
+            score(&frame, &covered, None, 1.0, d, &cfg).view_texture,
             None
         );
+        let sliver: Vec<bool> = (0..w * h).map(|i| i / w == h / 2).collect();
+        assert_eq!(
+            score(&frame, &sliver, Some(&wave), 1.0, d, &cfg).view_texture,
+            None
+        );
+    }
+
+    #[test]
+    fn the_texture_step_follows_the_objects_size() {
+        assert_eq!(texture_step(60.0), 2);
+        assert_eq!(texture_step(120.0), 4);
+        assert_eq!(texture_step(10.0), 1);
+        assert_eq!(texture_step(1e4), 8);
+        assert_eq!(texture_step(-50.0), 1);
+        assert_eq!(texture_step(f64::NAN), 1);
+        assert_eq!(texture_step(f64::INFINITY), 1);
     }
 
     #[test]

@@ -32,7 +32,7 @@ wgsl_struct! {
         search: u32,
         gradient: f32,
         centre: f32,
-        _pad0: u32,
+        texture_step: u32,
         _pad1: u32,
         _pad2: u32,
     }
@@ -155,12 +155,15 @@ impl GpuCheck {
     /// window of `frame`'s size) against `frame` (the frame's grey levels
     /// over that window): [`super::verify::score`] on the GPU, reading
     /// back [`CHECK_SUMS`] floats. `textured`: whether the view has a
-    /// texture to correlate (else no ZNCC).
+    /// texture to correlate (else no ZNCC and no view texture);
+    /// `texture_step`: the view texture's Laplacian step
+    /// ([`super::verify::texture_step`]).
     pub fn score(
         &mut self,
         frame: &GreyImage,
         textured: bool,
         visible: f64,
+        texture_step: usize,
         cfg: &VerifyConfig,
     ) -> Result<VerifyScores, GpuError> {
         let (w, h) = (frame.width as u32, frame.height as u32);
@@ -177,7 +180,7 @@ impl GpuCheck {
             search: cfg.edge_search_px as u32,
             gradient: cfg.edge_gradient,
             centre: CENTRE,
-            _pad0: 0,
+            texture_step: texture_step as u32,
             _pad1: 0,
             _pad2: 0,
         };
@@ -238,6 +241,7 @@ impl GpuCheck {
         weight: &[f32],
         colour: Option<&[f32]>,
         visible: f64,
+        texture_step: usize,
         cfg: &VerifyConfig,
     ) -> Result<VerifyScores, GpuError> {
         let (w, h) = (frame.width as u32, frame.height as u32);
@@ -256,6 +260,6 @@ impl GpuCheck {
         if let Some(c) = colour {
             self.ctx.queue.write_buffer(&cb, 0, bytemuck::cast_slice(c));
         }
-        self.score(frame, colour.is_some(), visible, cfg)
+        self.score(frame, colour.is_some(), visible, texture_step, cfg)
     }
 }
