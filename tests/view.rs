@@ -202,6 +202,15 @@ fn the_status_band_says_tracking_or_lost_and_why() {
         "tracking  42 inliers  0.75 px  101 ms  2.9 frames/s"
     );
     assert!(lines[2].starts_with("why: KF: 3 inliers"), "{}", lines[2]);
+    assert_eq!(splattrack::view::status_lines(&rated)[2], "");
+    let aside = TrackResult {
+        texture_set_aside: true,
+        ..tracking.clone()
+    };
+    assert_eq!(
+        splattrack::view::status_lines(&view(&img, &aside, None, None))[2],
+        "contour alone: the texture's pose did not look like the frame"
+    );
 }
 
 #[test]

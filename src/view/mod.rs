@@ -163,7 +163,8 @@ impl Layout {
 
 /// The text lines of the status band: mode, frame and time; status,
 /// inliers, residual, the tracker's milliseconds and the run's frames per
-/// second; on a lost frame, the reason.
+/// second; on a lost frame, the reason, and on a frame whose texture was
+/// set aside, that the contour alone tracked it.
 pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
     let r = frame.result;
     let time = frame
@@ -192,6 +193,9 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
     let third = match (r.status, &r.reason) {
         (Status::Lost, Some(why)) => format!("why: {why}"),
         (Status::Lost, None) => "why: not given".into(),
+        (Status::Tracking, _) if r.texture_set_aside => {
+            "contour alone: the texture's pose did not look like the frame".into()
+        }
         (Status::Tracking, _) => String::new(),
     };
     [first, second, third]
