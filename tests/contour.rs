@@ -393,19 +393,20 @@ fn plain_frames(
     (model, frames)
 }
 
-/// Tracks `frames` from the first one's true pose: each frame's result and
-/// its rotation error, degrees.
+/// Tracks `frames` from the first one's true pose (with the keyframes of
+/// `store`, if any): each frame's result and its rotation error, degrees.
 fn track_frames(
     model: &PointModel,
     camera: Intrinsics,
     frames: &[splattrack::synth::SynthFrame],
     config: splattrack::tracker::TrackerConfig,
+    store: Option<splattrack::keyframes::KeyframeStore>,
 ) -> Vec<(splattrack::tracker::TrackResult, f64)> {
     let mut t = splattrack::tracker::Tracker::new(
         ctx(),
         model.clone(),
         camera,
-        None,
+        store,
         config,
         frames[0].pose,
     )
@@ -434,7 +435,7 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
         modalities: Modalities::CONTOUR,
         ..Default::default()
     };
-    let results = track_frames(&model, camera, &frames, config);
+    let results = track_frames(&model, camera, &frames, config, None);
     let lost = results
         .iter()
         .filter(|(r, _)| r.status == Status::Lost)
@@ -459,7 +460,7 @@ fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
     use splattrack::synth::{
         SynthConfig, SynthObject, Trajectory, background, keyframe_images, render_frame,
     };
-    use splattrack::tracker::{Modalities, Status, Tracker, TrackerConfig};
+    use splattrack::tracker::{Modalities, Status, TrackerConfig};
     let cfg = SynthConfig {
         object: "plain".into(),
         trajectory: Trajectory::Fig10,
@@ -482,22 +483,13 @@ fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
     let frames: Vec<_> = (26..29)
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
-    let mut t = Tracker::new(
-        ctx(),
-        model,
-        cfg.camera,
-        Some(store),
-        TrackerConfig {
-            modalities: Modalities::BOTH,
-            ..Default::default()
-        },
-        frames[0].pose,
-    )
-    .unwrap();
+    let config = TrackerConfig {
+        modalities: Modalities::BOTH,
+        ..Default::default()
+    };
+    let results = track_frames(&model, cfg.camera, &frames, config, Some(store));
     let mut aside = 0;
-    for (k, f) in frames.iter().enumerate() {
-        let r = t.track(&f.image).unwrap();
-        let err = r.pose.rotation_error_deg(&f.pose);
+    for (k, (r, err)) in results.into_iter().enumerate() {
         eprintln!(
             "frame {}: {} {err:.2} deg, texture set aside {}, {:?}",
             26 + k,
@@ -544,7 +536,7 @@ fn the_contour_renders_again_until_its_pose_converges() {
             contour,
             ..Default::default()
         };
-        let results = track_frames(&model, camera, &frames, config);
+        let results = track_frames(&model, camera, &frames, config, None);
         let mean = results.iter().map(|(_, e)| e).sum::<f64>() / results.len() as f64;
         let worst = results.iter().map(|(_, e)| *e).fold(0.0f64, f64::max);
         let rounds: Vec<(f64, f64)> = results
