@@ -6,7 +6,7 @@
 // `Pixel` come from there.
 //
 // Passes (one dispatch each, WORKGROUP_2D^2 threads per workgroup, one
-// thread per pixel): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
+// thread per pixel, or per HARRIS_BLOCK pixels in the filter passes): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
 // alpha byte carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
 // -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
@@ -98,17 +98,41 @@ fn index(id: vec3<u32>) -> u32 {
     return id.y * params.width + id.x;
 }
 
-// Index of the pixel `t` steps from the thread's along x (`horizontal`)
-// or y, or -1 where that leaves the image (the tap then invalidates the
-// result).
-fn tap(id: vec3<u32>, t: i32, horizontal: bool) -> i32 {
-    let w = i32(params.width);
-    if (horizontal) {
-        let x = i32(id.x) + t;
-        return select(i32(id.y) * w + x, -1, x < 0 || x >= w);
+// The filter passes (deriv_*, integrate_*) run one invocation per
+// HARRIS_BLOCK consecutive pixels along the filter's direction (a row for
+// *_h, a column for *_v): each loads the window of HARRIS_BLOCK + 2r
+// pixels its outputs read once, into private memory, then computes every
+// output from it with exactly the operations (and order) of one output per
+// invocation. The thread's line (row or column), its first pixel along
+// the line, and the line's length:
+struct Block {
+    line: u32,
+    first: u32,
+    length: u32,
+    count: u32,
+}
+
+// None (count 0) for the threads of the last workgroups that overhang the
+// image.
+fn block(id: vec3<u32>, horizontal: bool) -> Block {
+    let length = select(params.height, params.width, horizontal);
+    let lines = select(params.width, params.height, horizontal);
+    let line = select(id.x, id.y, horizontal);
+    let first = select(id.y, id.x, horizontal) * HARRIS_BLOCK;
+    if (line >= lines || first >= length) {
+        return Block(0u, 0u, 0u, 0u);
     }
-    let y = i32(id.y) + t;
-    return select(y * w + i32(id.x), -1, y < 0 || y >= i32(params.height));
+    return Block(line, first, length, min(HARRIS_BLOCK, length - first));
+}
+
+// Row-major index of the pixel at `p` along the block's line.
+fn along(b: Block, p: u32, horizontal: bool) -> u32 {
+    return select(p * params.width + b.line, b.line * params.width + p, horizontal);
+}
+
+// Whether the pixel `p` (signed) along the line lies in the image.
+fn on_line(b: Block, p: i32) -> bool {
+    return p >= 0 && p < i32(b.length);
 }
 
 // Rec. 601 luma, the same weights and order as GreyImage::from_rgb8.
@@ -189,113 +213,145 @@ fn pack_f32(@builtin(global_invocation_id) id: vec3<u32>) {
 }
 
 // The Gaussian-derivative pass along x (`horizontal`: from the pixels,
-// giving (I*g'_x, I*g_x, valid, 0)) or along y (from deriv_h's output,
-// giving (Ix, Iy, valid, 0)).
-fn derive(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
+// writing (I*g'_x, I*g_x, valid, 0) to `tmp`) or along y (from deriv_h's
+// output, writing (Ix, Iy, valid, 0) to `grad`). A tap off the image makes
+// the output invalid (-1) and adds nothing.
+fn derive(id: vec3<u32>, horizontal: bool) {
+    let b = block(id, horizontal);
+    if (b.count == 0u) {
+        return;
+    }
     let rd = i32(params.rd);
     let nd = 2u * params.rd + 1u;
-    var a = 0.0;
-    var b = 0.0;
-    var ok = 1.0;
-    for (var t = -rd; t <= rd; t++) {
-        let j = tap(id, t, horizontal);
-        if (j < 0) {
-            ok = -1.0;
-            continue;
-        }
-        var s: vec3<f32>;
-        if (horizontal) {
-            let p = pixels[j];
-            // 1 valid, 0 a pinhole (tolerated), -1 hard invalid (as if
-            // outside the image).
-            var v = -1.0;
-            if (pixel_valid(p)) {
-                v = 1.0;
-            } else if (pixel_hole(p)) {
-                v = 0.0;
+    // Pixel `first + m - rd` of the line at `m`: (a, b, validity).
+    var win: array<vec3<f32>, HARRIS_BLOCK + 2u * MAX_DERIV_RADIUS>;
+    for (var m = 0; m < i32(HARRIS_BLOCK) + 2 * rd; m++) {
+        let p = i32(b.first) + m - rd;
+        if (on_line(b, p)) {
+            let j = along(b, u32(p), horizontal);
+            if (horizontal) {
+                let px = pixels[j];
+                // 1 valid, 0 a pinhole (tolerated), -1 hard invalid (as if
+                // outside the image).
+                var v = -1.0;
+                if (pixel_valid(px)) {
+                    v = 1.0;
+                } else if (pixel_hole(px)) {
+                    v = 0.0;
+                }
+                win[m] = vec3<f32>(px.value, px.value, v);
+            } else {
+                win[m] = tmp[j].xyz;
             }
-            s = vec3<f32>(p.value, p.value, v);
-        } else {
-            s = tmp[j].xyz;
         }
-        ok = min(ok, s.z);
-        // g' then g along x; g then g' along y.
-        let k = u32(t + rd);
-        a = a + s.x * weight(select(k, nd + k, horizontal));
-        b = b + s.y * weight(select(nd + k, k, horizontal));
     }
-    return vec4<f32>(a, b, ok, 0.0);
+    for (var k = 0; k < i32(HARRIS_BLOCK); k++) {
+        var a = 0.0;
+        var c = 0.0;
+        var ok = 1.0;
+        for (var t = -rd; t <= rd; t++) {
+            if (on_line(b, i32(b.first) + k + t)) {
+                let s = win[k + t + rd];
+                ok = min(ok, s.z);
+                // g' then g along x; g then g' along y.
+                let kt = u32(t + rd);
+                a = a + s.x * weight(select(kt, nd + kt, horizontal));
+                c = c + s.y * weight(select(nd + kt, kt, horizontal));
+            } else {
+                ok = -1.0;
+            }
+        }
+        if (u32(k) < b.count) {
+            let j = along(b, b.first + u32(k), horizontal);
+            if (horizontal) {
+                tmp[j] = vec4<f32>(a, c, ok, 0.0);
+            } else {
+                grad[j] = vec4<f32>(a, c, ok, 0.0);
+            }
+        }
+    }
 }
 
 // The Gaussian smoothing of the structure tensor along x (`horizontal`:
-// from the gradients) or along y (from integrate_h's output):
-// (Sxx, Syy, Sxy, valid).
-fn integrate(id: vec3<u32>, horizontal: bool) -> vec4<f32> {
+// from the gradients, writing (Sxx, Syy, Sxy, valid) to `tmp`) or along y
+// (from integrate_h's output, then the response: `respond`).
+fn integrate(id: vec3<u32>, horizontal: bool) {
+    let b = block(id, horizontal);
+    if (b.count == 0u) {
+        return;
+    }
     let ri = i32(params.ri);
     let base = 2u * (2u * params.rd + 1u);
-    var sxx = 0.0;
-    var syy = 0.0;
-    var sxy = 0.0;
-    var wsum = 0.0;
-    var outside_image = false;
-    for (var t = -ri; t <= ri; t++) {
-        let j = tap(id, t, horizontal);
-        if (j < 0) {
-            outside_image = true;
-            continue;
+    // Pixel `first + m - ri` of the line at `m`, as read (grad or tmp).
+    var win: array<vec4<f32>, HARRIS_BLOCK + 2u * MAX_INTEGRATION_RADIUS>;
+    // The largest response of the block allowed a corner (integrate_v).
+    var block_max = 0.0;
+    for (var m = 0; m < i32(HARRIS_BLOCK) + 2 * ri; m++) {
+        let p = i32(b.first) + m - ri;
+        if (on_line(b, p)) {
+            let j = along(b, u32(p), horizontal);
+            if (horizontal) {
+                win[m] = grad[j];
+            } else {
+                win[m] = tmp[j];
+            }
         }
-        var s: vec4<f32>;
-        if (horizontal) {
-            let g = grad[j];
-            let v = select(0.0, 1.0, g.z > 0.5);
-            outside_image = outside_image || g.z < -0.5;
-            s = vec4<f32>(g.x * g.x * v, g.y * g.y * v, g.x * g.y * v, v);
-        } else {
-            s = tmp[j];
-            outside_image = outside_image || s.w < 0.0;
+    }
+    for (var k = 0; k < i32(HARRIS_BLOCK); k++) {
+        var sxx = 0.0;
+        var syy = 0.0;
+        var sxy = 0.0;
+        var wsum = 0.0;
+        var outside_image = false;
+        for (var t = -ri; t <= ri; t++) {
+            if (on_line(b, i32(b.first) + k + t)) {
+                let g = win[k + t + ri];
+                var s: vec4<f32>;
+                if (horizontal) {
+                    let v = select(0.0, 1.0, g.z > 0.5);
+                    outside_image = outside_image || g.z < -0.5;
+                    s = vec4<f32>(g.x * g.x * v, g.y * g.y * v, g.x * g.y * v, v);
+                } else {
+                    s = g;
+                    outside_image = outside_image || s.w < 0.0;
+                }
+                let c = weight(base + u32(t + ri));
+                sxx = sxx + s.x * c;
+                syy = syy + s.y * c;
+                sxy = sxy + s.z * c;
+                wsum = wsum + s.w * c;
+            } else {
+                outside_image = true;
+            }
         }
-        let c = weight(base + u32(t + ri));
-        sxx = sxx + s.x * c;
-        syy = syy + s.y * c;
-        sxy = sxy + s.z * c;
-        wsum = wsum + s.w * c;
+        if (u32(k) < b.count) {
+            let st = vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
+            let j = along(b, b.first + u32(k), horizontal);
+            if (horizontal) {
+                tmp[j] = st;
+            } else {
+                block_max = max(block_max, respond(j, st));
+            }
+        }
     }
-    return vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
-}
-
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (!outside(id)) {
-        tmp[index(id)] = derive(id, true);
-    }
-}
-
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (!outside(id)) {
-        grad[index(id)] = derive(id, false);
+    // Positive floats order like their bit patterns: an integer atomicMax
+    // finds the largest response for the relative threshold (one atomic a
+    // block: on lavapipe one a pixel cost more than the pass's arithmetic).
+    if (block_max > 0.0) {
+        atomicMax(&counters.max_bits, bitcast<u32>(block_max));
     }
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (!outside(id)) {
-        tmp[index(id)] = integrate(id, true);
-    }
-}
-
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (outside(id)) {
-        return;
-    }
-    let st = integrate(id, false);
+// Writes the Harris response det - k trace^2 of the smoothed tensor `st`
+// at pixel `i`; returns it where a corner may be reported there and it is
+// positive (for the relative threshold), else 0.
+fn respond(i: u32, st: vec4<f32>) -> f32 {
     let wsum = st.w;
-    let i = index(id);
+    let px = pixels[i];
     // The taps sum to 1: a full window's weight is 1 up to rounding.
-    if (!(wsum >= params.min_weight * (1.0 - 1.0e-5)) || !pixel_valid(pixels[i])) {
+    if (!(wsum >= params.min_weight * (1.0 - 1.0e-5)) || !pixel_valid(px)) {
         response[i] = INVALID_RESPONSE;
-        return;
+        return 0.0;
     }
     var scale = 1.0;
     if (wsum < 1.0 - 1.0e-5) {
@@ -307,11 +363,27 @@ fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
     let tr = sxx + syy;
     let r = (sxx * syy - sxy * sxy) - params.k * (tr * tr);
     response[i] = r;
-    // Positive floats order like their bit patterns: an integer atomicMax
-    // finds the largest response for the relative threshold.
-    if (r > 0.0 && pixel_allowed(pixels[i])) {
-        atomicMax(&counters.max_bits, bitcast<u32>(r));
-    }
+    return select(0.0, r, r > 0.0 && pixel_allowed(px));
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    derive(id, true);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn deriv_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    derive(id, false);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn integrate_h(@builtin(global_invocation_id) id: vec3<u32>) {
+    integrate(id, true);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
+    integrate(id, false);
 }
 
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)

@@ -79,6 +79,12 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("PINHOLE_NEIGHBOURS", U32(f::PINHOLE_NEIGHBOURS as u32)),
         ("INVALID_RESPONSE", F32(f::INVALID_RESPONSE)),
         ("MAX_TAPS", U32(f::MAX_TAPS as u32)),
+        ("MAX_DERIV_RADIUS", U32(f::MAX_DERIV_RADIUS as u32)),
+        (
+            "MAX_INTEGRATION_RADIUS",
+            U32(f::MAX_INTEGRATION_RADIUS as u32),
+        ),
+        ("HARRIS_BLOCK", U32(f::HARRIS_BLOCK)),
         ("NO_SCORE", F32(f::NO_SCORE)),
         ("NO_INDEX", U32(f::NO_INDEX)),
         ("NCC_TILE", U32(f::NCC_TILE)),

@@ -50,6 +50,58 @@ fn gpu_response_matches_cpu_on_random_images() {
     }
 }
 
+/// The filter passes compute HARRIS_BLOCK (8) pixels an invocation from
+/// one window: sizes around and below a block and a workgroup, with the
+/// default and the largest kernels (radii 7 and 14, windows wider than
+/// some images), and NaN pixels (hard invalid and pinholes) near block
+/// boundaries. Same tolerance as above.
+#[test]
+fn gpu_response_matches_cpu_across_block_boundaries() {
+    let max_sigma = HarrisConfig::default().with_sigmas(7.0 / 3.0, 14.0 / 3.0);
+    for cfg in [HarrisConfig::default(), max_sigma] {
+        let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+        let reach = 3.0 * (cfg.sigma_d + cfg.sigma_i);
+        for (i, (w, h)) in [
+            (7, 5),
+            (8, 8),
+            (9, 23),
+            (17, 8),
+            (31, 33),
+            (40, 129),
+            (75, 61),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let mut img = patterns::smooth_noise(w, h, 1.0, 10 + i as u64);
+            // A hole at a block's last pixel and a hard invalid pair.
+            for (x, y) in [(7, 2), (w / 2, h / 2), (w / 2 + 1, h / 2)] {
+                if x < w && y < h {
+                    img.data[y * w + x] = f32::NAN;
+                }
+            }
+            let name = format!("{w}x{h}, sigma_i {}", cfg.sigma_i);
+            let gpu = harris.response(&img).unwrap();
+            let cpu = harris_response_cpu(&img, &cfg).unwrap();
+            let max = cpu.iter().fold(0f32, |m, v| m.max(v.abs().min(1e30)));
+            let valid = cpu.iter().filter(|c| **c > -1e38).count();
+            if (w.min(h) as f32) > 2.0 * reach + 4.0 {
+                assert!(valid > 0, "{name}: no valid response to compare");
+            }
+            for (j, (g, c)) in gpu.iter().zip(&cpu).enumerate() {
+                let invalid = *c <= -1e38;
+                assert_eq!(*g <= -1e38, invalid, "{name}: validity differs at {j}");
+                if !invalid {
+                    assert!(
+                        (g - c).abs() <= 1e-5 * max,
+                        "{name}: {g} vs {c} at {j} (max {max})"
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// Same corners, positions within 1e-3 px, scores within 1e-4 relative.
 fn assert_same_corners(name: &str, gpu: &[Corner], cpu: &[Corner]) {
     assert_eq!(gpu.len(), cpu.len(), "{name}: corner counts differ");

@@ -14,6 +14,13 @@ use bytemuck::{Pod, Zeroable};
 pub const MAX_TAPS: usize = 64;
 pub const MAX_DERIV_RADIUS: usize = 7;
 pub const MAX_INTEGRATION_RADIUS: usize = 14;
+/// Outputs one invocation of a Harris filter pass computes along the
+/// filter's direction, from one window of `HARRIS_BLOCK + 2 r` pixels it
+/// loads once: (8 + 2r) / 8 loads an output instead of 2r + 1. On lavapipe,
+/// where every load of a storage buffer is a gather, this took the four
+/// filter passes of a 640x480 image from 205 to 89 ms (each pass timed
+/// alone) and a whole detection from 221 to 115 ms (BENCHMARKS.md).
+pub const HARRIS_BLOCK: u32 = 8;
 
 /// Pixel flags (`Pixel.flags`): the value is finite and usable...
 pub const PIXEL_VALID: u32 = 1;

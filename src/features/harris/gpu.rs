@@ -3,7 +3,9 @@
 
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
 use crate::features::FeatureError;
-use crate::features::gpu_data::{Candidate, Counters, HarrisParams, MAX_TAPS, RefineCorner};
+use crate::features::gpu_data::{
+    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, RefineCorner,
+};
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
@@ -267,11 +269,18 @@ impl Harris {
                 );
             }
         }
-        for (pipeline, label) in self.passes.iter().zip(PASSES) {
+        // The filter passes run one invocation per HARRIS_BLOCK pixels
+        // along their direction (x for *_h, y for *_v).
+        let (bw, bh) = (
+            workgroups((w as u32).div_ceil(HARRIS_BLOCK), WORKGROUP_2D),
+            workgroups((h as u32).div_ceil(HARRIS_BLOCK), WORKGROUP_2D),
+        );
+        let groups = [(bw, gy), (gx, bh), (bw, gy), (gx, bh), (gx, gy)];
+        for ((pipeline, label), (x, y)) in self.passes.iter().zip(PASSES).zip(groups) {
             let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
+            pass.dispatch_workgroups(x, y, 1);
         }
         ctx.queue.submit([enc.finish()]);
         Ok(())
