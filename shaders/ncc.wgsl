@@ -19,9 +19,10 @@
 // score_tiled / score_direct: S = A B^T, as a tiled matrix product
 //   (NCC_TILE x NCC_TILE tiles in workgroup memory, for GPUs) or one thread per entry reading
 //   the rows directly (for CPU adapters such as lavapipe, where workgroup
-//   barriers are expensive: 0.55 s against ~0.02 s for 900 x 900). Same sum
-//   in the same order either way. Pairs with an invalid window or beyond
-//   the search radius get NO_SCORE.
+//   barriers are expensive: 0.55 s against ~0.02 s for 900 x 900; it visits
+//   B's features in a host-given spatial order and skips the dot products
+//   of pairs that get no score). Same sum in the same order either way.
+//   Pairs with an invalid window or beyond the search radius get NO_SCORE.
 // row_best / col_best: one workgroup per row / column reduces to the best
 //   score (ties: the lower index). The host keeps mutual bests.
 // mutual_refine (the resident path, NccMatcher::match_resident): one
@@ -87,6 +88,8 @@ fn desc_get(i: u32) -> f32 {
 fn desc_set(i: u32, v: f32) {
     desc[i / 4u][i % 4u] = v;
 }
+// The windows' flags (vectorize: A's, then B's), then B's features in
+// the host's spatial order (score_direct).
 @group(0) @binding(4) var<storage, read_write> ok: array<u32>;
 @group(0) @binding(5) var<storage, read_write> scores: array<f32>;
 // Best per row of S (na entries), then per column (nb entries).
@@ -298,24 +301,59 @@ fn finish_score(i: u32, j: u32, acc: f32) {
     scores[i * params.nb + j] = s;
 }
 
-// One thread per row of A and four consecutive rows of B: the A row is
-// loaded once for four dot products.
+// Whether the pair (i, j) gets a score at all: both windows usable and B's
+// feature within the search radius (as finish_score decides).
+fn pair_live(i: u32, j: u32) -> bool {
+    let na = params.na;
+    var near = true;
+    if (params.radius2 >= 0.0) {
+        let dp = positions[na + j] + vec2<f32>(params.shift_bx, params.shift_by) - positions[i];
+        near = dp.x * dp.x + dp.y * dp.y <= params.radius2;
+    }
+    return ok[i] != 0u && ok[na + j] != 0u && near;
+}
+
+// B's feature at place q of the host's spatial order (after the na + nb
+// window flags in `ok`: B's features by bands of rows, then by x).
+fn b_at(q: u32) -> u32 {
+    return ok[params.na + params.nb + min(q, params.nb - 1u)];
+}
+
+// One thread per row of A and four B features, consecutive in the host's
+// spatial order: the A row is loaded once for four dot products, and the
+// threads of a SIMD group (a CPU adapter's vector lanes) hold nearby B
+// features, so that together they skip the dot products of pairs beyond
+// the search radius (on lavapipe most pairs are). Scores land at their
+// features' own indices.
 @compute @workgroup_size(NCC_TILE, NCC_TILE)
 fn score_direct(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.y;
-    let j0 = id.x * 4u;
+    let q0 = id.x * 4u;
     let na = params.na;
     let nb = params.nb;
-    if (i >= na || j0 >= nb) {
+    if (i >= na || q0 >= nb) {
+        return;
+    }
+    // Places past the end of B repeat the last feature and are not written.
+    let js = vec4<u32>(b_at(q0), b_at(q0 + 1u), b_at(q0 + 2u), b_at(q0 + 3u));
+    var live = false;
+    for (var m = 0u; m < 4u; m++) {
+        live = live || (q0 + m < nb && pair_live(i, js[m]));
+    }
+    if (!live) {
+        for (var m = 0u; m < 4u; m++) {
+            if (q0 + m < nb) {
+                scores[i * nb + js[m]] = NO_SCORE;
+            }
+        }
         return;
     }
     let s4 = params.stride / 4u;
     let ra = i * s4;
-    // Rows past the end of B are clamped to the last one and not written.
-    let rb0 = (na + j0) * s4;
-    let rb1 = (na + min(j0 + 1u, nb - 1u)) * s4;
-    let rb2 = (na + min(j0 + 2u, nb - 1u)) * s4;
-    let rb3 = (na + min(j0 + 3u, nb - 1u)) * s4;
+    let rb0 = (na + js[0]) * s4;
+    let rb1 = (na + js[1]) * s4;
+    let rb2 = (na + js[2]) * s4;
+    let rb3 = (na + js[3]) * s4;
     var acc = vec4<f32>(0.0);
     // Four at a time, summed one by one: the order of the CPU reference.
     for (var k = 0u; k < s4; k++) {
@@ -330,8 +368,8 @@ fn score_direct(@builtin(global_invocation_id) id: vec3<u32>) {
         acc = acc + a.w * vec4<f32>(b0.w, b1.w, b2.w, b3.w);
     }
     for (var m = 0u; m < 4u; m++) {
-        if (j0 + m < nb) {
-            finish_score(i, j0 + m, acc[m]);
+        if (q0 + m < nb) {
+            finish_score(i, js[m], acc[m]);
         }
     }
 }

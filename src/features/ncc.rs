@@ -112,6 +112,27 @@ pub(crate) fn sanitize(c: &Corner) -> [f32; 2] {
     }
 }
 
+/// B's features (`b`: their uploaded positions) in the order the
+/// one-thread-per-score kernel visits them: by bands of rows as tall as the
+/// search radius (at least 8 px), then by x, so that consecutive threads
+/// hold nearby features and skip together the pairs beyond the radius.
+/// Without a radius, B's own order. Every index once.
+pub(crate) fn spatial_order(b: &[[f32; 2]], radius: Option<f32>) -> Vec<u32> {
+    let mut order: Vec<u32> = (0..b.len() as u32).collect();
+    if let Some(r) = radius.filter(|r| r.is_finite() && *r > 0.0) {
+        let band = r.max(8.0);
+        let key = |j: &u32| {
+            let [x, y] = b[*j as usize];
+            ((y / band).floor() as i64, x)
+        };
+        order.sort_by(|p, q| {
+            let ((bp, xp), (bq, xq)) = (key(p), key(q));
+            bp.cmp(&bq).then(xp.total_cmp(&xq))
+        });
+    }
+    order
+}
+
 /// Mutual best matches from the best entry per row and per column.
 pub(crate) fn mutual(rows: &[Best], cols: &[Best], min_score: f32) -> Vec<Match> {
     rows.iter()
@@ -249,8 +270,7 @@ impl NccMatcher {
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
-        ctx.queue
-            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+        self.write_positions(&pos, na);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         self.encode(&mut enc, na, nb, false);
         ctx.queue.submit([enc.finish()]);
@@ -310,8 +330,7 @@ impl NccMatcher {
             .map(|c| sanitize(&band(c, a_rows.start)))
             .chain(b.iter().map(|c| sanitize(&band(c, b_rows.start))))
             .collect();
-        ctx.queue
-            .write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+        self.write_positions(&pos, na);
         let px = std::mem::size_of::<Pixel>();
         let (len_a, len_b) = (img_a.width * a_rows.len(), img_b.width * b_rows.len());
         let mut enc = ctx.device.create_command_encoder(&Default::default());
@@ -345,6 +364,19 @@ impl NccMatcher {
                 at: (refine.is_none() || m.refined == 1).then_some([m.x as f64, m.y as f64 + y0]),
             })
             .collect())
+    }
+
+    /// Uploads the positions (A's `na`, then B's) and B's
+    /// [`spatial_order`] after the window flags in `ok`.
+    fn write_positions(&self, pos: &[[f32; 2]], na: usize) {
+        let q = &self.ctx.queue;
+        q.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(pos));
+        let order = spatial_order(&pos[na..], self.config.search_radius);
+        q.write_buffer(
+            self.ok.get(),
+            (pos.len() * 4) as u64,
+            bytemuck::cast_slice(&order),
+        );
     }
 
     /// Checks a problem of `na` and `nb` features in two images of
@@ -389,7 +421,8 @@ impl NccMatcher {
         changed |= self.positions.ensure(ctx, ((na + nb) * 8) as u64);
         // Unit rows, then raw rows (windows with holes).
         changed |= self.desc.ensure(ctx, ((na + nb) * stride * 8) as u64);
-        changed |= self.ok.ensure(ctx, ((na + nb) * 4) as u64);
+        // The window flags, then B's spatial order.
+        changed |= self.ok.ensure(ctx, ((na + 2 * nb) * 4) as u64);
         changed |= self.scores.ensure(ctx, (na * nb * 4) as u64);
         changed |= self.best.ensure(ctx, ((na + nb) * 8) as u64);
         changed |= self
@@ -484,5 +517,34 @@ impl NccMatcher {
             self.last_timings = t.read(&self.ctx)?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spatial_order;
+
+    #[test]
+    fn spatial_order_is_a_permutation_by_bands_then_x() {
+        let b = [
+            [50.0, 3.0],
+            [10.0, 25.0],
+            [5.0, 9.9],
+            [7.0, 0.0],
+            [-1.0e9, -1.0e9],
+            [30.0, 19.0],
+        ];
+        // Bands of 10 px: y in [0, 10) holds 0, 2, 3; [10, 20) holds 5;
+        // [20, 30) holds 1; the far point first.
+        assert_eq!(spatial_order(&b, Some(10.0)), vec![4, 2, 3, 0, 5, 1]);
+        // Bands are at least 8 px tall.
+        assert_eq!(spatial_order(&b, Some(1.0)), spatial_order(&b, Some(8.0)));
+        // No radius (or a meaningless one): B's own order.
+        for r in [None, Some(0.0), Some(f32::NAN), Some(f32::INFINITY)] {
+            assert_eq!(spatial_order(&b, r), vec![0, 1, 2, 3, 4, 5]);
+        }
+        let mut sorted = spatial_order(&b, Some(10.0));
+        sorted.sort();
+        assert_eq!(sorted, vec![0, 1, 2, 3, 4, 5]);
     }
 }
