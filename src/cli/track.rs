@@ -461,7 +461,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
             stats.source_ms
         );
-        print!("{}", profile_table(&stats.mean_stages));
+        print!("{}", profile_table(&stats.mean_stages, ctx.is_cpu()));
         if let Some(m) = stats.gpu_memory {
             let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
             println!(
@@ -561,7 +561,9 @@ impl Input {
 
 /// The `--profile` table: every stage of the step, its parts, and what
 /// the stages leave over (grey conversion, decisions, bookkeeping).
-fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
+/// `cpu_adapter`: the GPU passes ran on a CPU adapter, whose timestamps of
+/// the feature passes are not to be trusted (said under them).
+fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> String {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let rest = |whole: std::time::Duration, parts: &[std::time::Duration]| {
         ms(whole) - parts.iter().map(|d| ms(*d)).sum::<f64>()
@@ -607,6 +609,9 @@ fn profile_table(t: &splattrack::tracker::StageTimes) -> String {
         out += "GPU passes per frame (mean, timestamp queries):\n";
         for (name, v) in &t.gpu {
             out += &format!("  {name:<26} {v:8.1} ms\n");
+        }
+        if cpu_adapter {
+            out += "  (a CPU adapter: its timestamps of the Harris and NCC passes under-report, by 10-30x on lavapipe; the stage times above are the measure)\n";
         }
     }
     out
