@@ -6,9 +6,10 @@
 // `Pixel` come from there.
 //
 // Passes (one dispatch each, WORKGROUP_2D^2 threads per workgroup, one
-// thread per pixel, or per HARRIS_BLOCK pixels in the filter passes): grey (only for RGB input: Rec. 601 luma of packed RGBA8, the
-// alpha byte carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients), integrate_h
-// -> integrate_v (structure tensor smoothed by a Gaussian, then the
+// thread per pixel, or per HARRIS_BLOCK pixels in the filter passes): grey
+// (only for RGB input: Rec. 601 luma of packed RGBA8, the alpha byte
+// carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients),
+// integrate_h -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
 // compaction into `candidates`), and refine (one thread per selected
 // corner: gradient-orthogonality sub-pixel refinement).
@@ -336,7 +337,7 @@ fn integrate(id: vec3<u32>, horizontal: bool) {
     }
     // Positive floats order like their bit patterns: an integer atomicMax
     // finds the largest response for the relative threshold (one atomic a
-    // block: on lavapipe one a pixel cost more than the pass's arithmetic).
+    // block instead of one a pixel).
     if (block_max > 0.0) {
         atomicMax(&counters.max_bits, bitcast<u32>(block_max));
     }
