@@ -24,7 +24,9 @@
 //   of pairs that get no score). Same sum in the same order either way.
 //   Pairs with an invalid window or beyond the search radius get NO_SCORE.
 // row_best / col_best: one workgroup per row / column reduces to the best
-//   score (ties: the lower index). The host keeps mutual bests.
+//   score (ties: the lower index); with score_direct, row_best_direct /
+//   col_best_direct scan a row / column per thread. The host keeps mutual
+//   bests.
 // mutual_refine (the resident path, NccMatcher::match_resident): one
 //   workgroup per feature of A keeps its row's best when it is mutual and
 //   scores at least min_score, and (refine_on) moves B's point to the
@@ -465,6 +467,39 @@ fn col_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id)
     best_of_line(lid.x, j, params.nb, params.na, j < params.nb);
     if (lid.x == 0u && j < params.nb) {
         best[params.na + j] = Best(red_index[0], red_score[0]);
+    }
+}
+
+// The CPU adapters' twins of row_best / col_best (with score_direct): one
+// thread per row / column scans its scores in order, with no workgroup
+// barrier (slow on a CPU); the same bests, ties included (`better` orders
+// every pair).
+fn scan_line(first: u32, step: u32, n: u32) -> Best {
+    var bs = NO_SCORE - 1.0;
+    var bi = NO_INDEX;
+    for (var k = 0u; k < n; k++) {
+        let s = scores[first + k * step];
+        if (better(s, k, bs, bi)) {
+            bs = s;
+            bi = k;
+        }
+    }
+    return Best(bi, bs);
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn row_best_direct(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i < params.na) {
+        best[i] = scan_line(i * params.nb, 1u, params.nb);
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn col_best_direct(@builtin(global_invocation_id) id: vec3<u32>) {
+    let j = id.x;
+    if (j < params.nb) {
+        best[params.na + j] = scan_line(j, params.nb, params.na);
     }
 }
 

@@ -160,6 +160,9 @@ pub struct NccMatcher {
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
     score_direct: wgpu::ComputePipeline,
+    /// One thread per row / column (with `score_direct`).
+    row_best_direct: wgpu::ComputePipeline,
+    col_best_direct: wgpu::ComputePipeline,
     tiled: bool,
     params: wgpu::Buffer,
     pixels: GrowBuffer,
@@ -176,12 +179,14 @@ pub struct NccMatcher {
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
-const ENTRIES: [&str; 6] = [
+const ENTRIES: [&str; 8] = [
     "vectorize",
     "score_tiled",
     "row_best",
     "col_best",
     "score_direct",
+    "row_best_direct",
+    "col_best_direct",
     "mutual_refine",
 ];
 
@@ -195,14 +200,18 @@ impl NccMatcher {
         entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
         let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
-        let mutual_refine = passes.pop().expect("six pipelines");
-        let score_direct = passes.pop().expect("six pipelines");
+        let mutual_refine = passes.pop().expect("eight pipelines");
+        let col_best_direct = passes.pop().expect("eight pipelines");
+        let row_best_direct = passes.pop().expect("eight pipelines");
+        let score_direct = passes.pop().expect("eight pipelines");
         Ok(Self {
             ctx: ctx.clone(),
             config,
             layout,
             passes,
             score_direct,
+            row_best_direct,
+            col_best_direct,
             tiled: !ctx.is_cpu(),
             params: ctx.buffer(
                 "ncc params",
@@ -227,9 +236,11 @@ impl NccMatcher {
         &self.config
     }
 
-    /// Chooses the score kernel: tiled in workgroup memory (the default on
-    /// GPUs) or one thread per score (the default on CPU adapters, where
-    /// workgroup barriers are slow). Both give the same scores.
+    /// Chooses the kernels: the score tiled in workgroup memory and a
+    /// workgroup's reduction per row and column of bests (the default on
+    /// GPUs), or one thread per score and per row or column (the default on
+    /// CPU adapters, where workgroup barriers are slow). Both give the same
+    /// scores and bests.
     pub fn set_tiled(&mut self, tiled: bool) {
         self.tiled = tiled;
     }
@@ -494,6 +505,12 @@ impl NccMatcher {
                 pass.set_pipeline(&self.score_direct);
                 // Four columns per thread.
                 pass.dispatch_workgroups(workgroups(nb as u32, 4 * NCC_TILE), gy, 1);
+            } else if label == "row_best" && !self.tiled {
+                pass.set_pipeline(&self.row_best_direct);
+                pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
+            } else if label == "col_best" && !self.tiled {
+                pass.set_pipeline(&self.col_best_direct);
+                pass.dispatch_workgroups(workgroups(nb as u32, WORKGROUP_1D), 1, 1);
             } else {
                 pass.set_pipeline(pipeline);
                 pass.dispatch_workgroups(gx, gy, 1);
