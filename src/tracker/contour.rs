@@ -471,6 +471,13 @@ pub fn search_line(
         inside[i + 1] = inside[i] + p.ln();
         outside[i + 1] = outside[i] + (1.0 - p).ln();
     }
+    // The smooth step at every offset o - d the searches below meet: d
+    // lies on a grid of 1/8 px and |o - d| <= reach, so the step is
+    // tabulated once a line at o - d = m / 8 (the same value, bit for bit,
+    // as computed at each sample: m / 8 is exact).
+    let steps: Vec<f64> = (-8 * reach..=8 * reach)
+        .map(|m| 0.5 * (1.0 - ((m as f64 / 8.0) / slope).tanh()))
+        .collect();
     let loglik = |d: f64| {
         // Samples i with offset o = i - l: plainly inside when o < d - reach.
         let lo = ((d - reach as f64).ceil() as i64 + l).clamp(0, n as i64) as usize;
@@ -478,7 +485,9 @@ pub fn search_line(
         let mut v = inside[lo] + (outside[n] - outside[hi]);
         for (i, p) in pf.iter().enumerate().take(hi).skip(lo) {
             let o = (i as i64 - l) as f64;
-            let hf = 0.5 * (1.0 - ((o - d) / slope).tanh());
+            debug_assert_eq!(((o - d) * 8.0).fract(), 0.0, "d off the 1/8 px grid");
+            let m = ((o - d) * 8.0) as i64 + 8 * reach;
+            let hf = steps[m as usize];
             v += (hf * p + (1.0 - hf) * (1.0 - p)).ln();
         }
         v
