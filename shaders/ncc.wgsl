@@ -285,30 +285,22 @@ var<workgroup> tile_b: array<array<f32, NCC_TILE>, NCC_TILE>;
 // invalid window or a pair beyond the search radius; the NCC over the
 // common valid samples where a window has holes.
 fn finish_score(i: u32, j: u32, acc: f32) {
-    let na = params.na;
     var s = acc;
-    let oa = ok[i];
-    let ob = ok[na + j];
-    var near = true;
-    if (params.radius2 >= 0.0) {
-        // B's positions in A's pixels: shifted by an integer (exact).
-        let dp = positions[na + j] + vec2<f32>(params.shift_bx, params.shift_by) - positions[i];
-        near = dp.x * dp.x + dp.y * dp.y <= params.radius2;
-    }
-    if (oa == 0u || ob == 0u || !near) {
+    if (!pair_live(i, j)) {
         s = NO_SCORE;
-    } else if (oa == 2u || ob == 2u) {
+    } else if (ok[i] == 2u || ok[params.na + j] == 2u) {
         s = partial_score(i, j);
     }
     scores[i * params.nb + j] = s;
 }
 
 // Whether the pair (i, j) gets a score at all: both windows usable and B's
-// feature within the search radius (as finish_score decides).
+// feature within the search radius.
 fn pair_live(i: u32, j: u32) -> bool {
     let na = params.na;
     var near = true;
     if (params.radius2 >= 0.0) {
+        // B's positions in A's pixels: shifted by an integer (exact).
         let dp = positions[na + j] + vec2<f32>(params.shift_bx, params.shift_by) - positions[i];
         near = dp.x * dp.x + dp.y * dp.y <= params.radius2;
     }
