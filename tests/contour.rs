@@ -370,13 +370,17 @@ fn a_depth_only_render_gives_the_full_renders_contour_with_model_limb_normals() 
 }
 
 /// The untextured `plain` object on a Fig. 10 trajectory of `length` frames
-/// seen by `camera`: its model (30k points) and the first `n` frames.
-fn plain_frames(
-    camera: Intrinsics,
-    length: usize,
-    n: usize,
-) -> (PointModel, Vec<splattrack::synth::SynthFrame>) {
-    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
+/// seen by `camera` (the synth defaults otherwise), its model of `points`
+/// points and the background.
+struct PlainScene {
+    cfg: splattrack::synth::SynthConfig,
+    object: splattrack::synth::SynthObject,
+    model: PointModel,
+    bg: Vec<[f32; 3]>,
+}
+
+fn plain_scene(camera: Intrinsics, length: usize, points: usize) -> PlainScene {
+    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background};
     let cfg = SynthConfig {
         object: "plain".into(),
         trajectory: Trajectory::Fig10,
@@ -385,12 +389,34 @@ fn plain_frames(
         ..Default::default()
     };
     let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
+    let model = splattrack::synth::sequence::sample_model(&object, points, cfg.seed).unwrap();
     let bg = background(&cfg.camera, cfg.seed);
-    let frames = (0..n)
-        .map(|i| render_frame(&cfg, &object, &bg, i))
-        .collect();
-    (model, frames)
+    PlainScene {
+        cfg,
+        object,
+        model,
+        bg,
+    }
+}
+
+impl PlainScene {
+    fn frames(&self, range: std::ops::Range<usize>) -> Vec<splattrack::synth::SynthFrame> {
+        range
+            .map(|i| splattrack::synth::render_frame(&self.cfg, &self.object, &self.bg, i))
+            .collect()
+    }
+}
+
+/// [`plain_scene`] with a 30k-point model: the model and the first `n`
+/// frames.
+fn plain_frames(
+    camera: Intrinsics,
+    length: usize,
+    n: usize,
+) -> (PointModel, Vec<splattrack::synth::SynthFrame>) {
+    let scene = plain_scene(camera, length, 30_000);
+    let frames = scene.frames(0..n);
+    (scene.model, frames)
 }
 
 /// Tracks `frames` from the first one's true pose (with the keyframes of
@@ -457,37 +483,30 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
 #[test]
 fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
     use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-    use splattrack::synth::{
-        SynthConfig, SynthObject, Trajectory, background, keyframe_images, render_frame,
-    };
+    use splattrack::synth::keyframe_images;
     use splattrack::tracker::{Modalities, Status, TrackerConfig};
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        trajectory: Trajectory::Fig10,
-        frames: 40,
-        ..Default::default()
-    };
-    let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 100_000, cfg.seed).unwrap();
-    let bg = background(&cfg.camera, cfg.seed);
+    let scene = plain_scene(
+        splattrack::synth::SynthConfig::default().camera,
+        40,
+        100_000,
+    );
+    let (cfg, model) = (&scene.cfg, &scene.model);
     let splatter = Splatter::new(ctx()).unwrap();
     let store = KeyframeStore::build(
         ctx(),
         &splatter,
-        &model,
+        model,
         &cfg.camera,
-        &keyframe_images(&cfg, &object, &bg),
+        &keyframe_images(cfg, &scene.object, &scene.bg),
         &KeyframeConfig::default(),
     )
     .unwrap();
-    let frames: Vec<_> = (26..29)
-        .map(|i| render_frame(&cfg, &object, &bg, i))
-        .collect();
+    let frames = scene.frames(26..29);
     let config = TrackerConfig {
         modalities: Modalities::BOTH,
         ..Default::default()
     };
-    let results = track_frames(&model, cfg.camera, &frames, config, Some(store));
+    let results = track_frames(model, cfg.camera, &frames, config, Some(store));
     let mut aside = 0;
     for (k, (r, err)) in results.into_iter().enumerate() {
         eprintln!(
@@ -586,20 +605,15 @@ fn the_contour_renders_again_until_its_pose_converges() {
 /// object's limbs for background, 0.077 / 0.14 / 0.29 px.
 #[test]
 fn boundaries_found_at_the_true_pose_lie_on_the_exact_outline() {
-    use splattrack::synth::{
-        SynthConfig, SynthObject, Trajectory, background, raster, render_frame,
-    };
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        trajectory: Trajectory::Fig10,
-        frames: 200,
-        ..Default::default()
-    };
-    let cam = cfg.camera;
-    let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 100_000, cfg.seed).unwrap();
-    let f = render_frame(&cfg, &object, &background(&cam, cfg.seed), 0);
-    let (depth, splatter, targets) = render(&model, &cam, &f.pose);
+    use splattrack::synth::raster;
+    let scene = plain_scene(
+        splattrack::synth::SynthConfig::default().camera,
+        200,
+        100_000,
+    );
+    let (cam, object, model) = (scene.cfg.camera, &scene.object, &scene.model);
+    let f = scene.frames(0..1).remove(0);
+    let (depth, splatter, targets) = render(model, &cam, &f.pose);
     let mask = coverage(&depth);
     let c = ContourConfig::default();
     let mut points = extract_contour(&mask, cam.width as usize, cam.height as usize, 4);
