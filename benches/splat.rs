@@ -77,6 +77,7 @@ fn bench(c: &mut Criterion) {
                 }
                 for (name, attrs) in [
                     ("color", Attributes::COLOR),
+                    ("predictors", Attributes::MOTION),
                     ("color+predictors", Attributes::ALL),
                 ] {
                     let mut timer = GpuTimer::new(&ctx, 2);

@@ -19,6 +19,11 @@ struct ResolveParams {
     // gather: GATHER_NEAREST (the nearest pixel) or GATHER_BILINEAR
     // (bilinear where all four pixels are covered).
     mode: u32,
+    // gather: the render's focal length in x (pixels).
+    fx: f32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: ResolveParams;
@@ -80,10 +85,9 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Normalised depth and predictors of pixel p, or w <= 0 when empty.
+// Normalised predictors of pixel p, or w <= 0 when empty.
 struct Sample {
     w: f32,
-    depth: f32,
     a: vec4<f32>,
     b: vec4<f32>,
     c: vec4<f32>,
@@ -96,7 +100,6 @@ fn load(p: vec2<i32>) -> Sample {
         s.w = 0.0;
         return s;
     }
-    s.depth = textureLoad(t1, p, 0).x / s.w;
     s.a = textureLoad(t2, p, 0) / s.w;
     s.b = textureLoad(t3, p, 0) / s.w;
     s.c = textureLoad(t4, p, 0) / s.w;
@@ -109,7 +112,9 @@ fn inside(p: vec2<i32>) -> bool {
 
 // Output per point (GATHER_STRIDE floats): du_tx, dv_tx, ..., du_rz,
 // dv_rz (12), depth, valid (1 or 0); predictors and depth are NaN when
-// invalid.
+// invalid. The depth is the one the translation predictor du_tx = fx / z
+// gives (eq. 5): the harmonic mean of the fragments' depths, read from the
+// predictors so that a render needs no geometry for it.
 @compute @workgroup_size(WORKGROUP_1D)
 fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
@@ -135,7 +140,6 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
                 let k01 = (1.0 - t.x) * t.y;
                 let k11 = t.x * t.y;
                 s.w = 1.0;
-                s.depth = k00 * s00.depth + k10 * s10.depth + k01 * s01.depth + k11 * s11.depth;
                 s.a = k00 * s00.a + k10 * s10.a + k01 * s01.a + k11 * s11.a;
                 s.b = k00 * s00.b + k10 * s10.b + k01 * s01.b + k11 * s11.b;
                 s.c = k00 * s00.c + k10 * s10.c + k01 * s01.c + k11 * s11.c;
@@ -156,6 +160,6 @@ fn gather(@builtin(global_invocation_id) id: vec3<u32>) {
         out[base + 4u + k] = select(nan(), s.b[k], valid);
         out[base + 8u + k] = select(nan(), s.c[k], valid);
     }
-    out[base + 12u] = select(nan(), s.depth, valid);
+    out[base + 12u] = select(nan(), params.fx / s.a.x, valid);
     out[base + 13u] = select(0.0, 1.0, valid);
 }

@@ -70,12 +70,13 @@ impl Attributes {
         geometry: true,
         motion: false,
     };
-    /// Colour and the motion predictors (the paper's single pass: 16 floats).
+    /// Colour and the motion predictors (the paper's single pass: 16
+    /// floats): what `gather` needs, its depth included.
     pub const MOTION: Self = Self {
         geometry: false,
         motion: true,
     };
-    /// Everything: colour, depth, normal, predictors (what gather needs).
+    /// Everything: colour, depth, normal, predictors.
     pub const ALL: Self = Self {
         geometry: true,
         motion: true,

@@ -340,30 +340,30 @@ impl Accumulators {
     }
 }
 
-/// The gather kernel on full images: predictors (12 channels) and depth
-/// (1 channel) sampled at `points` with the same rule as the GPU
-/// (`gather` in shaders/splat_resolve.wgsl).
+/// The gather kernel on a full image of predictors (12 channels): the
+/// predictors sampled at `points` with the same rule as the GPU (`gather`
+/// in shaders/splat_resolve.wgsl), and the depth they give, `fx / (du/dtx)`
+/// (`fx`: the render's focal length in x, pixels).
 pub fn sample_at(
     motion: &SplatImage,
-    depth: &SplatImage,
+    fx: f32,
     points: &[[f32; 2]],
     mode: GatherMode,
 ) -> Vec<GatherSample> {
     let (w, h) = (motion.width as i64, motion.height as i64);
     let inside = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h;
-    let load = |x: i64, y: i64| -> Option<[f32; 13]> {
-        if !depth.is_valid(x as u32, y as u32) {
+    let load = |x: i64, y: i64| -> Option<[f32; 12]> {
+        if !motion.is_valid(x as u32, y as u32) {
             return None;
         }
-        let mut v = [0.0; 13];
-        v[..12].copy_from_slice(motion.pixel(x as u32, y as u32));
-        v[12] = depth.pixel(x as u32, y as u32)[0];
+        let mut v = [0.0; 12];
+        v.copy_from_slice(motion.pixel(x as u32, y as u32));
         Some(v)
     };
     points
         .iter()
         .map(|&[x, y]| {
-            let mut out: Option<[f32; 13]> = None;
+            let mut out: Option<[f32; 12]> = None;
             if mode == GatherMode::Bilinear && x.is_finite() && y.is_finite() {
                 let (fx, fy) = (x.floor(), y.floor());
                 let (x0, y0) = (fx as i64, fy as i64);
@@ -396,8 +396,8 @@ pub fn sample_at(
             let mut v = [f32::NAN; GATHER_STRIDE];
             v[13] = 0.0;
             if let Some(o) = out {
-                v[..12].copy_from_slice(&o[..12]);
-                v[12] = o[12];
+                v[..12].copy_from_slice(&o);
+                v[12] = fx / o[0];
                 v[13] = 1.0;
             }
             GatherSample::from_floats(&v)

@@ -80,7 +80,7 @@ pub const GATHER_STRIDE: usize = 14;
 
 wgsl_struct! {
     /// Parameters of the resolve kernels.
-    #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+    #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
     pub struct ResolveParams {
         pub width: u32,
         pub height: u32,
@@ -88,6 +88,12 @@ wgsl_struct! {
         pub kind: u32,
         /// `gather`: 0 nearest, 1 bilinear.
         pub mode: u32,
+        /// `gather`: the focal length in x of the render (pixels), which
+        /// turns the translation predictor du/dtx = fx / z into the depth.
+        pub fx: f32,
+        pub _pad0: u32,
+        pub _pad1: u32,
+        pub _pad2: u32,
     }
 }
 

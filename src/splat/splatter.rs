@@ -326,6 +326,7 @@ impl Splatter {
         {
             compute.render(ctx, model, &uniform, attrs, false, targets, timer)?;
             targets.rendered = Some(attrs);
+            targets.fx = cam.fx as f32;
             targets.depth_only = false;
             return Ok(());
         }
@@ -367,6 +368,7 @@ impl Splatter {
         }
         ctx.queue.submit([enc.finish()]);
         targets.rendered = Some(attrs);
+        targets.fx = cam.fx as f32;
         targets.depth_only = false;
         Ok(())
     }
@@ -615,6 +617,7 @@ impl Splatter {
                 height: h,
                 kind: attribute.kind(),
                 mode: GATHER_NEAREST,
+                ..Default::default()
             },
             out,
             None,
@@ -667,8 +670,11 @@ impl Splatter {
     }
 
     /// Motion predictors, depth and validity at `points` (OpenCV pixel
-    /// coordinates) from the last render, which must include geometry and
-    /// motion ([`Attributes::ALL`]). Reads back 14 floats per point only.
+    /// coordinates) from the last render, which must include the motion
+    /// predictors ([`Attributes::MOTION`] or [`Attributes::ALL`]). The depth
+    /// comes from the predictors (`fx / (du/dtx)`: the harmonic mean of the
+    /// fragments' depths, eq. 5), so no geometry needs rendering. Reads
+    /// back 14 floats per point only.
     pub fn gather(
         &self,
         ctx: &GpuContext,
@@ -676,7 +682,7 @@ impl Splatter {
         points: &[[f32; 2]],
         mode: GatherMode,
     ) -> Result<Vec<GatherSample>, SplatError> {
-        targets.check(Attributes::ALL, Attribute::Motion)?;
+        targets.check(Attributes::MOTION, Attribute::Motion)?;
         if points.is_empty() {
             return Ok(Vec::new());
         }
@@ -698,6 +704,8 @@ impl Splatter {
                     GatherMode::Nearest => GATHER_NEAREST,
                     GatherMode::Bilinear => GATHER_BILINEAR,
                 },
+                fx: targets.fx,
+                ..Default::default()
             },
             &out,
             Some(&pbuf),

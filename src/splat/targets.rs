@@ -19,6 +19,9 @@ pub struct SplatTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) uniform: wgpu::Buffer,
     pub(super) rendered: Option<Attributes>,
+    /// The focal length in x (pixels) of the last render's camera: what
+    /// `gather` turns the predictors into depth with.
+    pub(super) fx: f32,
     /// The last render was [`super::Splatter::render_depth`]'s: only the
     /// depth and the coverage can be read.
     pub(super) depth_only: bool,
@@ -81,6 +84,7 @@ impl SplatTargets {
             depth_view,
             uniform,
             rendered: None,
+            fx: 0.0,
             depth_only: false,
             compute: None,
         }

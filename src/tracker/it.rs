@@ -60,7 +60,7 @@ impl Tracker {
         // The check of the previous frame rendered this view already.
         if !self.reuse_render(pose, window) {
             let cam = self.use_window(window);
-            self.splat(Texture::None, &cam, pose, Attributes::ALL, "IT")?;
+            self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;
         }
         let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
         let samples = self.gather_frame(&pts)?;

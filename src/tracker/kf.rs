@@ -91,7 +91,7 @@ impl Tracker {
         let t = std::time::Instant::now();
         let window = self.view_window(pose);
         let k = self
-            .render_view_in(pose, Attributes::ALL, window, "KF")?
+            .render_view_in(pose, Attributes::MOTION, window, "KF")?
             .ok_or(StepError::NoKeyframes)?;
         self.stages.kf_render += t.elapsed();
         // The novel view of the window only (its corners in window

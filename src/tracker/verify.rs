@@ -438,10 +438,10 @@ impl super::Tracker {
         // The window holds every covered pixel with a margin wider than
         // the edge search, so the scores are those of the whole image.
         let window = self.view_window(pose);
-        // Every attribute: the next frame's IT step needs this very
+        // With the predictors: the next frame's IT step needs this very
         // render (at its previous pose), and takes it over.
         let attrs = if self.config.windows {
-            Attributes::ALL
+            Attributes::MOTION
         } else {
             Attributes::COLOR
         };
