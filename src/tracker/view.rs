@@ -381,7 +381,7 @@ impl Tracker {
         self.spare.truncate(SPARE_TARGETS);
     }
 
-    /// Keeps the last render (made at `pose` with every attribute and the
+    /// Keeps the last render (made at `pose` with the predictors and the
     /// model's geometry) for [`Tracker::reuse_render`].
     pub(super) fn keep_render(&mut self, pose: Pose) {
         if !self.config.windows {
