@@ -127,6 +127,70 @@ fn compute_matches_cpu_and_render_pass_on_random_clouds() {
 }
 
 #[test]
+fn compute_renders_do_not_depend_on_the_models_point_order() {
+    // GpuModel stores the splats in `spatial_order`; the compute splatter's
+    // integer sums make a render the same bit for bit whatever the file's
+    // order, and colours given later (`with_colors`, in the model's order)
+    // land on their own points.
+    let mut rng = Rng::new(77);
+    let mut model = shapes::random_cloud(&mut rng, Vec3::ZERO, 1.0, 4000, 0.005, 0.2);
+    let colors: Vec<[f32; 3]> = (0..model.positions.len())
+        .map(|_| {
+            [
+                rng.uniform(0.0, 1.0) as f32,
+                rng.uniform(0.0, 1.0) as f32,
+                rng.uniform(0.0, 1.0) as f32,
+            ]
+        })
+        .collect();
+    model.colors = Some(colors.clone());
+    let mut shuffled = model.clone();
+    let n = model.positions.len();
+    let mut perm: Vec<usize> = (0..n).collect();
+    for i in (1..n).rev() {
+        perm.swap(i, rng.below(i as u64 + 1) as usize);
+    }
+    shuffled.positions = perm.iter().map(|&i| model.positions[i]).collect();
+    shuffled.normals = perm.iter().map(|&i| model.normals[i]).collect();
+    shuffled.radii = perm.iter().map(|&i| model.radii[i]).collect();
+    shuffled.colors = Some(perm.iter().map(|&i| colors[i]).collect());
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.5);
+    let s = splatter(Backend::Compute);
+    let a = images(&s, &model, &cam, &pose);
+    let b = images(&s, &shuffled, &cam, &pose);
+    // Recoloured after upload: the model without colours, then `with_colors`.
+    let mut plain = model.clone();
+    plain.colors = None;
+    let gm = GpuModel::new(ctx(), &plain)
+        .unwrap()
+        .with_colors(ctx(), &colors)
+        .unwrap();
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    s.render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut t)
+        .unwrap();
+    let c = s.read(ctx(), &t, Attribute::Color).unwrap();
+    assert!(
+        a[0].coverage() > 1000,
+        "too little covered: {}",
+        a[0].coverage()
+    );
+    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+        let same = x
+            .data
+            .iter()
+            .zip(&y.data)
+            .all(|(p, q)| p.to_bits() == q.to_bits());
+        assert!(same, "{:?} differs with the points shuffled", READ[k]);
+    }
+    let same = a[0]
+        .data
+        .iter()
+        .zip(&c.data)
+        .all(|(p, q)| p.to_bits() == q.to_bits());
+    assert!(same, "with_colors put colours on other points");
+}
+
+#[test]
 fn compute_matches_cpu_and_render_pass_on_a_dense_sphere() {
     let mut rng = Rng::new(8);
     let model = shapes::sphere(Vec3::new(0.1, -0.2, 0.3), 1.0, 8000, 1.2);

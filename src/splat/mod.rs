@@ -69,7 +69,7 @@ pub use bounds::{ModelBounds, bounding_sphere};
 pub use error::SplatError;
 pub use gather::{GatherMode, GatherSample};
 pub use gpu_data::GATHER_STRIDE;
-pub use model::{GpuModel, PackedModel, pack_model};
+pub use model::{GpuModel, PackedModel, pack_model, spatial_order};
 pub use splatter::Splatter;
 pub use targets::{SplatImage, SplatTargets};
 pub use window::Window;

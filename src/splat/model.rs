@@ -1,12 +1,17 @@
 //! A point model checked, packed ([`pack_model`]) and uploaded
 //! ([`GpuModel`]): its geometry once, its colours in a small buffer of
 //! their own that models textured by other keyframes replace
-//! ([`GpuModel::with_colors`]).
+//! ([`GpuModel::with_colors`]). On the GPU the splats lie in
+//! [`spatial_order`], so that the threads of a vector or warp splat
+//! neighbours: they share their culling and footprint sizes and write
+//! nearby pixels.
 
 use super::gpu_data::{SplatGpu, pack_color};
 use super::{ModelBounds, SplatError, SplatParams};
 use crate::gpu::GpuContext;
 use crate::model::PointModel;
+use glam::Vec3;
+use std::sync::Arc;
 
 /// A model as the splatter reads it: the geometry of each splat and its
 /// colour ([`pack_color`]).
@@ -60,13 +65,68 @@ pub fn pack_model(model: &PointModel, params: &SplatParams) -> Result<PackedMode
     })
 }
 
+/// Bits of each axis in [`spatial_order`]'s Morton code.
+const MORTON_BITS: u32 = 10;
+
+/// Spreads the low 10 bits of `v` to every third bit (the Morton code's
+/// interleaving).
+fn spread3(v: u32) -> u32 {
+    let mut x = v & 0x3ff;
+    x = (x | (x << 16)) & 0x0300_00ff;
+    x = (x | (x << 8)) & 0x0300_f00f;
+    x = (x | (x << 4)) & 0x030c_30c3;
+    x = (x | (x << 2)) & 0x0924_9249;
+    x
+}
+
+/// The order in which the splats are stored on the GPU: the points sorted
+/// along a Morton (Z-order) curve through their bounding box (10 bits an
+/// axis), ties kept in the model's order. `order[k]` is the model's index
+/// of the k-th splat. Points that follow each other are then neighbours
+/// on the surface, whatever the file's order (scans and surface samplers
+/// often give random order): the threads of a SIMD vector or warp, which
+/// splat consecutive points, then agree on culling and footprint size
+/// and write nearby pixels. The compute splatter's integer sums do not
+/// depend on the order (its renders are the same bit for bit); the render
+/// pass blends in it, so its sums may differ by rounding.
+pub fn spatial_order(positions: &[Vec3]) -> Vec<u32> {
+    let (lo, hi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let cells = ((1u32 << MORTON_BITS) - 1) as f32;
+    let scale = (hi - lo).max_element();
+    let scale = if scale > 0.0 && scale.is_finite() {
+        cells / scale
+    } else {
+        0.0
+    };
+    let cell = |v: f32, lo: f32| (((v - lo) * scale).clamp(0.0, cells)) as u32;
+    let mut keyed: Vec<(u32, u32)> = positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let code = spread3(cell(p.x, lo.x))
+                | (spread3(cell(p.y, lo.y)) << 1)
+                | (spread3(cell(p.z, lo.z)) << 2);
+            (code, i as u32)
+        })
+        .collect();
+    keyed.sort_unstable();
+    keyed.into_iter().map(|(_, i)| i).collect()
+}
+
 /// A point model uploaded to the GPU: the geometry (32 bytes a point),
-/// shared by every recoloured copy, and the colours (4 bytes a point).
+/// shared by every recoloured copy, and the colours (4 bytes a point),
+/// both in [`spatial_order`].
 pub struct GpuModel {
     pub(super) geometry: wgpu::Buffer,
     pub(super) colors: wgpu::Buffer,
     pub(super) count: u32,
     pub bounds: ModelBounds,
+    /// The model's index of each splat on the GPU ([`spatial_order`]),
+    /// shared by the recoloured copies.
+    order: Arc<[u32]>,
 }
 
 impl GpuModel {
@@ -80,7 +140,10 @@ impl GpuModel {
         params: &SplatParams,
     ) -> Result<Self, SplatError> {
         let packed = pack_model(model, params)?;
-        let n = packed.splats.len();
+        let order: Arc<[u32]> = spatial_order(&model.positions).into();
+        let splats: Vec<SplatGpu> = order.iter().map(|&i| packed.splats[i as usize]).collect();
+        let colors: Vec<u32> = order.iter().map(|&i| packed.colors[i as usize]).collect();
+        let n = splats.len();
         let bytes = (n * std::mem::size_of::<SplatGpu>()) as u64;
         let limit = ctx
             .limits
@@ -95,14 +158,15 @@ impl GpuModel {
         }
         let geometry = ctx.buffer_init(
             "splats",
-            &packed.splats,
+            &splats,
             wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
         );
         Ok(Self {
             geometry,
-            colors: Self::color_buffer(ctx, &packed.colors),
+            colors: Self::color_buffer(ctx, &colors),
             count: n as u32,
             bounds: ModelBounds::of(model),
+            order,
         })
     }
 
@@ -125,12 +189,19 @@ impl GpuModel {
                 expected: self.len(),
             });
         }
-        let packed: Vec<u32> = colors.iter().map(|&c| pack_color(c)).collect();
+        // The colours are given in the model's order; the GPU holds the
+        // splats in `order`.
+        let packed: Vec<u32> = self
+            .order
+            .iter()
+            .map(|&i| pack_color(colors[i as usize]))
+            .collect();
         Ok(Self {
             geometry: self.geometry.clone(),
             colors: Self::color_buffer(ctx, &packed),
             count: self.count,
             bounds: self.bounds,
+            order: self.order.clone(),
         })
     }
 
@@ -155,5 +226,51 @@ impl GpuModel {
 
     pub fn is_empty(&self) -> bool {
         self.count == 0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::shapes;
+    use crate::rng::Rng;
+
+    /// Mean distance between points that follow each other in `order`.
+    fn mean_step(p: &[Vec3], order: &[u32]) -> f32 {
+        let steps: f32 = order
+            .windows(2)
+            .map(|w| p[w[0] as usize].distance(p[w[1] as usize]))
+            .sum();
+        steps / (order.len() - 1) as f32
+    }
+
+    #[test]
+    fn the_spatial_order_is_a_permutation_that_keeps_neighbours_together() {
+        // A sphere's points in random order, as a surface sampler gives them.
+        let mut rng = Rng::new(3);
+        let mut m = shapes::sphere(Vec3::new(0.2, -0.1, 0.4), 0.5, 20_000, 1.2);
+        for i in (1..m.positions.len()).rev() {
+            let j = rng.below(i as u64 + 1) as usize;
+            m.positions.swap(i, j);
+        }
+        let order = spatial_order(&m.positions);
+        let mut seen = vec![false; m.positions.len()];
+        for &i in &order {
+            assert!(!seen[i as usize], "index {i} twice");
+            seen[i as usize] = true;
+        }
+        assert!(seen.iter().all(|&s| s));
+        let identity: Vec<u32> = (0..m.positions.len() as u32).collect();
+        let (sorted, shuffled) = (
+            mean_step(&m.positions, &order),
+            mean_step(&m.positions, &identity),
+        );
+        eprintln!("mean step: {sorted} in spatial order, {shuffled} shuffled");
+        // Point spacing is about 0.0063 here: measured 0.023 in spatial
+        // order (the Z curve's jumps between cells) against 0.67 shuffled.
+        assert!(sorted < 0.1 * shuffled, "{sorted} against {shuffled}");
+        // Ties (equal cells) keep the model's order; degenerate clouds work.
+        assert_eq!(spatial_order(&[Vec3::ONE; 4]), vec![0, 1, 2, 3]);
+        assert!(spatial_order(&[]).is_empty());
     }
 }
