@@ -26,7 +26,8 @@
 //    is always on that pixel's ray, X = z d, so the translation predictors
 //    are (predictor at d) / z and the rotation predictors do not depend on z
 //    (eq. 5); their weighted sum is rebuilt exactly from sum(w / z) and
-//    sum(w) (9 atomics per fragment instead of 16).
+//    sum(w) (9 atomics per fragment instead of 16; 5 without the geometry,
+//    what the tracker renders).
 // 3. `finish`: one thread per pixel of the splats' bounding box (found in
 //    pass 1, dispatched indirectly) converts the sums into the render
 //    pass's RGBA32F accumulation targets (cleared beforehand) (layout in src/splat/mod.rs), so
