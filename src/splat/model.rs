@@ -140,10 +140,7 @@ impl GpuModel {
         params: &SplatParams,
     ) -> Result<Self, SplatError> {
         let packed = pack_model(model, params)?;
-        let order: Arc<[u32]> = spatial_order(&model.positions).into();
-        let splats: Vec<SplatGpu> = order.iter().map(|&i| packed.splats[i as usize]).collect();
-        let colors: Vec<u32> = order.iter().map(|&i| packed.colors[i as usize]).collect();
-        let n = splats.len();
+        let n = packed.splats.len();
         let bytes = (n * std::mem::size_of::<SplatGpu>()) as u64;
         let limit = ctx
             .limits
@@ -156,6 +153,11 @@ impl GpuModel {
                 limit,
             });
         }
+        // Sorted once the size is known to fit (indices fit in u32).
+        let order: Arc<[u32]> = spatial_order(&model.positions).into();
+        let splats: Vec<SplatGpu> = order.iter().map(|&i| packed.splats[i as usize]).collect();
+        let colors: Vec<u32> = order.iter().map(|&i| packed.colors[i as usize]).collect();
+        drop(packed);
         let geometry = ctx.buffer_init(
             "splats",
             &splats,
