@@ -13,13 +13,15 @@ struct ResolveParams {
     width: u32,
     height: u32,
     // resolve: RESOLVE_COLOR (3 floats), RESOLVE_DEPTH (1), RESOLVE_NORMAL
-    // (3), RESOLVE_MOTION (12), RESOLVE_WEIGHT (1, the raw sum).
+    // (3), RESOLVE_MOTION (12), RESOLVE_WEIGHT (1, the raw sum),
+    // RESOLVE_DEPTH_MOTION (1: the depth of a render without geometry).
     // gather: number of points.
     kind: u32,
     // gather: GATHER_NEAREST (the nearest pixel) or GATHER_BILINEAR
     // (bilinear where all four pixels are covered).
     mode: u32,
-    // gather: the render's focal length in x (pixels).
+    // gather and RESOLVE_DEPTH_MOTION: the render's focal length in x
+    // (pixels).
     fx: f32,
     pad0: u32,
     pad1: u32,
@@ -58,6 +60,10 @@ fn resolve(@builtin(global_invocation_id) id: vec3<u32>) {
         }
         case RESOLVE_DEPTH: {
             out[pixel] = select(nan(), textureLoad(t1, p, 0).x / w, w > 0.0);
+        }
+        case RESOLVE_DEPTH_MOTION: {
+            // gather's depth at every pixel: fx over the normalised du_tx.
+            out[pixel] = select(nan(), params.fx / (textureLoad(t2, p, 0).x / w), w > 0.0);
         }
         case RESOLVE_NORMAL: {
             let base = pixel * 3u;

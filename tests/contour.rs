@@ -380,9 +380,15 @@ struct PlainScene {
 }
 
 fn plain_scene(camera: Intrinsics, length: usize, points: usize) -> PlainScene {
+    scene("plain", camera, length, points)
+}
+
+/// The synthetic `object` on a Fig. 10 trajectory of `length` frames, its
+/// model sampled with `points` points.
+fn scene(object: &str, camera: Intrinsics, length: usize, points: usize) -> PlainScene {
     use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background};
     let cfg = SynthConfig {
-        object: "plain".into(),
+        object: object.into(),
         trajectory: Trajectory::Fig10,
         frames: length,
         camera,
@@ -534,6 +540,73 @@ fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
         }
     }
     assert!(aside >= 1, "the texture was never set aside");
+}
+
+/// The KF step's novel view seeds the contour step (`seed_render`): the
+/// textured box (640x480, 30k points, the synth keyframes), frames 0-7 of
+/// its 40-frame Fig. 10 run, texture and contour from the true first pose.
+/// Where the KF correction is small, the first round moves that view's
+/// outline to the KF estimate instead of rendering it again: fewer renders,
+/// and the poses as accurate as with a render every first round.
+#[test]
+fn the_keyframe_view_seeds_the_contour() {
+    use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
+    use splattrack::synth::keyframe_images;
+    use splattrack::tracker::{ContourConfig, Modalities, Status, TrackerConfig};
+    let scene = scene(
+        "box",
+        splattrack::synth::SynthConfig::default().camera,
+        40,
+        30_000,
+    );
+    let (cfg, model) = (&scene.cfg, &scene.model);
+    let splatter = Splatter::new(ctx()).unwrap();
+    let store = KeyframeStore::build(
+        ctx(),
+        &splatter,
+        model,
+        &cfg.camera,
+        &keyframe_images(cfg, &scene.object, &scene.bg),
+        &KeyframeConfig::default(),
+    )
+    .unwrap();
+    let frames = scene.frames(0..8);
+    let run = |seed_render: bool| {
+        let config = TrackerConfig {
+            modalities: Modalities::BOTH,
+            contour: ContourConfig {
+                seed_render,
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let results = track_frames(model, cfg.camera, &frames, config, Some(store.clone()));
+        assert!(
+            results.iter().all(|(r, _)| r.status == Status::Tracking),
+            "seed {seed_render}: a frame lost"
+        );
+        let renders: Vec<f64> = results
+            .iter()
+            .map(|(r, _)| r.times.contour_renders)
+            .collect();
+        let mean = results.iter().map(|(_, e)| e).sum::<f64>() / results.len() as f64;
+        let worst = results.iter().map(|(_, e)| *e).fold(0.0f64, f64::max);
+        (renders, mean, worst)
+    };
+    let (renders0, mean0, worst0) = run(false);
+    let (renders, mean, worst) = run(true);
+    eprintln!(
+        "renders {renders0:?} -> {renders:?}; rotation error mean / worst \
+         {mean0:.3} / {worst0:.3} -> {mean:.3} / {worst:.3} deg"
+    );
+    assert!(renders0.iter().all(|&r| r >= 1.0), "{renders0:?}");
+    let (n0, n): (f64, f64) = (renders0.iter().sum(), renders.iter().sum());
+    assert!(n <= 0.5 * n0, "{n} renders seeded, {n0} without");
+    assert!(renders.contains(&0.0), "{renders:?}");
+    assert!(
+        mean <= mean0 + 0.03 && worst <= worst0 + 0.1,
+        "{mean} / {worst}"
+    );
 }
 
 /// Large motions need more than one linearisation: the untextured object's

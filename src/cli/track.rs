@@ -187,6 +187,11 @@ pub struct Tuning {
     /// its normal; default 1; 0 renders every round).
     #[arg(long)]
     pub contour_reproject: Option<f64>,
+    /// Contour: the first round always renders, instead of moving the
+    /// points of the render held from the KF step (or the last contour
+    /// render) when they moved little (for comparison).
+    #[arg(long)]
+    pub contour_no_seed: bool,
     /// The frame loop as it was before issue 13, for comparison: render,
     /// detect and match over the whole image every time instead of the
     /// object's projected region, and render the IT step's view anew
@@ -237,6 +242,9 @@ impl Tuning {
         set(&mut c.contour.reproject_px, self.contour_reproject);
         if self.contour_full_render {
             c.contour.depth_only = false;
+        }
+        if self.contour_no_seed {
+            c.contour.seed_render = false;
         }
         if self.full_frame {
             c.windows = false;

@@ -10,7 +10,12 @@ use super::gpu_data::{
 pub enum Attribute {
     /// Linear RGB, 3 channels.
     Color,
-    /// Camera-space z (model units), 1 channel.
+    /// Camera-space z (model units), 1 channel: the fragments' weighted
+    /// mean after a render with [`Attributes::GEOMETRY`]; after one with
+    /// the predictors and no geometry ([`Attributes::MOTION`]), their
+    /// weighted harmonic mean from the translation predictor (`fx /
+    /// (du/dtx)`, eq. 5: the depth [`super::Splatter::gather`] gives); after
+    /// [`super::Splatter::render_depth`], the visibility depth.
     Depth,
     /// Camera-space unit normal, 3 channels.
     Normal,

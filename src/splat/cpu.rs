@@ -338,6 +338,28 @@ impl Accumulators {
             data,
         }
     }
+
+    /// [`Attribute::Depth`] of a render with the predictors and without
+    /// the geometry (`RESOLVE_DEPTH_MOTION`): `fx` over the normalised
+    /// translation predictor du/dtx at every pixel, NaN where empty.
+    pub fn depth_from_motion(&self, fx: f32) -> SplatImage {
+        let data = (0..self.width as usize * self.height as usize)
+            .map(|i| {
+                let w = self.targets[0][i][3];
+                if w > 0.0 {
+                    fx / (self.targets[2][i][0] / w)
+                } else {
+                    f32::NAN
+                }
+            })
+            .collect();
+        SplatImage {
+            width: self.width,
+            height: self.height,
+            channels: 1,
+            data,
+        }
+    }
 }
 
 /// The gather kernel on a full image of predictors (12 channels): the

@@ -104,6 +104,9 @@ pub const RESOLVE_NORMAL: u32 = 2;
 pub const RESOLVE_MOTION: u32 = 3;
 /// The raw summed weight.
 pub const RESOLVE_WEIGHT: u32 = 4;
+/// The depth of a render without geometry, from its translation predictor
+/// (`fx / (du/dtx)`, what `gather` gives).
+pub const RESOLVE_DEPTH_MOTION: u32 = 5;
 
 /// `ResolveParams.mode` of `gather`: the nearest pixel...
 pub const GATHER_NEAREST: u32 = 0;

@@ -3,7 +3,8 @@
 
 use super::compute::ComputeSplatter;
 use super::gpu_data::{
-    CameraUniform, GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_WORKGROUP, ResolveParams,
+    CameraUniform, GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_DEPTH_MOTION,
+    RESOLVE_WORKGROUP, ResolveParams,
 };
 use super::targets::{ACC_FORMAT, DEPTH_FORMAT, TARGETS, cleared_attachments, target_slots};
 use super::{
@@ -321,6 +322,7 @@ impl Splatter {
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
         let uniform = self.checked_view(model, cam, pose, targets)?;
+        targets.view = None;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
@@ -328,6 +330,7 @@ impl Splatter {
             targets.rendered = Some(attrs);
             targets.fx = cam.fx as f32;
             targets.depth_only = false;
+            targets.view = Some((*pose, *cam));
             return Ok(());
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
@@ -370,6 +373,7 @@ impl Splatter {
         targets.rendered = Some(attrs);
         targets.fx = cam.fx as f32;
         targets.depth_only = false;
+        targets.view = Some((*pose, *cam));
         Ok(())
     }
 
@@ -397,6 +401,7 @@ impl Splatter {
         mut timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
         let uniform = self.checked_view(model, cam, pose, targets)?;
+        targets.view = None;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
@@ -411,6 +416,7 @@ impl Splatter {
             )?;
             targets.rendered = None;
             targets.depth_only = true;
+            targets.view = Some((*pose, *cam));
             return Ok(());
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
@@ -430,6 +436,7 @@ impl Splatter {
         ctx.queue.submit([enc.finish()]);
         targets.rendered = None;
         targets.depth_only = true;
+        targets.view = Some((*pose, *cam));
         Ok(())
     }
 
@@ -615,8 +622,13 @@ impl Splatter {
             ResolveParams {
                 width: w,
                 height: h,
-                kind: attribute.kind(),
+                kind: if attribute == Attribute::Depth && targets.depth_from_motion() {
+                    RESOLVE_DEPTH_MOTION
+                } else {
+                    attribute.kind()
+                },
                 mode: GATHER_NEAREST,
+                fx: targets.fx,
                 ..Default::default()
             },
             out,

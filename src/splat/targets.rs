@@ -3,6 +3,7 @@
 
 use super::gpu_data::CameraUniform;
 use super::{Attribute, Attributes, SplatError};
+use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
 
 pub(super) const ACC_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
@@ -27,6 +28,9 @@ pub struct SplatTargets {
     pub(super) depth_only: bool,
     /// Scratch of the compute back end, made on its first render here.
     pub(super) compute: Option<super::compute::Scratch>,
+    /// The pose and camera of the last render (`None` before one, or from
+    /// the start of a render that then failed).
+    pub(super) view: Option<(Pose, Intrinsics)>,
 }
 
 impl SplatTargets {
@@ -87,6 +91,7 @@ impl SplatTargets {
             fx: 0.0,
             depth_only: false,
             compute: None,
+            view: None,
         }
     }
 
@@ -125,6 +130,12 @@ impl SplatTargets {
         self.rendered
     }
 
+    /// The pose and camera of the last render, whose images these targets
+    /// hold (`None` before any render, or after one that failed).
+    pub fn last_view(&self) -> Option<&(Pose, Intrinsics)> {
+        self.view.as_ref()
+    }
+
     /// Whether the last render was depth-only
     /// ([`super::Splatter::render_depth`]).
     pub fn depth_only(&self) -> bool {
@@ -146,8 +157,16 @@ impl SplatTargets {
         }
         match self.rendered {
             Some(r) if r.contains(need) => Ok(()),
+            // Depth from the predictors (`depth_from_motion`).
+            Some(r) if what == Attribute::Depth && r.motion => Ok(()),
             _ => Err(SplatError::NotRendered(what)),
         }
+    }
+
+    /// Whether [`Attribute::Depth`] of the last render comes from its
+    /// predictors (rendered without the geometry).
+    pub(super) fn depth_from_motion(&self) -> bool {
+        !self.depth_only && self.rendered.is_some_and(|r| r.motion && !r.geometry)
     }
 }
 

@@ -39,9 +39,9 @@
 //!    ([`ContourConfig::reproject_px`]: then they are moved instead).
 
 use super::{ConfigError, Estimate, StepError, StepOutcome, Tracker};
-use crate::geometry::Pose;
+use crate::geometry::{Intrinsics, Pose};
 use crate::pose::{Anchor, Observation, SolveError, irls_grouped};
-use crate::splat::{Attribute, Attributes};
+use crate::splat::{Attribute, Attributes, Window};
 use nalgebra::{Matrix2x6, Vector2, Vector3, Vector6};
 
 /// Settings of the contour modality.
@@ -117,6 +117,13 @@ pub struct ContourConfig {
     /// pixels of the outline, whose line noise moves the weakly seen
     /// rotations; README "Contour": the real dragon fused 98.8% to 100%).
     pub reproject_px: f64,
+    /// Whether a render the targets already hold near the step's start
+    /// (the KF step's novel view, whose depth comes from its predictors;
+    /// or the last contour render) stands for the first round's render:
+    /// its points are moved to the start as a later round's are (same
+    /// [`Self::reproject_px`] test), and the round renders only when they
+    /// moved too far. Off: the first round always renders.
+    pub seed_render: bool,
 }
 
 impl Default for ContourConfig {
@@ -139,6 +146,7 @@ impl Default for ContourConfig {
             min_inlier_fraction: 0.5,
             depth_only: true,
             reproject_px: 1.0,
+            seed_render: true,
         }
     }
 }
@@ -994,9 +1002,22 @@ impl Tracker {
         };
         let mut pose = *start;
         // The last render's points and its pose, and the points of this
-        // round (those, or them moved to the round's pose).
+        // round (those, or them moved to the round's pose). A render the
+        // targets already hold near `start` (the KF step's novel view)
+        // seeds them: the first round then moves its points like a later
+        // round does, instead of rendering.
         let mut rendered: Vec<Lifted> = Vec::new();
         let mut rendered_at = pose;
+        if let Some((at, window)) = self.contour_seed(&pose) {
+            let cam = window.camera(&self.cam);
+            match self.contour_points_of_render(frame, &at, window, &cam) {
+                Ok(points) => {
+                    rendered = points;
+                    rendered_at = at;
+                }
+                Err(e) => log::debug!("contour: the held render does not seed ({e})"),
+            }
+        }
         let mut moved: Vec<Lifted> = Vec::new();
         let mut last = None;
         for round in 0..cfg.rounds.max(1) {
@@ -1011,7 +1032,7 @@ impl Tracker {
             // points of the surface: move them instead of rendering.
             let motion = pose.compose(&rendered_at.inverse());
             let twist = motion.log();
-            let small = round > 0
+            let small = !rendered.is_empty()
                 && cfg.reproject_px > 0.0
                 && rendered
                     .iter()
@@ -1056,6 +1077,41 @@ impl Tracker {
         }))
     }
 
+    /// The render the targets hold, and its window, when it can stand for
+    /// the contour's first render at `pose`: depth-only renders and the
+    /// keyframe step's (whose depth comes from its predictors) show the
+    /// same coverage; made in the current window, at a pose from which the
+    /// model's bounding box moves at most `4 * reproject_px` pixels to
+    /// `pose` (the rounds' own test, per point, then decides). Only with
+    /// depth-only contour renders (whose limb normals come from the
+    /// model's points).
+    fn contour_seed(&self, pose: &Pose) -> Option<(Pose, Window)> {
+        let cfg = &self.config.contour;
+        if !cfg.seed_render || !cfg.depth_only || cfg.reproject_px <= 0.0 {
+            return None;
+        }
+        let t = &self.targets;
+        let readable = t.depth_only() || t.rendered().is_some_and(|r| r.motion || r.geometry);
+        let (at, cam) = t.last_view()?;
+        if !readable || *cam != self.window.camera(&self.cam) {
+            return None;
+        }
+        let (lo, hi) = (self.box_lo, self.box_hi);
+        let mut far = 0.0f64;
+        for k in 0..8 {
+            let x = Vector3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let a = self.cam.project(&at.transform_point(&x))?;
+            let b = self.cam.project(&pose.transform_point(&x))?;
+            far = far.max((a - b).norm());
+        }
+        log::debug!("contour: the held render's box moves {far:.2} px to the start");
+        (far <= 4.0 * cfg.reproject_px).then_some((*at, self.window))
+    }
+
     /// One render at `pose`: the contour points, each with its row
     /// (predictors from the splatted depth) and its edge position lifted
     /// to the camera frame.
@@ -1068,7 +1124,6 @@ impl Tracker {
         // wider than the contour's normal window).
         let window = self.view_window(pose);
         let cam = self.use_window(window);
-        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let t0 = std::time::Instant::now();
         let depth_only = self.config.contour.depth_only;
         if depth_only {
@@ -1095,6 +1150,25 @@ impl Tracker {
                 "contour",
             )?;
         }
+        let points = self.contour_points_of_render(frame, pose, window, &cam)?;
+        log::debug!(
+            "contour: render, read, extract, gather {:.1} ms",
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        Ok(points)
+    }
+
+    /// The contour points of the render the targets hold, made at `pose`
+    /// in `window` (whose camera is `cam`).
+    fn contour_points_of_render(
+        &mut self,
+        frame: &image::RgbImage,
+        pose: &Pose,
+        window: Window,
+        cam: &Intrinsics,
+    ) -> Result<Vec<Lifted>, StepError> {
+        let (w, h) = (self.cam.width as usize, self.cam.height as usize);
+        let depth_only = self.config.contour.depth_only;
         let cfg = &self.config.contour;
         // The splatted depth gives the coverage (NaN: empty) and, lifted
         // to the camera-space point, the motion predictors L there: the
@@ -1138,7 +1212,7 @@ impl Tracker {
                 let eye = inv.translation;
                 let eye = glam::Vec3::new(eye.x as f32, eye.y as f32, eye.z as f32);
                 let rot = pose.rotation;
-                limb_normals_with(&cam, &mut points, true, |p| {
+                limb_normals_with(cam, &mut points, true, |p| {
                     let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
                     let xc = cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z);
                     let xo = inv.transform_point(&xc);
@@ -1155,10 +1229,10 @@ impl Tracker {
             let normals = self
                 .splatter
                 .read(&self.ctx, &self.targets, Attribute::Normal)?;
-            limb_normals(&cam, &normals, &mut points);
+            limb_normals(cam, &normals, &mut points);
         }
         inset(&mut points, cfg.inset_px);
-        let rows = contour_predictors(&cam, &depth, &points);
+        let rows = contour_predictors(cam, &depth, &points);
         let origin = Vector2::new(x0 as f64, y0 as f64);
         let lifted = points
             .iter()
@@ -1176,10 +1250,6 @@ impl Tracker {
                 }
             })
             .collect();
-        log::debug!(
-            "contour: render, read, extract, gather {:.1} ms",
-            t0.elapsed().as_secs_f64() * 1e3
-        );
         Ok(lifted)
     }
 
