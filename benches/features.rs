@@ -1,6 +1,7 @@
 //! Harris and NCC matching, GPU against the CPU reference (the paper's
-//! Fig. 7 comparison): Harris at 640x480 and 1280x720, matching 900 x 900
-//! features with 9x9 windows. Run with
+//! Fig. 7 comparison): Harris at 640x480 and 1280x720 (and the host
+//! detector the tracker runs on CPU adapters, `harris_host`), matching
+//! 900 x 900 features with 9x9 windows. Run with
 //! `cargo bench --bench features` (adapter: `SPLATTRACK_ADAPTER`, default
 //! auto). Besides criterion's report it prints a summary of medians and
 //! the CPU/GPU ratio of each.
@@ -8,7 +9,8 @@
 use criterion::{Criterion, criterion_group, criterion_main};
 use splattrack::features::patterns::{self, Warp};
 use splattrack::features::{
-    Corner, GreyImage, Harris, HarrisConfig, NccConfig, NccMatcher, harris_cpu, ncc_match_cpu,
+    Corner, GreyImage, Harris, HarrisConfig, NccConfig, NccMatcher, harris_cpu, harris_host,
+    ncc_match_cpu,
 };
 use splattrack::gpu::GpuContext;
 use splattrack::rng::Rng;
@@ -48,6 +50,7 @@ fn bench(c: &mut Criterion) {
 
     let cfg = HarrisConfig::default();
     let mut harris = Harris::new(&ctx, cfg.clone()).unwrap();
+    let mut host_rows = Vec::new();
     for (w, h) in [(640usize, 480usize), (1280, 720)] {
         let img = patterns::smooth_noise(w, h, 1.5, w as u64);
         g.bench_function(format!("harris_gpu_{w}x{h}"), |b| {
@@ -55,6 +58,9 @@ fn bench(c: &mut Criterion) {
         });
         g.bench_function(format!("harris_cpu_{w}x{h}"), |b| {
             b.iter(|| black_box(harris_cpu(&img, &cfg, None).unwrap()))
+        });
+        g.bench_function(format!("harris_host_{w}x{h}"), |b| {
+            b.iter(|| black_box(harris_host(&img, &cfg, None).unwrap()))
         });
         let n = harris.detect(&img, None).unwrap().len();
         let gpu = median_ms(10, || {
@@ -64,6 +70,10 @@ fn bench(c: &mut Criterion) {
             black_box(harris_cpu(&img, &cfg, None).unwrap());
         });
         summary.push((format!("Harris {w}x{h} ({n} corners)"), gpu, cpu));
+        let host = median_ms(10, || {
+            black_box(harris_host(&img, &cfg, None).unwrap());
+        });
+        host_rows.push((format!("Harris {w}x{h}"), gpu, host, cpu));
     }
     harris.enable_timing();
     let img = patterns::smooth_noise(640, 480, 1.5, 640);
@@ -111,6 +121,17 @@ fn bench(c: &mut Criterion) {
     println!("|---|---|---|---|");
     for (name, gpu, cpu) in &summary {
         println!("| {name} | {gpu:.2} | {cpu:.2} | {:.2} |", cpu / gpu);
+    }
+    println!(
+        "\n| step | GPU median (ms) | host median (ms, `harris_host`, {} threads) | CPU reference (ms) | GPU / host |",
+        std::thread::available_parallelism().map_or(1, |n| n.get().min(8))
+    );
+    println!("|---|---|---|---|---|");
+    for (name, gpu, host, cpu) in &host_rows {
+        println!(
+            "| {name} | {gpu:.2} | {host:.2} | {cpu:.2} | {:.2} |",
+            gpu / host
+        );
     }
     for (name, report) in [("Harris 640x480", &passes), ("NCC 900 x 900", &ncc_passes)] {
         if !report.passes.is_empty() {

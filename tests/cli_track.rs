@@ -260,21 +260,19 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
         assert!(stdout.contains(stage), "no {stage:?} in {stdout}");
     }
     if splattrack::gpu::shared_test_context().has_timestamps() {
-        for pass in [
-            "KF splat visibility",
-            "check splat attributes",
-            "features harris",
-        ] {
+        for pass in ["KF splat visibility", "check splat attributes"] {
             assert!(stdout.contains(pass), "no {pass:?} in {stdout}");
         }
-        // On a CPU adapter (lavapipe in CI) the table says which of its
-        // timestamps not to trust.
+        // Corners and matches run on the host on a CPU adapter (lavapipe
+        // in CI), in the shaders elsewhere.
         let ctx = splattrack::gpu::shared_test_context();
         assert_eq!(
-            stdout.contains("timestamps of the Harris and NCC passes under-report"),
-            ctx.is_cpu(),
+            stdout.contains("features harris"),
+            !ctx.is_cpu(),
             "{stdout}"
         );
+        assert_eq!(stdout.contains("IT ncc"), !ctx.is_cpu(), "{stdout}");
+        assert!(!stdout.contains("under-report"), "{stdout}");
     }
     let it = d.join("it.csv");
     ok(&[
@@ -290,6 +288,33 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
     ]);
     check_tracker_csv(&it);
     assert!(partial_files(&d).is_empty());
+    // Corners and matches in the shaders whatever the adapter
+    // (`--feature-backend gpu`): their passes are timed, and on a CPU
+    // adapter the table says which of its timestamps not to trust.
+    let gpu = d.join("features_gpu.csv");
+    let stdout = ok(&[
+        "track",
+        "--model",
+        s(&f.model),
+        "--sequence",
+        s(&f.seq),
+        "--feature-backend",
+        "gpu",
+        "--out",
+        s(&gpu),
+        "--profile",
+    ]);
+    check_tracker_csv(&gpu);
+    let ctx = splattrack::gpu::shared_test_context();
+    if ctx.has_timestamps() {
+        assert!(stdout.contains("features harris"), "{stdout}");
+        assert!(stdout.contains("IT ncc"), "{stdout}");
+        assert_eq!(
+            stdout.contains("timestamps of the Harris and NCC passes under-report"),
+            ctx.is_cpu(),
+            "{stdout}"
+        );
+    }
 
     // eval: the table on stdout, the plot and the per-frame CSV.
     let plot = d.join("errors.png");
@@ -415,6 +440,22 @@ fn bad_track_input_fails_with_one_line() {
         ],
         &["corrupt.ply"],
     );
+    // A Harris back end that does not exist.
+    fails(
+        &[
+            "track",
+            "--model",
+            model,
+            "--sequence",
+            seq,
+            "--out",
+            o,
+            "--feature-backend",
+            "tpu",
+        ],
+        &["--feature-backend", "expected gpu, host or auto"],
+    );
+
     // Not a PLY at all.
     let garbage = d.join("garbage.ply");
     std::fs::write(&garbage, [0u8, 159, 146, 150, 1, 2, 3]).unwrap();

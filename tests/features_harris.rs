@@ -4,7 +4,8 @@
 
 use splattrack::features::patterns::{self, Square};
 use splattrack::features::{
-    Corner, FeatureError, GreyImage, Harris, HarrisConfig, harris_cpu, harris_response_cpu,
+    Corner, FeatureError, GreyImage, Harris, HarrisConfig, harris_cpu, harris_host,
+    harris_response_cpu, harris_response_host,
 };
 use splattrack::gpu::{self, GpuContext};
 
@@ -514,5 +515,162 @@ fn gpu_grey_and_packing_of_a_resolved_view_match_cpu() {
             &corners,
             &cpu,
         );
+    }
+}
+
+/// Images for the host detector: the random ones, sizes below and around
+/// the kernels (narrower than a window, one pixel), and NaN pixels (hard
+/// invalid regions and pinholes) near the borders and inside.
+fn host_images() -> Vec<(String, GreyImage)> {
+    let mut out: Vec<(String, GreyImage)> = random_images()
+        .into_iter()
+        .map(|(n, i)| (n.to_string(), i))
+        .collect();
+    for (w, h) in [
+        (1, 1),
+        (3, 5),
+        (7, 5),
+        (9, 31),
+        (23, 17),
+        (64, 3),
+        (200, 150),
+    ] {
+        out.push((
+            format!("polygons {w}x{h}"),
+            patterns::polygons(w, h, 6, (w * h) as u64),
+        ));
+    }
+    let mut holed = patterns::polygons(150, 110, 14, 77);
+    for (i, v) in holed.data.iter_mut().enumerate() {
+        let (x, y) = ((i % 150) as f32, (i / 150) as f32);
+        // A hard invalid disc, a band at the left border, and pinholes.
+        if (x - 90.0).hypot(y - 60.0) < 15.0 || x < 2.0 || (i % 997 == 0) {
+            *v = f32::NAN;
+        }
+    }
+    out.push(("polygons 150x110 with NaN".into(), holed));
+    out
+}
+
+/// The host detector ([`harris_host`]) is the CPU reference's arithmetic
+/// in other loops: its responses and corners equal the reference's bit for
+/// bit, on every image and setting (kernels up to the largest, pinhole
+/// tolerance off, no refinement, a mask).
+#[test]
+fn host_detector_is_the_reference_bit_for_bit() {
+    let configs = [
+        HarrisConfig::default(),
+        HarrisConfig::default().with_sigmas(7.0 / 3.0, 14.0 / 3.0),
+        HarrisConfig {
+            min_valid_weight: 1.0,
+            ..HarrisConfig::default().with_refine(false)
+        },
+        HarrisConfig::default()
+            .with_sigmas(1.4, 2.0)
+            .with_grid_cell(0)
+            .with_max_corners(40),
+    ];
+    let mut compared = 0;
+    for (ci, cfg) in configs.iter().enumerate() {
+        for (name, img) in host_images() {
+            let (hr, cr) = (
+                harris_response_host(&img, cfg).unwrap(),
+                harris_response_cpu(&img, cfg).unwrap(),
+            );
+            assert_eq!(hr.len(), cr.len());
+            for (i, (a, b)) in hr.iter().zip(&cr).enumerate() {
+                assert_eq!(a.to_bits(), b.to_bits(), "config {ci}, {name}: pixel {i}");
+            }
+            let mask: Vec<bool> = (0..img.data.len())
+                .map(|i| (i % img.width) * 3 < img.width * 2)
+                .collect();
+            for m in [None, Some(&mask[..])] {
+                let host = harris_host(&img, cfg, m).unwrap();
+                let cpu = harris_cpu(&img, cfg, m).unwrap();
+                assert_eq!(host, cpu, "config {ci}, {name}, mask {}", m.is_some());
+                compared += cpu.len();
+            }
+        }
+    }
+    assert!(compared > 1000, "only {compared} corners compared");
+}
+
+/// [`Harris`] in host mode (what the tracker runs on CPU adapters): every
+/// way in gives the reference's corners (frames in grey or RGB with a mask,
+/// a splatted view resolved on the GPU, with its grey levels and, resident,
+/// its pixels packed on the GPU as NCC reads them).
+#[test]
+fn harris_in_host_mode_gives_the_references_corners() {
+    let cfg = HarrisConfig::default();
+    let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    harris.set_host(true);
+    assert!(harris.host());
+    let img = patterns::polygons(160, 120, 14, 21);
+    let mask: Vec<bool> = (0..img.data.len()).map(|i| i % 160 >= 30).collect();
+    assert_eq!(
+        harris.detect(&img, Some(&mask)).unwrap(),
+        harris_cpu(&img, &cfg, Some(&mask)).unwrap()
+    );
+    let rgb = image::RgbImage::from_fn(160, 120, |x, y| {
+        let v = (img.get(x as usize, y as usize) * 255.0).round() as u8;
+        image::Rgb([v, v.wrapping_mul(3), 255 - v])
+    });
+    let grey = GreyImage::from_rgb8(&rgb);
+    assert_eq!(
+        harris.detect_rgb8(&rgb, Some(&mask)).unwrap(),
+        harris_cpu(&grey, &cfg, Some(&mask)).unwrap()
+    );
+    // A view with an empty outside and pinholes, as the splatter resolves it.
+    let (w, h) = (131, 97);
+    let ch: Vec<GreyImage> = (0..3)
+        .map(|s| patterns::polygons(w, h, 12, 90 + s))
+        .collect();
+    let colour: Vec<f32> = (0..w * h)
+        .flat_map(|i| {
+            let (x, y) = (i % w, i / w);
+            let (dx, dy) = (x as f32 - 65.0, y as f32 - 48.0);
+            let pinhole = [(60, 40), (70, 55), (45, 50), (80, 35)].contains(&(x, y));
+            let empty = dx * dx + dy * dy > 44.0 * 44.0 || pinhole;
+            [0, 1, 2].map(|c| if empty { f32::NAN } else { ch[c].get(x, y) })
+        })
+        .collect();
+    let want = GreyImage::from_rgb_f32(w, h, &colour).unwrap();
+    let cpu = harris_cpu(&want, &cfg, None).unwrap();
+    assert!(cpu.len() > 10, "{} corners", cpu.len());
+    let target = harris.colour_target(w, h).unwrap();
+    ctx()
+        .queue
+        .write_buffer(&target, 0, bytemuck::cast_slice(&colour));
+    let (corners, grey) = harris.detect_resolved(w, h).unwrap();
+    assert_eq!(corners, cpu);
+    assert_eq!(grey.data.len(), want.data.len());
+    assert!(
+        grey.data
+            .iter()
+            .zip(&want.data)
+            .all(|(a, b)| a.to_bits() == b.to_bits())
+    );
+    let target = harris.colour_target(w, h).unwrap();
+    ctx()
+        .queue
+        .write_buffer(&target, 0, bytemuck::cast_slice(&colour));
+    assert_eq!(harris.detect_resolved_resident(w, h).unwrap(), cpu);
+    let view = harris.resident_view(w, h).unwrap();
+    let packed: Vec<[u32; 2]> = ctx().read_buffer(view.pixels, w * h).unwrap();
+    let mut gpu_harris = Harris::new(ctx(), cfg.clone()).unwrap();
+    let target = gpu_harris.colour_target(w, h).unwrap();
+    ctx()
+        .queue
+        .write_buffer(&target, 0, bytemuck::cast_slice(&colour));
+    gpu_harris.detect_resolved_resident(w, h).unwrap();
+    let shader: Vec<[u32; 2]> = ctx()
+        .read_buffer(gpu_harris.resident_view(w, h).unwrap().pixels, w * h)
+        .unwrap();
+    // The packing the shaders leave (grey levels within their fused
+    // multiply-adds, the same flags).
+    for (i, (a, b)) in packed.iter().zip(&shader).enumerate() {
+        assert_eq!(a[1], b[1], "pixel {i}: flags");
+        let (a, b) = (f32::from_bits(a[0]), f32::from_bits(b[0]));
+        assert!((a - b).abs() <= 1e-6, "pixel {i}: {a} vs {b}");
     }
 }

@@ -275,3 +275,30 @@ fn degenerate_inputs_give_no_matches_and_no_panic() {
         Err(FeatureError::ImageSize { .. })
     ));
 }
+
+/// The matcher in host mode (the tracker's on CPU adapters) gives the CPU
+/// reference's matches exactly (it runs it), and only for host images.
+#[test]
+fn host_mode_matches_are_the_references() {
+    let mut rng = Rng::new(8);
+    let a = patterns::smooth_noise(120, 90, 2.0, 31);
+    let b = Warp {
+        shift: [1.7, 2.2],
+        angle: -0.02,
+        centre: [60.0, 45.0],
+        gain: 1.1,
+        bias: -0.02,
+    }
+    .image(&a);
+    let cfg = NccConfig::default().with_search_radius(Some(10.0));
+    let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
+    m.set_host(true);
+    assert!(m.host());
+    let fa = random_points(&mut rng, 200, a.width, a.height);
+    let fb = random_points(&mut rng, 200, b.width, b.height);
+    let host = m.match_features(&a, &fa, &b, &fb).unwrap();
+    let cpu = ncc_match_cpu(&a, &fa, &b, &fb, &cfg).unwrap();
+    assert!(!cpu.is_empty());
+    assert_eq!(host, cpu);
+    assert!(m.last_timings().passes.is_empty());
+}

@@ -14,6 +14,7 @@
 
 mod tracking_common;
 
+use splattrack::features::FeatureBackend;
 use splattrack::geometry::Pose;
 use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::KeyframeStore;
@@ -368,7 +369,8 @@ fn the_steady_loop_allocates_no_gpu_buffers_with_everything_resident() {
 fn steady_loop_allocates_nothing(resident: bool) {
     // Issue 13: read/gather outputs, staging buffers, Harris and NCC
     // buffers and render targets (one set per window size) are kept and
-    // reused across frames. Frames 0..8 and back: going back, every
+    // reused across frames. Resident: a GPU's defaults (corners and
+    // matches in the shaders too); else a CPU adapter's (on the host). Frames 0..8 and back: going back, every
     // window size has been seen (and is still kept: three spare sets) and
     // every buffer has grown, so no frame allocates. A context of its own, so that other tests' buffers are
     // not counted.
@@ -382,7 +384,14 @@ fn steady_loop_allocates_nothing(resident: bool) {
         f.scene.model.clone(),
         f.scene.cam,
         Some(f.store.clone()),
-        TrackerConfig::default(),
+        TrackerConfig {
+            feature_backend: if resident {
+                FeatureBackend::Gpu
+            } else {
+                FeatureBackend::Host
+            },
+            ..Default::default()
+        },
         f.frames[0].pose,
     )
     .expect("tracker");
@@ -449,8 +458,10 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
     // run the two drift apart by such roundings until a threshold flips:
     // the real cube's 99 frames end within 3.4e-4 of each other in every
     // pose entry, 4 frames with other inlier counts, the same errors.)
-    // Only a few values per feature come back instead of the view. A
-    // context of its own, so that other tests' readbacks are not counted.
+    // Only a few values per feature come back instead of the view.
+    // Features in the shaders, as on a GPU (with Harris on the host the
+    // view's colour comes back either way). A context of its own, so that other tests'
+    // readbacks are not counted.
     use splattrack::gpu::{AdapterChoice, GpuContext};
     let f = fixture();
     let ctx = GpuContext::new(&AdapterChoice::Cpu)
@@ -462,7 +473,10 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
             f.scene.model.clone(),
             f.scene.cam,
             Some(f.store.clone()),
-            TrackerConfig::default(),
+            TrackerConfig {
+                feature_backend: FeatureBackend::Gpu,
+                ..Default::default()
+            },
             f.frames[start].pose,
         )
         .expect("tracker");
@@ -495,4 +509,59 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
         (read_gpu as f64) < 0.9 * read_host as f64,
         "{read_gpu} bytes read back against {read_host}"
     );
+}
+
+/// Corners and matches on the host (the default on CPU adapters) against
+/// the shaders (a GPU's), KF+IT with texture and contour, on the first 6
+/// frames: the host detector is the CPU reference bit for bit
+/// (tests/features_harris.rs) and the host matcher is the reference, which
+/// the shaders match to f32 rounding (Harris responses within 1e-5,
+/// corners within 1e-3 px; NCC scores within 1e-5), so the statuses are
+/// the same and the poses agree within 0.05 degrees and 0.05% of the
+/// diameter (with the contour, as windows do, 0.15 and 0.1; measured at
+/// most 6e-5 degrees).
+#[test]
+fn features_on_the_host_give_the_shaders_poses() {
+    let f = fixture();
+    let make = |feature_backend: FeatureBackend, contour: bool| {
+        Tracker::new(
+            shared_test_context(),
+            f.scene.model.clone(),
+            f.scene.cam,
+            Some(f.store.clone()),
+            TrackerConfig {
+                feature_backend,
+                modalities: Modalities {
+                    texture: true,
+                    contour,
+                },
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        )
+        .expect("tracker")
+    };
+    for (contour, n) in [(false, 6), (true, 4)] {
+        let mut host = make(FeatureBackend::Host, contour);
+        let mut gpu = make(FeatureBackend::Gpu, contour);
+        for (i, fr) in f.frames[..n].iter().enumerate() {
+            let (a, b) = (
+                host.track(&fr.image).unwrap(),
+                gpu.track(&fr.image).unwrap(),
+            );
+            let rot = a.pose.rotation_error_deg(&b.pose);
+            let tr = 100.0 * a.pose.translation_error(&b.pose) / f.scene.diameter;
+            eprintln!(
+                "contour {contour}, frame {i}: {rot:.5} deg, {tr:.5}%, inliers {} / {}",
+                a.inliers, b.inliers
+            );
+            assert_eq!(a.status, Status::Tracking, "contour {contour}, frame {i}");
+            assert_eq!(a.status, b.status, "contour {contour}, frame {i}");
+            let (most_rot, most_tr) = if contour { (0.15, 0.1) } else { (0.05, 0.05) };
+            assert!(
+                rot < most_rot && tr < most_tr,
+                "contour {contour}, frame {i}: {rot} deg, {tr}%"
+            );
+        }
+    }
 }

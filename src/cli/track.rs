@@ -7,6 +7,7 @@
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
 use splattrack::app::{AppError, TrackInputs, TrackRun};
+use splattrack::features::FeatureBackend;
 use splattrack::io::guard::{check_output, check_output_dir};
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::{FrameSource, Start};
@@ -90,6 +91,12 @@ pub struct Args {
     /// the adapter supports it: the faster measured, BENCHMARKS.md).
     #[arg(long, default_value = "auto")]
     pub splatter: Backend,
+    /// Where corners are detected and matched: gpu (compute shaders),
+    /// host (the CPU references' arithmetic; Harris vectorised on every
+    /// core) or auto (host on a CPU adapter such as lavapipe, where it
+    /// measured faster, else gpu).
+    #[arg(long, default_value = "auto")]
+    pub feature_backend: FeatureBackend,
     /// Show each frame in a window as it is tracked: the model's outline
     /// at the tracked pose, tracking or lost (and why), inliers, residual
     /// and ms per frame. Esc, q or closing the window ends the run with
@@ -295,6 +302,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         mode: args.mode,
         modalities: args.modalities,
         splatter: args.splatter,
+        feature_backend: args.feature_backend,
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {
@@ -618,7 +626,11 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         for (name, v) in &t.gpu {
             out += &format!("  {name:<26} {v:8.1} ms\n");
         }
-        if cpu_adapter {
+        let features_timed = t
+            .gpu
+            .iter()
+            .any(|(name, _)| name.contains(" harris ") || name.contains(" ncc "));
+        if cpu_adapter && features_timed {
             out += "  (a CPU adapter: its timestamps of the Harris and NCC passes under-report, by 10-30x on lavapipe; the stage times above are the measure)\n";
         }
     }

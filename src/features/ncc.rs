@@ -176,6 +176,8 @@ pub struct NccMatcher {
     bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
+    /// Match host images on the host ([`NccMatcher::set_host`]).
+    host: bool,
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
@@ -229,11 +231,27 @@ impl NccMatcher {
             bind: None,
             timer: None,
             last_timings: TimerReport::default(),
+            host: false,
         })
     }
 
     pub fn config(&self) -> &NccConfig {
         &self.config
+    }
+
+    /// Matches host images on the host from now on ([`super::ncc_match_cpu`],
+    /// the reference the shaders are tested against) where `on` (what
+    /// [`super::FeatureBackend::host_on`] says for the adapter): on a CPU
+    /// adapter it measured faster than its shaders. Images resident on
+    /// the GPU ([`NccMatcher::match_resident`]) are still matched there.
+    /// Off by default: every test of the shaders runs them.
+    pub fn set_host(&mut self, on: bool) {
+        self.host = on;
+    }
+
+    /// Whether host images are matched on the host ([`NccMatcher::set_host`]).
+    pub fn host(&self) -> bool {
+        self.host
     }
 
     /// Chooses the kernels: the score tiled in workgroup memory and a
@@ -269,6 +287,10 @@ impl NccMatcher {
     ) -> Result<Vec<Match>, FeatureError> {
         check_mask(img_a, None)?;
         check_mask(img_b, None)?;
+        if self.host {
+            self.last_timings = TimerReport::default();
+            return super::ncc_match_cpu(img_a, a, img_b, b, &self.config);
+        }
         let (na, nb) = (a.len(), b.len());
         if na == 0 || nb == 0 || img_a.is_empty() || img_b.is_empty() {
             return Ok(Vec::new());

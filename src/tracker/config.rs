@@ -234,6 +234,11 @@ pub struct TrackerConfig {
     /// Which splatter renders ([`crate::splat::Backend`]; `Auto`:
     /// `$SPLATTRACK_SPLATTER`, else the compute splatter where supported).
     pub splatter: crate::splat::Backend,
+    /// Where corners are detected and host images matched
+    /// ([`crate::features::FeatureBackend`]; `Auto`: the host on a CPU
+    /// adapter, else the GPU).
+    #[serde(default)]
+    pub feature_backend: crate::features::FeatureBackend,
 }
 
 impl Default for TrackerConfig {
@@ -280,6 +285,7 @@ impl Default for TrackerConfig {
             contour: super::contour::ContourConfig::default(),
             windows: true,
             splatter: crate::splat::Backend::Auto,
+            feature_backend: crate::features::FeatureBackend::Auto,
         }
     }
 }

@@ -432,8 +432,14 @@ impl Tracker {
             );
             (lo - pad, hi + pad)
         };
-        let harris = Harris::new(gpu, config.harris.clone())?;
-        let matcher = |r: f32| NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)));
+        let on_host = config.feature_backend.host_on(gpu);
+        let mut harris = Harris::new(gpu, config.harris.clone())?;
+        harris.set_host(on_host);
+        let matcher = |r: f32| {
+            let mut m = NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)))?;
+            m.set_host(on_host);
+            Ok::<_, crate::features::FeatureError>(m)
+        };
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let model_len = model.len();
         let config_bins = config.contour.bins;

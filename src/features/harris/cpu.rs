@@ -9,9 +9,9 @@ use crate::features::gpu_data::{
 };
 use crate::features::image::{GreyImage, check_mask};
 
-struct Maps {
-    grad: Vec<[f32; 3]>,
-    response: Vec<f32>,
+pub(super) struct Maps {
+    pub(super) grad: Vec<[f32; 3]>,
+    pub(super) response: Vec<f32>,
 }
 
 fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
@@ -137,7 +137,7 @@ pub fn harris_response_cpu(img: &GreyImage, cfg: &HarrisConfig) -> Result<Vec<f3
     Ok(maps(&pack_pixels(img, None), img.width, img.height, cfg).response)
 }
 
-fn nms(
+pub(super) fn nms(
     pixels: &[Pixel],
     response: &[f32],
     w: usize,
@@ -188,7 +188,7 @@ fn nms(
 }
 
 /// The `refine` kernel on the CPU.
-fn refine(
+pub(super) fn refine(
     grad: &[[f32; 3]],
     w: usize,
     h: usize,

@@ -1,6 +1,7 @@
 //! Harris corners on the GPU (`shaders/harris.wgsl`); the CPU reference is
 //! [`super::cpu`], the shared host steps are in [`super`].
 
+use super::host::detect_packed;
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
@@ -40,6 +41,8 @@ pub struct Harris {
     bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
+    /// Detect on the host ([`Harris::set_host`]).
+    host: bool,
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -89,11 +92,28 @@ impl Harris {
             bind: None,
             timer: None,
             last_timings: TimerReport::default(),
+            host: false,
         })
     }
 
     pub fn config(&self) -> &HarrisConfig {
         &self.config
+    }
+
+    /// Detects on the host from now on ([`super::harris_host`]: the CPU
+    /// reference's corners, bit for bit) instead of in the shaders, where
+    /// `on` (what [`crate::features::FeatureBackend::host_on`] says for the
+    /// adapter).
+    /// A view splatted on the GPU then comes back as colour (3 floats a
+    /// pixel of its window) and a resident view is uploaded packed. Off
+    /// by default: every test of the shaders runs them.
+    pub fn set_host(&mut self, on: bool) {
+        self.host = on;
+    }
+
+    /// Whether detection runs on the host ([`Harris::set_host`]).
+    pub fn host(&self) -> bool {
+        self.host
     }
 
     /// Times every pass with GPU timestamp queries from now on (where the
@@ -294,6 +314,9 @@ impl Harris {
         if img.is_empty() {
             return Ok(Vec::new());
         }
+        if self.host {
+            return super::harris_response_host(img, &self.config);
+        }
         self.run_maps(Input::Grey(img), None)?;
         let response = self.ctx.read_buffer(self.response.get(), img.data.len())?;
         self.finish_timing()?;
@@ -356,6 +379,11 @@ impl Harris {
         if width == 0 || height == 0 {
             return Ok((Vec::new(), GreyImage::filled(width, height, 0.0)));
         }
+        if self.host {
+            let grey = self.resolved_grey(width, height)?;
+            let corners = detect_packed(&pack_pixels(&grey, None), width, height, &self.config);
+            return Ok((corners, grey));
+        }
         let input = Input::Resolved {
             width,
             height,
@@ -377,12 +405,32 @@ impl Harris {
         if width == 0 || height == 0 {
             return Ok(Vec::new());
         }
+        if self.host {
+            // Detected on the host, then packed on the GPU as NCC reads
+            // it (the packing the shaders would have left there).
+            let grey = self.resolved_grey(width, height)?;
+            let pixels = pack_pixels(&grey, None);
+            self.ctx
+                .queue
+                .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
+            return Ok(detect_packed(&pixels, width, height, &self.config));
+        }
         let input = Input::Resolved {
             width,
             height,
             keep_grey: false,
         };
         self.detect_input(input, None)
+    }
+
+    /// The grey levels of the view resolved into [`Harris::colour_target`]
+    /// (`width x height`), converted on the host as the `grey_f32` pass
+    /// converts them ([`GreyImage::from_rgb_f32`]).
+    fn resolved_grey(&mut self, width: usize, height: usize) -> Result<GreyImage, FeatureError> {
+        self.prepare(width, height)?;
+        let rgb: Vec<f32> = self.ctx.read_buffer(self.rgba.get(), width * height * 3)?;
+        self.last_timings = TimerReport::default();
+        GreyImage::from_rgb_f32(width, height, &rgb)
     }
 
     /// The view of the last [`Harris::detect_resolved_resident`] (or
@@ -412,6 +460,20 @@ impl Harris {
         let (w, h) = input.size();
         if w == 0 || h == 0 {
             return Ok(Vec::new());
+        }
+        if self.host {
+            self.last_timings = TimerReport::default();
+            let pixels = match input {
+                Input::Grey(img) => pack_pixels(img, mask),
+                Input::Rgb(img) => pack_pixels(&GreyImage::from_rgb8(img), mask),
+                // detect_resolved* detect these on the host themselves.
+                Input::Resolved { .. } => {
+                    return Err(FeatureError::Config(
+                        "a resolved view in host mode: use detect_resolved".into(),
+                    ));
+                }
+            };
+            return Ok(detect_packed(&pixels, w, h, &self.config));
         }
         self.run_maps(input, mask)?;
         let ctx = &self.ctx.clone();

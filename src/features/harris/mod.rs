@@ -2,14 +2,19 @@
 //! 4.2): the configuration and the host steps that the GPU detector
 //! ([`Harris`] in `gpu.rs`, `shaders/harris.wgsl`) and its CPU reference
 //! ([`harris_cpu`] in `cpu.rs`) share (kernel taps, pixel packing, spread
-//! selection, merging of refined duplicates). Both import from here and never from each other. See the
+//! selection, merging of refined duplicates). Both import from here and never from each other.
+//! The host detector for CPU adapters ([`harris_host`] in `host.rs`, which
+//! [`Harris`] runs in its host mode) is the reference's arithmetic in
+//! faster loops: it shares the reference's NMS and refinement. See the
 //! module docs of [`super`] for how it works.
 
 mod cpu;
 mod gpu;
+mod host;
 
 pub use cpu::{harris_cpu, harris_response_cpu};
 pub use gpu::Harris;
+pub use host::{harris_host, harris_response_host};
 
 use super::FeatureError;
 use super::gpu_data::{Candidate, MAX_DERIV_RADIUS, MAX_INTEGRATION_RADIUS, Pixel};

@@ -1,0 +1,334 @@
+//! Harris corners on the host, for CPU adapters: the CPU reference's
+//! arithmetic ([`super::cpu`]) with the same operations on every pixel in
+//! the same order, so the same bits, but each filter pass loops over a
+//! row's pixels tap by tap (loops the compiler vectorises, with the image
+//! bounds hoisted out of them) and rows are split over the cores. On
+//! lavapipe a compute shader's loads are gathers and its passes cost
+//! several times this (BENCHMARKS.md); on a GPU the shader path stays.
+
+use super::cpu::{Maps, nms, refine};
+use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
+use crate::features::FeatureError;
+use crate::features::gpu_data::{INVALID_RESPONSE, PIXEL_HOLE, PIXEL_VALID, Pixel};
+use crate::features::image::{GreyImage, check_mask};
+
+/// Harris corners on the host: [`super::harris_cpu`]'s corners, bit for
+/// bit, several times faster (vectorised, on every core). `mask` restricts
+/// where corners may be reported; NaN pixels are invalid.
+pub fn harris_host(
+    img: &GreyImage,
+    cfg: &HarrisConfig,
+    mask: Option<&[bool]>,
+) -> Result<Vec<Corner>, FeatureError> {
+    cfg.validate()?;
+    check_mask(img, mask)?;
+    if img.is_empty() {
+        return Ok(Vec::new());
+    }
+    Ok(detect_packed(
+        &pack_pixels(img, mask),
+        img.width,
+        img.height,
+        cfg,
+    ))
+}
+
+/// The corners of packed pixels (`w x h`, as [`pack_pixels`] makes them).
+pub(super) fn detect_packed(
+    pixels: &[Pixel],
+    w: usize,
+    h: usize,
+    cfg: &HarrisConfig,
+) -> Vec<Corner> {
+    let m = maps(pixels, w, h, cfg);
+    let selected = select_spread(nms(pixels, &m.response, w, h, cfg), cfg);
+    let corners = selected
+        .iter()
+        .map(|c| {
+            let start = (c.x as f32, c.y as f32);
+            let (x, y) = if cfg.refine {
+                refine(&m.grad, w, h, start, cfg)
+            } else {
+                start
+            };
+            Corner {
+                x,
+                y,
+                score: c.score,
+            }
+        })
+        .collect();
+    merge(corners, cfg.merge_radius)
+}
+
+/// The Harris response map on the host ([`super::harris_response_cpu`]'s,
+/// bit for bit).
+pub fn harris_response_host(img: &GreyImage, cfg: &HarrisConfig) -> Result<Vec<f32>, FeatureError> {
+    cfg.validate()?;
+    check_mask(img, None)?;
+    Ok(maps(&pack_pixels(img, None), img.width, img.height, cfg).response)
+}
+
+/// Runs `f(first_row, rows, outputs)` on bands of rows of the `K` row-major
+/// `w`-wide images `outs`, one band per core (`f` gets each output's rows
+/// of its band).
+fn par_rows<const K: usize, F>(h: usize, w: usize, outs: [&mut [f32]; K], f: F)
+where
+    F: Fn(usize, usize, [&mut [f32]; K]) + Sync,
+{
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get().min(8))
+        .min(h.div_ceil(16).max(1));
+    let per = h.div_ceil(threads);
+    let mut rest = outs;
+    std::thread::scope(|scope| {
+        let mut y0 = 0;
+        while y0 < h {
+            let rows = per.min(h - y0);
+            let band: [&mut [f32]; K] = std::array::from_fn(|i| {
+                let (mine, tail) = std::mem::take(&mut rest[i]).split_at_mut(rows * w);
+                rest[i] = tail;
+                mine
+            });
+            let f = &f;
+            if y0 + rows < h {
+                scope.spawn(move || f(y0, rows, band));
+            } else {
+                f(y0, rows, band);
+            }
+            y0 += rows;
+        }
+    });
+}
+
+/// The offsets `x` of a `w`-pixel row whose neighbour `x + t` is inside it.
+fn inside(w: usize, t: isize) -> std::ops::Range<usize> {
+    let lo = (-t).max(0) as usize;
+    let hi = (w as isize - t).clamp(0, w as isize) as usize;
+    lo.min(hi)..hi
+}
+
+/// The reference's maps (`cpu::maps`), pass by pass, with the same sums
+/// in the same order for every pixel.
+fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
+    let (gd, dd) = gaussian_taps(cfg.sigma_d);
+    let (gi, _) = gaussian_taps(cfg.sigma_i);
+    let rd = radius(cfg.sigma_d) as isize;
+    let ri = radius(cfg.sigma_i) as isize;
+    let n = w * h;
+    let value: Vec<f32> = pixels.iter().map(|p| p.value).collect();
+    // What an invalid pixel does to a derivative's validity: a pinhole
+    // makes it 0, another invalid pixel -1 (a valid one leaves it: 1).
+    let code: Vec<f32> = pixels
+        .iter()
+        .map(|p| {
+            if p.flags & PIXEL_VALID != 0 {
+                1.0
+            } else if p.flags & PIXEL_HOLE != 0 {
+                0.0
+            } else {
+                -1.0
+            }
+        })
+        .collect();
+
+    // deriv_h: (I * g'_x, I * g_x, valid)
+    let (mut ha, mut hb, mut hok) = (vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    par_rows(
+        h,
+        w,
+        [&mut ha, &mut hb, &mut hok],
+        |y0, rows, [a, b, ok]| {
+            ok.fill(1.0);
+            for r in 0..rows {
+                let src = (y0 + r) * w;
+                let row = r * w..(r + 1) * w;
+                let (a, b, ok) = (&mut a[row.clone()], &mut b[row.clone()], &mut ok[row]);
+                for t in -rd..=rd {
+                    let k = (t + rd) as usize;
+                    let (d, g) = (dd[k], gd[k]);
+                    let xs = inside(w, t);
+                    ok[..xs.start].fill(-1.0);
+                    ok[xs.end..].fill(-1.0);
+                    if xs.is_empty() {
+                        continue;
+                    }
+                    let from = (src as isize + xs.start as isize + t) as usize;
+                    let v = &value[from..from + xs.len()];
+                    let c = &code[from..from + xs.len()];
+                    for ((((a, b), ok), v), c) in a[xs.clone()]
+                        .iter_mut()
+                        .zip(&mut b[xs.clone()])
+                        .zip(&mut ok[xs.clone()])
+                        .zip(v)
+                        .zip(c)
+                    {
+                        *ok = ok.min(*c);
+                        *a += v * d;
+                        *b += v * g;
+                    }
+                }
+            }
+        },
+    );
+    // deriv_v: (Ix, Iy, valid)
+    let (mut gx, mut gy, mut gok) = (vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    par_rows(
+        h,
+        w,
+        [&mut gx, &mut gy, &mut gok],
+        |y0, rows, [ix, iy, ok]| {
+            ok.fill(1.0);
+            for r in 0..rows {
+                let y = (y0 + r) as isize;
+                let row = r * w..(r + 1) * w;
+                let (ix, iy, ok) = (&mut ix[row.clone()], &mut iy[row.clone()], &mut ok[row]);
+                for t in -rd..=rd {
+                    let yy = y + t;
+                    if yy < 0 || yy >= h as isize {
+                        ok.fill(-1.0);
+                        continue;
+                    }
+                    let k = (t + rd) as usize;
+                    let (g, d) = (gd[k], dd[k]);
+                    let src = yy as usize * w..(yy as usize + 1) * w;
+                    for (((((ix, iy), ok), sa), sb), sok) in ix
+                        .iter_mut()
+                        .zip(iy.iter_mut())
+                        .zip(ok.iter_mut())
+                        .zip(&ha[src.clone()])
+                        .zip(&hb[src.clone()])
+                        .zip(&hok[src.clone()])
+                    {
+                        *ok = ok.min(*sok);
+                        *ix += sa * g;
+                        *iy += sb * d;
+                    }
+                }
+            }
+        },
+    );
+    drop((ha, hb, hok));
+    // integrate_h: (Sxx, Syy, Sxy, weight of the valid gradients; -1 when
+    // the window leaves the image)
+    let (mut sxx, mut syy, mut sxy, mut sw) =
+        (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    par_rows(
+        h,
+        w,
+        [&mut sxx, &mut syy, &mut sxy, &mut sw],
+        |y0, rows, [sxx, syy, sxy, sw]| {
+            // 1 where the window left the image or met an invalid gradient
+            // support (the reference's `outside`).
+            let mut outside = vec![0f32; w];
+            for r in 0..rows {
+                let src = (y0 + r) * w;
+                let row = r * w..(r + 1) * w;
+                let (sxx, syy, sxy, sw) = (
+                    &mut sxx[row.clone()],
+                    &mut syy[row.clone()],
+                    &mut sxy[row.clone()],
+                    &mut sw[row],
+                );
+                outside.fill(0.0);
+                for t in -ri..=ri {
+                    let c = gi[(t + ri) as usize];
+                    let xs = inside(w, t);
+                    outside[..xs.start].fill(1.0);
+                    outside[xs.end..].fill(1.0);
+                    if xs.is_empty() {
+                        continue;
+                    }
+                    let from = (src as isize + xs.start as isize + t) as usize;
+                    let to = from + xs.len();
+                    for (((((((xx, yy), xy), ws), out), g0), g1), g2) in sxx[xs.clone()]
+                        .iter_mut()
+                        .zip(&mut syy[xs.clone()])
+                        .zip(&mut sxy[xs.clone()])
+                        .zip(&mut sw[xs.clone()])
+                        .zip(&mut outside[xs.clone()])
+                        .zip(&gx[from..to])
+                        .zip(&gy[from..to])
+                        .zip(&gok[from..to])
+                    {
+                        let v = if *g2 > 0.5 { 1.0 } else { 0.0 };
+                        if *g2 < -0.5 {
+                            *out = 1.0;
+                        }
+                        *xx += g0 * g0 * v * c;
+                        *yy += g1 * g1 * v * c;
+                        *xy += g0 * g1 * v * c;
+                        *ws += v * c;
+                    }
+                }
+                for (ws, out) in sw.iter_mut().zip(&outside) {
+                    if *out != 0.0 {
+                        *ws = -1.0;
+                    }
+                }
+            }
+        },
+    );
+    // integrate_v + response
+    let mut response = vec![0f32; n];
+    let (k, min_weight) = (cfg.k, cfg.min_valid_weight);
+    par_rows(h, w, [&mut response], |y0, rows, [resp]| {
+        let (mut axx, mut ayy, mut axy, mut aw) =
+            (vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]);
+        let mut outside = vec![0f32; w];
+        for r in 0..rows {
+            let y = (y0 + r) as isize;
+            for v in [&mut axx, &mut ayy, &mut axy, &mut aw, &mut outside] {
+                v.fill(0.0);
+            }
+            for t in -ri..=ri {
+                let yy = y + t;
+                if yy < 0 || yy >= h as isize {
+                    outside.fill(1.0);
+                    continue;
+                }
+                let c = gi[(t + ri) as usize];
+                let src = yy as usize * w..(yy as usize + 1) * w;
+                for (((((((xx, yy), xy), ws), out), s0), s1), (s2, s3)) in axx
+                    .iter_mut()
+                    .zip(ayy.iter_mut())
+                    .zip(axy.iter_mut())
+                    .zip(aw.iter_mut())
+                    .zip(outside.iter_mut())
+                    .zip(&sxx[src.clone()])
+                    .zip(&syy[src.clone()])
+                    .zip(sxy[src.clone()].iter().zip(&sw[src.clone()]))
+                {
+                    if *s3 < 0.0 {
+                        *out = 1.0;
+                    }
+                    *xx += s0 * c;
+                    *yy += s1 * c;
+                    *xy += s2 * c;
+                    *ws += s3 * c;
+                }
+            }
+            let at = (y0 + r) * w;
+            for x in 0..w {
+                let ws = if outside[x] != 0.0 { -1.0 } else { aw[x] };
+                let valid =
+                    ws >= min_weight * (1.0 - 1.0e-5) && pixels[at + x].flags & PIXEL_VALID != 0;
+                resp[r * w + x] = if !valid {
+                    INVALID_RESPONSE
+                } else {
+                    let scale = if ws < 1.0 - 1.0e-5 { 1.0 / ws } else { 1.0 };
+                    let (sxx, syy, sxy) = (axx[x] * scale, ayy[x] * scale, axy[x] * scale);
+                    let tr = sxx + syy;
+                    (sxx * syy - sxy * sxy) - k * (tr * tr)
+                };
+            }
+        }
+    });
+    let grad = gx
+        .iter()
+        .zip(&gy)
+        .zip(&gok)
+        .map(|((x, y), ok)| [*x, *y, *ok])
+        .collect();
+    Maps { grad, response }
+}
