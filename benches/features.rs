@@ -51,6 +51,8 @@ fn bench(c: &mut Criterion) {
     let cfg = HarrisConfig::default();
     let mut harris = Harris::new(&ctx, cfg.clone()).unwrap();
     let mut host_rows = Vec::new();
+    let mut host_harris = Harris::new(&ctx, cfg.clone()).unwrap();
+    host_harris.set_host(true);
     for (w, h) in [(640usize, 480usize), (1280, 720)] {
         let img = patterns::smooth_noise(w, h, 1.5, w as u64);
         g.bench_function(format!("harris_gpu_{w}x{h}"), |b| {
@@ -59,8 +61,10 @@ fn bench(c: &mut Criterion) {
         g.bench_function(format!("harris_cpu_{w}x{h}"), |b| {
             b.iter(|| black_box(harris_cpu(&img, &cfg, None).unwrap()))
         });
+        // The host detector as the tracker runs it (`Harris` in host mode,
+        // its images kept between calls).
         g.bench_function(format!("harris_host_{w}x{h}"), |b| {
-            b.iter(|| black_box(harris_host(&img, &cfg, None).unwrap()))
+            b.iter(|| black_box(host_harris.detect(&img, None).unwrap()))
         });
         let n = harris.detect(&img, None).unwrap().len();
         let gpu = median_ms(10, || {
@@ -70,8 +74,12 @@ fn bench(c: &mut Criterion) {
             black_box(harris_cpu(&img, &cfg, None).unwrap());
         });
         summary.push((format!("Harris {w}x{h} ({n} corners)"), gpu, cpu));
+        assert_eq!(
+            host_harris.detect(&img, None).unwrap(),
+            harris_host(&img, &cfg, None).unwrap()
+        );
         let host = median_ms(10, || {
-            black_box(harris_host(&img, &cfg, None).unwrap());
+            black_box(host_harris.detect(&img, None).unwrap());
         });
         host_rows.push((format!("Harris {w}x{h}"), gpu, host, cpu));
     }
@@ -123,7 +131,7 @@ fn bench(c: &mut Criterion) {
         println!("| {name} | {gpu:.2} | {cpu:.2} | {:.2} |", cpu / gpu);
     }
     println!(
-        "\n| step | GPU median (ms) | host median (ms, `harris_host`, {} threads) | CPU reference (ms) | GPU / host |",
+        "\n| step | GPU median (ms) | host median (ms, `Harris` in host mode, {} threads) | CPU reference (ms) | GPU / host |",
         std::thread::available_parallelism().map_or(1, |n| n.get().min(8))
     );
     println!("|---|---|---|---|---|");

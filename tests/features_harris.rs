@@ -666,6 +666,16 @@ fn harris_in_host_mode_gives_the_references_corners() {
     let shader: Vec<[u32; 2]> = ctx()
         .read_buffer(gpu_harris.resident_view(w, h).unwrap().pixels, w * h)
         .unwrap();
+    // The detector keeps its images between calls: larger and smaller
+    // images after these still give the reference's corners.
+    for (w, h, seed) in [(200, 150, 5), (64, 48, 6), (160, 120, 21)] {
+        let img = patterns::polygons(w, h, 10, seed);
+        assert_eq!(
+            harris.detect(&img, None).unwrap(),
+            harris_cpu(&img, &cfg, None).unwrap(),
+            "{w}x{h}"
+        );
+    }
     // The packing the shaders leave (grey levels within their fused
     // multiply-adds, the same flags).
     for (i, (a, b)) in packed.iter().zip(&shader).enumerate() {

@@ -9,6 +9,7 @@ use crate::features::gpu_data::{
 };
 use crate::features::image::{GreyImage, check_mask};
 
+#[derive(Default)]
 pub(super) struct Maps {
     pub(super) grad: Vec<[f32; 3]>,
     pub(super) response: Vec<f32>,

@@ -1,11 +1,11 @@
 //! Harris corners on the GPU (`shaders/harris.wgsl`); the CPU reference is
 //! [`super::cpu`], the shared host steps are in [`super`].
 
-use super::host::detect_packed;
+use super::host::{Scratch, detect_packed};
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
-    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, RefineCorner,
+    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, RefineCorner, pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
@@ -41,8 +41,9 @@ pub struct Harris {
     bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
-    /// Detect on the host ([`Harris::set_host`]).
+    /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
+    scratch: Scratch,
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -93,6 +94,7 @@ impl Harris {
             timer: None,
             last_timings: TimerReport::default(),
             host: false,
+            scratch: Scratch::default(),
         })
     }
 
@@ -381,7 +383,8 @@ impl Harris {
         }
         if self.host {
             let grey = self.resolved_grey(width, height)?;
-            let corners = detect_packed(&pack_pixels(&grey, None), width, height, &self.config);
+            pack_with_holes_into(&grey, None, true, &mut self.scratch.pixels);
+            let corners = detect_packed(&mut self.scratch, width, height, &self.config);
             return Ok((corners, grey));
         }
         let input = Input::Resolved {
@@ -409,11 +412,18 @@ impl Harris {
             // Detected on the host, then packed on the GPU as NCC reads
             // it (the packing the shaders would have left there).
             let grey = self.resolved_grey(width, height)?;
-            let pixels = pack_pixels(&grey, None);
-            self.ctx
-                .queue
-                .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
-            return Ok(detect_packed(&pixels, width, height, &self.config));
+            pack_with_holes_into(&grey, None, true, &mut self.scratch.pixels);
+            self.ctx.queue.write_buffer(
+                self.pixels.get(),
+                0,
+                bytemuck::cast_slice(&self.scratch.pixels),
+            );
+            return Ok(detect_packed(
+                &mut self.scratch,
+                width,
+                height,
+                &self.config,
+            ));
         }
         let input = Input::Resolved {
             width,
@@ -463,17 +473,20 @@ impl Harris {
         }
         if self.host {
             self.last_timings = TimerReport::default();
-            let pixels = match input {
-                Input::Grey(img) => pack_pixels(img, mask),
-                Input::Rgb(img) => pack_pixels(&GreyImage::from_rgb8(img), mask),
+            let pixels = &mut self.scratch.pixels;
+            match input {
+                Input::Grey(img) => pack_with_holes_into(img, mask, true, pixels),
+                Input::Rgb(img) => {
+                    pack_with_holes_into(&GreyImage::from_rgb8(img), mask, true, pixels)
+                }
                 // detect_resolved* detect these on the host themselves.
                 Input::Resolved { .. } => {
                     return Err(FeatureError::Config(
                         "a resolved view in host mode: use detect_resolved".into(),
                     ));
                 }
-            };
-            return Ok(detect_packed(&pixels, w, h, &self.config));
+            }
+            return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
         self.run_maps(input, mask)?;
         let ctx = &self.ctx.clone();

@@ -12,6 +12,33 @@ use crate::features::FeatureError;
 use crate::features::gpu_data::{INVALID_RESPONSE, PIXEL_HOLE, PIXEL_VALID, Pixel};
 use crate::features::image::{GreyImage, check_mask};
 
+/// The host detector's images, kept between detections by [`super::Harris`]
+/// in host mode (grow-only: a detection of a size seen before allocates
+/// nothing and touches no fresh pages).
+#[derive(Default)]
+pub(super) struct Scratch {
+    pub(super) pixels: Vec<Pixel>,
+    value: Vec<f32>,
+    code: Vec<f32>,
+    ha: Vec<f32>,
+    hb: Vec<f32>,
+    hok: Vec<f32>,
+    gx: Vec<f32>,
+    gy: Vec<f32>,
+    gok: Vec<f32>,
+    sxx: Vec<f32>,
+    syy: Vec<f32>,
+    sxy: Vec<f32>,
+    sw: Vec<f32>,
+    maps: Maps,
+}
+
+/// `v` as `n` zeros (its allocation reused).
+fn zeros(v: &mut Vec<f32>, n: usize) {
+    v.clear();
+    v.resize(n, 0.0);
+}
+
 /// Harris corners on the host: [`super::harris_cpu`]'s corners, bit for
 /// bit, several times faster (vectorised, on every core). `mask` restricts
 /// where corners may be reported; NaN pixels are invalid.
@@ -25,22 +52,23 @@ pub fn harris_host(
     if img.is_empty() {
         return Ok(Vec::new());
     }
-    Ok(detect_packed(
-        &pack_pixels(img, mask),
-        img.width,
-        img.height,
-        cfg,
-    ))
+    let mut scratch = Scratch {
+        pixels: pack_pixels(img, mask),
+        ..Default::default()
+    };
+    Ok(detect_packed(&mut scratch, img.width, img.height, cfg))
 }
 
-/// The corners of packed pixels (`w x h`, as [`pack_pixels`] makes them).
+/// The corners of the packed pixels in `scratch.pixels` (`w x h`, as
+/// [`pack_pixels`] makes them).
 pub(super) fn detect_packed(
-    pixels: &[Pixel],
+    scratch: &mut Scratch,
     w: usize,
     h: usize,
     cfg: &HarrisConfig,
 ) -> Vec<Corner> {
-    let m = maps(pixels, w, h, cfg);
+    maps(scratch, w, h, cfg);
+    let (pixels, m) = (&scratch.pixels, &scratch.maps);
     let selected = select_spread(nms(pixels, &m.response, w, h, cfg), cfg);
     let corners = selected
         .iter()
@@ -66,7 +94,12 @@ pub(super) fn detect_packed(
 pub fn harris_response_host(img: &GreyImage, cfg: &HarrisConfig) -> Result<Vec<f32>, FeatureError> {
     cfg.validate()?;
     check_mask(img, None)?;
-    Ok(maps(&pack_pixels(img, None), img.width, img.height, cfg).response)
+    let mut scratch = Scratch {
+        pixels: pack_pixels(img, None),
+        ..Default::default()
+    };
+    maps(&mut scratch, img.width, img.height, cfg);
+    Ok(scratch.maps.response)
 }
 
 /// Runs `f(first_row, rows, outputs)` on bands of rows of the `K` row-major
@@ -108,36 +141,64 @@ fn inside(w: usize, t: isize) -> std::ops::Range<usize> {
     lo.min(hi)..hi
 }
 
-/// The reference's maps (`cpu::maps`), pass by pass, with the same sums
-/// in the same order for every pixel.
-fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
+/// The reference's maps (`cpu::maps`) of `s.pixels` into `s.maps`, pass
+/// by pass, with the same sums in the same order for every pixel.
+fn maps(s: &mut Scratch, w: usize, h: usize, cfg: &HarrisConfig) {
     let (gd, dd) = gaussian_taps(cfg.sigma_d);
     let (gi, _) = gaussian_taps(cfg.sigma_i);
     let rd = radius(cfg.sigma_d) as isize;
     let ri = radius(cfg.sigma_i) as isize;
     let n = w * h;
-    let value: Vec<f32> = pixels.iter().map(|p| p.value).collect();
+    let Scratch {
+        pixels,
+        value,
+        code,
+        ha,
+        hb,
+        hok,
+        gx,
+        gy,
+        gok,
+        sxx,
+        syy,
+        sxy,
+        sw,
+        maps,
+    } = s;
+    let pixels = &pixels[..n];
+    value.clear();
+    value.extend(pixels.iter().map(|p| p.value));
     // What an invalid pixel does to a derivative's validity: a pinhole
     // makes it 0, another invalid pixel -1 (a valid one leaves it: 1).
-    let code: Vec<f32> = pixels
-        .iter()
-        .map(|p| {
-            if p.flags & PIXEL_VALID != 0 {
-                1.0
-            } else if p.flags & PIXEL_HOLE != 0 {
-                0.0
-            } else {
-                -1.0
-            }
-        })
-        .collect();
+    code.clear();
+    code.extend(pixels.iter().map(|p| {
+        if p.flags & PIXEL_VALID != 0 {
+            1.0
+        } else if p.flags & PIXEL_HOLE != 0 {
+            0.0
+        } else {
+            -1.0
+        }
+    }));
+    let (value, code) = (&value[..], &code[..]);
+    for v in [&mut *ha, &mut *hb, &mut *hok, &mut *gx, &mut *gy, &mut *gok] {
+        zeros(v, n);
+    }
+    for v in [
+        &mut *sxx,
+        &mut *syy,
+        &mut *sxy,
+        &mut *sw,
+        &mut maps.response,
+    ] {
+        zeros(v, n);
+    }
 
     // deriv_h: (I * g'_x, I * g_x, valid)
-    let (mut ha, mut hb, mut hok) = (vec![0f32; n], vec![0f32; n], vec![0f32; n]);
     par_rows(
         h,
         w,
-        [&mut ha, &mut hb, &mut hok],
+        [&mut ha[..], &mut hb[..], &mut hok[..]],
         |y0, rows, [a, b, ok]| {
             ok.fill(1.0);
             for r in 0..rows {
@@ -172,11 +233,11 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
         },
     );
     // deriv_v: (Ix, Iy, valid)
-    let (mut gx, mut gy, mut gok) = (vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    let (ha, hb, hok) = (&ha[..], &hb[..], &hok[..]);
     par_rows(
         h,
         w,
-        [&mut gx, &mut gy, &mut gok],
+        [&mut gx[..], &mut gy[..], &mut gok[..]],
         |y0, rows, [ix, iy, ok]| {
             ok.fill(1.0);
             for r in 0..rows {
@@ -208,15 +269,13 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
             }
         },
     );
-    drop((ha, hb, hok));
     // integrate_h: (Sxx, Syy, Sxy, weight of the valid gradients; -1 when
     // the window leaves the image)
-    let (mut sxx, mut syy, mut sxy, mut sw) =
-        (vec![0f32; n], vec![0f32; n], vec![0f32; n], vec![0f32; n]);
+    let (gx, gy, gok) = (&gx[..], &gy[..], &gok[..]);
     par_rows(
         h,
         w,
-        [&mut sxx, &mut syy, &mut sxy, &mut sw],
+        [&mut sxx[..], &mut syy[..], &mut sxy[..], &mut sw[..]],
         |y0, rows, [sxx, syy, sxy, sw]| {
             // 1 where the window left the image or met an invalid gradient
             // support (the reference's `outside`).
@@ -270,9 +329,9 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
         },
     );
     // integrate_v + response
-    let mut response = vec![0f32; n];
+    let (sxx, syy, sxy, sw) = (&sxx[..], &syy[..], &sxy[..], &sw[..]);
     let (k, min_weight) = (cfg.k, cfg.min_valid_weight);
-    par_rows(h, w, [&mut response], |y0, rows, [resp]| {
+    par_rows(h, w, [&mut maps.response[..]], |y0, rows, [resp]| {
         let (mut axx, mut ayy, mut axy, mut aw) =
             (vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]);
         let mut outside = vec![0f32; w];
@@ -324,11 +383,7 @@ fn maps(pixels: &[Pixel], w: usize, h: usize, cfg: &HarrisConfig) -> Maps {
             }
         }
     });
-    let grad = gx
-        .iter()
-        .zip(&gy)
-        .zip(&gok)
-        .map(|((x, y), ok)| [*x, *y, *ok])
-        .collect();
-    Maps { grad, response }
+    maps.grad.clear();
+    maps.grad
+        .extend(gx.iter().zip(gy).zip(gok).map(|((x, y), ok)| [*x, *y, *ok]));
 }
