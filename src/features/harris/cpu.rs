@@ -138,7 +138,7 @@ pub fn harris_response_cpu(img: &GreyImage, cfg: &HarrisConfig) -> Result<Vec<f3
     Ok(maps(&pack_pixels(img, None), img.width, img.height, cfg).response)
 }
 
-pub(super) fn nms(
+fn nms(
     pixels: &[Pixel],
     response: &[f32],
     w: usize,
@@ -189,7 +189,7 @@ pub(super) fn nms(
 }
 
 /// The `refine` kernel on the CPU.
-pub(super) fn refine(
+fn refine(
     grad: &[[f32; 3]],
     w: usize,
     h: usize,
@@ -269,7 +269,20 @@ pub fn harris_cpu(
     let (w, h) = (img.width, img.height);
     let pixels = pack_pixels(img, mask);
     let m = maps(&pixels, w, h, cfg);
-    let selected = select_spread(nms(&pixels, &m.response, w, h, cfg), cfg);
+    Ok(corners_of(&pixels, &m, w, h, cfg))
+}
+
+/// The corners of `pixels` (`w x h`) from their maps `m`: NMS, the spread
+/// selection, the refinement and the merging of duplicates (shared with
+/// the host detector, `super::host`).
+pub(super) fn corners_of(
+    pixels: &[Pixel],
+    m: &Maps,
+    w: usize,
+    h: usize,
+    cfg: &HarrisConfig,
+) -> Vec<Corner> {
+    let selected = select_spread(nms(pixels, &m.response, w, h, cfg), cfg);
     let corners = selected
         .iter()
         .map(|c| {
@@ -286,5 +299,5 @@ pub fn harris_cpu(
             }
         })
         .collect();
-    Ok(merge(corners, cfg.merge_radius))
+    merge(corners, cfg.merge_radius)
 }

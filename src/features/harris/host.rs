@@ -6,8 +6,8 @@
 //! lavapipe a compute shader's loads are gathers and its passes cost
 //! several times this (BENCHMARKS.md); on a GPU the shader path stays.
 
-use super::cpu::{Maps, nms, refine};
-use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
+use super::cpu::{Maps, corners_of};
+use super::{Corner, HarrisConfig, gaussian_taps, pack_pixels, radius};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{INVALID_RESPONSE, PIXEL_HOLE, PIXEL_VALID, Pixel};
 use crate::features::image::{GreyImage, check_mask};
@@ -68,25 +68,7 @@ pub(super) fn detect_packed(
     cfg: &HarrisConfig,
 ) -> Vec<Corner> {
     maps(scratch, w, h, cfg);
-    let (pixels, m) = (&scratch.pixels, &scratch.maps);
-    let selected = select_spread(nms(pixels, &m.response, w, h, cfg), cfg);
-    let corners = selected
-        .iter()
-        .map(|c| {
-            let start = (c.x as f32, c.y as f32);
-            let (x, y) = if cfg.refine {
-                refine(&m.grad, w, h, start, cfg)
-            } else {
-                start
-            };
-            Corner {
-                x,
-                y,
-                score: c.score,
-            }
-        })
-        .collect();
-    merge(corners, cfg.merge_radius)
+    corners_of(&scratch.pixels[..w * h], &scratch.maps, w, h, cfg)
 }
 
 /// The Harris response map on the host ([`super::harris_response_cpu`]'s,
