@@ -406,6 +406,21 @@ fn scene(object: &str, camera: Intrinsics, length: usize, points: usize) -> Plai
 }
 
 impl PlainScene {
+    /// The synth keyframes of the scene, built into a store.
+    fn keyframes(&self) -> splattrack::keyframes::KeyframeStore {
+        use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
+        let splatter = Splatter::new(ctx()).unwrap();
+        KeyframeStore::build(
+            ctx(),
+            &splatter,
+            &self.model,
+            &self.cfg.camera,
+            &splattrack::synth::keyframe_images(&self.cfg, &self.object, &self.bg),
+            &KeyframeConfig::default(),
+        )
+        .unwrap()
+    }
+
     fn frames(&self, range: std::ops::Range<usize>) -> Vec<splattrack::synth::SynthFrame> {
         range
             .map(|i| splattrack::synth::render_frame(&self.cfg, &self.object, &self.bg, i))
@@ -488,8 +503,6 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
 /// the contour alone solves from that pose and its edges pass the check.
 #[test]
 fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
-    use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-    use splattrack::synth::keyframe_images;
     use splattrack::tracker::{Modalities, Status, TrackerConfig};
     let scene = plain_scene(
         splattrack::synth::SynthConfig::default().camera,
@@ -497,16 +510,7 @@ fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
         100_000,
     );
     let (cfg, model) = (&scene.cfg, &scene.model);
-    let splatter = Splatter::new(ctx()).unwrap();
-    let store = KeyframeStore::build(
-        ctx(),
-        &splatter,
-        model,
-        &cfg.camera,
-        &keyframe_images(cfg, &scene.object, &scene.bg),
-        &KeyframeConfig::default(),
-    )
-    .unwrap();
+    let store = scene.keyframes();
     let frames = scene.frames(26..29);
     let config = TrackerConfig {
         modalities: Modalities::BOTH,
@@ -550,8 +554,6 @@ fn texture_whose_pose_fails_the_check_is_set_aside_for_the_contour() {
 /// and the poses as accurate as with a render every first round.
 #[test]
 fn the_keyframe_view_seeds_the_contour() {
-    use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
-    use splattrack::synth::keyframe_images;
     use splattrack::tracker::{ContourConfig, Modalities, Status, TrackerConfig};
     let scene = scene(
         "box",
@@ -560,16 +562,7 @@ fn the_keyframe_view_seeds_the_contour() {
         30_000,
     );
     let (cfg, model) = (&scene.cfg, &scene.model);
-    let splatter = Splatter::new(ctx()).unwrap();
-    let store = KeyframeStore::build(
-        ctx(),
-        &splatter,
-        model,
-        &cfg.camera,
-        &keyframe_images(cfg, &scene.object, &scene.bg),
-        &KeyframeConfig::default(),
-    )
-    .unwrap();
+    let store = scene.keyframes();
     let frames = scene.frames(0..8);
     let run = |seed_render: bool| {
         let config = TrackerConfig {
