@@ -73,6 +73,7 @@ pub use model::{GpuModel, PackedModel, pack_model, spatial_order};
 pub use splatter::Splatter;
 pub use targets::{SplatImage, SplatTargets};
 pub use window::Window;
+pub(crate) use window::box_corners;
 
 /// Which splatting implementation renders. Both write the same
 /// accumulation targets (so [`Splatter::read`], [`Splatter::gather`] and

@@ -328,7 +328,6 @@ impl Splatter {
         {
             compute.render(ctx, model, &uniform, attrs, false, targets, timer)?;
             targets.rendered = Some(attrs);
-            targets.fx = cam.fx as f32;
             targets.depth_only = false;
             targets.view = Some((*pose, *cam));
             return Ok(());
@@ -371,7 +370,6 @@ impl Splatter {
         }
         ctx.queue.submit([enc.finish()]);
         targets.rendered = Some(attrs);
-        targets.fx = cam.fx as f32;
         targets.depth_only = false;
         targets.view = Some((*pose, *cam));
         Ok(())
@@ -628,7 +626,7 @@ impl Splatter {
                     attribute.kind()
                 },
                 mode: GATHER_NEAREST,
-                fx: targets.fx,
+                fx: targets.fx(),
                 ..Default::default()
             },
             out,
@@ -716,7 +714,7 @@ impl Splatter {
                     GatherMode::Nearest => GATHER_NEAREST,
                     GatherMode::Bilinear => GATHER_BILINEAR,
                 },
-                fx: targets.fx,
+                fx: targets.fx(),
                 ..Default::default()
             },
             &out,

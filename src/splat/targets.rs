@@ -20,9 +20,6 @@ pub struct SplatTargets {
     pub(super) depth_view: wgpu::TextureView,
     pub(super) uniform: wgpu::Buffer,
     pub(super) rendered: Option<Attributes>,
-    /// The focal length in x (pixels) of the last render's camera: what
-    /// `gather` turns the predictors into depth with.
-    pub(super) fx: f32,
     /// The last render was [`super::Splatter::render_depth`]'s: only the
     /// depth and the coverage can be read.
     pub(super) depth_only: bool,
@@ -88,7 +85,6 @@ impl SplatTargets {
             depth_view,
             uniform,
             rendered: None,
-            fx: 0.0,
             depth_only: false,
             compute: None,
             view: None,
@@ -128,6 +124,13 @@ impl SplatTargets {
     /// depth-only render too: [`Self::depth_only`]).
     pub fn rendered(&self) -> Option<Attributes> {
         self.rendered
+    }
+
+    /// The focal length in x (pixels) of the last render's camera: what
+    /// `gather` and a depth read turn the predictors into depth with (0
+    /// before a render).
+    pub(super) fn fx(&self) -> f32 {
+        self.view.map_or(0.0, |(_, cam)| cam.fx as f32)
     }
 
     /// The pose and camera of the last render, whose images these targets

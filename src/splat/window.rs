@@ -121,12 +121,7 @@ impl Window {
             f64::NEG_INFINITY,
             f64::NEG_INFINITY,
         ];
-        for i in 0..8 {
-            let p = Vector3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            );
+        for p in box_corners(lo, hi) {
             let c = pose.transform_point(&p);
             if c.z.is_nan() || c.z <= 1e-9 * (1.0 + c.norm()) {
                 return Some(Self::full(cam));
@@ -170,6 +165,17 @@ impl Window {
             height: y1 - y0,
         }
     }
+}
+
+/// The eight corners of the box `[lo, hi]`.
+pub(crate) fn box_corners(lo: &Vector3<f64>, hi: &Vector3<f64>) -> [Vector3<f64>; 8] {
+    std::array::from_fn(|i| {
+        Vector3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
 }
 
 #[cfg(test)]

@@ -1096,14 +1096,8 @@ impl Tracker {
         if !readable || *cam != self.window.camera(&self.cam) {
             return None;
         }
-        let (lo, hi) = (self.box_lo, self.box_hi);
         let mut far = 0.0f64;
-        for k in 0..8 {
-            let x = Vector3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
+        for x in crate::splat::box_corners(&self.box_lo, &self.box_hi) {
             let a = self.cam.project(&at.transform_point(&x))?;
             let b = self.cam.project(&pose.transform_point(&x))?;
             far = far.max((a - b).norm());
