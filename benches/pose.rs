@@ -5,12 +5,18 @@
 //! each), so no GPU/CPU ratio.
 //!
 //! `cargo bench --bench pose` (ids `irls/MATCHES`).
+//!
+//! Also the contour's line search (`tracker::contour::search_line`, on
+//! the host in every back end): 160 lines (a frame's contour points at a
+//! 4 px spacing) across a disc's noisy outline, at the half-lengths the
+//! contour step uses (ids `contour_lines/HALF`; one thread).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Vector2, Vector3, Vector6};
 use splattrack::geometry::Intrinsics;
 use splattrack::pose::{IrlsConfig, Observation, irls};
 use splattrack::rng::Rng;
+use splattrack::tracker::contour::{ColourModel, search_line};
 use std::hint::black_box;
 use std::time::Duration;
 
@@ -60,5 +66,90 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+/// The disc of [`disc_lines`]: centre and radius, pixels.
+const DISC: ([f64; 2], f64) = ([160.3, 159.7], 100.0);
+
+/// A yellow disc ([`DISC`]) on a noisy two-tone background, with its
+/// colours learnt.
+fn disc_frame() -> (image::RgbImage, ColourModel) {
+    let (w, h) = (320u32, 320u32);
+    let mut rng = Rng::new(7);
+    let (centre, r) = (Vector2::from(DISC.0), DISC.1);
+    let mut frame = image::RgbImage::new(w, h);
+    let mut coverage = vec![false; (w * h) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let d = (Vector2::new(x as f64, y as f64) - centre).norm();
+            // The pixel's share of the disc, across one pixel.
+            let a = (r + 0.5 - d).clamp(0.0, 1.0);
+            let bg = if (x / 16 + y / 16) % 2 == 0 {
+                [60.0, 90.0, 140.0]
+            } else {
+                [120.0, 40.0, 60.0]
+            };
+            let fg = [220.0, 200.0, 40.0];
+            let mut c = [0u8; 3];
+            for k in 0..3 {
+                let v = a * fg[k] + (1.0 - a) * bg[k] + rng.normal() * 6.0;
+                c[k] = v.round().clamp(0.0, 255.0) as u8;
+            }
+            frame.put_pixel(x, y, image::Rgb(c));
+            coverage[(y * w + x) as usize] = d <= r;
+        }
+    }
+    let mut colours = ColourModel::new(16);
+    colours.learn(
+        &frame,
+        &coverage,
+        (0, 0, w as usize - 1, h as usize - 1),
+        2,
+        1.0,
+    );
+    (frame, colours)
+}
+
+/// 160 lines across [`DISC`]'s outline (start, outward normal), each
+/// started off it by a fraction in [-0.4, 0.4] of `half`.
+fn disc_lines(half: f32) -> Vec<(Vector2<f64>, Vector2<f64>)> {
+    let mut rng = Rng::new(8);
+    let (centre, r) = (Vector2::from(DISC.0), DISC.1);
+    (0..160)
+        .map(|i| {
+            let t = i as f64 / 160.0 * std::f64::consts::TAU;
+            let n = Vector2::new(t.cos(), t.sin());
+            (centre + n * (r + rng.uniform(-0.4, 0.4) * half as f64), n)
+        })
+        .collect()
+}
+
+fn bench_lines(c: &mut Criterion) {
+    let mut group = c.benchmark_group("contour_lines");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    let (frame, colours) = disc_frame();
+    for half in [32.0f32, 16.0, 5.0] {
+        let lines = disc_lines(half);
+        let found = lines
+            .iter()
+            .filter(|(p, n)| search_line(&frame, &colours, *p, *n, half, 1.0).is_some())
+            .count();
+        assert!(
+            found > 150,
+            "the benchmark's lines must find the outline ({found})"
+        );
+        group.bench_function(format!("{half}"), |b| {
+            b.iter(|| {
+                lines
+                    .iter()
+                    .filter_map(|(p, n)| search_line(&frame, &colours, *p, *n, half, 1.0))
+                    .sum::<f64>()
+            })
+        });
+    }
+    group.finish();
+}
+
+criterion_group!(benches, bench, bench_lines);
 criterion_main!(benches);

@@ -329,18 +329,41 @@ pub struct ColourModel {
     foreground: Vec<f32>,
     background: Vec<f32>,
     learned: bool,
+    /// Per bin: [`Self::foreground_probability`] `p` and `ln p`,
+    /// `ln (1 - p)`, kept up to date by [`Self::learn`] (the line search
+    /// needs the logarithms of every sample).
+    terms: Vec<[f64; 3]>,
 }
 
 impl ColourModel {
     /// Empty histograms of `bins` bins per channel.
     pub fn new(bins: u32) -> Self {
         let n = (bins * bins * bins) as usize;
-        Self {
+        let mut m = Self {
             bins,
             foreground: vec![0.0; n],
             background: vec![0.0; n],
             learned: false,
-        }
+            terms: Vec::new(),
+        };
+        m.update_terms();
+        m
+    }
+
+    fn update_terms(&mut self) {
+        let terms = (0..self.foreground.len())
+            .map(|b| {
+                let p = self.probability_of_bin(b) as f64;
+                [p, p.ln(), (1.0 - p).ln()]
+            })
+            .collect();
+        self.terms = terms;
+    }
+
+    /// [`Self::foreground_probability`] `p` of `c`, with `ln p` and
+    /// `ln (1 - p)`.
+    fn terms(&self, c: [u8; 3]) -> [f64; 3] {
+        self.terms[self.bin(c)]
     }
 
     /// Whether any frame has been learnt.
@@ -429,13 +452,17 @@ impl ColourModel {
             *h = (1.0 - rate) * *h + rate * v / nb;
         }
         self.learned = true;
+        self.update_terms();
     }
 
     /// The probability that a pixel of colour `c` shows the object (equal
     /// priors), kept within [0.02, 0.98] so that one pixel cannot veto a
     /// boundary position; 0.5 for a colour never seen.
     pub fn foreground_probability(&self, c: [u8; 3]) -> f32 {
-        let b = self.bin(c);
+        self.probability_of_bin(self.bin(c))
+    }
+
+    fn probability_of_bin(&self, b: usize) -> f32 {
         let (f, g) = (self.foreground[b], self.background[b]);
         if f + g <= 0.0 {
             0.5
@@ -460,51 +487,99 @@ pub fn search_line(
     half_len: f32,
     slope: f32,
 ) -> Option<f64> {
+    LINE_SCRATCH
+        .with_borrow_mut(|s| search_line_in(s, frame, colours, position, normal, half_len, slope))
+}
+
+/// The buffers of [`search_line`], kept per thread between lines (a
+/// frame searches hundreds of them).
+#[derive(Default)]
+struct LineScratch {
+    /// The object probability of each sample.
+    pf: Vec<f64>,
+    /// Prefix sums of `ln pf` and `ln (1 - pf)`.
+    inside: Vec<f64>,
+    outside: Vec<f64>,
+    /// The smooth step on the 1/8 px grid, for `steps_slope`.
+    steps: Vec<f64>,
+    steps_slope: f64,
+    /// Log-likelihoods of the half-pixel candidates.
+    ll: Vec<f64>,
+}
+
+thread_local! {
+    static LINE_SCRATCH: std::cell::RefCell<LineScratch> = std::cell::RefCell::default();
+}
+
+fn search_line_in(
+    s: &mut LineScratch,
+    frame: &image::RgbImage,
+    colours: &ColourModel,
+    position: Vector2<f64>,
+    normal: Vector2<f64>,
+    half_len: f32,
+    slope: f32,
+) -> Option<f64> {
     let l = half_len.round().max(2.0) as i64;
     let n = (2 * l + 1) as usize;
-    let mut pf = Vec::with_capacity(n);
+    s.pf.clear();
+    s.inside.clear();
+    s.outside.clear();
+    s.inside.push(0.0);
+    s.outside.push(0.0);
     for k in -l..=l {
         let p = position + normal * k as f64;
         let c = crate::geometry::sample_bilinear_rgb(frame, p.x as f32, p.y as f32)?;
-        pf.push(colours.foreground_probability(c.0) as f64);
+        let [p, ln_p, ln_q] = colours.terms(c.0);
+        s.pf.push(p);
+        let i = s.pf.len() - 1;
+        s.inside.push(s.inside[i] + ln_p);
+        s.outside.push(s.outside[i] + ln_q);
     }
     // Beyond 4 slopes the step is 0 or 1 to within 3e-4: those samples
     // count as plainly inside (ln pf) or outside (ln (1 - pf)), summed by
     // prefix sums; only the samples near `d` need the smooth step.
     let slope = slope as f64;
     let reach = (4.0 * slope).ceil() as i64;
-    let mut inside = vec![0.0; n + 1];
-    let mut outside = vec![0.0; n + 1];
-    for (i, p) in pf.iter().enumerate() {
-        inside[i + 1] = inside[i] + p.ln();
-        outside[i + 1] = outside[i] + (1.0 - p).ln();
-    }
     // The smooth step at every offset o - d the searches below meet: d
     // lies on a grid of 1/8 px and |o - d| <= reach, so the step is
-    // tabulated once a line at o - d = m / 8 (the same value, bit for bit,
-    // as computed at each sample: m / 8 is exact).
-    let steps: Vec<f64> = (-8 * reach..=8 * reach)
-        .map(|m| 0.5 * (1.0 - ((m as f64 / 8.0) / slope).tanh()))
-        .collect();
+    // tabulated once (per slope) at o - d = m / 8 (m / 8 is exact).
+    if s.steps_slope != slope || s.steps.is_empty() {
+        s.steps.clear();
+        s.steps.extend(
+            (-8 * reach..=8 * reach).map(|m| 0.5 * (1.0 - ((m as f64 / 8.0) / slope).tanh())),
+        );
+        s.steps_slope = slope;
+    }
+    let (pf, inside, outside, steps) = (&s.pf, &s.inside, &s.outside, &s.steps);
     let loglik = |d: f64| {
+        // d in eighths of a pixel (exact: d lies on that grid).
+        let d8 = (d * 8.0) as i64;
+        debug_assert_eq!(d8 as f64, d * 8.0, "d off the 1/8 px grid");
         // Samples i with offset o = i - l: plainly inside when o < d - reach.
-        let lo = ((d - reach as f64).ceil() as i64 + l).clamp(0, n as i64) as usize;
-        let hi = ((d + reach as f64).floor() as i64 + l + 1).clamp(0, n as i64) as usize;
-        let mut v = inside[lo] + (outside[n] - outside[hi]);
-        for (i, p) in pf.iter().enumerate().take(hi).skip(lo) {
-            let o = (i as i64 - l) as f64;
-            debug_assert_eq!(((o - d) * 8.0).fract(), 0.0, "d off the 1/8 px grid");
-            let m = ((o - d) * 8.0) as i64 + 8 * reach;
+        let lo =
+            ((d8 - 8 * reach).div_euclid(8) + i64::from((d8 - 8 * reach).rem_euclid(8) != 0) + l)
+                .clamp(0, n as i64) as usize;
+        let hi = ((d8 + 8 * reach).div_euclid(8) + l + 1).clamp(0, n as i64) as usize;
+        // The samples near d: one logarithm of their likelihoods' product
+        // (at least 0.02 each, at most 9 of them for a 1 px slope: no
+        // underflow) instead of one per sample. Sample i is at o - d =
+        // (8 (i - l) - d8) / 8, the step's entry m of that.
+        let mut near = 1.0;
+        let mut m = 8 * (lo as i64 - l) - d8 + 8 * reach;
+        for p in &pf[lo..hi.max(lo)] {
             let hf = steps[m as usize];
-            v += (hf * p + (1.0 - hf) * (1.0 - p)).ln();
+            near *= hf * p + (1.0 - hf) * (1.0 - p);
+            m += 8;
         }
-        v
+        inside[lo] + (outside[n] - outside[hi]) + near.ln()
     };
-    // Candidates every half pixel, away from the line's ends.
-    let candidates: Vec<f64> = (-(2 * l - 2)..=(2 * l - 2))
-        .map(|h| h as f64 * 0.5)
-        .collect();
-    let ll: Vec<f64> = candidates.iter().map(|&d| loglik(d)).collect();
+    // Candidates every half pixel, away from the line's ends: d = h / 2.
+    let candidate = |h: i64| h as f64 * 0.5;
+    let (h0, h1) = (-(2 * l - 2), 2 * l - 2);
+    s.ll.clear();
+    s.ll.extend((h0..=h1).map(|h| loglik(candidate(h))));
+    let ll = &s.ll;
     let (k, best) = ll
         .iter()
         .copied()
@@ -512,15 +587,16 @@ pub fn search_line(
         .max_by(|a, b| a.1.total_cmp(&b.1))?;
     // A boundary the line cannot place (a flat posterior: no transition,
     // or several alike) is no evidence.
-    let w: Vec<f64> = ll.iter().map(|v| (v - best).exp()).collect();
-    let sw: f64 = w.iter().sum();
-    let mean = w.iter().zip(&candidates).map(|(w, d)| w * d).sum::<f64>() / sw;
-    let var = w
-        .iter()
-        .zip(&candidates)
-        .map(|(w, d)| w * (d - mean).powi(2))
-        .sum::<f64>()
-        / sw;
+    let (mut sw, mut sd, mut sdd) = (0.0, 0.0, 0.0);
+    for (j, v) in ll.iter().enumerate() {
+        let w = (v - best).exp();
+        let d = candidate(h0 + j as i64);
+        sw += w;
+        sd += w * d;
+        sdd += w * d * d;
+    }
+    let mean = sd / sw;
+    let var = (sdd / sw - mean * mean).max(0.0);
     if var.sqrt() > (0.15 * l as f64).max(1.5) || k == 0 || k + 1 == ll.len() {
         return None;
     }
@@ -529,20 +605,30 @@ pub fn search_line(
     // learnt, leaves the likelihood flat across it: its mean, not a
     // parabola's vertex, is unbiased); then within the pixels by their
     // colours ([`mixed_boundary`]).
-    let fine: Vec<f64> = (-12..=12)
-        .map(|q| candidates[k] + q as f64 * 0.125)
-        .filter(|d| d.abs() <= (l - 1) as f64)
-        .collect();
-    let fl: Vec<f64> = fine.iter().map(|&d| loglik(d)).collect();
-    let top = fl.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let dk = candidate(h0 + k as i64);
+    let fine = (-12..=12)
+        .map(|q| dk + q as f64 * 0.125)
+        .filter(|d| d.abs() <= (l - 1) as f64);
+    let fl: [Option<(f64, f64)>; 25] = {
+        let mut a = [None; 25];
+        for (slot, d) in a.iter_mut().zip(fine) {
+            *slot = Some((d, loglik(d)));
+        }
+        a
+    };
+    let top = fl
+        .iter()
+        .flatten()
+        .map(|p| p.1)
+        .fold(f64::NEG_INFINITY, f64::max);
     let (mut sw, mut sd) = (0.0, 0.0);
-    for (v, d) in fl.iter().zip(&fine) {
+    for (d, v) in fl.iter().flatten() {
         let w = (v - top).exp();
         sw += w;
         sd += w * d;
     }
     let d0 = sd / sw;
-    Some(mixed_boundary(frame, position, normal, &pf, l, d0).unwrap_or(d0))
+    Some(mixed_boundary(frame, position, normal, pf, l, d0).unwrap_or(d0))
 }
 
 /// Samples either side of the boundary that stand for the pure colours in
@@ -1491,6 +1577,120 @@ mod tests {
             sq += err * err;
         }
         (sq / trials as f64).sqrt()
+    }
+
+    /// [`search_line`]'s model in its plainest arithmetic: each
+    /// candidate's log-likelihood a sum of one logarithm per sample (the
+    /// step taken as 0 or 1 beyond 4 slopes, as there), the probabilities
+    /// from [`ColourModel::foreground_probability`], fresh buffers.
+    fn search_line_reference(
+        frame: &image::RgbImage,
+        colours: &ColourModel,
+        position: Vector2<f64>,
+        normal: Vector2<f64>,
+        half_len: f32,
+        slope: f32,
+    ) -> Option<f64> {
+        let l = half_len.round().max(2.0) as i64;
+        let mut pf = Vec::new();
+        for k in -l..=l {
+            let p = position + normal * k as f64;
+            let c = crate::geometry::sample_bilinear_rgb(frame, p.x as f32, p.y as f32)?;
+            pf.push(colours.foreground_probability(c.0) as f64);
+        }
+        let slope = slope as f64;
+        let reach = (4.0 * slope).ceil();
+        let loglik = |d: f64| {
+            let mut v = 0.0;
+            for (i, p) in pf.iter().enumerate() {
+                let o = (i as i64 - l) as f64;
+                v += if o < d - reach {
+                    p.ln()
+                } else if o > d + reach {
+                    (1.0 - p).ln()
+                } else {
+                    let hf = 0.5 * (1.0 - ((o - d) / slope).tanh());
+                    (hf * p + (1.0 - hf) * (1.0 - p)).ln()
+                };
+            }
+            v
+        };
+        let candidates: Vec<f64> = (-(2 * l - 2)..=(2 * l - 2))
+            .map(|h| h as f64 * 0.5)
+            .collect();
+        let ll: Vec<f64> = candidates.iter().map(|&d| loglik(d)).collect();
+        let (k, best) = ll
+            .iter()
+            .copied()
+            .enumerate()
+            .max_by(|a, b| a.1.total_cmp(&b.1))?;
+        let w: Vec<f64> = ll.iter().map(|v| (v - best).exp()).collect();
+        let sw: f64 = w.iter().sum();
+        let mean = w.iter().zip(&candidates).map(|(w, d)| w * d).sum::<f64>() / sw;
+        let var = w
+            .iter()
+            .zip(&candidates)
+            .map(|(w, d)| w * (d - mean).powi(2))
+            .sum::<f64>()
+            / sw;
+        if var.sqrt() > (0.15 * l as f64).max(1.5) || k == 0 || k + 1 == ll.len() {
+            return None;
+        }
+        let fine: Vec<f64> = (-12..=12)
+            .map(|q| candidates[k] + q as f64 * 0.125)
+            .filter(|d| d.abs() <= (l - 1) as f64)
+            .collect();
+        let fl: Vec<f64> = fine.iter().map(|&d| loglik(d)).collect();
+        let top = fl.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let w: Vec<f64> = fl.iter().map(|v| (v - top).exp()).collect();
+        let d0 = w.iter().zip(&fine).map(|(w, d)| w * d).sum::<f64>() / w.iter().sum::<f64>();
+        Some(mixed_boundary(frame, position, normal, &pf, l, d0).unwrap_or(d0))
+    }
+
+    #[test]
+    fn the_line_search_is_its_plainest_arithmetic() {
+        // Edges at random angles, places and shading; lines of every
+        // length the contour uses (long ones cross the image's border and
+        // find nothing), from random points near the edge and far from
+        // it, with slopes of 0.5 to 2 px; one thread's buffers shared by
+        // them all, as in the tracker. The fast search keeps the same
+        // arithmetic except the order of its sums (a product per
+        // candidate, prefix sums, a tabulated step): equal to 1e-9 px.
+        let mut rng = crate::rng::Rng::new(41);
+        let (mut found, mut none) = (0, 0);
+        for _ in 0..24 {
+            let a = rng.uniform(0.0, std::f64::consts::TAU);
+            let n = Vector2::new(a.cos(), a.sin());
+            let p0 = Vector2::new(rng.uniform(28.0, 36.0), rng.uniform(28.0, 36.0));
+            let (frame, coverage) = half_plane_shaded(n, p0, rng.uniform(0.0, 0.5), &mut rng);
+            let mut colours = ColourModel::new(16);
+            colours.learn(&frame, &coverage, (0, 0, 63, 63), 2, 1.0);
+            for _ in 0..12 {
+                let half = [5.0f32, 8.0, 10.0, 16.0, 32.0][rng.below(5) as usize];
+                let slope = [0.5f32, 1.0, 2.0][rng.below(3) as usize];
+                let off = rng.uniform(-12.0, 12.0);
+                let turn = rng.uniform(-0.3, 0.3);
+                let dir = Vector2::new(
+                    n.x * turn.cos() - n.y * turn.sin(),
+                    n.x * turn.sin() + n.y * turn.cos(),
+                );
+                let at = p0 - n * off;
+                let fast = search_line(&frame, &colours, at, dir, half, slope);
+                let plain = search_line_reference(&frame, &colours, at, dir, half, slope);
+                match (fast, plain) {
+                    (Some(f), Some(p)) => {
+                        assert!(
+                            (f - p).abs() < 1e-9,
+                            "half {half}, slope {slope}: {f} vs {p}"
+                        );
+                        found += 1;
+                    }
+                    (None, None) => none += 1,
+                    other => panic!("half {half}, slope {slope}, offset {off:.2}: {other:?}"),
+                }
+            }
+        }
+        assert!(found > 150 && none > 20, "found {found}, none {none}");
     }
 
     #[test]
