@@ -194,6 +194,10 @@ pub struct Tuning {
     /// its normal; default 1; 0 renders every round).
     #[arg(long)]
     pub contour_reproject: Option<f64>,
+    /// Contour: colour histograms per sector of directions around the
+    /// object (default 8; 0: one pair for the whole object).
+    #[arg(long)]
+    pub contour_sectors: Option<usize>,
     /// Contour: the first round always renders, instead of moving the
     /// points of the render held from the KF step (or the last contour
     /// render) when they moved little (for comparison).
@@ -247,6 +251,7 @@ impl Tuning {
         set(&mut c.contour.spacing_px, self.contour_spacing);
         set(&mut c.contour.damping, self.contour_damping);
         set(&mut c.contour.reproject_px, self.contour_reproject);
+        set(&mut c.contour.sectors, self.contour_sectors);
         if self.contour_full_render {
             c.contour.depth_only = false;
         }
@@ -281,8 +286,9 @@ pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 13] = [
+const FLAGS: [(&str, &str); 14] = [
     ("contour.rounds", "contour-rounds"),
+    ("contour.sectors", "contour-sectors"),
     ("contour.converged_px", "contour-converged"),
     ("contour.reproject_px", "contour-reproject"),
     ("contour.spacing_px", "contour-spacing"),

@@ -117,6 +117,12 @@ pub struct ContourConfig {
     /// pixels of the outline, whose line noise moves the weakly seen
     /// rotations; README "Contour": the real dragon fused 98.8% to 100%).
     pub reproject_px: f64,
+    /// Sectors of directions around the object's projected centre, each
+    /// with its own colour histograms (learnt from the pixels in its
+    /// directions, its lines weighed with them): what lies behind an object
+    /// changes along its outline. 0: one pair of histograms for the whole
+    /// object (README "Contour": measured 0, 4, 6, 8, 12).
+    pub sectors: usize,
     /// Whether a render the targets already hold near the step's start
     /// (the KF step's novel view, whose depth comes from its predictors;
     /// or the last contour render) stands for the first round's render:
@@ -147,6 +153,7 @@ impl Default for ContourConfig {
             depth_only: true,
             reproject_px: 1.0,
             seed_render: true,
+            sectors: 8,
         }
     }
 }
@@ -203,6 +210,9 @@ impl ContourConfig {
         }
         if !(self.slope_px.is_finite() && self.slope_px > 0.0) {
             return bad("contour.slope_px", self.slope_px.to_string(), "> 0");
+        }
+        if self.sectors > 64 {
+            return bad("contour.sectors", self.sectors.to_string(), "in [0, 64]");
         }
         if !(1..=10).contains(&self.rounds) {
             return bad("contour.rounds", self.rounds.to_string(), "in [1, 10]");
@@ -322,32 +332,53 @@ pub fn extract_contour(
 }
 
 /// Foreground (object) and background colour histograms, learnt online
-/// from frames at their tracked poses.
+/// from frames at their tracked poses: one pair over the whole object and,
+/// where configured ([`ContourConfig::sectors`]), one pair per sector of
+/// directions around the object's projected centre. What lies behind an
+/// object changes along its outline (the real dragon's head stands
+/// against an orange model, its tail against the white table): a line
+/// then weighs its colours against the background seen on its side
+/// (localised statistics, as RBOT's do around contour points).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ColourModel {
     bins: u32,
+    global: Histograms,
+    sectors: Vec<Histograms>,
+}
+
+/// One pair of normalised histograms, with the per-bin terms the line
+/// search reads.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Histograms {
     foreground: Vec<f32>,
     background: Vec<f32>,
     learned: bool,
-    /// Per bin: [`Self::foreground_probability`] `p` and `ln p`,
-    /// `ln (1 - p)`, kept up to date by [`Self::learn`] (the line search
-    /// needs the logarithms of every sample).
+    /// Per bin: the object probability `p` (as
+    /// [`ColourModel::foreground_probability`]), `ln p` and `ln (1 - p)`,
+    /// kept up to date by every update (the line search needs the
+    /// logarithms of every sample).
     terms: Vec<[f64; 3]>,
 }
 
-impl ColourModel {
-    /// Empty histograms of `bins` bins per channel.
-    pub fn new(bins: u32) -> Self {
-        let n = (bins * bins * bins) as usize;
-        let mut m = Self {
-            bins,
+impl Histograms {
+    fn new(n: usize) -> Self {
+        let mut h = Self {
             foreground: vec![0.0; n],
             background: vec![0.0; n],
             learned: false,
             terms: Vec::new(),
         };
-        m.update_terms();
-        m
+        h.update_terms();
+        h
+    }
+
+    fn probability_of_bin(&self, b: usize) -> f32 {
+        let (f, g) = (self.foreground[b], self.background[b]);
+        if f + g <= 0.0 {
+            0.5
+        } else {
+            (f / (f + g)).clamp(0.02, 0.98)
+        }
     }
 
     fn update_terms(&mut self) {
@@ -360,21 +391,116 @@ impl ColourModel {
         self.terms = terms;
     }
 
-    /// [`Self::foreground_probability`] `p` of `c`, with `ln p` and
-    /// `ln (1 - p)`.
-    fn terms(&self, c: [u8; 3]) -> [f64; 3] {
-        self.terms[self.bin(c)]
+    /// Blends in one frame's counts (`rate`; the first time they are
+    /// taken whole) when each side holds at least `least` pixels.
+    fn blend(&mut self, fg: &[f32], bg: &[f32], least: f32, rate: f32) {
+        let (nf, nb) = (fg.iter().sum::<f32>(), bg.iter().sum::<f32>());
+        if nf < least.max(f32::MIN_POSITIVE) || nb < least.max(f32::MIN_POSITIVE) {
+            return;
+        }
+        let rate = if self.learned { rate } else { 1.0 };
+        for (h, v) in self.foreground.iter_mut().zip(fg) {
+            *h = (1.0 - rate) * *h + rate * v / nf;
+        }
+        for (h, v) in self.background.iter_mut().zip(bg) {
+            *h = (1.0 - rate) * *h + rate * v / nb;
+        }
+        self.learned = true;
+        self.update_terms();
+    }
+}
+
+/// A sector learns from a frame only where each side of it holds at least
+/// this many pixels (weights: a pixel counts towards its two nearest
+/// sectors); until then its lines use the whole object's histograms.
+pub const SECTOR_LEAST_PX: f32 = 200.0;
+
+/// The direction of `d` as a fraction of a full turn, in [0, 1), from +x
+/// towards +y (clockwise on the screen, whose y points down), to within
+/// 6e-4 turns (0.22 degrees: a polynomial approximation of the
+/// arctangent; the sectors' weights need no more, and it is several times
+/// cheaper than `atan2` over a window's pixels). 0 for a zero vector.
+pub fn turn_of(d: Vector2<f64>) -> f64 {
+    let (ax, ay) = (d.x.abs(), d.y.abs());
+    if ax == 0.0 && ay == 0.0 {
+        return 0.0;
+    }
+    // atan(t) / (2 pi) for t in [0, 1] (|error| < 6e-4 turns).
+    let t = ax.min(ay) / ax.max(ay);
+    let mut a = t * (0.25 * std::f64::consts::PI + 0.273 * (1.0 - t)) / std::f64::consts::TAU;
+    if ay > ax {
+        a = 0.25 - a;
+    }
+    if d.x < 0.0 {
+        a = 0.5 - a;
+    }
+    if d.y < 0.0 {
+        a = 1.0 - a;
+    }
+    if a >= 1.0 { 0.0 } else { a }
+}
+
+impl ColourModel {
+    /// Empty histograms of `bins` bins per channel, over the whole object
+    /// only.
+    pub fn new(bins: u32) -> Self {
+        Self::with_sectors(bins, 0)
+    }
+
+    /// Empty histograms of `bins` bins per channel, over the whole object
+    /// and for each of `sectors` sectors of directions around it (0: none;
+    /// sector `k` centred on the direction `k / sectors` of a turn from
+    /// +x, towards +y).
+    pub fn with_sectors(bins: u32, sectors: usize) -> Self {
+        let n = (bins * bins * bins) as usize;
+        Self {
+            bins,
+            global: Histograms::new(n),
+            sectors: vec![Histograms::new(n); sectors],
+        }
+    }
+
+    /// The number of sectors.
+    pub fn sectors(&self) -> usize {
+        self.sectors.len()
     }
 
     /// Whether any frame has been learnt.
     pub fn is_learned(&self) -> bool {
-        self.learned
+        self.global.learned
+    }
+
+    /// Whether sector `k` has learnt from a frame.
+    pub fn sector_learned(&self, k: usize) -> bool {
+        self.sectors.get(k).is_some_and(|h| h.learned)
     }
 
     fn bin(&self, c: [u8; 3]) -> usize {
         let q = |v: u8| (v as u32 * self.bins / 256) as usize;
         let b = self.bins as usize;
         (q(c[0]) * b + q(c[1])) * b + q(c[2])
+    }
+
+    /// The sector whose centre is nearest the direction `d` from the
+    /// object's centre (`None` without sectors).
+    pub fn sector_toward(&self, d: Vector2<f64>) -> Option<usize> {
+        let n = self.sectors.len();
+        (n > 0).then(|| ((turn_of(d) * n as f64).round() as usize) % n)
+    }
+
+    /// The histograms a line in direction `d` from the object's centre
+    /// weighs its colours with: its sector's where learnt, else the whole
+    /// object's.
+    pub fn histograms_toward(&self, d: Vector2<f64>) -> &Histograms {
+        match self.sector_toward(d) {
+            Some(k) if self.sectors[k].learned => &self.sectors[k],
+            _ => &self.global,
+        }
+    }
+
+    /// The whole object's histograms.
+    pub fn global(&self) -> &Histograms {
+        &self.global
     }
 
     /// Learns from `frame` with the object covering `coverage` (row-major,
@@ -384,7 +510,9 @@ impl ColourModel {
     /// pixels across the outline mix both colours (and the splatted
     /// coverage is a little wider than the object), and learnt as either
     /// they would pull every boundary found toward that side. The first call
-    /// sets the histograms, later ones blend in with weight `rate`.
+    /// sets the histograms, later ones blend in with weight `rate`. The
+    /// whole object's histograms only; [`Self::learn_around`] learns the
+    /// sectors too.
     pub fn learn(
         &mut self,
         frame: &image::RgbImage,
@@ -393,10 +521,45 @@ impl ColourModel {
         margin: usize,
         rate: f32,
     ) {
+        self.learn_impl(frame, coverage, rect, margin, rate, None);
+    }
+
+    /// [`Self::learn`], and each sector from the pixels in its directions
+    /// around `centre` (the object's projected centre): a pixel counts
+    /// towards its two nearest sectors, by how near (linearly in angle).
+    pub fn learn_around(
+        &mut self,
+        frame: &image::RgbImage,
+        coverage: &[bool],
+        rect: (usize, usize, usize, usize),
+        margin: usize,
+        rate: f32,
+        centre: Vector2<f64>,
+    ) {
+        self.learn_impl(frame, coverage, rect, margin, rate, Some(centre));
+    }
+
+    fn learn_impl(
+        &mut self,
+        frame: &image::RgbImage,
+        coverage: &[bool],
+        rect: (usize, usize, usize, usize),
+        margin: usize,
+        rate: f32,
+        centre: Option<Vector2<f64>>,
+    ) {
         let w = frame.width() as usize;
         let h = frame.height() as usize;
-        let mut fg = vec![0.0f32; self.foreground.len()];
-        let mut bg = vec![0.0f32; self.background.len()];
+        let nbins = self.global.foreground.len();
+        let ns = if centre.is_some() {
+            self.sectors.len()
+        } else {
+            0
+        };
+        let mut fg = vec![0.0f32; nbins];
+        let mut bg = vec![0.0f32; nbins];
+        let mut sfg = vec![0.0f32; nbins * ns];
+        let mut sbg = vec![0.0f32; nbins * ns];
         let (x0, y0) = (rect.0.min(w - 1), rect.1.min(h - 1));
         let (x1, y1) = (rect.2.min(w - 1).max(x0), rect.3.min(h - 1).max(y0));
         // Covered counts over the rectangle grown by the margin (clamped to
@@ -425,6 +588,7 @@ impl ColourModel {
             let sum = at(c + 1, d + 1) + at(a, b) - at(a, d + 1) - at(c + 1, b);
             (sum, n)
         };
+        let centre = centre.unwrap_or_default();
         for y in y0..=y1 {
             for x in x0..=x1 {
                 let (sum, n) = window(x, y);
@@ -433,42 +597,42 @@ impl ColourModel {
                     continue;
                 }
                 let b = self.bin(frame.get_pixel(x as u32, y as u32).0);
-                if covered {
-                    fg[b] += 1.0;
+                let (side, sides) = if covered {
+                    (&mut fg, &mut sfg)
                 } else {
-                    bg[b] += 1.0;
+                    (&mut bg, &mut sbg)
+                };
+                side[b] += 1.0;
+                if ns > 0 {
+                    let t = turn_of(Vector2::new(x as f64, y as f64) - centre) * ns as f64;
+                    let k = (t as usize).min(ns - 1);
+                    let f = (t - k as f64) as f32;
+                    sides[k * nbins + b] += 1.0 - f;
+                    sides[(k + 1) % ns * nbins + b] += f;
                 }
             }
         }
-        let (nf, nb) = (fg.iter().sum::<f32>(), bg.iter().sum::<f32>());
-        if nf == 0.0 || nb == 0.0 {
-            return;
+        self.global.blend(&fg, &bg, 1.0, rate);
+        for (k, hist) in self.sectors.iter_mut().enumerate().take(ns) {
+            let r = k * nbins..(k + 1) * nbins;
+            hist.blend(&sfg[r.clone()], &sbg[r], SECTOR_LEAST_PX, rate);
         }
-        let rate = if self.learned { rate } else { 1.0 };
-        for (h, v) in self.foreground.iter_mut().zip(&fg) {
-            *h = (1.0 - rate) * *h + rate * v / nf;
-        }
-        for (h, v) in self.background.iter_mut().zip(&bg) {
-            *h = (1.0 - rate) * *h + rate * v / nb;
-        }
-        self.learned = true;
-        self.update_terms();
     }
 
     /// The probability that a pixel of colour `c` shows the object (equal
     /// priors), kept within [0.02, 0.98] so that one pixel cannot veto a
-    /// boundary position; 0.5 for a colour never seen.
+    /// boundary position; 0.5 for a colour never seen. The whole object's
+    /// histograms.
     pub fn foreground_probability(&self, c: [u8; 3]) -> f32 {
-        self.probability_of_bin(self.bin(c))
+        self.global.probability_of_bin(self.bin(c))
     }
+}
 
-    fn probability_of_bin(&self, b: usize) -> f32 {
-        let (f, g) = (self.foreground[b], self.background[b]);
-        if f + g <= 0.0 {
-            0.5
-        } else {
-            (f / (f + g)).clamp(0.02, 0.98)
-        }
+impl Histograms {
+    /// [`ColourModel::foreground_probability`] `p` of bin `b`, with `ln p`
+    /// and `ln (1 - p)`.
+    fn terms(&self, b: usize) -> [f64; 3] {
+        self.terms[b]
     }
 }
 
@@ -478,7 +642,8 @@ impl ColourModel {
 /// under a smooth step of width `slope` (the object's probability
 /// `hf(o - d) = (1 - tanh((o - d) / slope)) / 2` at offset `o`), or `None`
 /// when the line leaves the image, shows no boundary (a flat posterior) or
-/// puts it at the line's ends.
+/// puts it at the line's ends. The colours are weighed with the whole
+/// object's histograms ([`search_line_toward`]: a sector's).
 pub fn search_line(
     frame: &image::RgbImage,
     colours: &ColourModel,
@@ -487,8 +652,29 @@ pub fn search_line(
     half_len: f32,
     slope: f32,
 ) -> Option<f64> {
-    LINE_SCRATCH
-        .with_borrow_mut(|s| search_line_in(s, frame, colours, position, normal, half_len, slope))
+    let h = colours.global();
+    LINE_SCRATCH.with_borrow_mut(|s| {
+        search_line_in(s, frame, colours, h, position, normal, half_len, slope)
+    })
+}
+
+/// [`search_line`] with the histograms of the sector the line lies in,
+/// `direction` from the object's centre
+/// ([`ColourModel::histograms_toward`]).
+#[allow(clippy::too_many_arguments)]
+pub fn search_line_toward(
+    frame: &image::RgbImage,
+    colours: &ColourModel,
+    direction: Vector2<f64>,
+    position: Vector2<f64>,
+    normal: Vector2<f64>,
+    half_len: f32,
+    slope: f32,
+) -> Option<f64> {
+    let h = colours.histograms_toward(direction);
+    LINE_SCRATCH.with_borrow_mut(|s| {
+        search_line_in(s, frame, colours, h, position, normal, half_len, slope)
+    })
 }
 
 /// The buffers of [`search_line`], kept per thread between lines (a
@@ -511,10 +697,12 @@ thread_local! {
     static LINE_SCRATCH: std::cell::RefCell<LineScratch> = std::cell::RefCell::default();
 }
 
+#[allow(clippy::too_many_arguments)]
 fn search_line_in(
     s: &mut LineScratch,
     frame: &image::RgbImage,
     colours: &ColourModel,
+    hist: &Histograms,
     position: Vector2<f64>,
     normal: Vector2<f64>,
     half_len: f32,
@@ -530,7 +718,7 @@ fn search_line_in(
     for k in -l..=l {
         let p = position + normal * k as f64;
         let c = crate::geometry::sample_bilinear_rgb(frame, p.x as f32, p.y as f32)?;
-        let [p, ln_p, ln_q] = colours.terms(c.0);
+        let [p, ln_p, ln_q] = hist.terms(colours.bin(c.0));
         s.pf.push(p);
         let i = s.pf.len() - 1;
         s.inside.push(s.inside[i] + ln_p);
@@ -982,6 +1170,7 @@ pub fn contour_predictors(
 fn search_lines(
     frame: &image::RgbImage,
     colours: &ColourModel,
+    centre: Vector2<f64>,
     found: &[Lifted],
     twist: &Vector6<f64>,
     half: f32,
@@ -990,9 +1179,10 @@ fn search_lines(
     let one = |l: &Lifted| {
         let (p, row) = (&l.point, &l.row);
         let moved = (row.predictors * twist)[0];
-        search_line(
+        search_line_toward(
             frame,
             colours,
+            p.position - centre,
             p.position + p.normal * moved,
             p.normal,
             half,
@@ -1271,13 +1461,15 @@ impl Tracker {
         self.contour_mask_fresh = true;
         if !self.colours.is_learned()
             && let Some(rect) = self.roi(pose)
+            && let Some(centre) = self.centre_px(pose)
         {
-            self.colours.learn(
+            self.colours.learn_around(
                 frame,
                 &self.contour_mask,
                 rect,
                 cfg.learn_margin_px,
                 cfg.learning_rate,
+                centre,
             );
         }
         // Window coordinates (the window's origin is a multiple of the
@@ -1365,7 +1557,16 @@ impl Tracker {
         let mut last = None;
         for &half in levels {
             let half = if long { half * cfg.long_factor } else { half };
-            let mut obs = search_lines(frame, &self.colours, found, &twist, half, cfg.slope_px);
+            let centre = self.centre_px(pose).unwrap_or_default();
+            let mut obs = search_lines(
+                frame,
+                &self.colours,
+                centre,
+                found,
+                &twist,
+                half,
+                cfg.slope_px,
+            );
             obs.reserve(texture.len());
             let n_contour = obs.len();
             log::debug!(
@@ -1410,16 +1611,29 @@ impl Tracker {
     /// tracked frame).
     pub(super) fn learn_colours(&mut self, frame: &image::RgbImage, pose: &Pose) {
         let fresh = std::mem::take(&mut self.contour_mask_fresh);
-        if let (true, Some(rect)) = (fresh, self.roi(pose)) {
+        if let (true, Some(rect), Some(centre)) = (fresh, self.roi(pose), self.centre_px(pose)) {
             let c = &self.config.contour;
-            self.colours.learn(
+            self.colours.learn_around(
                 frame,
                 &self.contour_mask,
                 rect,
                 c.learn_margin_px,
                 c.learning_rate,
+                centre,
             );
         }
+    }
+
+    /// The projection of the model's centre at `pose`: the origin of the
+    /// colour sectors' directions.
+    fn centre_px(&self, pose: &Pose) -> Option<Vector2<f64>> {
+        self.cam.project(&pose.transform_point(&self.center))
+    }
+
+    /// Fresh colour histograms, of the configured sectors.
+    pub(super) fn fresh_colours(&self) -> ColourModel {
+        let c = &self.config.contour;
+        ColourModel::with_sectors(c.bins, c.sectors)
     }
 }
 
@@ -1694,6 +1908,159 @@ mod tests {
     }
 
     #[test]
+    fn turn_of_is_the_direction_within_its_bound() {
+        for (d, want) in [
+            ((1.0, 0.0), 0.0),
+            ((0.0, 1.0), 0.25),
+            ((-1.0, 0.0), 0.5),
+            ((0.0, -1.0), 0.75),
+            ((1.0, 1.0), 0.125),
+            ((-2.0, -2.0), 0.625),
+            ((0.0, 0.0), 0.0),
+        ] {
+            assert!(
+                (turn_of(Vector2::new(d.0, d.1)) - want).abs() < 1e-12,
+                "{d:?}"
+            );
+        }
+        let mut rng = crate::rng::Rng::new(3);
+        let mut worst = 0.0f64;
+        for _ in 0..100_000 {
+            let d = Vector2::new(rng.uniform(-5.0, 5.0), rng.uniform(-5.0, 5.0));
+            let t = turn_of(d);
+            assert!((0.0..1.0).contains(&t), "{d:?}: {t}");
+            let exact = (d.y.atan2(d.x) / std::f64::consts::TAU).rem_euclid(1.0);
+            // The distance on the circle of turns.
+            let e = (t - exact).abs();
+            worst = worst.max(e.min(1.0 - e));
+        }
+        assert!(worst < 7e-4, "worst {worst} turns");
+    }
+
+    /// An object whose halves swap colours with the background behind
+    /// them: yellow on the left against orange, orange on the right
+    /// against yellow (a disc of radius 40 at (64.3, 63.7) in 128x128).
+    fn swapped_halves(rng: &mut crate::rng::Rng) -> (image::RgbImage, Vec<bool>, Vector2<f64>) {
+        let (w, h) = (128u32, 128u32);
+        let c = Vector2::new(64.3, 63.7);
+        let (yellow, orange) = ([220.0, 200.0, 40.0], [230.0, 120.0, 60.0]);
+        let mut frame = image::RgbImage::new(w, h);
+        let mut coverage = vec![false; (w * h) as usize];
+        for (x, y, px) in frame.enumerate_pixels_mut() {
+            let p = Vector2::new(x as f64, y as f64);
+            let left = p.x < c.x;
+            // The disc's share of the pixel, from 4x4 samples.
+            let mut a = 0.0;
+            for i in 0..4 {
+                for j in 0..4 {
+                    let q = p + Vector2::new((i as f64 - 1.5) / 4.0, (j as f64 - 1.5) / 4.0);
+                    a += f64::from(u8::from((q - c).norm() < 40.0)) / 16.0;
+                }
+            }
+            let (fg, bg) = if left {
+                (yellow, orange)
+            } else {
+                (orange, yellow)
+            };
+            let mut v = [0u8; 3];
+            for k in 0..3 {
+                v[k] = (a * fg[k] + (1.0 - a) * bg[k] + 2.0 * rng.normal()).clamp(0.0, 255.0) as u8;
+            }
+            *px = image::Rgb(v);
+            coverage[(y * w + x) as usize] = (p - c).norm() < 40.0;
+        }
+        (frame, coverage, c)
+    }
+
+    #[test]
+    fn sectors_weigh_each_side_against_its_own_background() {
+        let mut rng = crate::rng::Rng::new(12);
+        let (frame, coverage, c) = swapped_halves(&mut rng);
+        let rect = (0, 0, 127, 127);
+        let mut global = ColourModel::new(16);
+        global.learn(&frame, &coverage, rect, 2, 1.0);
+        let mut sectors = ColourModel::with_sectors(16, 8);
+        sectors.learn_around(&frame, &coverage, rect, 2, 1.0, c);
+        assert!((0..8).all(|k| sectors.sector_learned(k)));
+        // Lines within 40 degrees of the horizontal, left and right, from
+        // up to 3 px off the outline: with sectors every one finds it to
+        // within its pixel; with one pair of histograms (both colours are
+        // object and background alike) none does.
+        let (mut found, mut global_found) = (0, 0);
+        for i in 0..40 {
+            let side = if i % 2 == 0 {
+                0.0
+            } else {
+                std::f64::consts::PI
+            };
+            let a = side + rng.uniform(-0.7, 0.7);
+            let n = Vector2::new(a.cos(), a.sin());
+            let off = rng.uniform(-3.0, 3.0);
+            let at = c + n * (40.0 - off);
+            let d = search_line_toward(&frame, &sectors, n, at, n, 8.0, 1.0)
+                .unwrap_or_else(|| panic!("angle {a:.2}: no boundary"));
+            assert!(
+                (d - off).abs() < 0.5,
+                "angle {a:.2}: {d:.3} against {off:.3}"
+            );
+            found += 1;
+            if let Some(d) = search_line(&frame, &global, at, n, 8.0, 1.0)
+                && (d - off).abs() < 1.0
+            {
+                global_found += 1;
+            }
+        }
+        assert_eq!(found, 40);
+        assert!(
+            global_found <= 4,
+            "one pair of histograms found {global_found} of 40"
+        );
+        // Without sectors, or before a sector learns, a line uses the
+        // whole object's histograms.
+        assert!(std::ptr::eq(
+            global.histograms_toward(Vector2::x()),
+            global.global()
+        ));
+        let fresh = ColourModel::with_sectors(16, 8);
+        assert!(std::ptr::eq(
+            fresh.histograms_toward(Vector2::x()),
+            fresh.global()
+        ));
+        // Each direction's nearest sector: 8 sectors centred every 45
+        // degrees from +x towards +y.
+        assert_eq!(sectors.sector_toward(Vector2::new(1.0, 0.3)), Some(0));
+        assert_eq!(sectors.sector_toward(Vector2::new(0.1, 1.0)), Some(2));
+        assert_eq!(sectors.sector_toward(Vector2::new(-1.0, -0.2)), Some(4));
+        assert_eq!(sectors.sector_toward(Vector2::new(1.0, -0.3)), Some(0));
+        assert_eq!(global.sector_toward(Vector2::x()), None);
+    }
+
+    #[test]
+    fn a_sector_with_too_few_pixels_keeps_to_the_whole_objects_histograms() {
+        // The object's centre far to the left of the window: every pixel
+        // lies towards +x, so the sectors facing away see nothing.
+        let mut rng = crate::rng::Rng::new(5);
+        let (frame, coverage, _) = swapped_halves(&mut rng);
+        let mut m = ColourModel::with_sectors(16, 8);
+        m.learn_around(
+            &frame,
+            &coverage,
+            (0, 0, 127, 127),
+            2,
+            1.0,
+            Vector2::new(-1e4, 63.7),
+        );
+        assert!(m.is_learned());
+        assert!(m.sector_learned(0));
+        assert!(!m.sector_learned(4));
+        assert!(std::ptr::eq(m.histograms_toward(-Vector2::x()), m.global()));
+        // `learn` leaves the sectors alone.
+        let mut g = ColourModel::with_sectors(16, 8);
+        g.learn(&frame, &coverage, (0, 0, 127, 127), 2, 1.0);
+        assert!(g.is_learned() && (0..8).all(|k| !g.sector_learned(k)));
+    }
+
+    #[test]
     fn the_boundary_is_found_within_its_pixel() {
         // Without the mixed colours (the posterior alone) the errors reach
         // a quarter of a pixel.
@@ -1740,7 +2107,7 @@ mod tests {
             })
             .collect();
         let twist = Vector6::new(0.001, -0.002, 0.0, 0.0, 0.0, 0.01);
-        let rows = search_lines(&frame, &colours, &found, &twist, 5.0, 1.0);
+        let rows = search_lines(&frame, &colours, Vector2::zeros(), &found, &twist, 5.0, 1.0);
         let one: Vec<Observation> = found
             .iter()
             .filter_map(|l| {
@@ -1846,6 +2213,13 @@ mod tests {
                     ..Default::default()
                 },
                 "contour.reproject_px",
+            ),
+            (
+                ContourConfig {
+                    sectors: 65,
+                    ..Default::default()
+                },
+                "contour.sectors",
             ),
         ] {
             assert!(c.validate().unwrap_err().to_string().contains(field));

@@ -442,7 +442,7 @@ impl Tracker {
         };
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let model_len = model.len();
-        let config_bins = config.contour.bins;
+        let config_colours = (config.contour.bins, config.contour.sectors);
         let tracker = Self {
             it_matcher: matcher(config.it_search_px)?,
             kf_matcher: matcher(config.kf_search_px)?,
@@ -473,7 +473,7 @@ impl Tracker {
             it_only_streak: 0,
             searching: false,
             ctx: ctx.clone(),
-            colours: contour::ColourModel::new(config_bins),
+            colours: contour::ColourModel::with_sectors(config_colours.0, config_colours.1),
             contour_mask: Vec::new(),
             contour_mask_fresh: false,
             model_normals: None,
