@@ -382,8 +382,14 @@ impl Histograms {
     }
 
     fn update_terms(&mut self) {
+        // A scene's colours fill few of the bins: the empty ones (0.5)
+        // share one value, computed once.
+        let half = [0.5, 0.5f64.ln(), 0.5f64.ln()];
         let terms = (0..self.foreground.len())
             .map(|b| {
+                if self.foreground[b] + self.background[b] <= 0.0 {
+                    return half;
+                }
                 let p = self.probability_of_bin(b) as f64;
                 [p, p.ln(), (1.0 - p).ln()]
             })
