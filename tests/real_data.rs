@@ -38,6 +38,19 @@ type Tracked = (TrackResult, Option<(f64, f64)>);
 /// default settings in `mode`: per frame, the result and (gt_ok frames only)
 /// the rotation error (degrees) and translation error (% of the diameter).
 fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Tracked>> {
+    let config = TrackerConfig {
+        mode,
+        ..Default::default()
+    };
+    track_first_frames_with(name, config, frames)
+}
+
+/// [`track_first_frames`] with `config`.
+fn track_first_frames_with(
+    name: &str,
+    config: TrackerConfig,
+    frames: usize,
+) -> Option<Vec<Tracked>> {
     let RealSequence {
         dir,
         model,
@@ -51,10 +64,6 @@ fn track_first_frames(name: &str, mode: Mode, frames: usize) -> Option<Vec<Track
     let init: Pose = read_poses(&seq.init_path()).unwrap()[0].pose;
     let ok = gt_ok(&dir.join("gt_quality.csv"));
     let diameter = model.diameter() as f64;
-    let config = TrackerConfig {
-        mode,
-        ..Default::default()
-    };
     let mut tracker = Tracker::new(ctx, model, cam, Some(store), config, init).unwrap();
     let mut out = Vec::new();
     for (i, g) in gt.iter().enumerate().take(frames) {
@@ -126,4 +135,47 @@ fn dragon_kf_it_tracking_frames_are_right() {
         assert!(rot < 2.0, "frame {i}: tracking, but {rot:.3} deg off");
         assert!(tr < 2.5, "frame {i}: tracking, but {tr:.3}% off");
     }
+}
+
+/// The dragon by its outline alone (`--modalities contour`), frames 0-11,
+/// against the refined ground truth. What lies behind it changes along
+/// its outline (its head against an orange model, its body against the
+/// white table): with colour histograms per sector of directions (the
+/// default, 8) every frame is tracked and the gt_ok frames are 1.9
+/// degrees off at most on average, against one pair of histograms for
+/// the whole object, at least half a degree worse. Measured: 1.45 degrees
+/// with sectors, 2.61 without (3 s on lavapipe).
+#[test]
+fn dragon_contour_sectors_weigh_each_side_against_its_background() {
+    let contour = |sectors: usize| {
+        let mut config = TrackerConfig {
+            modalities: splattrack::tracker::Modalities {
+                texture: false,
+                contour: true,
+            },
+            ..Default::default()
+        };
+        config.contour.sectors = sectors;
+        track_first_frames_with("visp_rbt_dragon", config, 12)
+    };
+    let mean = |run: &[Tracked]| {
+        let errs: Vec<f64> = run.iter().filter_map(|(_, e)| e.map(|e| e.0)).collect();
+        assert!(errs.len() >= 10, "{} gt_ok frames", errs.len());
+        errs.iter().sum::<f64>() / errs.len() as f64
+    };
+    assert_eq!(splattrack::tracker::ContourConfig::default().sectors, 8);
+    let Some(sectors) = contour(8) else {
+        return;
+    };
+    for (i, (r, _)) in sectors.iter().enumerate() {
+        assert_eq!(r.status, Status::Tracking, "frame {i}: {:?}", r.reason);
+    }
+    let one = contour(0).expect("the data was there a moment ago");
+    let (with, without) = (mean(&sectors), mean(&one));
+    eprintln!("mean rotation error: {with:.3} deg with sectors, {without:.3} without");
+    assert!(with < 1.9, "with sectors {with:.3} deg");
+    assert!(
+        with < without - 0.5,
+        "with sectors {with:.3} deg, without {without:.3}"
+    );
 }
