@@ -527,25 +527,14 @@ impl ColourModel {
         margin: usize,
         rate: f32,
     ) {
-        self.learn_impl(frame, coverage, rect, margin, rate, None);
+        self.learn_around(frame, coverage, rect, margin, rate, None);
     }
 
-    /// [`Self::learn`], and each sector from the pixels in its directions
-    /// around `centre` (the object's projected centre): a pixel counts
-    /// towards its two nearest sectors, by how near (linearly in angle).
+    /// [`Self::learn`], and with `centre` (the object's projected centre)
+    /// each sector from the pixels in its directions around it: a pixel
+    /// counts towards its two nearest sectors, by how near (linearly in
+    /// angle).
     pub fn learn_around(
-        &mut self,
-        frame: &image::RgbImage,
-        coverage: &[bool],
-        rect: (usize, usize, usize, usize),
-        margin: usize,
-        rate: f32,
-        centre: Vector2<f64>,
-    ) {
-        self.learn_impl(frame, coverage, rect, margin, rate, Some(centre));
-    }
-
-    fn learn_impl(
         &mut self,
         frame: &image::RgbImage,
         coverage: &[bool],
@@ -1475,7 +1464,7 @@ impl Tracker {
                 rect,
                 cfg.learn_margin_px,
                 cfg.learning_rate,
-                centre,
+                Some(centre),
             );
         }
         // Window coordinates (the window's origin is a multiple of the
@@ -1625,7 +1614,7 @@ impl Tracker {
                 rect,
                 c.learn_margin_px,
                 c.learning_rate,
-                centre,
+                Some(centre),
             );
         }
     }
@@ -1986,7 +1975,7 @@ mod tests {
         let mut global = ColourModel::new(16);
         global.learn(&frame, &coverage, rect, 2, 1.0);
         let mut sectors = ColourModel::with_sectors(16, 8);
-        sectors.learn_around(&frame, &coverage, rect, 2, 1.0, c);
+        sectors.learn_around(&frame, &coverage, rect, 2, 1.0, Some(c));
         assert!((0..8).all(|k| sectors.sector_learned(k)));
         // Lines within 40 degrees of the horizontal, left and right, from
         // up to 3 px off the outline: with sectors every one finds it to
@@ -2054,7 +2043,7 @@ mod tests {
             (0, 0, 127, 127),
             2,
             1.0,
-            Vector2::new(-1e4, 63.7),
+            Some(Vector2::new(-1e4, 63.7)),
         );
         assert!(m.is_learned());
         assert!(m.sector_learned(0));
