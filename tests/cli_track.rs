@@ -530,6 +530,23 @@ fn bad_track_input_fails_with_one_line() {
         ],
         &["--mode", "sideways"],
     );
+    // A contour setting out of its range names the flag and the range.
+    fails(
+        &[
+            "track",
+            "--model",
+            model,
+            "--sequence",
+            seq,
+            "--modalities",
+            "contour",
+            "--contour-sectors",
+            "65",
+            "--out",
+            o,
+        ],
+        &["--contour-sectors 65", "[0, 64]"],
+    );
     // A missing required flag is named too.
     fails(&["track", "--model", model, "--sequence", seq], &["--out"]);
     assert!(!out.exists(), "a failed run left {}", out.display());
