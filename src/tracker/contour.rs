@@ -425,10 +425,11 @@ pub const SECTOR_LEAST_PX: f32 = 200.0;
 /// towards +y (clockwise on the screen, whose y points down), to within
 /// 6e-4 turns (0.22 degrees: a polynomial approximation of the
 /// arctangent; the sectors' weights need no more, and it is several times
-/// cheaper than `atan2` over a window's pixels). 0 for a zero vector.
+/// cheaper than `atan2` over a window's pixels). 0 for a zero vector and
+/// for one with a component not finite (no histogram learns a NaN weight).
 pub fn turn_of(d: Vector2<f64>) -> f64 {
     let (ax, ay) = (d.x.abs(), d.y.abs());
-    if ax == 0.0 && ay == 0.0 {
+    if (ax == 0.0 && ay == 0.0) || !(ax.is_finite() && ay.is_finite()) {
         return 0.0;
     }
     // atan(t) / (2 pi) for t in [0, 1] (|error| < 6e-4 turns).
@@ -1912,6 +1913,8 @@ mod tests {
             ((1.0, 1.0), 0.125),
             ((-2.0, -2.0), 0.625),
             ((0.0, 0.0), 0.0),
+            ((f64::NAN, 1.0), 0.0),
+            ((f64::INFINITY, f64::NEG_INFINITY), 0.0),
         ] {
             assert!(
                 (turn_of(Vector2::new(d.0, d.1)) - want).abs() < 1e-12,
