@@ -344,6 +344,38 @@ pub struct ColourModel {
     bins: u32,
     global: Histograms,
     sectors: Vec<Histograms>,
+    scratch: LearnScratch,
+}
+
+/// The counts [`ColourModel::learn_around`] gathers from one frame, kept
+/// between frames so that learning allocates nothing once the window and
+/// sectors have been seen (the sectors' counts are 8 x 4096 bins a side).
+/// Not part of the model: any two compare equal, and it prints as nothing.
+#[derive(Clone, Default)]
+struct LearnScratch {
+    fg: Vec<f32>,
+    bg: Vec<f32>,
+    sectors_fg: Vec<f32>,
+    sectors_bg: Vec<f32>,
+    integral: Vec<u32>,
+}
+
+impl PartialEq for LearnScratch {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for LearnScratch {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("LearnScratch")
+    }
+}
+
+/// `v` cleared and filled with `n` copies of `x` (its allocation kept).
+fn refill<T: Copy>(v: &mut Vec<T>, n: usize, x: T) {
+    v.clear();
+    v.resize(n, x);
 }
 
 /// One pair of normalised histograms, with the per-bin terms the line
@@ -384,16 +416,17 @@ impl Histograms {
     fn update_terms(&mut self) {
         // A scene's colours fill few of the bins: the empty ones (0.5)
         // share one value, computed once.
+        // Refilled in place: no allocation after the first.
         let half = [0.5, 0.5f64.ln(), 0.5f64.ln()];
-        let terms = (0..self.foreground.len())
-            .map(|b| {
-                if self.foreground[b] + self.background[b] <= 0.0 {
-                    return half;
-                }
-                let p = self.probability_of_bin(b) as f64;
-                [p, p.ln(), (1.0 - p).ln()]
-            })
-            .collect();
+        let mut terms = std::mem::take(&mut self.terms);
+        terms.clear();
+        terms.extend((0..self.foreground.len()).map(|b| {
+            if self.foreground[b] + self.background[b] <= 0.0 {
+                return half;
+            }
+            let p = self.probability_of_bin(b) as f64;
+            [p, p.ln(), (1.0 - p).ln()]
+        }));
         self.terms = terms;
     }
 
@@ -464,6 +497,7 @@ impl ColourModel {
             bins,
             global: Histograms::new(n),
             sectors: vec![Histograms::new(n); sectors],
+            scratch: LearnScratch::default(),
         }
     }
 
@@ -552,10 +586,18 @@ impl ColourModel {
         } else {
             0
         };
-        let mut fg = vec![0.0f32; nbins];
-        let mut bg = vec![0.0f32; nbins];
-        let mut sfg = vec![0.0f32; nbins * ns];
-        let mut sbg = vec![0.0f32; nbins * ns];
+        let mut scratch = std::mem::take(&mut self.scratch);
+        let LearnScratch {
+            fg,
+            bg,
+            sectors_fg: sfg,
+            sectors_bg: sbg,
+            integral,
+        } = &mut scratch;
+        refill(fg, nbins, 0.0);
+        refill(bg, nbins, 0.0);
+        refill(sfg, nbins * ns, 0.0);
+        refill(sbg, nbins * ns, 0.0);
         let (x0, y0) = (rect.0.min(w - 1), rect.1.min(h - 1));
         let (x1, y1) = (rect.2.min(w - 1).max(x0), rect.3.min(h - 1).max(y0));
         // Covered counts over the rectangle grown by the margin (clamped to
@@ -564,7 +606,7 @@ impl ColourModel {
         let (gx0, gy0) = (x0.saturating_sub(margin), y0.saturating_sub(margin));
         let (gx1, gy1) = ((x1 + margin).min(w - 1), (y1 + margin).min(h - 1));
         let gw = gx1 - gx0 + 2;
-        let mut integral = vec![0u32; gw * (gy1 - gy0 + 2)];
+        refill(integral, gw * (gy1 - gy0 + 2), 0);
         for y in gy0..=gy1 {
             let mut run = 0u32;
             for x in gx0..=gx1 {
@@ -594,9 +636,9 @@ impl ColourModel {
                 }
                 let b = self.bin(frame.get_pixel(x as u32, y as u32).0);
                 let (side, sides) = if covered {
-                    (&mut fg, &mut sfg)
+                    (&mut *fg, &mut *sfg)
                 } else {
-                    (&mut bg, &mut sbg)
+                    (&mut *bg, &mut *sbg)
                 };
                 side[b] += 1.0;
                 if ns > 0 {
@@ -608,11 +650,12 @@ impl ColourModel {
                 }
             }
         }
-        self.global.blend(&fg, &bg, 1.0, rate);
+        self.global.blend(fg, bg, 1.0, rate);
         for (k, hist) in self.sectors.iter_mut().enumerate().take(ns) {
             let r = k * nbins..(k + 1) * nbins;
             hist.blend(&sfg[r.clone()], &sbg[r], SECTOR_LEAST_PX, rate);
         }
+        self.scratch = scratch;
     }
 
     /// The probability that a pixel of colour `c` shows the object (equal
