@@ -315,6 +315,42 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             "{stdout}"
         );
     }
+    // A GPU's frame loop on any adapter (`--resident on`): the frame's
+    // grey levels stay on the GPU, matching and the pose check run there,
+    // and a few values per feature come back instead of the view's grey
+    // levels (`off`, the default on CPU adapters).
+    let bytes_read = |resident: &str| {
+        let out = d.join(format!("resident_{resident}.csv"));
+        let stdout = ok(&[
+            "track",
+            "--model",
+            s(&f.model),
+            "--sequence",
+            s(&f.seq),
+            "--feature-backend",
+            "gpu",
+            "--resident",
+            resident,
+            "--out",
+            s(&out),
+            "--profile",
+        ]);
+        check_tracker_csv(&out);
+        let line = stdout
+            .lines()
+            .find(|l| l.contains("read back from the GPU"))
+            .unwrap_or_else(|| panic!("no readback line: {stdout}"));
+        line.split_whitespace()
+            .nth(5)
+            .unwrap()
+            .parse::<f64>()
+            .unwrap()
+    };
+    let (on, off) = (bytes_read("on"), bytes_read("off"));
+    assert!(
+        on > 0.0 && on * 4.0 < off,
+        "read back {on} bytes a frame resident, {off} not"
+    );
 
     // eval: the table on stdout, the plot and the per-frame CSV.
     let plot = d.join("errors.png");
@@ -454,6 +490,20 @@ fn bad_track_input_fails_with_one_line() {
             "tpu",
         ],
         &["--feature-backend", "expected gpu, host or auto"],
+    );
+    fails(
+        &[
+            "track",
+            "--model",
+            model,
+            "--sequence",
+            seq,
+            "--out",
+            o,
+            "--resident",
+            "maybe",
+        ],
+        &["--resident", "auto, on, off"],
     );
 
     // Not a PLY at all.

@@ -413,13 +413,13 @@ fn steady_loop_allocates_nothing(resident: bool) {
             } else {
                 FeatureBackend::Host
             },
+            // Both the matching and the check (TrackerConfig::resident).
+            resident: Some(resident),
             ..Default::default()
         },
         f.frames[0].pose,
     )
     .expect("tracker");
-    t.set_resident_check(resident);
-    t.set_resident_matching(resident);
     let order: Vec<usize> = (0..8).chain((0..7).rev()).collect();
     let made: Vec<u64> = order
         .iter()

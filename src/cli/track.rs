@@ -97,6 +97,14 @@ pub struct Args {
     /// measured faster, else gpu).
     #[arg(long, default_value = "auto")]
     pub feature_backend: FeatureBackend,
+    /// Keep the frame loop's images on the GPU: on (each frame uploaded
+    /// once; matching, the KF refinement and the pose check in the
+    /// shaders; a few values per feature read back), off (host crops, the
+    /// view read back) or auto (on with a GPU, off on a CPU adapter such
+    /// as lavapipe, where off measured faster). With --feature-backend
+    /// gpu, on runs a GPU's frame loop on any adapter, for profiling.
+    #[arg(long, value_enum, default_value_t = OnOff::Auto)]
+    pub resident: OnOff,
     /// Show each frame in a window as it is tracked: the model's outline
     /// at the tracked pose, tracking or lost (and why), inliers, residual
     /// and ms per frame. Esc, q or closing the window ends the run with
@@ -279,6 +287,25 @@ impl Tuning {
     }
 }
 
+/// A setting the adapter decides unless told.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OnOff {
+    Auto,
+    On,
+    Off,
+}
+
+impl OnOff {
+    /// `None` for auto.
+    pub fn choice(self) -> Option<bool> {
+        match self {
+            Self::Auto => None,
+            Self::On => Some(true),
+            Self::Off => Some(false),
+        }
+    }
+}
+
 /// The most corners per image the flags allow (a corner costs 16 bytes of
 /// GPU memory and a share of every matching pass; a billion would ask for
 /// a 16 GB buffer).
@@ -309,6 +336,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         modalities: args.modalities,
         splatter: args.splatter,
         feature_backend: args.feature_backend,
+        resident: args.resident.choice(),
         ..args.tuning.apply(TrackerConfig::default())?
     };
     if args.frames == Some(0) {

@@ -239,6 +239,17 @@ pub struct TrackerConfig {
     /// adapter, else the GPU).
     #[serde(default)]
     pub feature_backend: crate::features::FeatureBackend,
+    /// Keep the frame loop's images on the GPU (issue 13): each frame's
+    /// grey levels uploaded once, NCC, the mutual check and the KF step's
+    /// sub-pixel refinement on the frame and the novel view where they
+    /// lie, the pose check scored there, a few values per feature read
+    /// back (`Some(true)`); or match host crops and score the check from
+    /// a readback of the view (`Some(false)`). `None`: on with a GPU,
+    /// off on a CPU adapter (lavapipe), where the host path measured
+    /// faster ([`super::Tracker::set_resident_matching`]). The same poses
+    /// within f32 rounding (tests/tracker.rs).
+    #[serde(default)]
+    pub resident: Option<bool>,
 }
 
 impl Default for TrackerConfig {
@@ -286,6 +297,7 @@ impl Default for TrackerConfig {
             windows: true,
             splatter: crate::splat::Backend::Auto,
             feature_backend: crate::features::FeatureBackend::Auto,
+            resident: None,
         }
     }
 }

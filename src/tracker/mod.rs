@@ -443,7 +443,8 @@ impl Tracker {
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let model_len = model.len();
         let config_colours = (config.contour.bins, config.contour.sectors);
-        let tracker = Self {
+        let resident = config.resident.unwrap_or(!ctx.is_cpu());
+        let mut tracker = Self {
             it_matcher: matcher(config.it_search_px)?,
             kf_matcher: matcher(config.kf_search_px)?,
             recover_matcher: matcher(config.recover_search_px)?,
@@ -483,8 +484,9 @@ impl Tracker {
             stages: StageTimes::default(),
             gpu_timer: None,
             check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
-            resident: view::Resident::new(!ctx.is_cpu()),
+            resident: view::Resident::new(resident),
         };
+        tracker.check.set_resident(resident);
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
         }
