@@ -1,7 +1,8 @@
 //! Harris and NCC matching, GPU against the CPU reference (the paper's
 //! Fig. 7 comparison): Harris at 640x480 and 1280x720 (and the host
 //! detector the tracker runs on CPU adapters, `harris_host`), matching
-//! 900 x 900 features with 9x9 windows. Run with
+//! 900 x 900 features with 9x9 windows, and one readback's round trip
+//! (what each of the frame loop's sync points costs). Run with
 //! `cargo bench --bench features` (adapter: `SPLATTRACK_ADAPTER`, default
 //! auto). Besides criterion's report it prints a summary of medians and
 //! the CPU/GPU ratio of each.
@@ -107,7 +108,22 @@ fn bench(c: &mut Criterion) {
     g.bench_function("ncc_cpu_900x900_9x9", |bn| {
         bn.iter(|| black_box(ncc_match_cpu(&a, &pa, &b, &pb, &ncfg).unwrap()))
     });
+    // One readback's round trip: a copy submitted, the staging buffer
+    // mapped and waited for, 16 bytes back. Every sync point of the frame
+    // loop costs this besides its work (`track --profile` counts them).
+    let tiny = ctx.buffer(
+        "bench readback",
+        16,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    );
+    g.bench_function("readback_16B", |bn| {
+        bn.iter(|| black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap()))
+    });
     g.finish();
+    let readback_us = 1e3
+        * median_ms(200, || {
+            black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap());
+        });
     let gpu = median_ms(10, || {
         black_box(matcher.match_features(&a, &pa, &b, &pb).unwrap());
     });
@@ -141,6 +157,7 @@ fn bench(c: &mut Criterion) {
             gpu / host
         );
     }
+    println!("\nreadback round trip (16 bytes, 200 runs): {readback_us:.1} us median");
     for (name, report) in [("Harris 640x480", &passes), ("NCC 900 x 900", &ncc_passes)] {
         if !report.passes.is_empty() {
             println!("\n{name} GPU passes (timestamp queries):");

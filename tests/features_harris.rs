@@ -151,6 +151,46 @@ fn gpu_corners_match_cpu_on_random_images() {
     }
 }
 
+#[test]
+fn a_detection_reads_its_count_and_candidates_back_at_once() {
+    // The candidates come back with their count, as many as recent
+    // detections found and a quarter more: a detection with more than that
+    // (the first of many after few) reads the rest in a second readback.
+    // The corners are the reference's either way; once the count is
+    // known, a detection waits for the GPU twice (candidates, refined
+    // corners), once without refinement. A context of its own, so that
+    // other tests' readbacks are not counted.
+    use splattrack::gpu::AdapterChoice;
+    let c = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let few = patterns::polygons(64, 64, 3, 5);
+    let many = patterns::smooth_noise(320, 240, 1.2, 6);
+    for (refine, steady) in [(true, 2), (false, 1)] {
+        let cfg = HarrisConfig::default().with_refine(refine);
+        let mut harris = Harris::new(&c, cfg.clone()).unwrap();
+        let mut waits = Vec::new();
+        for (name, img) in [
+            ("few", &few),
+            ("many", &many),
+            ("many again", &many),
+            ("few", &few),
+        ] {
+            let before = c.readbacks();
+            let got = harris.detect(img, None).unwrap();
+            waits.push(c.readbacks() - before);
+            let want = harris_cpu(img, &cfg, None).unwrap();
+            assert!(!want.is_empty(), "{name}");
+            assert_same_corners(&format!("refine {refine}, {name}"), &got, &want);
+        }
+        assert_eq!(
+            waits,
+            [steady, steady + 1, steady, steady],
+            "refine {refine}"
+        );
+    }
+}
+
 /// Detections within `radius` of `p`.
 fn near(corners: &[Corner], p: [f32; 2], radius: f32) -> Vec<Corner> {
     corners

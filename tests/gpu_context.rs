@@ -62,6 +62,32 @@ fn read_buffer_refuses_overreads() {
 }
 
 #[test]
+fn read_buffers_reads_several_buffers_in_one_readback() {
+    // Parts of any length (none, not a multiple of 4, whole buffers), the
+    // bytes of each buffer's start, one wait for the GPU; an overread is
+    // refused before anything is submitted.
+    let c = own_ctx();
+    let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
+    let b = c.buffer_init("b", &[7u8; 40], gpu::STORAGE_OUT);
+    let bytes = |v: &[u32]| -> Vec<u8> { bytemuck::cast_slice(v).to_vec() };
+    let before = c.readbacks();
+    let got = c
+        .read_buffers(&[(&a, 6), (&b, 0), (&b, 40), (&a, 20)])
+        .unwrap();
+    assert_eq!(c.readbacks() - before, 1);
+    assert_eq!(got[0], bytes(&[1, 2])[..6].to_vec());
+    assert!(got[1].is_empty());
+    assert_eq!(got[2], vec![7u8; 40]);
+    assert_eq!(got[3], bytes(&[1, 2, 3, 4, 5]));
+    assert!(matches!(
+        c.read_buffers(&[(&a, 4), (&b, 41)]),
+        Err(GpuError::Readback(_))
+    ));
+    assert_eq!(c.readbacks() - before, 1);
+    assert!(c.read_buffers(&[]).unwrap().is_empty());
+}
+
+#[test]
 fn device_has_the_limits_the_splatter_needs() {
     // Four RGBA32F targets = 64 bytes per sample; wgpu's default is 32.
     assert!(

@@ -44,6 +44,9 @@ pub struct Harris {
     /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
     scratch: Scratch,
+    /// The candidate counts of the last two detections (on the GPU), to
+    /// size the readback of the next one's candidates.
+    recent_counts: [usize; 2],
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -95,6 +98,7 @@ impl Harris {
             last_timings: TimerReport::default(),
             host: false,
             scratch: Scratch::default(),
+            recent_counts: [0; 2],
         })
     }
 
@@ -490,9 +494,24 @@ impl Harris {
         }
         self.run_maps(input, mask)?;
         let ctx = &self.ctx.clone();
-        let counters: Vec<Counters> = ctx.read_buffer(self.counters.get(), 1)?;
-        let count = (counters[0].count as usize).min(capacity(w, h));
-        let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
+        // The count and the candidates in one readback: as many
+        // candidates as recent detections found and a quarter more; the
+        // rest, when there are more, in a second one.
+        let room = capacity(w, h);
+        let guess = (self.recent_counts.iter().max().copied().unwrap_or(0) * 5 / 4 + 256).min(room);
+        let size = std::mem::size_of::<Candidate>();
+        let parts = ctx.read_buffers(&[
+            (self.counters.get(), std::mem::size_of::<Counters>() as u64),
+            (self.candidates.get(), (guess * size) as u64),
+        ])?;
+        let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
+        let count = (counters.count as usize).min(room);
+        self.recent_counts = [self.recent_counts[1], count];
+        let cands: Vec<Candidate> = if count <= guess {
+            bytemuck::pod_collect_to_vec(&parts[1][..count * size])
+        } else {
+            ctx.read_buffer(self.candidates.get(), count)?
+        };
         let selected = select_spread(cands, &self.config);
         let mut corners: Vec<Corner> = selected
             .iter()
