@@ -66,26 +66,36 @@ pub fn pinholes(img: &crate::features::GreyImage) -> Vec<bool> {
 
 /// Whether pixel `i` of `img` is a pinhole ([`pinholes`]).
 fn is_pinhole(img: &crate::features::GreyImage, i: usize) -> bool {
+    pinhole_at(img, i % img.width, i / img.width)
+}
+
+/// Whether pixel (x, y) of `img` is a pinhole ([`pinholes`]): it stops
+/// at the first neighbour too many that is invalid (inside an empty
+/// region, after three).
+fn pinhole_at(img: &crate::features::GreyImage, x: usize, y: usize) -> bool {
     let (w, h) = (img.width, img.height);
-    let valid = |x: usize, y: usize| img.data[y * w + x].is_finite();
-    let (x, y) = (i % w, i / w);
-    if img.data[i].is_finite() || x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
+    if img.data[y * w + x].is_finite() || x == 0 || y == 0 || x + 1 >= w || y + 1 >= h {
         return false;
     }
-    let n = [
-        (x - 1, y - 1),
-        (x, y - 1),
-        (x + 1, y - 1),
-        (x - 1, y),
-        (x + 1, y),
-        (x - 1, y + 1),
-        (x, y + 1),
-        (x + 1, y + 1),
-    ]
-    .iter()
-    .filter(|&&(a, b)| valid(a, b))
-    .count();
-    n >= PINHOLE_NEIGHBOURS
+    let mut invalid = 0;
+    for (dx, dy) in [
+        (0, 0),
+        (1, 0),
+        (2, 0),
+        (0, 1),
+        (2, 1),
+        (0, 2),
+        (1, 2),
+        (2, 2),
+    ] {
+        if !img.data[(y + dy - 1) * w + x + dx - 1].is_finite() {
+            invalid += 1;
+            if invalid > 8 - PINHOLE_NEIGHBOURS {
+                return false;
+            }
+        }
+    }
+    true
 }
 
 /// The pixels of `img` as the kernels read them ([`Pixel::new`]), with
@@ -110,13 +120,17 @@ pub fn pack_with_holes_into(
     out: &mut Vec<Pixel>,
 ) {
     out.clear();
-    out.extend(img.data.iter().enumerate().map(|(i, &v)| {
-        let mut p = Pixel::new(v, allow && mask.is_none_or(|m| m[i]));
-        if !v.is_finite() && is_pinhole(img, i) {
-            p.flags |= PIXEL_HOLE;
+    out.reserve(img.data.len());
+    let w = img.width.max(1);
+    for (y, row) in img.data.chunks(w).enumerate() {
+        for (x, &v) in row.iter().enumerate() {
+            let mut p = Pixel::new(v, allow && mask.is_none_or(|m| m[y * w + x]));
+            if !v.is_finite() && pinhole_at(img, x, y) {
+                p.flags |= PIXEL_HOLE;
+            }
+            out.push(p);
         }
-        p
-    }));
+    }
 }
 
 impl Pixel {
@@ -256,5 +270,71 @@ wgsl_struct! {
     pub struct Best {
         pub index: u32,
         pub score: f32,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::features::GreyImage;
+
+    #[test]
+    fn packing_is_its_plainest_definition() {
+        // Per pixel: Pixel::new of its value and mask, the hole flag where
+        // it is invalid, off the border and at least PINHOLE_NEIGHBOURS of
+        // its 8 neighbours are valid; on images from nearly all valid to
+        // nearly all invalid, with and without a mask.
+        let mut rng = crate::rng::Rng::new(9);
+        let mut holes = 0;
+        for (k, (w, h)) in [(1, 1), (2, 3), (5, 4), (37, 23), (64, 48)]
+            .into_iter()
+            .enumerate()
+        {
+            for density in [0.02, 0.2, 0.5, 0.9] {
+                let img = GreyImage::from_fn(w, h, |_, _| {
+                    if rng.uniform(0.0, 1.0) < density {
+                        f32::NAN
+                    } else {
+                        rng.uniform(0.0, 1.0) as f32
+                    }
+                });
+                let mask: Vec<bool> = (0..w * h).map(|_| rng.uniform(0.0, 1.0) < 0.7).collect();
+                let valid = |x: usize, y: usize| img.data[y * w + x].is_finite();
+                for (m, allow) in [
+                    (None, true),
+                    (Some(&mask[..]), true),
+                    (Some(&mask[..]), false),
+                ] {
+                    let got = pack_with_holes(&img, m, allow);
+                    assert_eq!(got.len(), w * h);
+                    for (i, p) in got.iter().enumerate() {
+                        let (x, y) = (i % w, i / w);
+                        let mut want = Pixel::new(img.data[i], allow && m.is_none_or(|m| m[i]));
+                        let inner = x > 0 && y > 0 && x + 1 < w && y + 1 < h;
+                        if !valid(x, y) && inner {
+                            let n = (0..9)
+                                .filter(|&j| j != 4 && valid(x + j % 3 - 1, y + j / 3 - 1))
+                                .count();
+                            if n >= PINHOLE_NEIGHBOURS {
+                                want.flags |= PIXEL_HOLE;
+                                holes += 1;
+                            }
+                        }
+                        assert_eq!(
+                            (p.value.to_bits(), p.flags),
+                            (want.value.to_bits(), want.flags),
+                            "image {k}, density {density}, pixel ({x}, {y})"
+                        );
+                    }
+                    let pin = pinholes(&img);
+                    assert!(
+                        got.iter()
+                            .zip(&pin)
+                            .all(|(p, &h)| (p.flags & PIXEL_HOLE != 0) == h)
+                    );
+                }
+            }
+        }
+        assert!(holes > 50, "{holes} holes");
     }
 }

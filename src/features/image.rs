@@ -5,6 +5,12 @@ use super::FeatureError;
 /// Rec. 601 luma weights, the usual grey conversion of 8-bit video.
 pub const LUMA: [f32; 3] = [0.299, 0.587, 0.114];
 
+/// `LUMA[c] * (v as f32 / 255.0)` for every channel `c` and byte `v`
+/// ([`GreyImage::from_rgb8`]).
+static LUMA_TERMS: std::sync::LazyLock<[[f32; 256]; 3]> = std::sync::LazyLock::new(|| {
+    std::array::from_fn(|c| std::array::from_fn(|v| LUMA[c] * (v as f32 / 255.0)))
+});
+
 /// A grey image, row-major, values in 0..1 (any finite range works: the
 /// Harris threshold is relative and NCC is invariant to gain and offset).
 /// NaN marks an invalid pixel, e.g. an empty pixel of a rendered novel view:
@@ -78,12 +84,14 @@ impl GreyImage {
     /// twin of the GPU's `grey` pass ([`super::Harris::detect_rgb8`]).
     pub fn from_rgb8(img: &image::RgbImage) -> Self {
         let (w, h) = img.dimensions();
+        // Each channel's term tabulated (`LUMA[c] * (v / 255)`, the same
+        // rounding), summed in the same order: the same grey bit for bit,
+        // without a division a channel (3x faster at 640x480).
+        let t = &*LUMA_TERMS;
         let data = img
-            .pixels()
-            .map(|p| {
-                let [r, g, b] = p.0.map(|v| v as f32 / 255.0);
-                LUMA[0] * r + LUMA[1] * g + LUMA[2] * b
-            })
+            .as_raw()
+            .chunks_exact(3)
+            .map(|p| t[0][p[0] as usize] + t[1][p[1] as usize] + t[2][p[2] as usize])
             .collect();
         Self {
             width: w as usize,
@@ -214,6 +222,35 @@ mod tests {
         assert_eq!(img.bilinear(0.0, 1.01), None);
         assert_eq!(img.bilinear(f32::NAN, 0.0), None);
         assert!(GreyImage::filled(1, 1, 0.5).bilinear(0.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn grey_of_8_bit_rgb_is_the_luma_formula_bit_for_bit() {
+        // The tabulated terms against the formula: every byte of each
+        // channel with the others at 0, 128 and 255, and 200,000 random
+        // pixels.
+        let formula = |p: [u8; 3]| {
+            let [r, g, b] = p.map(|v| v as f32 / 255.0);
+            LUMA[0] * r + LUMA[1] * g + LUMA[2] * b
+        };
+        let mut pixels: Vec<[u8; 3]> = Vec::new();
+        for v in 0..=255u8 {
+            for o in [0u8, 128, 255] {
+                pixels.extend([[v, o, o], [o, v, o], [o, o, v]]);
+            }
+        }
+        let mut rng = crate::rng::Rng::new(5);
+        pixels.extend((0..200_000).map(|_| [0; 3].map(|_: u8| rng.uniform(0.0, 256.0) as u8)));
+        let img = image::RgbImage::from_raw(
+            pixels.len() as u32,
+            1,
+            pixels.iter().flatten().copied().collect(),
+        )
+        .unwrap();
+        let grey = GreyImage::from_rgb8(&img);
+        for (p, g) in pixels.iter().zip(&grey.data) {
+            assert_eq!(g.to_bits(), formula(*p).to_bits(), "{p:?}");
+        }
     }
 
     #[test]

@@ -102,10 +102,15 @@ pub fn refine_match(
     // positions within a few pixels above a power of two), they are cut
     // from one patch of samples, each taken once, instead of sampled
     // window by window (25 windows of 15 x 15 in the tracker: 5,625
-    // samples become 361). The same windows bit for bit.
+    // samples become 361), and the first sub-pixel step reuses their
+    // scores. The same windows bit for bit.
     let mut best = (f32::NEG_INFINITY, 0i32, 0i32);
     let r = half + max_shift;
+    let side = (2 * max_shift + 1).max(0) as usize;
+    // The integer shifts' scores, row by row, when cut from the patch.
+    let mut grid: Vec<Option<f32>> = Vec::new();
     if max_shift >= 0 && shifts_exact(pb[0], r) && shifts_exact(pb[1], r) {
+        grid.reserve(side * side);
         let n = (2 * r + 1) as usize;
         let mut patch = Vec::with_capacity(n * n);
         for l in -r..=r {
@@ -124,12 +129,13 @@ pub fn refine_match(
                 }
                 // A NaN marks a sample that touched an invalid or
                 // outside pixel (valid samples are finite).
-                if w.iter().all(|v| !v.is_nan()) && normalise(&mut w) {
-                    let s = dot(&t, &w);
-                    if s > best.0 {
-                        best = (s, dx, dy);
-                    }
+                let s = (w.iter().all(|v| !v.is_nan()) && normalise(&mut w)).then(|| dot(&t, &w));
+                if let Some(s) = s
+                    && s > best.0
+                {
+                    best = (s, dx, dy);
                 }
+                grid.push(s);
             }
         }
     } else {
@@ -152,7 +158,20 @@ pub fn refine_match(
     let mut centre = [pb[0] + best.1 as f32, pb[1] + best.2 as f32];
     let mut peak = best.0;
     for step in [1.0f32, 0.5] {
-        let mut s = |dx: f32, dy: f32| score(centre[0] + dx * step, centre[1] + dy * step);
+        // At step 1 the five windows are integer shifts inside the search
+        // (the best is not on its border): their scores are in the grid.
+        let from_grid = step == 1.0 && !grid.is_empty();
+        let mut s = |dx: f32, dy: f32| {
+            if from_grid {
+                let (x, y) = (
+                    best.1 + dx as i32 + max_shift,
+                    best.2 + dy as i32 + max_shift,
+                );
+                grid[y as usize * side + x as usize]
+            } else {
+                score(centre[0] + dx * step, centre[1] + dy * step)
+            }
+        };
         let (c, l, r, u, d) = (
             s(0.0, 0.0)?,
             s(-1.0, 0.0)?,
