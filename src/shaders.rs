@@ -42,6 +42,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("ncc", include_str!("../shaders/ncc.wgsl")),
     ("present", include_str!("../shaders/present.wgsl")),
     ("verify", include_str!("../shaders/verify.wgsl")),
+    ("frame", include_str!("../shaders/frame.wgsl")),
 ];
 
 /// What every shader shares: structs and helpers (composed after the
@@ -254,6 +255,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::MatchOut>(),
         RustLayout::of::<crate::view::present::PresentParams>(),
         RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
+        RustLayout::of::<crate::features::resident::FrameParams>(),
     ]
 }
 

@@ -257,3 +257,45 @@ fn bad_rows_and_refinements_are_errors() {
     );
     assert!(GpuGrey::new().image().is_none());
 }
+
+#[test]
+fn a_frame_taken_in_on_the_gpu_is_the_hosts_packed_grey_bit_for_bit() {
+    // `FrameIntake` uploads a frame's RGB bytes and converts and packs
+    // them on the GPU: the same bytes as `GpuGrey::upload` of the host's
+    // grey (`GreyImage::from_rgb8`), for sizes whose byte count is not a
+    // multiple of 4, after a larger frame in the same image, and into two
+    // images in turn (as the tracker alternates them).
+    use splattrack::features::FrameIntake;
+    let c = ctx();
+    let mut rng = Rng::new(17);
+    let mut intake = FrameIntake::new(c).unwrap();
+    let mut images = [GpuGrey::new(), GpuGrey::new()];
+    let mut host = GpuGrey::new();
+    for (k, (w, h)) in [(64, 48), (1, 1), (7, 5), (33, 17), (640, 480), (3, 2)]
+        .into_iter()
+        .enumerate()
+    {
+        let frame = image::RgbImage::from_fn(w, h, |_, _| {
+            image::Rgb([0; 3].map(|_: u8| rng.uniform(0.0, 256.0) as u8))
+        });
+        let slot = &mut images[k % 2];
+        intake.upload(&frame, slot);
+        host.upload(c, &GreyImage::from_rgb8(&frame));
+        let (a, b) = (slot.image().unwrap(), host.image().unwrap());
+        assert_eq!((a.width, a.height), (w as usize, h as usize));
+        let n = 2 * (w * h) as usize;
+        let got: Vec<u32> = c.read_buffer(a.pixels, n).unwrap();
+        let want: Vec<u32> = c.read_buffer(b.pixels, n).unwrap();
+        if let Some(i) = (0..n).find(|&i| got[i] != want[i]) {
+            panic!(
+                "{w}x{h}: pixel {} differs: {:#x} against {:#x}",
+                i / 2,
+                got[i],
+                want[i]
+            );
+        }
+    }
+    // An empty frame leaves no image.
+    intake.upload(&image::RgbImage::new(0, 0), &mut images[0]);
+    assert!(images[0].image().is_none());
+}

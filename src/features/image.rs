@@ -7,9 +7,10 @@ pub const LUMA: [f32; 3] = [0.299, 0.587, 0.114];
 
 /// `LUMA[c] * (v as f32 / 255.0)` for every channel `c` and byte `v`
 /// ([`GreyImage::from_rgb8`]).
-static LUMA_TERMS: std::sync::LazyLock<[[f32; 256]; 3]> = std::sync::LazyLock::new(|| {
-    std::array::from_fn(|c| std::array::from_fn(|v| LUMA[c] * (v as f32 / 255.0)))
-});
+pub(crate) static LUMA_TERMS: std::sync::LazyLock<[[f32; 256]; 3]> =
+    std::sync::LazyLock::new(|| {
+        std::array::from_fn(|c| std::array::from_fn(|v| LUMA[c] * (v as f32 / 255.0)))
+    });
 
 /// A grey image, row-major, values in 0..1 (any finite range works: the
 /// Harris threshold is relative and NCC is invariant to gain and offset).

@@ -65,7 +65,7 @@ pub use image::GreyImage;
 pub use ncc::{Match, NccConfig, NccMatcher};
 pub use ncc_cpu::ncc_match_cpu;
 pub use refine::refine_match;
-pub use resident::{GpuGrey, Refinement, ResidentImage, ResidentMatch};
+pub use resident::{FrameIntake, GpuGrey, Refinement, ResidentImage, ResidentMatch};
 
 use crate::gpu::GpuError;
 

@@ -7,7 +7,10 @@
 use super::FeatureError;
 use super::gpu_data::{Pixel, pack_with_holes_into};
 use super::image::GreyImage;
-use crate::gpu::{GpuContext, GrowBuffer, STORAGE_IN};
+use crate::gpu::{
+    GpuContext, GrowBuffer, STORAGE_IN, WORKGROUP_2D, compute_entry, storage, workgroups,
+};
+use bytemuck::{Pod, Zeroable};
 
 /// An image on the GPU: `width x height` packed pixels, row-major (8 bytes
 /// each: the grey value and flags, pinholes flagged, as the host's
@@ -91,6 +94,149 @@ impl GpuGrey {
             width: self.width,
             height: self.height,
         })
+    }
+}
+
+crate::wgsl_struct! {
+    /// Keep in sync with `FrameParams` in shaders/frame.wgsl.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub(crate) struct FrameParams {
+        width: u32,
+        height: u32,
+        _pad0: u32,
+        _pad1: u32,
+    }
+}
+
+/// A camera frame's way in (issue 13): its 8-bit RGB bytes uploaded as
+/// they are (3 bytes a pixel, against 8 for packed grey) and turned into
+/// a [`GpuGrey`] on the GPU (`shaders/frame.wgsl`), so that the host
+/// neither converts nor packs the frame for the resident matching. The
+/// pixels are bit for bit those of [`GpuGrey::upload`] of
+/// [`GreyImage::from_rgb8`]: the shader sums the same tabulated channel
+/// terms in the same order.
+pub struct FrameIntake {
+    ctx: GpuContext,
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    params: wgpu::Buffer,
+    terms: wgpu::Buffer,
+    rgb: GrowBuffer,
+    /// Bind groups by output buffer (the tracker alternates two),
+    /// dropped when the input buffer grows.
+    binds: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
+}
+
+impl FrameIntake {
+    /// The kernel (compiled once) and its channel table; the input buffer
+    /// is made on first use.
+    pub fn new(ctx: &GpuContext) -> Result<Self, FeatureError> {
+        let layout = ctx.bind_group_layout(
+            "frame",
+            &[
+                compute_entry(0, wgpu::BufferBindingType::Uniform),
+                compute_entry(1, storage(true)),
+                compute_entry(2, storage(true)),
+                compute_entry(3, storage(false)),
+            ],
+        );
+        let pipeline = ctx
+            .compute_pipelines("frame", &layout, &["grey_pack"])?
+            .pop()
+            .expect("one pipeline");
+        let terms: Vec<f32> = super::image::LUMA_TERMS.iter().flatten().copied().collect();
+        Ok(Self {
+            ctx: ctx.clone(),
+            layout,
+            pipeline,
+            params: ctx.buffer(
+                "frame params",
+                std::mem::size_of::<FrameParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            terms: ctx.buffer_init("frame luma terms", &terms, STORAGE_IN),
+            rgb: GrowBuffer::new("frame rgb", STORAGE_IN),
+            binds: Vec::new(),
+        })
+    }
+
+    /// Uploads `frame`'s bytes and converts them into `into` on the GPU
+    /// (submitted; the matchings that read `into` are submitted after).
+    pub fn upload(&mut self, frame: &image::RgbImage, into: &mut GpuGrey) {
+        let ctx = &self.ctx;
+        let (w, h) = (frame.width() as usize, frame.height() as usize);
+        let bytes = frame.as_raw();
+        if w == 0 || h == 0 || bytes.len() != 3 * w * h {
+            (into.width, into.height) = (0, 0);
+            return;
+        }
+        if self.rgb.ensure(ctx, bytes.len().next_multiple_of(4) as u64) {
+            self.binds.clear();
+        }
+        // Whole words, then the last one to three bytes padded to a word
+        // (a write's size must be a multiple of 4).
+        let whole = bytes.len() / 4 * 4;
+        ctx.queue.write_buffer(self.rgb.get(), 0, &bytes[..whole]);
+        if whole < bytes.len() {
+            let mut tail = [0u8; 4];
+            tail[..bytes.len() - whole].copy_from_slice(&bytes[whole..]);
+            ctx.queue.write_buffer(self.rgb.get(), whole as u64, &tail);
+        }
+        let px = std::mem::size_of::<Pixel>();
+        if into.buf.ensure(ctx, (w * h * px) as u64) {
+            self.binds.retain(|(b, _)| b != into.buf.get());
+        }
+        let params = FrameParams {
+            width: w as u32,
+            height: h as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let out = into.buf.get();
+        let bind = match self.binds.iter().find(|(b, _)| b == out) {
+            Some((_, bind)) => bind.clone(),
+            None => {
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("frame"),
+                    layout: &self.layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: self.params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: self.terms.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: self.rgb.get().as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: out.as_entire_binding(),
+                        },
+                    ],
+                });
+                self.binds.push((out.clone(), bind.clone()));
+                bind
+            }
+        };
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(
+                workgroups(w as u32, WORKGROUP_2D),
+                workgroups(h as u32, WORKGROUP_2D),
+                1,
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+        (into.width, into.height) = (w, h);
     }
 }
 

@@ -641,7 +641,7 @@ impl Tracker {
             Vec::new()
         };
         if texture {
-            self.resident.upload(&self.ctx, &grey);
+            self.resident.upload(&self.ctx, rgb)?;
         }
         let frame = Frame { grey, corners };
         times.features = t_features.elapsed();

@@ -21,8 +21,8 @@
 
 use super::Tracker;
 use crate::features::{
-    Corner, FeatureError, GpuGrey, GreyImage, Match, NccMatcher, Refinement, ResidentImage,
-    ResidentMatch,
+    Corner, FeatureError, FrameIntake, GpuGrey, GreyImage, Match, NccMatcher, Refinement,
+    ResidentImage, ResidentMatch,
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::splat::{GatherMode, GatherSample, SplatError, SplatTargets, Window};
@@ -56,6 +56,9 @@ impl Kept {
 pub(super) struct Resident {
     on: bool,
     images: [GpuGrey; 2],
+    /// The frames' way in: their bytes uploaded, converted on the GPU
+    /// (made on the first upload).
+    intake: Option<FrameIntake>,
     /// The slot of the frame being tracked (set by `upload`, cleared by
     /// `done`): a frame the steps see outside `track` (the search's) has
     /// none, and is matched on the host.
@@ -69,6 +72,7 @@ impl Resident {
         Self {
             on,
             images: [GpuGrey::new(), GpuGrey::new()],
+            intake: None,
             current: None,
             previous: None,
         }
@@ -77,14 +81,25 @@ impl Resident {
 
 impl Resident {
     /// Uploads the frame being tracked (when on), into the slot the
-    /// previous frame does not hold.
-    pub(super) fn upload(&mut self, ctx: &crate::gpu::GpuContext, grey: &GreyImage) {
+    /// previous frame does not hold: its RGB bytes, converted to grey and
+    /// packed on the GPU ([`FrameIntake`]; the same pixels as the host's
+    /// grey, packed).
+    pub(super) fn upload(
+        &mut self,
+        ctx: &crate::gpu::GpuContext,
+        frame: &image::RgbImage,
+    ) -> Result<(), FeatureError> {
         if !self.on {
-            return;
+            return Ok(());
         }
         let slot = self.previous.map_or(0, |p| 1 - p);
-        self.images[slot].upload(ctx, grey);
+        let intake = match &mut self.intake {
+            Some(i) => i,
+            None => self.intake.insert(FrameIntake::new(ctx)?),
+        };
+        intake.upload(frame, &mut self.images[slot]);
         self.current = Some(slot);
+        Ok(())
     }
 
     /// A frame starts: no frame is resident until `upload`.
