@@ -34,3 +34,38 @@ fn grey_pack(@builtin(global_invocation_id) id: vec3<u32>) {
     let v = luma_terms[r] + luma_terms[256u + g] + luma_terms[512u + b];
     pixels[i] = Pixel(v, PIXEL_VALID);
 }
+
+// A window of the resident frame as Harris reads it (its `pixels` input):
+// the frame's pixels of the window, row by row, with PIXEL_ALLOWED set
+// inside the rectangle where corners may be reported (window
+// coordinates, inclusive), as the host packs a crop of the frame with
+// that rectangle as its mask.
+struct WindowParams {
+    frame_width: u32,
+    x0: u32,
+    y0: u32,
+    width: u32,
+    height: u32,
+    ax0: u32,
+    ay0: u32,
+    ax1: u32,
+    ay1: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
+}
+
+@group(0) @binding(4) var<storage, read_write> window_out: array<Pixel>;
+@group(0) @binding(5) var<uniform> window: WindowParams;
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn window_pack(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= window.width || id.y >= window.height) {
+        return;
+    }
+    var p = pixels[(window.y0 + id.y) * window.frame_width + window.x0 + id.x];
+    if (id.x >= window.ax0 && id.x <= window.ax1 && id.y >= window.ay0 && id.y <= window.ay1) {
+        p.flags = p.flags | PIXEL_ALLOWED;
+    }
+    window_out[id.y * window.width + id.x] = p;
+}

@@ -256,6 +256,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<crate::view::present::PresentParams>(),
         RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
         RustLayout::of::<crate::features::resident::FrameParams>(),
+        RustLayout::of::<crate::features::resident::WindowParams>(),
     ]
 }
 

@@ -299,3 +299,103 @@ fn a_frame_taken_in_on_the_gpu_is_the_hosts_packed_grey_bit_for_bit() {
     intake.upload(&image::RgbImage::new(0, 0), &mut images[0]);
     assert!(images[0].image().is_none());
 }
+
+#[test]
+fn harris_on_a_window_packed_on_the_gpu_finds_the_host_crops_corners() {
+    // `FrameIntake::pack_window` packs a window of the resident frame
+    // into Harris's input with a rectangle allowed: the window's pixels
+    // unchanged outside the rectangle, one more flag inside, and Harris
+    // on it (`detect_packed`) finds exactly the corners of `detect` on the
+    // host's crop with that rectangle as its mask.
+    use splattrack::features::{FrameIntake, Harris, HarrisConfig};
+    let c = ctx();
+    let mut rng = Rng::new(23);
+    let mut intake = FrameIntake::new(c).unwrap();
+    let mut frame_img = GpuGrey::new();
+    let mut harris = Harris::new(c, HarrisConfig::default()).unwrap();
+    let mut found = 0;
+    for k in 0..6 {
+        let (w, h) = (160 + 16 * k, 120);
+        let grey = patterns::smooth_noise(w as usize, h as usize, 1.5, 40 + k as u64);
+        let frame = image::RgbImage::from_fn(w, h, |x, y| {
+            let v = grey.get(x as usize, y as usize).clamp(0.0, 1.0);
+            let b = (v * 255.0) as u8;
+            image::Rgb([b, b.wrapping_add(rng.uniform(0.0, 9.0) as u8), b / 2])
+        });
+        intake.upload(&frame, &mut frame_img);
+        let host_grey = GreyImage::from_rgb8(&frame);
+        let (ww, wh) = (
+            rng.uniform(40.0, w as f64 - 20.0) as u32,
+            rng.uniform(30.0, h as f64 - 20.0) as u32,
+        );
+        let (x0, y0) = (
+            rng.uniform(0.0, (w - ww) as f64) as u32,
+            rng.uniform(0.0, (h - wh) as f64) as u32,
+        );
+        let allowed = [3 + k, 2, ww - 4, wh - 1 - k];
+        let target = harris.input_target(ww as usize, wh as usize).unwrap();
+        intake
+            .pack_window(
+                frame_img.image().unwrap(),
+                [x0, y0, ww, wh],
+                allowed,
+                &target,
+            )
+            .unwrap();
+        // The bytes: the frame's outside the rectangle, one flag more inside.
+        let n = (ww * wh) as usize;
+        let packed: Vec<u32> = c.read_buffer(&target, 2 * n).unwrap();
+        let whole: Vec<u32> = c
+            .read_buffer(frame_img.image().unwrap().pixels, 2 * (w * h) as usize)
+            .unwrap();
+        let mut extra = None;
+        for y in 0..wh {
+            for x in 0..ww {
+                let i = (y * ww + x) as usize;
+                let j = ((y0 + y) * w + x0 + x) as usize;
+                assert_eq!(packed[2 * i], whole[2 * j], "value at ({x}, {y})");
+                let inside =
+                    x >= allowed[0] && x <= allowed[2] && y >= allowed[1] && y <= allowed[3];
+                if inside {
+                    let e = packed[2 * i + 1] ^ whole[2 * j + 1];
+                    assert!(
+                        e != 0 && *extra.get_or_insert(e) == e,
+                        "flags at ({x}, {y})"
+                    );
+                } else {
+                    assert_eq!(packed[2 * i + 1], whole[2 * j + 1], "flags at ({x}, {y})");
+                }
+            }
+        }
+        // The corners.
+        let got = harris.detect_packed(ww as usize, wh as usize).unwrap();
+        let crop = GreyImage::from_fn(ww as usize, wh as usize, |x, y| {
+            host_grey.get(x0 as usize + x, y0 as usize + y)
+        });
+        let mask: Vec<bool> = (0..n)
+            .map(|i| {
+                let (x, y) = ((i % ww as usize) as u32, (i / ww as usize) as u32);
+                x >= allowed[0] && x <= allowed[2] && y >= allowed[1] && y <= allowed[3]
+            })
+            .collect();
+        let want = harris.detect(&crop, Some(&mask)).unwrap();
+        assert_eq!(got, want, "window {k}");
+        found += got.len();
+    }
+    assert!(found > 50, "{found} corners");
+    // A window beyond the frame, or a buffer too small, is refused.
+    let small = harris.input_target(8, 8).unwrap();
+    let img = frame_img.image().unwrap();
+    let (w, h) = (img.width as u32, img.height as u32);
+    assert!(
+        intake
+            .pack_window(img, [w - 10, 0, 20, 10], [0, 0, 1, 1], &small)
+            .is_err()
+    );
+    let big = c.buffer("small", 64, splattrack::gpu::STORAGE_OUT);
+    assert!(
+        intake
+            .pack_window(img, [0, 0, w, h], [0, 0, 1, 1], &big)
+            .is_err()
+    );
+}

@@ -108,6 +108,25 @@ crate::wgsl_struct! {
     }
 }
 
+crate::wgsl_struct! {
+    /// Keep in sync with `WindowParams` in shaders/frame.wgsl.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub(crate) struct WindowParams {
+        frame_width: u32,
+        x0: u32,
+        y0: u32,
+        width: u32,
+        height: u32,
+        ax0: u32,
+        ay0: u32,
+        ax1: u32,
+        ay1: u32,
+        pad0: u32,
+        pad1: u32,
+        pad2: u32,
+    }
+}
+
 /// A camera frame's way in (issue 13): its 8-bit RGB bytes uploaded as
 /// they are (3 bytes a pixel, against 8 for packed grey) and turned into
 /// a [`GpuGrey`] on the GPU (`shaders/frame.wgsl`), so that the host
@@ -125,7 +144,16 @@ pub struct FrameIntake {
     /// Bind groups by output buffer (the tracker alternates two),
     /// dropped when the input buffer grows.
     binds: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
+    window_layout: wgpu::BindGroupLayout,
+    window_pipeline: wgpu::ComputePipeline,
+    window_params: wgpu::Buffer,
+    /// Bind groups of [`FrameIntake::pack_window`] by (frame, output).
+    window_binds: Vec<((wgpu::Buffer, wgpu::Buffer), wgpu::BindGroup)>,
 }
+
+/// Bind groups kept by [`FrameIntake::pack_window`] (frames alternate
+/// between two images; Harris's input may grow).
+const KEPT_WINDOW_BINDS: usize = 4;
 
 impl FrameIntake {
     /// The kernel (compiled once) and its channel table; the input buffer
@@ -145,6 +173,18 @@ impl FrameIntake {
             .pop()
             .expect("one pipeline");
         let terms: Vec<f32> = super::image::LUMA_TERMS.iter().flatten().copied().collect();
+        let window_layout = ctx.bind_group_layout(
+            "frame window",
+            &[
+                compute_entry(3, storage(false)),
+                compute_entry(4, storage(false)),
+                compute_entry(5, wgpu::BufferBindingType::Uniform),
+            ],
+        );
+        let window_pipeline = ctx
+            .compute_pipelines("frame", &window_layout, &["window_pack"])?
+            .pop()
+            .expect("one pipeline");
         Ok(Self {
             ctx: ctx.clone(),
             layout,
@@ -157,7 +197,106 @@ impl FrameIntake {
             terms: ctx.buffer_init("frame luma terms", &terms, STORAGE_IN),
             rgb: GrowBuffer::new("frame rgb", STORAGE_IN),
             binds: Vec::new(),
+            window_layout,
+            window_pipeline,
+            window_params: ctx.buffer(
+                "frame window params",
+                std::mem::size_of::<WindowParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            window_binds: Vec::new(),
         })
+    }
+
+    /// Packs the window `at` (x0, y0, width, height) of `frame` (an image
+    /// this intake filled) into `out` as Harris reads its input
+    /// ([`super::Harris::input_target`]): the window's pixels row by row,
+    /// allowed inside `allowed` (x0, y0, x1, y1, inclusive, in window
+    /// coordinates) and nowhere else: what the host's packing of the
+    /// window's crop with that rectangle as its mask gives, bit for bit.
+    /// Submitted; nothing comes back.
+    pub fn pack_window(
+        &mut self,
+        frame: ResidentImage,
+        at: [u32; 4],
+        allowed: [u32; 4],
+        out: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
+        let [x0, y0, w, h] = at.map(|v| v as usize);
+        if w == 0 || h == 0 {
+            return Ok(());
+        }
+        if x0 + w > frame.width || y0 + h > frame.height {
+            return Err(FeatureError::Config(format!(
+                "a {w}x{h} window at ({x0}, {y0}) of a {}x{} frame",
+                frame.width, frame.height
+            )));
+        }
+        frame.check(&(0..frame.height))?;
+        let need = (w * h * std::mem::size_of::<Pixel>()) as u64;
+        if need > out.size() {
+            return Err(FeatureError::Config(format!(
+                "a {w}x{h} window into a {}-byte buffer",
+                out.size()
+            )));
+        }
+        let ctx = &self.ctx;
+        let params = WindowParams {
+            frame_width: frame.width as u32,
+            x0: at[0],
+            y0: at[1],
+            width: at[2],
+            height: at[3],
+            ax0: allowed[0],
+            ay0: allowed[1],
+            ax1: allowed[2],
+            ay1: allowed[3],
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.window_params, 0, bytemuck::bytes_of(&params));
+        let key = (frame.pixels.clone(), out.clone());
+        let bind = match self.window_binds.iter().position(|(k, _)| *k == key) {
+            Some(i) => self.window_binds[i].1.clone(),
+            None => {
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("frame window"),
+                    layout: &self.window_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: frame.pixels.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 4,
+                            resource: out.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: self.window_params.as_entire_binding(),
+                        },
+                    ],
+                });
+                self.window_binds.insert(0, (key, bind.clone()));
+                self.window_binds.truncate(KEPT_WINDOW_BINDS);
+                bind
+            }
+        };
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.window_pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(
+                workgroups(at[2], WORKGROUP_2D),
+                workgroups(at[3], WORKGROUP_2D),
+                1,
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
     }
 
     /// Uploads `frame`'s bytes and converts them into `into` on the GPU

@@ -635,14 +635,14 @@ impl Tracker {
         let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let texture = self.config.modalities.texture;
+        if texture {
+            self.resident.upload(&self.ctx, rgb)?;
+        }
         let corners = if texture {
             self.frame_corners(&grey, &start_pose)?
         } else {
             Vec::new()
         };
-        if texture {
-            self.resident.upload(&self.ctx, rgb)?;
-        }
         let frame = Frame { grey, corners };
         times.features = t_features.elapsed();
 

@@ -102,6 +102,23 @@ impl Resident {
         Ok(())
     }
 
+    /// Packs the window `at` of the frame being tracked into Harris's
+    /// input `out` ([`FrameIntake::pack_window`]).
+    pub(super) fn pack_window(
+        &mut self,
+        at: [u32; 4],
+        allowed: [u32; 4],
+        out: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
+        let (Some(slot), Some(intake)) = (self.current, self.intake.as_mut()) else {
+            return Err(FeatureError::Config("no frame on the GPU".into()));
+        };
+        let Some(frame) = self.images[slot].image() else {
+            return Err(FeatureError::Config("no frame on the GPU".into()));
+        };
+        intake.pack_window(frame, at, allowed, out)
+    }
+
     /// A frame starts: no frame is resident until `upload`.
     pub(super) fn begin(&mut self) {
         self.current = None;
@@ -478,14 +495,25 @@ impl Tracker {
             full
         };
         let (ww, wh) = (w.width as usize, w.height as usize);
-        let mut mask = vec![false; ww * wh];
-        for y in y0..=y1 {
-            let row = (y - w.y0 as usize) * ww;
-            mask[row + x0 - w.x0 as usize..=row + x1 - w.x0 as usize].fill(true);
-        }
-        let crop = Placed::full(grey).crop(&w);
         let o = w.origin();
-        let corners = self.harris.detect(&crop, Some(&mask))?;
+        let corners = if !self.harris.host() && self.resident.frames().0.is_some() {
+            // The frame is on the GPU: its window is packed there, the
+            // region of interest allowed, as the host packs the crop.
+            let target = self.harris.input_target(ww, wh)?;
+            let (ox, oy) = (w.x0 as usize, w.y0 as usize);
+            let allowed = [x0 - ox, y0 - oy, x1 - ox, y1 - oy].map(|v| v as u32);
+            self.resident
+                .pack_window([w.x0, w.y0, w.width, w.height], allowed, &target)?;
+            self.harris.detect_packed(ww, wh)?
+        } else {
+            let mut mask = vec![false; ww * wh];
+            for y in y0..=y1 {
+                let row = (y - w.y0 as usize) * ww;
+                mask[row + x0 - w.x0 as usize..=row + x1 - w.x0 as usize].fill(true);
+            }
+            let crop = Placed::full(grey).crop(&w);
+            self.harris.detect(&crop, Some(&mask))?
+        };
         self.note_harris("features");
         Ok(corners
             .into_iter()

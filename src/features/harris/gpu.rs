@@ -251,8 +251,9 @@ impl Harris {
                 ctx.queue
                     .write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
             }
-            // Already on the GPU (Harris::colour_target).
-            Input::Resolved { .. } => {}
+            // Already on the GPU (Harris::colour_target,
+            // Harris::input_target).
+            Input::Resolved { .. } | Input::Packed { .. } => {}
         }
         ctx.queue.write_buffer(
             self.counters.get(),
@@ -357,6 +358,30 @@ impl Harris {
             });
         }
         self.detect_input(Input::Rgb(img), mask)
+    }
+
+    /// The buffer of packed pixels (8 bytes each: grey value and flags,
+    /// as [`super::super::resident::FrameIntake::pack_window`] writes
+    /// them) that [`Harris::detect_packed`] reads, sized for a
+    /// `width x height` image.
+    pub fn input_target(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<wgpu::Buffer, FeatureError> {
+        self.prepare(width.max(1), height.max(1))?;
+        Ok(self.pixels.get().clone())
+    }
+
+    /// Harris corners of the `width x height` pixels packed into
+    /// [`Harris::input_target`] on the GPU (corners only where a pixel is
+    /// allowed): the image never comes to the host. Not in host mode.
+    pub fn detect_packed(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        self.detect_input(Input::Packed { width, height }, None)
     }
 
     /// The buffer to resolve a splatted view's colour into (3 f32 a
@@ -489,6 +514,11 @@ impl Harris {
                         "a resolved view in host mode: use detect_resolved".into(),
                     ));
                 }
+                Input::Packed { .. } => {
+                    return Err(FeatureError::Config(
+                        "pixels packed on the GPU in host mode".into(),
+                    ));
+                }
             }
             return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
@@ -596,6 +626,12 @@ enum Input<'i> {
         /// Copy the grey levels out for a readback.
         keep_grey: bool,
     },
+    /// Pixels packed into `pixels` on the GPU
+    /// ([`Harris::input_target`]).
+    Packed {
+        width: usize,
+        height: usize,
+    },
 }
 
 impl Input<'_> {
@@ -604,6 +640,7 @@ impl Input<'_> {
             Input::Grey(g) => (g.width, g.height),
             Input::Rgb(c) => (c.width() as usize, c.height() as usize),
             Input::Resolved { width, height, .. } => (*width, *height),
+            Input::Packed { width, height } => (*width, *height),
         }
     }
 }
