@@ -20,12 +20,13 @@ library only.
 
 import collections
 import re
+import signal
 import subprocess
 import sys
 
 CATEGORIES = [
-    ("frame in: grey, packing, uploads, crops",
-     r"from_rgb8|pack_with_holes|GpuGrey::upload|Placed::crop|frame_corners"),
+    ("the frame in: grey, packing, uploads, crops, its Harris window",
+     r"from_rgb8|pack_with_holes|GpuGrey::upload|FrameIntake|Placed::crop|frame_corners"),
     ("contour on the host: colours, outline, normals, lines", r"contour::"),
     ("pose solves (IRLS)", r"pose::irls|pose::refine|Tracker::refine"),
     ("GPU work's submission: wgpu, the driver, readback waits",
@@ -96,4 +97,5 @@ def main():
 
 
 if __name__ == "__main__":
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)  # quiet under `| head`
     main()

@@ -42,6 +42,7 @@ fn grey_pack(@builtin(global_invocation_id) id: vec3<u32>) {
 // that rectangle as its mask.
 struct WindowParams {
     frame_width: u32,
+    frame_height: u32,
     x0: u32,
     y0: u32,
     width: u32,
@@ -52,7 +53,6 @@ struct WindowParams {
     ay1: u32,
     pad0: u32,
     pad1: u32,
-    pad2: u32,
 }
 
 @group(0) @binding(4) var<storage, read_write> window_out: array<Pixel>;
@@ -68,4 +68,26 @@ fn window_pack(@builtin(global_invocation_id) id: vec3<u32>) {
         p.flags = p.flags | PIXEL_ALLOWED;
     }
     window_out[id.y * window.width + id.x] = p;
+}
+
+// A window of the resident frame's grey levels as the pose check reads
+// them (one f32 a pixel): NaN beyond the frame or where a pixel is
+// invalid, as the host's crop of the frame gives them.
+@group(0) @binding(6) var<storage, read_write> values_out: array<f32>;
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn window_values(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= window.width || id.y >= window.height) {
+        return;
+    }
+    let x = window.x0 + id.x;
+    let y = window.y0 + id.y;
+    var v = bitcast<f32>(0x7fc00000u);
+    if (x < window.frame_width && y < window.frame_height) {
+        let p = pixels[y * window.frame_width + x];
+        if ((p.flags & PIXEL_VALID) != 0u) {
+            v = p.value;
+        }
+    }
+    values_out[id.y * window.width + id.x] = v;
 }

@@ -399,3 +399,48 @@ fn harris_on_a_window_packed_on_the_gpu_finds_the_host_crops_corners() {
             .is_err()
     );
 }
+
+#[test]
+fn a_window_of_the_resident_frame_is_the_host_crop_bit_for_bit() {
+    // `FrameIntake::window_values`: the grey levels of a window of the
+    // frame, NaN beyond it, as the pose check reads them, bit for bit the
+    // host's crop of `GreyImage::from_rgb8` (inside, across the right and
+    // bottom edges, and wholly outside).
+    use splattrack::features::FrameIntake;
+    let c = ctx();
+    let mut rng = Rng::new(29);
+    let mut intake = FrameIntake::new(c).unwrap();
+    let mut img = GpuGrey::new();
+    let (w, h) = (97u32, 61u32);
+    let frame = image::RgbImage::from_fn(w, h, |_, _| {
+        image::Rgb([0; 3].map(|_: u8| rng.uniform(0.0, 256.0) as u8))
+    });
+    let grey = GreyImage::from_rgb8(&frame);
+    intake.upload(&frame, &mut img);
+    let out = c.buffer("values", 4 * 64 * 64, splattrack::gpu::STORAGE_OUT);
+    for at in [
+        [0, 0, 97, 61],
+        [10, 7, 40, 30],
+        [80, 50, 30, 20],
+        [96, 60, 1, 1],
+        [100, 70, 5, 4],
+    ] {
+        let done = intake.window_values(img.image().unwrap(), at, &out);
+        if at[2] * at[3] > 64 * 64 {
+            assert!(done.is_err(), "a window larger than its buffer");
+            continue;
+        }
+        done.unwrap();
+        let n = (at[2] * at[3]) as usize;
+        let got: Vec<u32> = c.read_buffer(&out, n).unwrap();
+        for (i, g) in got.iter().enumerate() {
+            let (x, y) = (at[0] + i as u32 % at[2], at[1] + i as u32 / at[2]);
+            let want = if x < w && y < h {
+                grey.get(x as usize, y as usize)
+            } else {
+                f32::NAN
+            };
+            assert_eq!(*g, want.to_bits(), "window {at:?}, pixel ({x}, {y})");
+        }
+    }
+}

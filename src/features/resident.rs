@@ -113,6 +113,7 @@ crate::wgsl_struct! {
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub(crate) struct WindowParams {
         frame_width: u32,
+        frame_height: u32,
         x0: u32,
         y0: u32,
         width: u32,
@@ -123,7 +124,6 @@ crate::wgsl_struct! {
         ay1: u32,
         pad0: u32,
         pad1: u32,
-        pad2: u32,
     }
 }
 
@@ -149,6 +149,11 @@ pub struct FrameIntake {
     window_params: wgpu::Buffer,
     /// Bind groups of [`FrameIntake::pack_window`] by (frame, output).
     window_binds: Vec<((wgpu::Buffer, wgpu::Buffer), wgpu::BindGroup)>,
+    values_layout: wgpu::BindGroupLayout,
+    values_pipeline: wgpu::ComputePipeline,
+    values_params: wgpu::Buffer,
+    /// Bind groups of [`FrameIntake::window_values`] by (frame, output).
+    values_binds: Vec<((wgpu::Buffer, wgpu::Buffer), wgpu::BindGroup)>,
 }
 
 /// Bind groups kept by [`FrameIntake::pack_window`] (frames alternate
@@ -185,6 +190,25 @@ impl FrameIntake {
             .compute_pipelines("frame", &window_layout, &["window_pack"])?
             .pop()
             .expect("one pipeline");
+        let values_layout = ctx.bind_group_layout(
+            "frame values",
+            &[
+                compute_entry(3, storage(false)),
+                compute_entry(5, wgpu::BufferBindingType::Uniform),
+                compute_entry(6, storage(false)),
+            ],
+        );
+        let values_pipeline = ctx
+            .compute_pipelines("frame", &values_layout, &["window_values"])?
+            .pop()
+            .expect("one pipeline");
+        let uniform = |label| {
+            ctx.buffer(
+                label,
+                std::mem::size_of::<WindowParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            )
+        };
         Ok(Self {
             ctx: ctx.clone(),
             layout,
@@ -199,12 +223,12 @@ impl FrameIntake {
             binds: Vec::new(),
             window_layout,
             window_pipeline,
-            window_params: ctx.buffer(
-                "frame window params",
-                std::mem::size_of::<WindowParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            ),
+            window_params: uniform("frame window params"),
             window_binds: Vec::new(),
+            values_layout,
+            values_pipeline,
+            values_params: uniform("frame values params"),
+            values_binds: Vec::new(),
         })
     }
 
@@ -243,6 +267,7 @@ impl FrameIntake {
         let ctx = &self.ctx;
         let params = WindowParams {
             frame_width: frame.width as u32,
+            frame_height: frame.height as u32,
             x0: at[0],
             y0: at[1],
             width: at[2],
@@ -253,7 +278,6 @@ impl FrameIntake {
             ay1: allowed[3],
             pad0: 0,
             pad1: 0,
-            pad2: 0,
         };
         ctx.queue
             .write_buffer(&self.window_params, 0, bytemuck::bytes_of(&params));
@@ -288,6 +312,88 @@ impl FrameIntake {
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.window_pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(
+                workgroups(at[2], WORKGROUP_2D),
+                workgroups(at[3], WORKGROUP_2D),
+                1,
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+        Ok(())
+    }
+
+    /// Writes the grey levels of the window `at` (x0, y0, width, height)
+    /// of `frame` (an image this intake filled) into `out`, one f32 a
+    /// pixel row by row, NaN beyond the frame: what the host's crop of
+    /// the frame to that window holds, bit for bit (the pose check's
+    /// input, [`crate::tracker::verify_gpu::GpuCheck::frame_target`]).
+    /// Submitted; nothing comes back.
+    pub fn window_values(
+        &mut self,
+        frame: ResidentImage,
+        at: [u32; 4],
+        out: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
+        let [w, h] = [at[2], at[3]].map(|v| v as usize);
+        if w == 0 || h == 0 {
+            return Ok(());
+        }
+        frame.check(&(0..frame.height))?;
+        if (w * h * 4) as u64 > out.size() {
+            return Err(FeatureError::Config(format!(
+                "a {w}x{h} window into a {}-byte buffer",
+                out.size()
+            )));
+        }
+        let ctx = &self.ctx;
+        let params = WindowParams {
+            frame_width: frame.width as u32,
+            frame_height: frame.height as u32,
+            x0: at[0],
+            y0: at[1],
+            width: at[2],
+            height: at[3],
+            ax0: 0,
+            ay0: 0,
+            ax1: 0,
+            ay1: 0,
+            pad0: 0,
+            pad1: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.values_params, 0, bytemuck::bytes_of(&params));
+        let key = (frame.pixels.clone(), out.clone());
+        let bind = match self.values_binds.iter().position(|(k, _)| *k == key) {
+            Some(i) => self.values_binds[i].1.clone(),
+            None => {
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("frame values"),
+                    layout: &self.values_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 3,
+                            resource: frame.pixels.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 5,
+                            resource: self.values_params.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 6,
+                            resource: out.as_entire_binding(),
+                        },
+                    ],
+                });
+                self.values_binds.insert(0, (key, bind.clone()));
+                self.values_binds.truncate(KEPT_WINDOW_BINDS);
+                bind
+            }
+        };
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.values_pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(
                 workgroups(at[2], WORKGROUP_2D),

@@ -446,7 +446,6 @@ impl super::Tracker {
             Attributes::COLOR
         };
         let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
-        let frame = super::view::Placed::full(frame).crop(&window);
         if self.check.resident() && self.check.fits(window.width, window.height) {
             // Resident: the view is resolved into the check's buffers and
             // scored there; CHECK_SUMS floats come back.
@@ -459,16 +458,29 @@ impl super::Tracker {
                     .resolve_into(&self.ctx, &self.targets, Attribute::Color, &cb)?;
             }
             self.keep_render(*pose);
-            let s = self
-                .check
-                .score(&frame, textured, visible, step, &self.config.verify)
-                .map_err(crate::splat::SplatError::from)?;
+            // The frame's window: cut from the resident frame on the GPU
+            // where there is one (the same values), else uploaded.
+            let (w, h) = (window.width, window.height);
+            let on_gpu = self.resident.frames().0.is_some();
+            let s = if on_gpu {
+                let target = self.check.frame_target(w, h);
+                self.resident
+                    .window_values([window.x0, window.y0, w, h], &target)?;
+                self.check
+                    .score_prepared(w, h, textured, visible, step, &self.config.verify)
+            } else {
+                let frame = super::view::Placed::full(frame).crop(&window);
+                self.check
+                    .score(&frame, textured, visible, step, &self.config.verify)
+            }
+            .map_err(crate::splat::SplatError::from)?;
             if self.gpu_timer.is_some() {
                 let r = self.check.last_timings().clone();
                 super::profile::note(&mut self.stages.gpu, "check score", &r);
             }
             return Ok(s);
         }
+        let frame = super::view::Placed::full(frame).crop(&window);
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;

@@ -173,6 +173,38 @@ impl GpuCheck {
             )));
         }
         self.prepare(w, h);
+        self.ctx
+            .queue
+            .write_buffer(self.frame.get(), 0, bytemuck::cast_slice(&frame.data));
+        self.score_prepared(w, h, textured, visible, texture_step, cfg)
+    }
+
+    /// The buffer a `width x height` window of the frame's grey levels
+    /// goes into on the GPU (one f32 a pixel, NaN where invalid:
+    /// [`crate::features::FrameIntake::window_values`]) for
+    /// [`GpuCheck::score_prepared`].
+    pub fn frame_target(&mut self, width: u32, height: u32) -> wgpu::Buffer {
+        self.prepare(width, height);
+        self.frame.get().clone()
+    }
+
+    /// [`GpuCheck::score`] against the frame's window already in
+    /// [`GpuCheck::frame_target`] (`width x height`): no upload.
+    pub fn score_prepared(
+        &mut self,
+        w: u32,
+        h: u32,
+        textured: bool,
+        visible: f64,
+        texture_step: usize,
+        cfg: &VerifyConfig,
+    ) -> Result<VerifyScores, GpuError> {
+        if !self.fits(w, h) {
+            return Err(GpuError::Readback(format!(
+                "a {w}x{h} window is beyond the GPU check"
+            )));
+        }
+        self.prepare(w, h);
         let ctx = &self.ctx.clone();
         let params = CheckParams {
             width: w,
@@ -186,8 +218,6 @@ impl GpuCheck {
         };
         ctx.queue
             .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        ctx.queue
-            .write_buffer(self.frame.get(), 0, bytemuck::cast_slice(&frame.data));
         let bind = self
             .bind
             .as_ref()

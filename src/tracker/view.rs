@@ -119,6 +119,22 @@ impl Resident {
         intake.pack_window(frame, at, allowed, out)
     }
 
+    /// Writes the window `at` of the frame being tracked into `out`, one
+    /// f32 a pixel ([`FrameIntake::window_values`]).
+    pub(super) fn window_values(
+        &mut self,
+        at: [u32; 4],
+        out: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
+        let (Some(slot), Some(intake)) = (self.current, self.intake.as_mut()) else {
+            return Err(FeatureError::Config("no frame on the GPU".into()));
+        };
+        let Some(frame) = self.images[slot].image() else {
+            return Err(FeatureError::Config("no frame on the GPU".into()));
+        };
+        intake.window_values(frame, at, out)
+    }
+
     /// A frame starts: no frame is resident until `upload`.
     pub(super) fn begin(&mut self) {
         self.current = None;
