@@ -103,8 +103,8 @@ crate::wgsl_struct! {
     pub(crate) struct FrameParams {
         width: u32,
         height: u32,
-        _pad0: u32,
-        _pad1: u32,
+        pad0: u32,
+        pad1: u32,
     }
 }
 
@@ -133,103 +133,173 @@ crate::wgsl_struct! {
 /// neither converts nor packs the frame for the resident matching. The
 /// pixels are bit for bit those of [`GpuGrey::upload`] of
 /// [`GreyImage::from_rgb8`]: the shader sums the same tabulated channel
-/// terms in the same order.
+/// terms in the same order. Windows of the frame are cut there too, for
+/// Harris ([`FrameIntake::pack_window`]) and the pose check
+/// ([`FrameIntake::window_values`]).
 pub struct FrameIntake {
     ctx: GpuContext,
-    layout: wgpu::BindGroupLayout,
-    pipeline: wgpu::ComputePipeline,
+    grey: Kernel,
+    window: Kernel,
+    values: Kernel,
     params: wgpu::Buffer,
+    window_params: wgpu::Buffer,
+    values_params: wgpu::Buffer,
     terms: wgpu::Buffer,
     rgb: GrowBuffer,
-    /// Bind groups by output buffer (the tracker alternates two),
-    /// dropped when the input buffer grows.
-    binds: Vec<(wgpu::Buffer, wgpu::BindGroup)>,
-    window_layout: wgpu::BindGroupLayout,
-    window_pipeline: wgpu::ComputePipeline,
-    window_params: wgpu::Buffer,
-    /// Bind groups of [`FrameIntake::pack_window`] by (frame, output).
-    window_binds: Vec<((wgpu::Buffer, wgpu::Buffer), wgpu::BindGroup)>,
-    values_layout: wgpu::BindGroupLayout,
-    values_pipeline: wgpu::ComputePipeline,
-    values_params: wgpu::Buffer,
-    /// Bind groups of [`FrameIntake::window_values`] by (frame, output).
-    values_binds: Vec<((wgpu::Buffer, wgpu::Buffer), wgpu::BindGroup)>,
 }
 
-/// Bind groups kept by [`FrameIntake::pack_window`] (frames alternate
-/// between two images; Harris's input may grow).
-const KEPT_WINDOW_BINDS: usize = 4;
+/// One entry point of shaders/frame.wgsl, its layout and the bind groups
+/// it made, kept by their buffers (frames alternate between two images;
+/// buffers grow).
+struct Kernel {
+    layout: wgpu::BindGroupLayout,
+    pipeline: wgpu::ComputePipeline,
+    binds: Vec<(Vec<wgpu::Buffer>, wgpu::BindGroup)>,
+}
+
+/// Bind groups a [`Kernel`] keeps.
+const KEPT_BINDS: usize = 4;
+
+impl Kernel {
+    fn new(
+        ctx: &GpuContext,
+        entry: &str,
+        bindings: &[(u32, wgpu::BufferBindingType)],
+    ) -> Result<Self, FeatureError> {
+        let entries: Vec<_> = bindings.iter().map(|&(b, t)| compute_entry(b, t)).collect();
+        let layout = ctx.bind_group_layout(entry, &entries);
+        let pipeline = ctx
+            .compute_pipelines("frame", &layout, &[entry])?
+            .pop()
+            .expect("one pipeline");
+        Ok(Self {
+            layout,
+            pipeline,
+            binds: Vec::new(),
+        })
+    }
+
+    /// Submits one pass over `width x height` pixels with `buffers` bound
+    /// (binding, buffer).
+    fn run(&mut self, ctx: &GpuContext, buffers: &[(u32, &wgpu::Buffer)], width: u32, height: u32) {
+        let key: Vec<wgpu::Buffer> = buffers.iter().map(|(_, b)| (*b).clone()).collect();
+        let bind = match self.binds.iter().position(|(k, _)| *k == key) {
+            Some(i) => self.binds[i].1.clone(),
+            None => {
+                let entries: Vec<_> = buffers
+                    .iter()
+                    .map(|&(binding, b)| wgpu::BindGroupEntry {
+                        binding,
+                        resource: b.as_entire_binding(),
+                    })
+                    .collect();
+                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("frame"),
+                    layout: &self.layout,
+                    entries: &entries,
+                });
+                self.binds.insert(0, (key, bind.clone()));
+                self.binds.truncate(KEPT_BINDS);
+                bind
+            }
+        };
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&self.pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(
+                workgroups(width, WORKGROUP_2D),
+                workgroups(height, WORKGROUP_2D),
+                1,
+            );
+        }
+        ctx.queue.submit([enc.finish()]);
+    }
+}
 
 impl FrameIntake {
-    /// The kernel (compiled once) and its channel table; the input buffer
-    /// is made on first use.
+    /// The kernels (compiled once) and the channel table; the input
+    /// buffer is made on first use.
     pub fn new(ctx: &GpuContext) -> Result<Self, FeatureError> {
-        let layout = ctx.bind_group_layout(
-            "frame",
-            &[
-                compute_entry(0, wgpu::BufferBindingType::Uniform),
-                compute_entry(1, storage(true)),
-                compute_entry(2, storage(true)),
-                compute_entry(3, storage(false)),
-            ],
-        );
-        let pipeline = ctx
-            .compute_pipelines("frame", &layout, &["grey_pack"])?
-            .pop()
-            .expect("one pipeline");
-        let terms: Vec<f32> = super::image::LUMA_TERMS.iter().flatten().copied().collect();
-        let window_layout = ctx.bind_group_layout(
-            "frame window",
-            &[
-                compute_entry(3, storage(false)),
-                compute_entry(4, storage(false)),
-                compute_entry(5, wgpu::BufferBindingType::Uniform),
-            ],
-        );
-        let window_pipeline = ctx
-            .compute_pipelines("frame", &window_layout, &["window_pack"])?
-            .pop()
-            .expect("one pipeline");
-        let values_layout = ctx.bind_group_layout(
-            "frame values",
-            &[
-                compute_entry(3, storage(false)),
-                compute_entry(5, wgpu::BufferBindingType::Uniform),
-                compute_entry(6, storage(false)),
-            ],
-        );
-        let values_pipeline = ctx
-            .compute_pipelines("frame", &values_layout, &["window_values"])?
-            .pop()
-            .expect("one pipeline");
-        let uniform = |label| {
+        let uniform = wgpu::BufferBindingType::Uniform;
+        let uniform_buffer = |label, size: usize| {
             ctx.buffer(
                 label,
-                std::mem::size_of::<WindowParams>() as u64,
+                size as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             )
         };
+        let window_size = std::mem::size_of::<WindowParams>();
+        let terms: Vec<f32> = super::image::LUMA_TERMS.iter().flatten().copied().collect();
         Ok(Self {
             ctx: ctx.clone(),
-            layout,
-            pipeline,
-            params: ctx.buffer(
-                "frame params",
-                std::mem::size_of::<FrameParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            ),
+            grey: Kernel::new(
+                ctx,
+                "grey_pack",
+                &[
+                    (0, uniform),
+                    (1, storage(true)),
+                    (2, storage(true)),
+                    (3, storage(false)),
+                ],
+            )?,
+            window: Kernel::new(
+                ctx,
+                "window_pack",
+                &[(3, storage(false)), (4, storage(false)), (5, uniform)],
+            )?,
+            values: Kernel::new(
+                ctx,
+                "window_values",
+                &[(3, storage(false)), (5, uniform), (6, storage(false))],
+            )?,
+            params: uniform_buffer("frame params", std::mem::size_of::<FrameParams>()),
+            window_params: uniform_buffer("frame window params", window_size),
+            values_params: uniform_buffer("frame values params", window_size),
             terms: ctx.buffer_init("frame luma terms", &terms, STORAGE_IN),
             rgb: GrowBuffer::new("frame rgb", STORAGE_IN),
-            binds: Vec::new(),
-            window_layout,
-            window_pipeline,
-            window_params: uniform("frame window params"),
-            window_binds: Vec::new(),
-            values_layout,
-            values_pipeline,
-            values_params: uniform("frame values params"),
-            values_binds: Vec::new(),
         })
+    }
+
+    /// Uploads `frame`'s bytes and converts them into `into` on the GPU
+    /// (submitted; the matchings that read `into` are submitted after).
+    pub fn upload(&mut self, frame: &image::RgbImage, into: &mut GpuGrey) {
+        let ctx = &self.ctx;
+        let (w, h) = (frame.width() as usize, frame.height() as usize);
+        let bytes = frame.as_raw();
+        if w == 0 || h == 0 || bytes.len() != 3 * w * h {
+            (into.width, into.height) = (0, 0);
+            return;
+        }
+        self.rgb.ensure(ctx, bytes.len().next_multiple_of(4) as u64);
+        // Whole words, then the last one to three bytes padded to a word
+        // (a write's size must be a multiple of 4).
+        let whole = bytes.len() / 4 * 4;
+        ctx.queue.write_buffer(self.rgb.get(), 0, &bytes[..whole]);
+        if whole < bytes.len() {
+            let mut tail = [0u8; 4];
+            tail[..bytes.len() - whole].copy_from_slice(&bytes[whole..]);
+            ctx.queue.write_buffer(self.rgb.get(), whole as u64, &tail);
+        }
+        into.buf
+            .ensure(ctx, (w * h * std::mem::size_of::<Pixel>()) as u64);
+        let params = FrameParams {
+            width: w as u32,
+            height: h as u32,
+            pad0: 0,
+            pad1: 0,
+        };
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        let buffers = [
+            (0, &self.params),
+            (1, &self.terms),
+            (2, self.rgb.get()),
+            (3, into.buf.get()),
+        ];
+        self.grey.run(ctx, &buffers, w as u32, h as u32);
+        (into.width, into.height) = (w, h);
     }
 
     /// Packs the window `at` (x0, y0, width, height) of `frame` (an image
@@ -256,70 +326,13 @@ impl FrameIntake {
                 frame.width, frame.height
             )));
         }
-        frame.check(&(0..frame.height))?;
-        let need = (w * h * std::mem::size_of::<Pixel>()) as u64;
-        if need > out.size() {
-            return Err(FeatureError::Config(format!(
-                "a {w}x{h} window into a {}-byte buffer",
-                out.size()
-            )));
-        }
+        window_fits(frame, w, h, std::mem::size_of::<Pixel>(), out)?;
+        let params = window_params(frame, at, allowed);
         let ctx = &self.ctx;
-        let params = WindowParams {
-            frame_width: frame.width as u32,
-            frame_height: frame.height as u32,
-            x0: at[0],
-            y0: at[1],
-            width: at[2],
-            height: at[3],
-            ax0: allowed[0],
-            ay0: allowed[1],
-            ax1: allowed[2],
-            ay1: allowed[3],
-            pad0: 0,
-            pad1: 0,
-        };
         ctx.queue
             .write_buffer(&self.window_params, 0, bytemuck::bytes_of(&params));
-        let key = (frame.pixels.clone(), out.clone());
-        let bind = match self.window_binds.iter().position(|(k, _)| *k == key) {
-            Some(i) => self.window_binds[i].1.clone(),
-            None => {
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("frame window"),
-                    layout: &self.window_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: frame.pixels.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 4,
-                            resource: out.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 5,
-                            resource: self.window_params.as_entire_binding(),
-                        },
-                    ],
-                });
-                self.window_binds.insert(0, (key, bind.clone()));
-                self.window_binds.truncate(KEPT_WINDOW_BINDS);
-                bind
-            }
-        };
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.window_pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(
-                workgroups(at[2], WORKGROUP_2D),
-                workgroups(at[3], WORKGROUP_2D),
-                1,
-            );
-        }
-        ctx.queue.submit([enc.finish()]);
+        let buffers = [(3, frame.pixels), (4, out), (5, &self.window_params)];
+        self.window.run(ctx, &buffers, at[2], at[3]);
         Ok(())
     }
 
@@ -339,149 +352,51 @@ impl FrameIntake {
         if w == 0 || h == 0 {
             return Ok(());
         }
-        frame.check(&(0..frame.height))?;
-        if (w * h * 4) as u64 > out.size() {
-            return Err(FeatureError::Config(format!(
-                "a {w}x{h} window into a {}-byte buffer",
-                out.size()
-            )));
-        }
+        window_fits(frame, w, h, 4, out)?;
+        let params = window_params(frame, at, [0; 4]);
         let ctx = &self.ctx;
-        let params = WindowParams {
-            frame_width: frame.width as u32,
-            frame_height: frame.height as u32,
-            x0: at[0],
-            y0: at[1],
-            width: at[2],
-            height: at[3],
-            ax0: 0,
-            ay0: 0,
-            ax1: 0,
-            ay1: 0,
-            pad0: 0,
-            pad1: 0,
-        };
         ctx.queue
             .write_buffer(&self.values_params, 0, bytemuck::bytes_of(&params));
-        let key = (frame.pixels.clone(), out.clone());
-        let bind = match self.values_binds.iter().position(|(k, _)| *k == key) {
-            Some(i) => self.values_binds[i].1.clone(),
-            None => {
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("frame values"),
-                    layout: &self.values_layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: frame.pixels.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 5,
-                            resource: self.values_params.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 6,
-                            resource: out.as_entire_binding(),
-                        },
-                    ],
-                });
-                self.values_binds.insert(0, (key, bind.clone()));
-                self.values_binds.truncate(KEPT_WINDOW_BINDS);
-                bind
-            }
-        };
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.values_pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(
-                workgroups(at[2], WORKGROUP_2D),
-                workgroups(at[3], WORKGROUP_2D),
-                1,
-            );
-        }
-        ctx.queue.submit([enc.finish()]);
+        let buffers = [(3, frame.pixels), (5, &self.values_params), (6, out)];
+        self.values.run(ctx, &buffers, at[2], at[3]);
         Ok(())
     }
+}
 
-    /// Uploads `frame`'s bytes and converts them into `into` on the GPU
-    /// (submitted; the matchings that read `into` are submitted after).
-    pub fn upload(&mut self, frame: &image::RgbImage, into: &mut GpuGrey) {
-        let ctx = &self.ctx;
-        let (w, h) = (frame.width() as usize, frame.height() as usize);
-        let bytes = frame.as_raw();
-        if w == 0 || h == 0 || bytes.len() != 3 * w * h {
-            (into.width, into.height) = (0, 0);
-            return;
-        }
-        if self.rgb.ensure(ctx, bytes.len().next_multiple_of(4) as u64) {
-            self.binds.clear();
-        }
-        // Whole words, then the last one to three bytes padded to a word
-        // (a write's size must be a multiple of 4).
-        let whole = bytes.len() / 4 * 4;
-        ctx.queue.write_buffer(self.rgb.get(), 0, &bytes[..whole]);
-        if whole < bytes.len() {
-            let mut tail = [0u8; 4];
-            tail[..bytes.len() - whole].copy_from_slice(&bytes[whole..]);
-            ctx.queue.write_buffer(self.rgb.get(), whole as u64, &tail);
-        }
-        let px = std::mem::size_of::<Pixel>();
-        if into.buf.ensure(ctx, (w * h * px) as u64) {
-            self.binds.retain(|(b, _)| b != into.buf.get());
-        }
-        let params = FrameParams {
-            width: w as u32,
-            height: h as u32,
-            _pad0: 0,
-            _pad1: 0,
-        };
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
-        let out = into.buf.get();
-        let bind = match self.binds.iter().find(|(b, _)| b == out) {
-            Some((_, bind)) => bind.clone(),
-            None => {
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("frame"),
-                    layout: &self.layout,
-                    entries: &[
-                        wgpu::BindGroupEntry {
-                            binding: 0,
-                            resource: self.params.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 1,
-                            resource: self.terms.as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 2,
-                            resource: self.rgb.get().as_entire_binding(),
-                        },
-                        wgpu::BindGroupEntry {
-                            binding: 3,
-                            resource: out.as_entire_binding(),
-                        },
-                    ],
-                });
-                self.binds.push((out.clone(), bind.clone()));
-                bind
-            }
-        };
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(
-                workgroups(w as u32, WORKGROUP_2D),
-                workgroups(h as u32, WORKGROUP_2D),
-                1,
-            );
-        }
-        ctx.queue.submit([enc.finish()]);
-        (into.width, into.height) = (w, h);
+/// Checks `frame`'s buffer and that `out` holds `w x h` values of `size`
+/// bytes.
+fn window_fits(
+    frame: ResidentImage,
+    w: usize,
+    h: usize,
+    size: usize,
+    out: &wgpu::Buffer,
+) -> Result<(), FeatureError> {
+    frame.check(&(0..frame.height))?;
+    if (w * h * size) as u64 > out.size() {
+        return Err(FeatureError::Config(format!(
+            "a {w}x{h} window into a {}-byte buffer",
+            out.size()
+        )));
+    }
+    Ok(())
+}
+
+/// The uniform of a window `at` of `frame`, `allowed` inside it.
+fn window_params(frame: ResidentImage, at: [u32; 4], allowed: [u32; 4]) -> WindowParams {
+    WindowParams {
+        frame_width: frame.width as u32,
+        frame_height: frame.height as u32,
+        x0: at[0],
+        y0: at[1],
+        width: at[2],
+        height: at[3],
+        ax0: allowed[0],
+        ay0: allowed[1],
+        ax1: allowed[2],
+        ay1: allowed[3],
+        pad0: 0,
+        pad1: 0,
     }
 }
 
