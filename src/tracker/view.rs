@@ -110,12 +110,7 @@ impl Resident {
         allowed: [u32; 4],
         out: &wgpu::Buffer,
     ) -> Result<(), FeatureError> {
-        let (Some(slot), Some(intake)) = (self.current, self.intake.as_mut()) else {
-            return Err(FeatureError::Config("no frame on the GPU".into()));
-        };
-        let Some(frame) = self.images[slot].image() else {
-            return Err(FeatureError::Config("no frame on the GPU".into()));
-        };
+        let (intake, frame) = self.taken_in()?;
         intake.pack_window(frame, at, allowed, out)
     }
 
@@ -126,13 +121,17 @@ impl Resident {
         at: [u32; 4],
         out: &wgpu::Buffer,
     ) -> Result<(), FeatureError> {
-        let (Some(slot), Some(intake)) = (self.current, self.intake.as_mut()) else {
-            return Err(FeatureError::Config("no frame on the GPU".into()));
-        };
-        let Some(frame) = self.images[slot].image() else {
-            return Err(FeatureError::Config("no frame on the GPU".into()));
-        };
+        let (intake, frame) = self.taken_in()?;
         intake.window_values(frame, at, out)
+    }
+
+    /// The intake and the frame being tracked, which it took in.
+    fn taken_in(&mut self) -> Result<(&mut FrameIntake, ResidentImage<'_>), FeatureError> {
+        let none = || FeatureError::Config("no frame on the GPU".into());
+        let slot = self.current.ok_or_else(none)?;
+        let intake = self.intake.as_mut().ok_or_else(none)?;
+        let frame = self.images[slot].image().ok_or_else(none)?;
+        Ok((intake, frame))
     }
 
     /// A frame starts: no frame is resident until `upload`.
