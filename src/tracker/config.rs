@@ -240,7 +240,8 @@ pub struct TrackerConfig {
     #[serde(default)]
     pub feature_backend: crate::features::FeatureBackend,
     /// Keep the frame loop's images on the GPU (issue 13): each frame's
-    /// grey levels uploaded once, NCC, the mutual check and the KF step's
+    /// bytes uploaded once and converted there
+    /// ([`crate::features::FrameIntake`]), NCC, the mutual check and the KF step's
     /// sub-pixel refinement on the frame and the novel view where they
     /// lie, the pose check scored there, a few values per feature read
     /// back (`Some(true)`); or match host crops and score the check from
