@@ -279,7 +279,7 @@ fn a_frame_taken_in_on_the_gpu_is_the_hosts_packed_grey_bit_for_bit() {
             image::Rgb([0; 3].map(|_: u8| rng.uniform(0.0, 256.0) as u8))
         });
         let slot = &mut images[k % 2];
-        intake.upload(&frame, slot);
+        intake.upload(&frame, slot).unwrap();
         host.upload(c, &GreyImage::from_rgb8(&frame));
         let (a, b) = (slot.image().unwrap(), host.image().unwrap());
         assert_eq!((a.width, a.height), (w as usize, h as usize));
@@ -296,7 +296,9 @@ fn a_frame_taken_in_on_the_gpu_is_the_hosts_packed_grey_bit_for_bit() {
         }
     }
     // An empty frame leaves no image.
-    intake.upload(&image::RgbImage::new(0, 0), &mut images[0]);
+    intake
+        .upload(&image::RgbImage::new(0, 0), &mut images[0])
+        .unwrap();
     assert!(images[0].image().is_none());
 }
 
@@ -322,7 +324,7 @@ fn harris_on_a_window_packed_on_the_gpu_finds_the_host_crops_corners() {
             let b = (v * 255.0) as u8;
             image::Rgb([b, b.wrapping_add(rng.uniform(0.0, 9.0) as u8), b / 2])
         });
-        intake.upload(&frame, &mut frame_img);
+        intake.upload(&frame, &mut frame_img).unwrap();
         let host_grey = GreyImage::from_rgb8(&frame);
         let (ww, wh) = (
             rng.uniform(40.0, w as f64 - 20.0) as u32,
@@ -416,7 +418,7 @@ fn a_window_of_the_resident_frame_is_the_host_crop_bit_for_bit() {
         image::Rgb([0; 3].map(|_: u8| rng.uniform(0.0, 256.0) as u8))
     });
     let grey = GreyImage::from_rgb8(&frame);
-    intake.upload(&frame, &mut img);
+    intake.upload(&frame, &mut img).unwrap();
     let out = c.buffer("values", 4 * 64 * 64, splattrack::gpu::STORAGE_OUT);
     for at in [
         [0, 0, 97, 61],

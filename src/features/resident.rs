@@ -181,23 +181,18 @@ impl Kernel {
 
     /// Submits one pass over `width x height` pixels with `buffers` bound
     /// (binding, buffer).
-    fn run(&mut self, ctx: &GpuContext, buffers: &[(u32, &wgpu::Buffer)], width: u32, height: u32) {
+    fn run(
+        &mut self,
+        ctx: &GpuContext,
+        buffers: &[(u32, &wgpu::Buffer)],
+        width: u32,
+        height: u32,
+    ) -> Result<(), FeatureError> {
         let key: Vec<wgpu::Buffer> = buffers.iter().map(|(_, b)| (*b).clone()).collect();
         let bind = match self.binds.iter().position(|(k, _)| *k == key) {
             Some(i) => self.binds[i].1.clone(),
             None => {
-                let entries: Vec<_> = buffers
-                    .iter()
-                    .map(|&(binding, b)| wgpu::BindGroupEntry {
-                        binding,
-                        resource: b.as_entire_binding(),
-                    })
-                    .collect();
-                let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("frame"),
-                    layout: &self.layout,
-                    entries: &entries,
-                });
+                let bind = ctx.bind_buffers_at("frame", &self.layout, buffers)?;
                 self.binds.insert(0, (key, bind.clone()));
                 self.binds.truncate(KEPT_BINDS);
                 bind
@@ -215,6 +210,7 @@ impl Kernel {
             );
         }
         ctx.queue.submit([enc.finish()]);
+        Ok(())
     }
 }
 
@@ -264,13 +260,17 @@ impl FrameIntake {
 
     /// Uploads `frame`'s bytes and converts them into `into` on the GPU
     /// (submitted; the matchings that read `into` are submitted after).
-    pub fn upload(&mut self, frame: &image::RgbImage, into: &mut GpuGrey) {
+    pub fn upload(
+        &mut self,
+        frame: &image::RgbImage,
+        into: &mut GpuGrey,
+    ) -> Result<(), FeatureError> {
         let ctx = &self.ctx;
         let (w, h) = (frame.width() as usize, frame.height() as usize);
         let bytes = frame.as_raw();
         if w == 0 || h == 0 || bytes.len() != 3 * w * h {
             (into.width, into.height) = (0, 0);
-            return;
+            return Ok(());
         }
         self.rgb.ensure(ctx, bytes.len().next_multiple_of(4) as u64);
         // Whole words, then the last one to three bytes padded to a word
@@ -298,8 +298,9 @@ impl FrameIntake {
             (2, self.rgb.get()),
             (3, into.buf.get()),
         ];
-        self.grey.run(ctx, &buffers, w as u32, h as u32);
+        self.grey.run(ctx, &buffers, w as u32, h as u32)?;
         (into.width, into.height) = (w, h);
+        Ok(())
     }
 
     /// Packs the window `at` (x0, y0, width, height) of `frame` (an image
@@ -332,8 +333,7 @@ impl FrameIntake {
         ctx.queue
             .write_buffer(&self.window_params, 0, bytemuck::bytes_of(&params));
         let buffers = [(3, frame.pixels), (4, out), (5, &self.window_params)];
-        self.window.run(ctx, &buffers, at[2], at[3]);
-        Ok(())
+        self.window.run(ctx, &buffers, at[2], at[3])
     }
 
     /// Writes the grey levels of the window `at` (x0, y0, width, height)
@@ -358,8 +358,7 @@ impl FrameIntake {
         ctx.queue
             .write_buffer(&self.values_params, 0, bytemuck::bytes_of(&params));
         let buffers = [(3, frame.pixels), (5, &self.values_params), (6, out)];
-        self.values.run(ctx, &buffers, at[2], at[3]);
-        Ok(())
+        self.values.run(ctx, &buffers, at[2], at[3])
     }
 }
 

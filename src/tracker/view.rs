@@ -97,7 +97,7 @@ impl Resident {
             Some(i) => i,
             None => self.intake.insert(FrameIntake::new(ctx)?),
         };
-        intake.upload(frame, &mut self.images[slot]);
+        intake.upload(frame, &mut self.images[slot])?;
         self.current = Some(slot);
         Ok(())
     }

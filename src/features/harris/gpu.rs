@@ -361,7 +361,7 @@ impl Harris {
     }
 
     /// The buffer of packed pixels (8 bytes each: grey value and flags,
-    /// as [`super::super::resident::FrameIntake::pack_window`] writes
+    /// as [`crate::features::FrameIntake::pack_window`] writes
     /// them) that [`Harris::detect_packed`] reads, sized for a
     /// `width x height` image.
     pub fn input_target(
