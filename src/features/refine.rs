@@ -91,12 +91,41 @@ pub fn refine_match(
     max_shift: i32,
     min_score: f32,
 ) -> Option<([f32; 2], f32)> {
+    SCRATCH.with_borrow_mut(|s| refine_in(s, a, pa, b, pb, window_size, max_shift, min_score))
+}
+
+/// The buffers of [`refine_match`], kept per thread: the template, a
+/// window, the patch and the integer shifts' scores (a frame refines a few
+/// hundred matches, none of which allocates once these have grown).
+#[derive(Default)]
+struct Scratch {
+    t: Vec<f32>,
+    w: Vec<f32>,
+    patch: Vec<f32>,
+    grid: Vec<Option<f32>>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
+}
+
+/// [`refine_match`] in `scratch`'s buffers.
+#[allow(clippy::too_many_arguments)]
+fn refine_in(
+    scratch: &mut Scratch,
+    a: &GreyImage,
+    pa: [f32; 2],
+    b: &GreyImage,
+    pb: [f32; 2],
+    window_size: u32,
+    max_shift: i32,
+    min_score: f32,
+) -> Option<([f32; 2], f32)> {
+    let Scratch { t, w, patch, grid } = scratch;
     let half = (window_size / 2) as i32;
-    let mut t = Vec::new();
-    if !window_into(a, pa[0], pa[1], half, &mut t) {
+    if !window_into(a, pa[0], pa[1], half, t) {
         return None;
     }
-    let mut w = Vec::with_capacity(t.len());
     // Best integer shift around pb. The windows of the integer shifts
     // overlap: where every shifted position is exact in f32 (all but
     // positions within a few pixels above a power of two), they are cut
@@ -108,11 +137,10 @@ pub fn refine_match(
     let r = half + max_shift;
     let side = (2 * max_shift + 1).max(0) as usize;
     // The integer shifts' scores, row by row, when cut from the patch.
-    let mut grid: Vec<Option<f32>> = Vec::new();
+    grid.clear();
     if max_shift >= 0 && shifts_exact(pb[0], r) && shifts_exact(pb[1], r) {
-        grid.reserve(side * side);
         let n = (2 * r + 1) as usize;
-        let mut patch = Vec::with_capacity(n * n);
+        patch.clear();
         for l in -r..=r {
             for k in -r..=r {
                 let p = b.bilinear(pb[0] + k as f32, pb[1] + l as f32);
@@ -129,7 +157,7 @@ pub fn refine_match(
                 }
                 // A NaN marks a sample that touched an invalid or
                 // outside pixel (valid samples are finite).
-                let s = (w.iter().all(|v| !v.is_nan()) && normalise(&mut w)).then(|| dot(&t, &w));
+                let s = (w.iter().all(|v| !v.is_nan()) && normalise(w)).then(|| dot(t, w));
                 if let Some(s) = s
                     && s > best.0
                 {
@@ -142,8 +170,8 @@ pub fn refine_match(
         for dy in -max_shift..=max_shift {
             for dx in -max_shift..=max_shift {
                 let (x, y) = (pb[0] + dx as f32, pb[1] + dy as f32);
-                if window_into(b, x, y, half, &mut w) {
-                    let s = dot(&t, &w);
+                if window_into(b, x, y, half, w) {
+                    let s = dot(t, w);
                     if s > best.0 {
                         best = (s, dx, dy);
                     }
@@ -154,7 +182,7 @@ pub fn refine_match(
     if best.0 < min_score || best.1.abs() == max_shift || best.2.abs() == max_shift {
         return None;
     }
-    let mut score = |x: f32, y: f32| window_into(b, x, y, half, &mut w).then(|| dot(&t, &w));
+    let mut score = |x: f32, y: f32| window_into(b, x, y, half, w).then(|| dot(t, w));
     let mut centre = [pb[0] + best.1 as f32, pb[1] + best.2 as f32];
     let mut peak = best.0;
     for step in [1.0f32, 0.5] {
