@@ -1,8 +1,9 @@
 //! Harris and NCC matching, GPU against the CPU reference (the paper's
 //! Fig. 7 comparison): Harris at 640x480 and 1280x720 (and the host
 //! detector the tracker runs on CPU adapters, `harris_host`), matching
-//! 900 x 900 features with 9x9 windows, and one readback's round trip
-//! (what each of the frame loop's sync points costs). Run with
+//! 900 x 900 features with 9x9 windows, one readback's round trip (what
+//! each of the frame loop's sync points costs) and a submission's host
+//! cost (work and its readback submitted apart or together). Run with
 //! `cargo bench --bench features` (adapter: `SPLATTRACK_ADAPTER`, default
 //! auto). Besides criterion's report it prints a summary of medians and
 //! the CPU/GPU ratio of each.
@@ -114,16 +115,33 @@ fn bench(c: &mut Criterion) {
     let tiny = ctx.buffer(
         "bench readback",
         16,
-        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST,
     );
     g.bench_function("readback_16B", |bn| {
         bn.iter(|| black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap()))
     });
+    // A pass's work (here a clear) and its readback, submitted apart (two
+    // submissions) or together (`read_buffer_after`, one): the difference
+    // is one submission's host cost.
+    let work = || {
+        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&tiny, 0, Some(8));
+        enc
+    };
+    let apart = || {
+        ctx.submit(work());
+        black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap())
+    };
+    let together = || black_box(ctx.read_buffer_after::<u32>(work(), &tiny, 4).unwrap());
+    g.bench_function("work_then_readback_2_submissions", |bn| bn.iter(&apart));
+    g.bench_function("work_with_readback_1_submission", |bn| bn.iter(&together));
     g.finish();
     let readback_us = 1e3
         * median_ms(200, || {
             black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap());
         });
+    let apart_us = 1e3 * median_ms(200, || drop(apart()));
+    let together_us = 1e3 * median_ms(200, || drop(together()));
     let gpu = median_ms(10, || {
         black_box(matcher.match_features(&a, &pa, &b, &pb).unwrap());
     });
@@ -158,6 +176,10 @@ fn bench(c: &mut Criterion) {
         );
     }
     println!("\nreadback round trip (16 bytes, 200 runs): {readback_us:.1} us median");
+    println!(
+        "a clear and its readback (200 runs, medians): {apart_us:.1} us in two submissions, \
+         {together_us:.1} us in one"
+    );
     for (name, report) in [("Harris 640x480", &passes), ("NCC 900 x 900", &ncc_passes)] {
         if !report.passes.is_empty() {
             println!("\n{name} GPU passes (timestamp queries):");

@@ -9,7 +9,9 @@
 //! Also the contour's line search (`tracker::contour::search_line`, on
 //! the host in every back end): 160 lines (a frame's contour points at a
 //! 4 px spacing) across a disc's noisy outline, at the half-lengths the
-//! contour step uses (ids `contour_lines/HALF`; one thread).
+//! contour step uses (ids `contour_lines/HALF`; one thread), and the
+//! learning of its colour statistics from a 320 x 320 frame
+//! (`contour_lines/learn_320x320_8_sectors`).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Vector2, Vector3, Vector6};
@@ -70,8 +72,8 @@ fn bench(c: &mut Criterion) {
 const DISC: ([f64; 2], f64) = ([160.3, 159.7], 100.0);
 
 /// A yellow disc ([`DISC`]) on a noisy two-tone background, with its
-/// colours learnt.
-fn disc_frame() -> (image::RgbImage, ColourModel) {
+/// colours learnt, and its coverage.
+fn disc_frame() -> (image::RgbImage, ColourModel, Vec<bool>) {
     let (w, h) = (320u32, 320u32);
     let mut rng = Rng::new(7);
     let (centre, r) = (Vector2::from(DISC.0), DISC.1);
@@ -105,7 +107,7 @@ fn disc_frame() -> (image::RgbImage, ColourModel) {
         2,
         1.0,
     );
-    (frame, colours)
+    (frame, colours, coverage)
 }
 
 /// 160 lines across [`DISC`]'s outline (start, outward normal), each
@@ -128,7 +130,18 @@ fn bench_lines(c: &mut Criterion) {
         .sample_size(20)
         .warm_up_time(Duration::from_millis(300))
         .measurement_time(Duration::from_secs(1));
-    let (frame, colours) = disc_frame();
+    let (frame, colours, coverage) = disc_frame();
+    // Learning a frame's colours, the whole object's and 8 sectors', over
+    // the whole 320 x 320 frame (the contour step learns over its window
+    // after every tracked frame).
+    let mut sectors = ColourModel::with_sectors(16, 8);
+    let rect = (0, 0, frame.width() as usize - 1, frame.height() as usize - 1);
+    let centre = Some(Vector2::from(DISC.0));
+    sectors.learn_around(&frame, &coverage, rect, 2, 1.0, centre);
+    assert!((0..8).all(|k| sectors.sector_learned(k)));
+    group.bench_function("learn_320x320_8_sectors", |b| {
+        b.iter(|| sectors.learn_around(&frame, &coverage, rect, 2, 0.1, centre))
+    });
     for half in [32.0f32, 16.0, 5.0] {
         let lines = disc_lines(half);
         let found = lines

@@ -336,15 +336,21 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             "--profile",
         ]);
         check_tracker_csv(&out);
-        let line = stdout
-            .lines()
-            .find(|l| l.contains("read back from the GPU"))
-            .unwrap_or_else(|| panic!("no readback line: {stdout}"));
-        line.split_whitespace()
-            .nth(5)
-            .unwrap()
-            .parse::<f64>()
-            .unwrap()
+        let field = |label: &str, k: usize| -> f64 {
+            let line = stdout
+                .lines()
+                .find(|l| l.contains(label))
+                .unwrap_or_else(|| panic!("no {label:?} line: {stdout}"));
+            line.split_whitespace().nth(k).unwrap().parse().unwrap()
+        };
+        // Each readback is a submission (shared with the work before it
+        // where it follows at once), and there is other work besides.
+        let (readbacks, submissions) = (field("read back from the GPU", 8), field("GPU work", 2));
+        assert!(
+            readbacks >= 1.0 && submissions > readbacks,
+            "{readbacks} readbacks, {submissions} submissions a frame: {stdout}"
+        );
+        field("read back from the GPU", 5)
     };
     let (on, off) = (bytes_read("on"), bytes_read("off"));
     assert!(

@@ -158,8 +158,10 @@ fn a_detection_reads_its_count_and_candidates_back_at_once() {
     // (the first of many after few) reads the rest in a second readback.
     // The corners are the reference's either way; once the count is
     // known, a detection waits for the GPU twice (candidates, refined
-    // corners), once without refinement. A context of its own, so that
-    // other tests' readbacks are not counted.
+    // corners), once without refinement. Each wait shares its submission
+    // with the passes before it (GpuContext::read_buffers_after): as many
+    // submissions as waits. A context of its own, so that other tests'
+    // readbacks are not counted.
     use splattrack::gpu::AdapterChoice;
     let c = GpuContext::new(&AdapterChoice::Cpu)
         .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
@@ -176,9 +178,14 @@ fn a_detection_reads_its_count_and_candidates_back_at_once() {
             ("many again", &many),
             ("few", &few),
         ] {
-            let before = c.readbacks();
+            let (before, subs) = (c.readbacks(), c.submissions());
             let got = harris.detect(img, None).unwrap();
             waits.push(c.readbacks() - before);
+            assert_eq!(
+                c.submissions() - subs,
+                c.readbacks() - before,
+                "refine {refine}, {name}: submissions"
+            );
             let want = harris_cpu(img, &cfg, None).unwrap();
             assert!(!want.is_empty(), "{name}");
             assert_same_corners(&format!("refine {refine}, {name}"), &got, &want);

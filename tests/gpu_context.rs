@@ -88,6 +88,48 @@ fn read_buffers_reads_several_buffers_in_one_readback() {
 }
 
 #[test]
+fn a_readback_after_recorded_work_is_one_submission() {
+    // `read_buffer_after` / `read_buffers_after`: the copies go behind
+    // the caller's work in its encoder, so the work and its readback cost
+    // one submission and one wait; the values are those the work wrote.
+    // An overread is refused before anything is submitted, the caller's
+    // work included (the buffer keeps its values).
+    let c = own_ctx();
+    let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
+    let b = c.buffer_init("b", &[9u32; 3], gpu::STORAGE_OUT);
+    let (subs, reads) = (c.submissions(), c.readbacks());
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    enc.clear_buffer(&a, 0, Some(8));
+    enc.copy_buffer_to_buffer(&b, 0, &a, 12, 4);
+    let got: Vec<u32> = c.read_buffer_after(enc, &a, 5).unwrap();
+    assert_eq!(got, [0, 0, 3, 9, 5]);
+    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (1, 1));
+
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    enc.clear_buffer(&b, 4, None);
+    let parts = c.read_buffers_after(enc, &[(&b, 12), (&a, 6)]).unwrap();
+    assert_eq!(parts[0], bytemuck::cast_slice::<u32, u8>(&[9, 0, 0]));
+    assert_eq!(parts[1], bytemuck::cast_slice::<u32, u8>(&[0, 0])[..6]);
+    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (2, 2));
+
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    enc.clear_buffer(&a, 0, None);
+    assert!(matches!(
+        c.read_buffer_after::<u32>(enc, &a, 6),
+        Err(GpuError::Readback(_))
+    ));
+    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (2, 2));
+    assert_eq!(c.read_buffer::<u32>(&a, 5).unwrap(), [0, 0, 3, 9, 5]);
+
+    // Nothing to read: the work is submitted alone, without a wait.
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    enc.clear_buffer(&a, 16, None);
+    assert!(c.read_buffers_after(enc, &[(&a, 0)]).unwrap()[0].is_empty());
+    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (4, 3));
+    assert_eq!(c.read_buffer::<u32>(&a, 5).unwrap(), [0, 0, 3, 9, 0]);
+}
+
+#[test]
 fn device_has_the_limits_the_splatter_needs() {
     // Four RGBA32F targets = 64 bytes per sample; wgpu's default is 32.
     assert!(

@@ -306,8 +306,7 @@ impl NccMatcher {
         self.write_positions(&pos, na);
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         self.encode(&mut enc, na, nb, false);
-        ctx.queue.submit([enc.finish()]);
-        let best: Vec<Best> = ctx.read_buffer(self.best.get(), na + nb)?;
+        let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
         self.finish_timing()?;
         Ok(mutual(&best[..na], &best[na..], self.config.min_score))
     }
@@ -382,8 +381,7 @@ impl NccMatcher {
             (len_b * px) as u64,
         );
         self.encode(&mut enc, na, nb, true);
-        ctx.queue.submit([enc.finish()]);
-        let out: Vec<MatchOut> = ctx.read_buffer(self.matched.get(), na)?;
+        let out: Vec<MatchOut> = ctx.read_buffer_after(enc, self.matched.get(), na)?;
         self.finish_timing()?;
         let y0 = b_rows.start as f64;
         Ok(out

@@ -209,7 +209,7 @@ impl Kernel {
                 1,
             );
         }
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit(enc);
         Ok(())
     }
 }

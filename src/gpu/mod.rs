@@ -108,6 +108,10 @@ struct Health {
     /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
     bytes_read: std::sync::atomic::AtomicU64,
     readbacks: std::sync::atomic::AtomicU64,
+    /// Submissions through [`GpuContext::submit`] (each a command buffer
+    /// recorded, validated, submitted and, once done, freed: the host's
+    /// fixed cost of GPU work).
+    submissions: std::sync::atomic::AtomicU64,
     /// The staging buffer of readbacks, grow-only; taken while in use (a
     /// concurrent readback makes its own).
     staging: std::sync::Mutex<Option<wgpu::Buffer>>,
@@ -642,6 +646,26 @@ impl GpuContext {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// Submissions so far through [`GpuContext::submit`] (all clones of
+    /// this context together), counted as [`GpuContext::readbacks`].
+    pub fn submissions(&self) -> u64 {
+        self.health
+            .submissions
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Finishes `enc` and submits it, counted by
+    /// [`GpuContext::submissions`]. Every submission of the crate goes
+    /// through here.
+    #[track_caller]
+    pub fn submit(&self, enc: wgpu::CommandEncoder) -> wgpu::SubmissionIndex {
+        log::trace!("submit at {}", std::panic::Location::caller());
+        self.health
+            .submissions
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.queue.submit([enc.finish()])
+    }
+
     /// A mappable staging buffer of at least `size` bytes: the kept one
     /// when it is free and large enough (grown otherwise), else a new one.
     /// Give it back with [`GpuContext::put_staging`].
@@ -689,29 +713,34 @@ impl GpuContext {
 
     /// Reads `count` values of `T` from the start of `buffer` (which needs
     /// `COPY_SRC`), waiting for all submitted work.
+    #[track_caller]
     pub fn read_buffer<T: bytemuck::Pod>(
         &self,
         buffer: &wgpu::Buffer,
         count: usize,
     ) -> Result<Vec<T>, GpuError> {
-        let size = (count * std::mem::size_of::<T>()) as u64;
-        if size == 0 {
+        if count == 0 || std::mem::size_of::<T>() == 0 {
             return Ok(Vec::new());
         }
-        if size > buffer.size() {
-            return Err(GpuError::Readback(format!(
-                "asked for {size} bytes of a {}-byte buffer",
-                buffer.size()
-            )));
-        }
-        let staging = self.take_staging(size.next_multiple_of(4));
-        let mut enc = self.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, size.next_multiple_of(4));
-        self.queue.submit([enc.finish()]);
-        // A failed map may leave the buffer pending: dropped, not kept.
-        let bytes = self.map_read(&staging, size)?;
-        self.put_staging(staging);
-        Ok(bytemuck::pod_collect_to_vec(&bytes[..size as usize]))
+        let enc = self.device.create_command_encoder(&Default::default());
+        self.read_buffer_after(enc, buffer, count)
+    }
+
+    /// [`GpuContext::read_buffer`] after the work recorded in `enc`: the
+    /// copy is recorded behind it and both go in one submission (each
+    /// submission costs the host a command buffer's recording,
+    /// validation and release; [`GpuContext::submissions`]). An overread
+    /// is refused before anything is submitted, `enc`'s work included.
+    #[track_caller]
+    pub fn read_buffer_after<T: bytemuck::Pod>(
+        &self,
+        enc: wgpu::CommandEncoder,
+        buffer: &wgpu::Buffer,
+        count: usize,
+    ) -> Result<Vec<T>, GpuError> {
+        let size = (count * std::mem::size_of::<T>()) as u64;
+        let parts = self.read_buffers_after(enc, &[(buffer, size)])?;
+        Ok(bytemuck::pod_collect_to_vec(&parts[0]))
     }
 
     /// Reads the first `bytes` of each buffer (which need `COPY_SRC`) in one
@@ -720,7 +749,24 @@ impl GpuContext {
     /// once a buffer (each wait is a round trip: about 40 us on lavapipe,
     /// `cargo bench --bench features -- readback`). Returns each part's
     /// bytes, `bytes` long.
+    #[track_caller]
     pub fn read_buffers(&self, parts: &[(&wgpu::Buffer, u64)]) -> Result<Vec<Vec<u8>>, GpuError> {
+        if parts.iter().all(|(_, bytes)| *bytes == 0) {
+            return Ok(parts.iter().map(|_| Vec::new()).collect());
+        }
+        let enc = self.device.create_command_encoder(&Default::default());
+        self.read_buffers_after(enc, parts)
+    }
+
+    /// [`GpuContext::read_buffers`] after the work recorded in `enc`, in
+    /// one submission ([`GpuContext::read_buffer_after`]). With nothing to
+    /// read, `enc` is submitted alone, without a wait.
+    #[track_caller]
+    pub fn read_buffers_after(
+        &self,
+        mut enc: wgpu::CommandEncoder,
+        parts: &[(&wgpu::Buffer, u64)],
+    ) -> Result<Vec<Vec<u8>>, GpuError> {
         let mut offsets = Vec::with_capacity(parts.len());
         let mut total = 0u64;
         for (buffer, bytes) in parts {
@@ -734,16 +780,17 @@ impl GpuContext {
             total += bytes.next_multiple_of(4);
         }
         if total == 0 {
+            self.submit(enc);
             return Ok(parts.iter().map(|_| Vec::new()).collect());
         }
         let staging = self.take_staging(total);
-        let mut enc = self.device.create_command_encoder(&Default::default());
         for ((buffer, bytes), &at) in parts.iter().zip(&offsets) {
             if *bytes > 0 {
                 enc.copy_buffer_to_buffer(buffer, 0, &staging, at, bytes.next_multiple_of(4));
             }
         }
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
+        // A failed map may leave the buffer pending: dropped, not kept.
         let all = self.map_read(&staging, total)?;
         self.put_staging(staging);
         Ok(parts
@@ -781,7 +828,7 @@ impl GpuContext {
             },
             texture.size(),
         );
-        self.queue.submit([enc.finish()]);
+        self.submit(enc);
         let bytes = self.map_read(&staging, (padded * h) as u64)?;
         let mut out = Vec::with_capacity((row * h) as usize);
         for y in 0..h as usize {
@@ -798,6 +845,7 @@ impl GpuContext {
             .bytes_read
             .fetch_add(size.next_multiple_of(4), relaxed);
         self.health.readbacks.fetch_add(1, relaxed);
+        log::trace!("readback of {size} bytes");
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);

@@ -49,7 +49,7 @@ pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(workgroups(n, WORKGROUP_1D), 1, 1);
     }
-    ctx.queue.submit([enc.finish()]);
+    ctx.submit(enc);
     ctx.read_buffer(&yb, x.len())
 }
 

@@ -352,7 +352,7 @@ impl ComputeSplatter {
         if let Some(t) = timer {
             t.resolve(&mut enc);
         }
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit(enc);
         Ok(())
     }
 }

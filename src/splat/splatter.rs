@@ -368,7 +368,7 @@ impl Splatter {
         if let Some(t) = timer {
             t.resolve(&mut enc);
         }
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit(enc);
         targets.rendered = Some(attrs);
         targets.depth_only = false;
         targets.view = Some((*pose, *cam));
@@ -431,7 +431,7 @@ impl Splatter {
         if let Some(t) = timer {
             t.resolve(&mut enc);
         }
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit(enc);
         targets.rendered = None;
         targets.depth_only = true;
         targets.view = Some((*pose, *cam));
@@ -604,6 +604,20 @@ impl Splatter {
         attribute: Attribute,
         out: &wgpu::Buffer,
     ) -> Result<(), SplatError> {
+        let enc = self.encode_resolve(ctx, targets, attribute, out)?;
+        ctx.submit(enc);
+        Ok(())
+    }
+
+    /// Records [`Splatter::resolve_into`]'s pass (its parameters queued)
+    /// for the caller to submit, with a readback behind it, say.
+    fn encode_resolve(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        attribute: Attribute,
+        out: &wgpu::Buffer,
+    ) -> Result<wgpu::CommandEncoder, SplatError> {
         targets.check(attribute.needs(), attribute)?;
         let (w, h) = (targets.width, targets.height);
         let n = w as u64 * h as u64 * attribute.channels() as u64;
@@ -643,8 +657,7 @@ impl Splatter {
                 1,
             );
         }
-        ctx.queue.submit([enc.finish()]);
-        Ok(())
+        Ok(enc)
     }
 
     /// Normalises one attribute of the last render on the GPU and reads the
@@ -661,8 +674,8 @@ impl Splatter {
         let n = w as usize * h as usize * attribute.channels();
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         let out = self.grown(ctx, Grown::Read, (n * 4) as u64);
-        self.resolve_into(ctx, targets, attribute, &out)?;
-        let data = ctx.read_buffer::<f32>(&out, n)?;
+        let enc = self.encode_resolve(ctx, targets, attribute, &out)?;
+        let data = ctx.read_buffer_after::<f32>(enc, &out, n)?;
         Ok(SplatImage {
             width: w,
             height: h,
@@ -727,8 +740,7 @@ impl Splatter {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(workgroups(points.len() as u32, WORKGROUP_1D), 1, 1);
         }
-        ctx.queue.submit([enc.finish()]);
-        let data = ctx.read_buffer::<f32>(&out, n)?;
+        let data = ctx.read_buffer_after::<f32>(enc, &out, n)?;
         Ok(data
             .chunks(GATHER_STRIDE)
             .map(GatherSample::from_floats)

@@ -111,6 +111,10 @@ pub struct StageTimes {
     /// ([`GpuContext::readbacks`]).
     #[serde(default)]
     pub readbacks: f64,
+    /// Submissions of GPU work during the call
+    /// ([`GpuContext::submissions`]).
+    #[serde(default)]
+    pub submissions: f64,
     /// Rounds (searches and solves) of the contour step during the call
     /// (a mean over frames is fractional).
     #[serde(default)]
@@ -145,6 +149,7 @@ impl StageTimes {
         }
         self.readback_bytes += other.readback_bytes * k;
         self.readbacks += other.readbacks * k;
+        self.submissions += other.submissions * k;
         self.contour_rounds += other.contour_rounds * k;
         self.contour_renders += other.contour_renders * k;
         for (label, ms) in &other.gpu {
@@ -590,7 +595,11 @@ impl Tracker {
             });
         }
         let t0 = Instant::now();
-        let read0 = (self.ctx.bytes_read(), self.ctx.readbacks());
+        let read0 = (
+            self.ctx.bytes_read(),
+            self.ctx.readbacks(),
+            self.ctx.submissions(),
+        );
         self.resident.begin();
         self.contour_rounds = 0;
         self.contour_renders = 0;
@@ -769,6 +778,7 @@ impl Tracker {
         times.gpu = sub.gpu;
         times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
+        times.submissions = (self.ctx.submissions() - read0.2) as f64;
         times.contour_rounds = self.contour_rounds as f64;
         times.contour_renders = self.contour_renders as f64;
         times.total = t0.elapsed();

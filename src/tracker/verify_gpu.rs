@@ -238,8 +238,7 @@ impl GpuCheck {
         if let Some(t) = &self.timer {
             t.resolve(&mut enc);
         }
-        ctx.queue.submit([enc.finish()]);
-        let s: Vec<f32> = ctx.read_buffer(self.total.get(), CHECK_SUMS as usize)?;
+        let s: Vec<f32> = ctx.read_buffer_after(enc, self.total.get(), CHECK_SUMS as usize)?;
         if let Some(t) = self.timer.as_mut() {
             self.last_timings = t.read(ctx)?;
         }

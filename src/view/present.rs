@@ -283,7 +283,7 @@ impl Presenter {
         let view = target.create_view(&Default::default());
         let mut enc = ctx.device.create_command_encoder(&Default::default());
         self.draw(ctx, &mut enc, picture, &view, dst)?;
-        ctx.queue.submit([enc.finish()]);
+        ctx.submit(enc);
         let bytes = ctx.read_texture(&target, 4)?;
         ctx.check()?;
         RgbaImage::from_raw(dst.0, dst.1, bytes)

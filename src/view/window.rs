@@ -255,7 +255,7 @@ impl WindowSink {
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         self.presenter
             .draw(&self.ctx, &mut enc, picture, &view, dst)?;
-        self.ctx.queue.submit([enc.finish()]);
+        self.ctx.submit(enc);
         self.window.pre_present_notify();
         self.ctx.queue.present(texture);
         self.ctx.check()?;

@@ -225,7 +225,14 @@ impl Harris {
     }
 
     /// Runs the map passes and NMS (not the refinement).
-    fn run_maps(&mut self, input: Input, mask: Option<&[bool]>) -> Result<(), FeatureError> {
+    /// Records the passes that make the response and candidate maps of
+    /// `input` (its uploads queued), for the caller to submit: with the
+    /// candidates' readback behind them, one submission.
+    fn encode_maps(
+        &mut self,
+        input: Input,
+        mask: Option<&[bool]>,
+    ) -> Result<wgpu::CommandEncoder, FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
         let ctx = &self.ctx.clone();
@@ -309,8 +316,7 @@ impl Harris {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
-        ctx.queue.submit([enc.finish()]);
-        Ok(())
+        Ok(enc)
     }
 
     /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
@@ -324,8 +330,10 @@ impl Harris {
         if self.host {
             return super::harris_response_host(img, &self.config);
         }
-        self.run_maps(Input::Grey(img), None)?;
-        let response = self.ctx.read_buffer(self.response.get(), img.data.len())?;
+        let enc = self.encode_maps(Input::Grey(img), None)?;
+        let response = self
+            .ctx
+            .read_buffer_after(enc, self.response.get(), img.data.len())?;
         self.finish_timing()?;
         Ok(response)
     }
@@ -522,7 +530,7 @@ impl Harris {
             }
             return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
-        self.run_maps(input, mask)?;
+        let enc = self.encode_maps(input, mask)?;
         let ctx = &self.ctx.clone();
         // The count and the candidates in one readback: as many
         // candidates as recent detections found and a quarter more; the
@@ -530,10 +538,13 @@ impl Harris {
         let room = capacity(w, h);
         let guess = (self.recent_counts.iter().max().copied().unwrap_or(0) * 5 / 4 + 256).min(room);
         let size = std::mem::size_of::<Candidate>();
-        let parts = ctx.read_buffers(&[
-            (self.counters.get(), std::mem::size_of::<Counters>() as u64),
-            (self.candidates.get(), (guess * size) as u64),
-        ])?;
+        let parts = ctx.read_buffers_after(
+            enc,
+            &[
+                (self.counters.get(), std::mem::size_of::<Counters>() as u64),
+                (self.candidates.get(), (guess * size) as u64),
+            ],
+        )?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
         let count = (counters.count as usize).min(room);
         self.recent_counts = [self.recent_counts[1], count];
@@ -564,7 +575,7 @@ impl Harris {
             let ctx = &self.ctx.clone();
             let mut enc = ctx.device.create_command_encoder(&Default::default());
             t.resolve(&mut enc);
-            ctx.queue.submit([enc.finish()]);
+            ctx.submit(enc);
             self.last_timings = t.read(ctx)?;
         }
         Ok(())
@@ -601,8 +612,7 @@ impl Harris {
             pass.set_bind_group(0, self.bind.as_ref().expect("prepared"), &[]);
             pass.dispatch_workgroups(workgroups(n as u32, WORKGROUP_1D), 1, 1);
         }
-        ctx.queue.submit([enc.finish()]);
-        let out: Vec<RefineCorner> = ctx.read_buffer(self.corners.get(), n)?;
+        let out: Vec<RefineCorner> = ctx.read_buffer_after(enc, self.corners.get(), n)?;
         Ok(out
             .iter()
             .map(|c| Corner {
