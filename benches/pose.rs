@@ -135,7 +135,12 @@ fn bench_lines(c: &mut Criterion) {
     // the whole 320 x 320 frame (the contour step learns over its window
     // after every tracked frame).
     let mut sectors = ColourModel::with_sectors(16, 8);
-    let rect = (0, 0, frame.width() as usize - 1, frame.height() as usize - 1);
+    let rect = (
+        0,
+        0,
+        frame.width() as usize - 1,
+        frame.height() as usize - 1,
+    );
     let centre = Some(Vector2::from(DISC.0));
     sectors.learn_around(&frame, &coverage, rect, 2, 1.0, centre);
     assert!((0..8).all(|k| sectors.sector_learned(k)));
