@@ -311,11 +311,7 @@ fn a_depth_only_render_gives_the_full_renders_contour_with_model_limb_normals() 
         let xo = inv.transform_point(
             &cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z),
         );
-        let n = grid.normal_at(
-            &model,
-            Vec3::new(xo.x as f32, xo.y as f32, xo.z as f32),
-            eye,
-        )?;
+        let n = grid.normal_at(Vec3::new(xo.x as f32, xo.y as f32, xo.z as f32), eye)?;
         looked_up += 1;
         Some(pose.rotation * Vector3::new(n.x as f64, n.y as f64, n.z as f64))
     });
