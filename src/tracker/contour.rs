@@ -534,9 +534,10 @@ impl Run {
 }
 
 /// [`turn_of`]`((x0 + i - cx, dy))` into `out[i]`, bit for bit (the same
-/// operations in the same order), for a row of pixels at once: without
-/// branches, so that the compiler can vectorise the divisions. `x0 + i`
-/// must fit an `i32`.
+/// operations in the same order), for a row of pixels at once, with
+/// selects instead of branches (the baseline x86-64 build keeps the
+/// divisions scalar; a build for wider vectors may vectorise them).
+/// `x0 + i` must fit an `i32`.
 fn turns_of_row(x0: i32, cx: f64, dy: f64, out: &mut [f64]) {
     let ay = dy.abs();
     let (quarter, turn) = (0.25 * std::f64::consts::PI, std::f64::consts::TAU);

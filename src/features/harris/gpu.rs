@@ -224,10 +224,9 @@ impl Harris {
         Ok(())
     }
 
-    /// Runs the map passes and NMS (not the refinement).
-    /// Records the passes that make the response and candidate maps of
-    /// `input` (its uploads queued), for the caller to submit: with the
-    /// candidates' readback behind them, one submission.
+    /// Records the map passes and NMS (not the refinement) over `input`,
+    /// its uploads queued, for the caller to submit: with the candidates'
+    /// readback behind them, one submission.
     fn encode_maps(
         &mut self,
         input: Input,
