@@ -176,7 +176,7 @@ fn timer_reports_pass_durations() {
         pass.dispatch_workgroups(gpu::workgroups(n as u32, gpu::WORKGROUP_1D), 1, 1);
     }
     timer.resolve(&mut enc);
-    c.queue.submit([enc.finish()]);
+    c.submit(enc);
     let report = timer.read(c).unwrap();
     let y: Vec<f32> = c.read_buffer(&y, n).unwrap();
     assert!(y.iter().all(|&v| v == 5.0), "two passes of y += 1.5 x");
