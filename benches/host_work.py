@@ -14,7 +14,10 @@ frame loop's host side"). Record with call graphs first, e.g.
     python3 benches/host_work.py perf.data 999 FRAMES
 
 (FRAMES: the frames tracked). Prints ms a frame per category, and the
-GPU API calls behind the submission category. Needs perf; standard
+GPU API calls behind the submission category. The contour's colour
+learning runs on a thread of its own while the next frame's texture steps
+run (src/tracker/learner.rs); its time is printed apart, not in the host's
+total. Needs perf; standard
 library only.
 """
 
@@ -33,10 +36,16 @@ CATEGORIES = [
      r"wgpu|read_buffer|map_read|poll"),
 ]
 
+# The contour's colour learning on its own thread (src/tracker/learner.rs,
+# named so; perf keeps 15 characters): not on the frame's path, reported
+# apart.
+LEARNER = "splattrack-colours"[:15]
 
-def samples(path):
-    """Yields each sample's call chain, leaf first, as (symbol, dso)."""
-    p = subprocess.Popen(["perf", "script", "-i", path, "-F", "ip,sym,dso"],
+
+def samples(path, threads=None):
+    """Yields each sample's call chain, leaf first, as (symbol, dso); with
+    a list `threads`, appends each sample's thread name to it."""
+    p = subprocess.Popen(["perf", "script", "-i", path, "-F", "comm,ip,sym,dso"],
                          stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     stack = []
     for line in p.stdout:
@@ -44,6 +53,8 @@ def samples(path):
             if stack:
                 yield stack
             stack = []
+            if line.strip() and threads is not None:
+                threads.append(line.strip())
             continue
         m = re.match(r"\s+([0-9a-f]+)\s+(.*)\s+\((.*)\)\s*$", line)
         if m:
@@ -61,8 +72,13 @@ def main():
     per_frame = 1e3 / hz / frames
     total, api, other = collections.Counter(), collections.Counter(), collections.Counter()
     lib = collections.Counter()
-    for stack in samples(path):
+    aside = 0
+    threads = []
+    for stack in samples(path, threads):
         syms = [s for s, _ in stack]
+        if threads and threads[-1] == LEARNER:
+            aside += 1
+            continue
         if not any("Tracker::track" in s for s in syms):
             continue
         joined = " | ".join(syms)
@@ -84,6 +100,7 @@ def main():
     for name, n in total.most_common():
         print(f"  {n * per_frame:7.2f}  {name}")
     print(f"  {host * per_frame:7.2f}  the host in all")
+    print(f"  {aside * per_frame:7.2f}  besides, on the colour learner's thread (beside the next frame's steps)")
     print("GPU API calls behind the submission:")
     for name, n in api.most_common(6):
         print(f"  {n * per_frame:7.2f}  {name}")

@@ -489,6 +489,54 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
     assert!(worst < 3.0, "worst rotation error {worst:.2} deg");
 }
 
+/// The colours of a tracked frame are learnt on a thread of their own,
+/// beside the next frame's steps (src/tracker/learner.rs): the poses must
+/// be those of learning on the tracking thread, bit for bit, and each
+/// frame after the first reports the learning's time. The untextured
+/// object's first 8 frames at 320x240, contour alone (every frame learns).
+#[test]
+fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
+    use splattrack::tracker::{Modalities, Status, TrackerConfig};
+    let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
+    let (model, frames) = plain_frames(camera, 60, 8);
+    let run = |background: bool| {
+        let config = TrackerConfig {
+            modalities: Modalities::CONTOUR,
+            ..Default::default()
+        };
+        let mut t = splattrack::tracker::Tracker::new(
+            ctx(),
+            model.clone(),
+            camera,
+            None,
+            config,
+            frames[0].pose,
+        )
+        .unwrap();
+        t.set_background_learning(background);
+        frames
+            .iter()
+            .map(|f| t.track(&f.image).unwrap())
+            .collect::<Vec<_>>()
+    };
+    let here = run(false);
+    let beside = run(true);
+    for (i, (a, b)) in here.iter().zip(&beside).enumerate() {
+        assert_eq!(a.status, Status::Tracking, "frame {i}");
+        assert_eq!(a.pose, b.pose, "frame {i}: the poses differ");
+        assert_eq!(a.inliers, b.inliers, "frame {i}");
+        // On the tracking thread, a frame's learning is its own; beside,
+        // the previous frame's, reported when the contour step takes the
+        // colours back (the first frame learns before its search).
+        assert!(!a.times.colour_learning.is_zero(), "frame {i}");
+        assert!(a.times.colour_wait.is_zero(), "frame {i}");
+        assert!(
+            !b.times.colour_learning.is_zero(),
+            "frame {i}: no learning reported"
+        );
+    }
+}
+
 /// Texture and contour together on the untextured object (640x480, 100k
 /// points, the synth keyframes, lit from elsewhere than the frames): at
 /// frame 28 of the 40-frame Fig. 10 run, started at the true pose of frame

@@ -618,7 +618,7 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
     let rest = |whole: std::time::Duration, parts: &[std::time::Duration]| {
         ms(whole) - parts.iter().map(|d| ms(*d)).sum::<f64>()
     };
-    let rows = [
+    let mut rows = vec![
         ("features (frame Harris)", ms(t.features)),
         ("IT", ms(t.it)),
         ("  render + gather", ms(t.it_render)),
@@ -641,6 +641,10 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         ),
         ("total", ms(t.total)),
     ];
+    if t.contour_rounds > 0.0 {
+        let at = rows.iter().position(|(n, _)| *n == "contour").unwrap_or(0) + 1;
+        rows.insert(at, ("  waiting for its colours", ms(t.colour_wait)));
+    }
     let mut out = String::from("per frame (mean):\n");
     for (name, v) in rows {
         out += &format!("  {name:<26} {v:8.1} ms\n");
@@ -654,6 +658,13 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         out += &format!(
             "  {:<26} {:8.2} ({:.2} renders)\n",
             "contour rounds", t.contour_rounds, t.contour_renders
+        );
+    }
+    if !t.colour_learning.is_zero() {
+        out += &format!(
+            "  {:<26} {:8.1} ms (on a thread of its own, beside the next frame's steps)\n",
+            "contour colour learning",
+            ms(t.colour_learning)
         );
     }
     if !t.gpu.is_empty() {

@@ -1657,18 +1657,18 @@ impl Tracker {
                 .copy_from_slice(&local[y * ww..(y + 1) * ww]);
         }
         self.contour_mask_fresh = true;
-        if !self.colours.is_learned()
+        if !self.colours.model().is_learned()
             && let Some(rect) = self.roi(pose)
             && let Some(centre) = self.centre_px(pose)
         {
-            self.colours.learn_around(
-                frame,
-                &self.contour_mask,
+            // Needed at once: learnt here.
+            let lesson = super::learner::Lesson {
                 rect,
-                cfg.learn_margin_px,
-                cfg.learning_rate,
-                Some(centre),
-            );
+                margin: cfg.learn_margin_px,
+                rate: cfg.learning_rate,
+                centre: Some(centre),
+            };
+            self.colours.learn_here(frame, &self.contour_mask, lesson);
         }
         // Window coordinates (the window's origin is a multiple of the
         // spacing: the same cells as the whole image), then the frame's.
@@ -1755,7 +1755,7 @@ impl Tracker {
             let centre = self.centre_px(pose).unwrap_or_default();
             let mut obs = search_lines(
                 frame,
-                &self.colours,
+                self.colours.model(),
                 centre,
                 found,
                 &twist,
@@ -1802,20 +1802,29 @@ impl Tracker {
         }))
     }
 
+    /// Whether the contour learns a tracked frame's colours on a thread of
+    /// its own while the next frame's texture steps run (`true`, the
+    /// default), or on the calling thread before [`Tracker::track`]
+    /// returns (for profiling, or an embedding that wants no thread). The
+    /// colours, and so the poses, are the same either way.
+    pub fn set_background_learning(&mut self, on: bool) {
+        self.colours.set_background(on);
+    }
+
     /// Learns the colours of `frame` at the last contour render (after a
-    /// tracked frame).
+    /// tracked frame): on the colour learner's thread (see
+    /// [`Tracker::set_background_learning`]).
     pub(super) fn learn_colours(&mut self, frame: &image::RgbImage, pose: &Pose) {
         let fresh = std::mem::take(&mut self.contour_mask_fresh);
         if let (true, Some(rect), Some(centre)) = (fresh, self.roi(pose), self.centre_px(pose)) {
             let c = &self.config.contour;
-            self.colours.learn_around(
-                frame,
-                &self.contour_mask,
+            let lesson = super::learner::Lesson {
                 rect,
-                c.learn_margin_px,
-                c.learning_rate,
-                Some(centre),
-            );
+                margin: c.learn_margin_px,
+                rate: c.learning_rate,
+                centre: Some(centre),
+            };
+            self.colours.learn(frame, &mut self.contour_mask, lesson);
         }
     }
 
@@ -1823,12 +1832,6 @@ impl Tracker {
     /// colour sectors' directions.
     fn centre_px(&self, pose: &Pose) -> Option<Vector2<f64>> {
         self.cam.project(&pose.transform_point(&self.center))
-    }
-
-    /// Fresh colour histograms, of the configured sectors.
-    pub(super) fn fresh_colours(&self) -> ColourModel {
-        let c = &self.config.contour;
-        ColourModel::with_sectors(c.bins, c.sectors)
     }
 }
 

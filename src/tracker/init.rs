@@ -437,7 +437,7 @@ impl Tracker {
         if self.config.modalities.contour {
             // The candidates' colours are not the object's: the first
             // tracked frame learns them afresh at its pose.
-            self.colours = self.fresh_colours();
+            self.colours.reset();
         }
         found
     }
@@ -582,7 +582,7 @@ impl Tracker {
         rgb: &image::RgbImage,
         start: Pose,
     ) -> Result<Option<(Pose, bool)>, TrackError> {
-        self.colours = self.fresh_colours();
+        self.colours.reset();
         let rules = super::decision::Rules::of(&self.config);
         let mut pose = start;
         for i in 0..self.config.init.refine_steps.max(1) {

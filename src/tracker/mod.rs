@@ -41,6 +41,7 @@ mod decision;
 pub mod init;
 mod it;
 mod kf;
+mod learner;
 mod profile;
 pub mod verify;
 pub mod verify_gpu;
@@ -123,6 +124,16 @@ pub struct StageTimes {
     /// the last render's points instead).
     #[serde(default)]
     pub contour_renders: f64,
+    /// The contour's colour learning from a tracked frame, wherever it ran:
+    /// by default on a thread of its own, beside the next frame's texture
+    /// steps (counted in the frame it finished in, and not in `total`
+    /// then); see [`Tracker::set_background_learning`].
+    #[serde(default)]
+    pub colour_learning: Duration,
+    /// Within the contour step: waiting for that thread to finish the
+    /// previous frame's learning.
+    #[serde(default)]
+    pub colour_wait: Duration,
     /// The whole call to [`Tracker::track`].
     pub total: Duration,
 }
@@ -142,6 +153,8 @@ impl StageTimes {
             (&mut self.kf_render, other.kf_render),
             (&mut self.kf_harris, other.kf_harris),
             (&mut self.kf_ncc, other.kf_ncc),
+            (&mut self.colour_learning, other.colour_learning),
+            (&mut self.colour_wait, other.colour_wait),
             (&mut self.total, other.total),
         ];
         for (acc, d) in pairs {
@@ -336,7 +349,7 @@ pub struct Tracker {
     /// The tracker's own handle on the device (a cheap clone).
     ctx: GpuContext,
     /// Contour: the object's and the background's colours, learnt online.
-    colours: contour::ColourModel,
+    colours: learner::Colours,
     /// Contour: the coverage of its last render, to learn the colours from
     /// (the frame's size; a buffer kept between frames).
     contour_mask: Vec<bool>,
@@ -479,7 +492,7 @@ impl Tracker {
             it_only_streak: 0,
             searching: false,
             ctx: ctx.clone(),
-            colours: contour::ColourModel::with_sectors(config_colours.0, config_colours.1),
+            colours: learner::Colours::new(config_colours.0, config_colours.1),
             contour_mask: Vec::new(),
             contour_mask_fresh: false,
             model_normals: None,
@@ -781,6 +794,7 @@ impl Tracker {
         times.submissions = (self.ctx.submissions() - read0.2) as f64;
         times.contour_rounds = self.contour_rounds as f64;
         times.contour_renders = self.contour_renders as f64;
+        (times.colour_learning, times.colour_wait) = self.colours.take_times();
         times.total = t0.elapsed();
         Ok(TrackResult {
             pose: self.pose,
