@@ -41,6 +41,7 @@ pub mod gpu;
 pub mod io;
 pub mod keyframes;
 pub mod model;
+pub mod par;
 pub mod plot;
 pub mod pose;
 pub mod progress;

@@ -95,7 +95,7 @@ fn centred_points(
 
 /// Threads for the per-point loops: the machine's cores, at most 16.
 fn threads() -> usize {
-    std::thread::available_parallelism().map_or(1, |n| n.get().min(16))
+    crate::par::cores().min(16)
 }
 
 /// Runs `work` over `0..n` cut into `threads` contiguous ranges, one thread

@@ -1391,20 +1391,12 @@ fn search_lines(
             ..*row
         })
     };
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get().min(8));
+    let threads = crate::par::cores().min(8);
     if threads < 2 || found.len() < 64 {
         return found.iter().filter_map(one).collect();
     }
-    let chunk = found.len().div_ceil(threads);
-    std::thread::scope(|scope| {
-        let parts: Vec<_> = found
-            .chunks(chunk)
-            .map(|c| scope.spawn(move || c.iter().filter_map(one).collect::<Vec<_>>()))
-            .collect();
-        parts
-            .into_iter()
-            .flat_map(|h| h.join().expect("a line search panicked"))
-            .collect()
+    crate::par::flat_map_chunks(found, found.len().div_ceil(threads), |part| {
+        part.iter().filter_map(one).collect()
     })
 }
 

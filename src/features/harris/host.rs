@@ -91,9 +91,7 @@ fn par_rows<const K: usize, F>(h: usize, w: usize, outs: [&mut [f32]; K], f: F)
 where
     F: Fn(usize, usize, [&mut [f32]; K]) + Sync,
 {
-    let threads = std::thread::available_parallelism()
-        .map_or(1, |n| n.get().min(8))
-        .min(h.div_ceil(16).max(1));
+    let threads = crate::par::cores().min(8).min(h.div_ceil(16).max(1));
     let per = h.div_ceil(threads);
     let mut rest = outs;
     std::thread::scope(|scope| {
