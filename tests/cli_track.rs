@@ -343,11 +343,12 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
                 .unwrap_or_else(|| panic!("no {label:?} line: {stdout}"));
             line.split_whitespace().nth(k).unwrap().parse().unwrap()
         };
-        // Each readback is a submission (shared with the work before it
-        // where it follows at once), and there is other work besides.
+        // Each readback is a submission, shared with the work before it
+        // (the chains of passes go with the readbacks that end them:
+        // `GpuContext::batch`); little other work is submitted alone.
         let (readbacks, submissions) = (field("read back from the GPU", 8), field("GPU work", 2));
         assert!(
-            readbacks >= 1.0 && submissions > readbacks,
+            readbacks >= 1.0 && submissions >= readbacks && submissions <= readbacks + 1.0,
             "{readbacks} readbacks, {submissions} submissions a frame: {stdout}"
         );
         field("read back from the GPU", 5)

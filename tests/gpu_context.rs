@@ -130,6 +130,71 @@ fn a_readback_after_recorded_work_is_one_submission() {
 }
 
 #[test]
+fn a_batch_submits_a_chain_of_passes_with_its_readback() {
+    // `GpuContext::batch`: work submitted within it waits for the next
+    // readback and goes with it, in order, in one submission; the values
+    // are those of submitting each step at once. Dropping the guard
+    // submits what is left; guards nest; `wait` submits what is put off;
+    // another thread's submissions are not batched.
+    let c = own_ctx();
+    let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
+    let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
+    let step = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
+        let mut enc = c.device.create_command_encoder(&Default::default());
+        f(&mut enc);
+        c.submit(enc);
+    };
+    let subs = c.submissions();
+    {
+        let _batch = c.batch();
+        // Each step reads what the one before wrote.
+        step(&|e| e.copy_buffer_to_buffer(&a, 0, &b, 4, 8));
+        step(&|e| e.clear_buffer(&a, 0, Some(8)));
+        step(&|e| e.copy_buffer_to_buffer(&b, 8, &a, 4, 4));
+        assert_eq!(c.submissions(), subs, "put off");
+        let enc = c.device.create_command_encoder(&Default::default());
+        let got: Vec<u32> = c.read_buffer_after(enc, &a, 4).unwrap();
+        assert_eq!(got, [0, 2, 3, 4]);
+        assert_eq!(c.submissions() - subs, 1, "one submission");
+        assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [7, 1, 2, 7]);
+        assert_eq!(c.submissions() - subs, 2);
+
+        // Nested: the inner guard's end submits nothing.
+        {
+            let _inner = c.batch();
+            step(&|e| e.clear_buffer(&b, 0, None));
+        }
+        assert_eq!(c.submissions() - subs, 2);
+
+        // Another thread submits and reads at once (and takes the work
+        // put off here with it: submitting earlier is always safe).
+        let d = c.buffer_init("d", &[5u32; 4], gpu::STORAGE_OUT);
+        std::thread::scope(|s| {
+            s.spawn(|| {
+                let mut enc = c.device.create_command_encoder(&Default::default());
+                enc.copy_buffer_to_buffer(&a, 12, &d, 0, 4);
+                c.submit(enc);
+                assert_eq!(c.submissions() - subs, 3, "not batched");
+            });
+        });
+        assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0; 4]);
+        assert_eq!(c.read_buffer::<u32>(&d, 4).unwrap(), [4, 5, 5, 5]);
+        assert_eq!(c.read_buffer::<u32>(&a, 4).unwrap(), [0, 2, 3, 4]);
+        let done = c.submissions();
+        step(&|e| e.clear_buffer(&a, 0, Some(4)));
+        c.wait().unwrap();
+        assert_eq!(c.submissions() - done, 1, "wait submits what is put off");
+        step(&|e| e.clear_buffer(&a, 4, Some(4)));
+        assert_eq!(c.submissions() - done, 1);
+    }
+    // The guard's end submitted the last clear.
+    let done = c.submissions();
+    let got: Vec<u32> = c.read_buffer(&a, 4).unwrap();
+    assert_eq!(got, [0, 0, 3, 4]);
+    assert_eq!(c.submissions() - done, 1, "no batch: the readback alone");
+}
+
+#[test]
 fn device_has_the_limits_the_splatter_needs() {
     // Four RGBA32F targets = 64 bytes per sample; wgpu's default is 32.
     assert!(

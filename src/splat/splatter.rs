@@ -56,7 +56,7 @@ const KEPT_BINDS: usize = 4;
 /// (grow-only) and the bind groups made on them.
 struct Reuse {
     /// The uniform of each resolve kind (indexed by kind).
-    params: [Option<wgpu::Buffer>; 5],
+    params: [Option<wgpu::Buffer>; 6],
     gather_params: Option<wgpu::Buffer>,
     /// Indexed by [`Grown`].
     buffers: [GrowBuffer; 3],
@@ -527,8 +527,9 @@ impl Splatter {
     }
 
     /// The bind group of a resolve or gather into `out` from `targets`,
-    /// with its uniform set to `params` (written now: each caller submits
-    /// before the next writes). Kept per (targets, out, points) and reused
+    /// with its uniform set to `params` (written now). Each kind of
+    /// resolve, and the gather, has a uniform of its own: a batch of
+    /// submissions ([`GpuContext::batch`]) may hold one of each. Kept per (targets, out, points) and reused
     /// (issue 13: no allocation per frame).
     fn resolve_bind(
         &self,

@@ -1585,6 +1585,8 @@ impl Tracker {
         let window = self.view_window(pose);
         let cam = self.use_window(window);
         let t0 = std::time::Instant::now();
+        // The render goes with its depth's readback.
+        let _batch = self.ctx.batch();
         let depth_only = self.config.contour.depth_only;
         if depth_only {
             self.splatter.render_depth(

@@ -57,7 +57,9 @@ impl Tracker {
     fn it_step(&mut self, prev: &Frame, frame: &Frame, pose: &Pose) -> Result<Refined, StepError> {
         let t = std::time::Instant::now();
         let window = self.view_window(pose);
-        // The check of the previous frame rendered this view already.
+        // The render (where the check of the previous frame did not make
+        // it already) goes with the gather's readback.
+        let _batch = self.ctx.batch();
         if !self.reuse_render(pose, window) {
             let cam = self.use_window(window);
             self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;

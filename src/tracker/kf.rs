@@ -89,6 +89,8 @@ impl Tracker {
             return Err(StepError::NoKeyframes);
         }
         let t = std::time::Instant::now();
+        // The render and the resolve go with Harris's first readback.
+        let batch = self.ctx.batch();
         let window = self.view_window(pose);
         let k = self
             .render_view_in(pose, Attributes::MOTION, window, "KF")?
@@ -122,6 +124,7 @@ impl Tracker {
                 score: c.score,
             })
             .collect();
+        drop(batch);
         self.note_harris("KF");
         self.stages.kf_harris += t.elapsed();
         let t = std::time::Instant::now();

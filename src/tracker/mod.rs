@@ -657,6 +657,10 @@ impl Tracker {
         let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let texture = self.config.modalities.texture;
+        // The frame's intake and its window's packing go to the GPU with
+        // Harris's first readback (their parameters have buffers of their
+        // own).
+        let intake = self.ctx.batch();
         if texture {
             self.resident.upload(&self.ctx, rgb)?;
         }
@@ -665,6 +669,7 @@ impl Tracker {
         } else {
             Vec::new()
         };
+        drop(intake);
         let frame = Frame { grey, corners };
         times.features = t_features.elapsed();
 

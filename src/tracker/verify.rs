@@ -445,6 +445,9 @@ impl super::Tracker {
         } else {
             Attributes::COLOR
         };
+        // The render, its resolves and the frame's window go with the
+        // scores' readback (or the view's).
+        let _batch = self.ctx.batch();
         let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
         if self.check.resident() && self.check.fits(window.width, window.height) {
             // Resident: the view is resolved into the check's buffers and
