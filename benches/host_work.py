@@ -17,8 +17,7 @@ frame loop's host side"). Record with call graphs first, e.g.
 GPU API calls behind the submission category. The contour's colour
 learning runs on a thread of its own while the next frame's texture steps
 run (src/tracker/learner.rs); its time is printed apart, not in the host's
-total. Needs perf; standard
-library only.
+total. Needs perf; standard library only.
 """
 
 import collections

@@ -529,8 +529,9 @@ impl Splatter {
     /// The bind group of a resolve or gather into `out` from `targets`,
     /// with its uniform set to `params` (written now). Each kind of
     /// resolve, and the gather, has a uniform of its own: a batch of
-    /// submissions ([`GpuContext::batch`]) may hold one of each. Kept per (targets, out, points) and reused
-    /// (issue 13: no allocation per frame).
+    /// submissions ([`GpuContext::batch`]) may hold one of each. Kept per
+    /// (targets, out, points) and reused (issue 13: no allocation per
+    /// frame).
     fn resolve_bind(
         &self,
         ctx: &GpuContext,

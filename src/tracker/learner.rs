@@ -1,14 +1,14 @@
 //! The contour's colour learning off the tracking thread (issue 13).
 //!
 //! After a tracked frame the contour learns the frame's colours at its
-//! pose ([`ColourModel::learn_around`]: about 1-2 ms on the real cube, the
-//! largest block of the contour's host work). Nothing reads those
-//! histograms before the next frame's contour step, so the learning runs
-//! on a worker thread while the next frame's features, IT and KF steps
-//! run, and the contour step waits for it. The worker computes exactly
-//! what the tracking thread would (the same function on the same inputs):
-//! the poses are the same bit for bit either way
-//! (`tests/tracker_contour.rs`).
+//! pose ([`ColourModel::learn_around`]: about 2.5 ms a frame on the real
+//! cube, the largest block of the contour's host work). Nothing reads
+//! those histograms before the next frame's contour step, so the learning
+//! runs on a worker thread while the next frame's features, IT and KF
+//! steps run, and the contour step waits for it. The worker computes
+//! exactly what the tracking thread would (the same function on the same
+//! inputs): the poses are the same bit for bit either way
+//! (`tests/contour.rs`).
 //!
 //! The worker is started on the first learning and keeps its buffers (a
 //! copy of the frame, the coverage mask) from frame to frame. Where no
