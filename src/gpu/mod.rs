@@ -139,15 +139,8 @@ impl Drop for Batch {
             return;
         }
         b.thread = None;
-        let work = std::mem::take(&mut b.pending);
         drop(b);
-        if !work.is_empty() {
-            log::trace!("submit at the end of a batch");
-            health
-                .submissions
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            queue.submit(work);
-        }
+        health.submit(&queue, None);
     }
 }
 
@@ -160,6 +153,19 @@ struct BatchState {
 }
 
 impl Health {
+    /// Submits the work a batch put off and then `last`, in one counted
+    /// submission (none when there is nothing). The list keeps its
+    /// allocation: no allocation a submission.
+    fn submit(&self, queue: &wgpu::Queue, last: Option<wgpu::CommandBuffer>) {
+        let mut b = self.batch.lock().unwrap_or_else(|p| p.into_inner());
+        if b.pending.is_empty() && last.is_none() {
+            return;
+        }
+        self.submissions
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        queue.submit(b.pending.drain(..).chain(last));
+    }
+
     fn record(&self, e: GpuError) {
         let mut slot = self.first_error.lock().unwrap_or_else(|p| p.into_inner());
         if slot.is_none() {
@@ -720,12 +726,7 @@ impl GpuContext {
     #[track_caller]
     fn submit_now(&self, enc: wgpu::CommandEncoder) {
         log::trace!("submit at {}", std::panic::Location::caller());
-        let mut work = std::mem::take(&mut self.batch_state().pending);
-        work.push(enc.finish());
-        self.health
-            .submissions
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        self.queue.submit(work);
+        self.health.submit(&self.queue, Some(enc.finish()));
     }
 
     fn batch_state(&self) -> std::sync::MutexGuard<'_, BatchState> {
@@ -956,13 +957,7 @@ impl GpuContext {
     /// Waits until the GPU has finished all submitted work (and any a
     /// batch put off, submitted first).
     pub fn wait(&self) -> Result<(), GpuError> {
-        let work = std::mem::take(&mut self.batch_state().pending);
-        if !work.is_empty() {
-            self.health
-                .submissions
-                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-            self.queue.submit(work);
-        }
+        self.health.submit(&self.queue, None);
         self.poll_wait()
     }
 
