@@ -267,17 +267,23 @@ fn group_scales(r: &[f64], groups: &[u8], floor: f64) -> Vec<f64> {
     if groups.is_empty() {
         return vec![robust_scale(r, floor); r.len()];
     }
+    // Each group present is gathered once (in row order; the median does
+    // not depend on it): a scan per group present, not per possible group.
+    let mut present = [false; 256];
+    for &g in groups {
+        present[g as usize] = true;
+    }
     let mut by_group = [f64::NAN; 256];
-    for g in 0..=255u8 {
-        let v: Vec<f64> = r
-            .iter()
-            .zip(groups)
-            .filter(|(_, gi)| **gi == g)
-            .map(|(ri, _)| *ri)
-            .collect();
-        if !v.is_empty() {
-            by_group[g as usize] = robust_scale(&v, floor);
-        }
+    let mut v = Vec::with_capacity(r.len());
+    for g in (0..=255u8).filter(|&g| present[g as usize]) {
+        v.clear();
+        v.extend(
+            r.iter()
+                .zip(groups)
+                .filter(|(_, gi)| **gi == g)
+                .map(|(ri, _)| *ri),
+        );
+        by_group[g as usize] = (1.4826 * median(&mut v)).max(floor);
     }
     groups.iter().map(|&g| by_group[g as usize]).collect()
 }
@@ -621,6 +627,41 @@ mod tests {
         assert_eq!(
             irls(&obs, &IrlsConfig::default()),
             Err(SolveError::NonFinite { index: 7 })
+        );
+    }
+
+    #[test]
+    fn each_row_is_scaled_by_its_own_groups_median() {
+        // Three groups in interleaved rows, one absent value of u8 between
+        // them: each row's scale is 1.4826 x the upper median of its group's
+        // residuals, floored, whatever the rows' order.
+        let mut rng = crate::rng::Rng::new(7);
+        let groups: Vec<u8> = (0..301).map(|i| [0u8, 3, 255][i % 3]).collect();
+        let r: Vec<f64> = groups
+            .iter()
+            .map(|&g| rng.uniform(0.0, g as f64 + 1.0))
+            .collect();
+        let s = group_scales(&r, &groups, 0.05);
+        for (i, &g) in groups.iter().enumerate() {
+            let mut own: Vec<f64> = (0..r.len())
+                .filter(|&j| groups[j] == g)
+                .map(|j| r[j])
+                .collect();
+            own.sort_by(f64::total_cmp);
+            let want = (1.4826 * own[own.len() / 2]).max(0.05);
+            assert_eq!(s[i].to_bits(), want.to_bits(), "row {i}, group {g}");
+        }
+        // One group, or none given: the same scale for every row.
+        let one = group_scales(&r, &[], 0.05);
+        let mut all = r.clone();
+        all.sort_by(f64::total_cmp);
+        let want = (1.4826 * all[all.len() / 2]).max(0.05);
+        assert!(one.iter().all(|x| x.to_bits() == want.to_bits()));
+        // Tiny residuals: the floor.
+        assert!(
+            group_scales(&[1e-9; 4], &[2; 4], 0.05)
+                .iter()
+                .all(|&x| x == 0.05)
         );
     }
 
