@@ -12,7 +12,8 @@
 // integrate_h -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
 // compaction into `candidates`), and refine (one thread per selected
-// corner: gradient-orthogonality sub-pixel refinement).
+// corner: gradient-orthogonality sub-pixel refinement) or
+// refine_candidates (one per candidate, before the selection).
 //
 // The derivative passes carry a validity flag, the minimum over their
 // support: 1 valid, 0 a pinhole in it (PIXEL_HOLE: an isolated invalid
@@ -430,14 +431,8 @@ fn nms(@builtin(global_invocation_id) id: vec3<u32>) {
 // cornerSubPix): at the true corner q, every gradient g(p) of the window is
 // orthogonal to p - q, so q solves sum w g g^T (p - q) = 0 in least squares.
 // The window is re-centred on the estimate and the solve repeated.
-@compute @workgroup_size(WORKGROUP_1D)
-fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = id.x;
-    if (n >= params.n_corners) {
-        return;
-    }
-    let c = corners[n];
-    let start = vec2<f32>(c.x, c.y);
+// A corner from `start`, with its score carried along.
+fn refined(start: vec2<f32>, score: f32) -> RefineCorner {
     var q = start;
     var status = 0.0;
     let rw = i32(params.refine_radius);
@@ -500,5 +495,31 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
             break;
         }
     }
-    corners[n] = RefineCorner(q.x, q.y, c.score, status);
+    return RefineCorner(q.x, q.y, score, status);
+}
+
+// The selected corners the host wrote into `corners`, refined in place.
+@compute @workgroup_size(WORKGROUP_1D)
+fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = id.x;
+    if (n >= params.n_corners) {
+        return;
+    }
+    let c = corners[n];
+    corners[n] = refined(vec2<f32>(c.x, c.y), c.score);
+}
+
+// Every candidate of the NMS, refined into `corners` in the candidates'
+// order, before the host selects among them: the candidates and their
+// refinements then come back in one readback. Only the first
+// `params.n_corners` (what the readback holds) are refined.
+@compute @workgroup_size(WORKGROUP_1D)
+fn refine_candidates(@builtin(global_invocation_id) id: vec3<u32>) {
+    let n = id.x;
+    let count = min(atomicLoad(&counters.count), params.capacity);
+    if (n >= params.n_corners || n >= count) {
+        return;
+    }
+    let c = candidates[n];
+    corners[n] = refined(vec2<f32>(f32(c.x), f32(c.y)), c.score);
 }

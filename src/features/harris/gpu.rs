@@ -2,7 +2,9 @@
 //! [`super::cpu`], the shared host steps are in [`super`].
 
 use super::host::{Scratch, detect_packed};
-use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};
+use super::{
+    Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread_indices,
+};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
     Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, RefineCorner, pack_with_holes_into,
@@ -23,6 +25,7 @@ pub struct Harris {
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
     refine: wgpu::ComputePipeline,
+    refine_candidates: wgpu::ComputePipeline,
     grey: wgpu::ComputePipeline,
     grey_f32: wgpu::ComputePipeline,
     pack_f32: wgpu::ComputePipeline,
@@ -62,20 +65,30 @@ impl Harris {
             "harris",
             &layout,
             &[
-                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
-                "grey_f32", "pack_f32",
+                PASSES[0],
+                PASSES[1],
+                PASSES[2],
+                PASSES[3],
+                PASSES[4],
+                "refine",
+                "refine_candidates",
+                "grey",
+                "grey_f32",
+                "pack_f32",
             ],
         )?;
-        let pack_f32 = all.pop().expect("nine pipelines");
-        let grey_f32 = all.pop().expect("nine pipelines");
-        let grey = all.pop().expect("nine pipelines");
-        let refine = all.pop().expect("nine pipelines");
+        let pack_f32 = all.pop().expect("ten pipelines");
+        let grey_f32 = all.pop().expect("ten pipelines");
+        let grey = all.pop().expect("ten pipelines");
+        let refine_candidates = all.pop().expect("ten pipelines");
+        let refine = all.pop().expect("ten pipelines");
         Ok(Self {
             ctx: ctx.clone(),
             config,
             layout,
             passes: all,
             refine,
+            refine_candidates,
             grey,
             grey_f32,
             pack_f32,
@@ -125,7 +138,9 @@ impl Harris {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 3));
+        // The passes, grey and pack (a resolved view), the refinement of
+        // the candidates and, after a second readback, of the selected.
+        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 4));
     }
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
@@ -204,9 +219,11 @@ impl Harris {
         changed |= self.response.ensure(ctx, (w * h * 4) as u64);
         changed |= self.counters.ensure(ctx, 16);
         changed |= self.candidates.ensure(ctx, (capacity(w, h) * 16) as u64);
-        changed |= self
-            .corners
-            .ensure(ctx, (self.config.max_corners * 16) as u64);
+        // The selected corners, or every candidate a readback holds.
+        changed |= self.corners.ensure(
+            ctx,
+            (self.config.max_corners.max(capacity(w, h)) * 16) as u64,
+        );
         if changed || self.bind.is_none() {
             let bufs = [
                 &self.params,
@@ -232,11 +249,26 @@ impl Harris {
         input: Input,
         mask: Option<&[bool]>,
     ) -> Result<wgpu::CommandEncoder, FeatureError> {
+        self.encode_maps_refining(input, mask, 0)
+    }
+
+    /// [`Harris::encode_maps`], and with `refined` > 0 the refinement of
+    /// the first `refined` candidates into `corners` behind them
+    /// (`refine_candidates`).
+    fn encode_maps_refining(
+        &mut self,
+        input: Input,
+        mask: Option<&[bool]>,
+        refined: usize,
+    ) -> Result<wgpu::CommandEncoder, FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
         let ctx = &self.ctx.clone();
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
+        ctx.queue.write_buffer(
+            &self.params,
+            0,
+            bytemuck::bytes_of(&self.params(w, h, refined as u32)),
+        );
         match input {
             Input::Grey(img) => ctx.queue.write_buffer(
                 self.pixels.get(),
@@ -314,6 +346,12 @@ impl Harris {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
+        }
+        if refined > 0 {
+            let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
+            pass.set_pipeline(&self.refine_candidates);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(workgroups(refined as u32, WORKGROUP_1D), 1, 1);
         }
         Ok(enc)
     }
@@ -529,41 +567,68 @@ impl Harris {
             }
             return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
-        let enc = self.encode_maps(input, mask)?;
-        let ctx = &self.ctx.clone();
-        // The count and the candidates in one readback: as many
-        // candidates as recent detections found and a quarter more; the
-        // rest, when there are more, in a second one.
+        // The count, the candidates and (refining) every candidate's
+        // refinement in one readback: as many candidates as recent
+        // detections found and a quarter more. The selection then picks
+        // its corners' refinements, which depend on nothing but their
+        // start (the same as refining the selected ones alone, bit for
+        // bit). When there are more candidates, the rest come in a second
+        // readback and the selected corners are refined after it.
         let room = capacity(w, h);
         let guess = (self.recent_counts.iter().max().copied().unwrap_or(0) * 5 / 4 + 256).min(room);
+        let refining = self.config.refine;
+        let enc = self.encode_maps_refining(input, mask, if refining { guess } else { 0 })?;
+        let ctx = &self.ctx.clone();
         let size = std::mem::size_of::<Candidate>();
-        let parts = ctx.read_buffers_after(
-            enc,
-            &[
-                (self.counters.get(), std::mem::size_of::<Counters>() as u64),
-                (self.candidates.get(), (guess * size) as u64),
-            ],
-        )?;
+        let counters_size = std::mem::size_of::<Counters>() as u64;
+        let mut reads = vec![
+            (self.counters.get(), counters_size),
+            (self.candidates.get(), (guess * size) as u64),
+        ];
+        if refining {
+            let corner = std::mem::size_of::<RefineCorner>();
+            reads.push((self.corners.get(), (guess * corner) as u64));
+        }
+        let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
         let count = (counters.count as usize).min(room);
         self.recent_counts = [self.recent_counts[1], count];
+        log::trace!("harris: {count} candidates, {guess} read back");
         let cands: Vec<Candidate> = if count <= guess {
             bytemuck::pod_collect_to_vec(&parts[1][..count * size])
         } else {
             ctx.read_buffer(self.candidates.get(), count)?
         };
-        let selected = select_spread(cands, &self.config);
-        let mut corners: Vec<Corner> = selected
-            .iter()
-            .map(|c| Corner {
-                x: c.x as f32,
-                y: c.y as f32,
-                score: c.score,
-            })
-            .collect();
-        if self.config.refine && !corners.is_empty() {
-            corners = self.refine(w, h, &corners)?;
-        }
+        let selected = select_spread_indices(&cands, &self.config);
+        let corners: Vec<Corner> = if refining && count <= guess {
+            let corner = std::mem::size_of::<RefineCorner>();
+            selected
+                .iter()
+                .map(|&i| {
+                    let r: RefineCorner =
+                        bytemuck::pod_read_unaligned(&parts[2][i * corner..(i + 1) * corner]);
+                    Corner {
+                        x: r.x,
+                        y: r.y,
+                        score: r.score,
+                    }
+                })
+                .collect()
+        } else {
+            let starts: Vec<Corner> = selected
+                .iter()
+                .map(|&i| Corner {
+                    x: cands[i].x as f32,
+                    y: cands[i].y as f32,
+                    score: cands[i].score,
+                })
+                .collect();
+            if refining && !starts.is_empty() {
+                self.refine(w, h, &starts)?
+            } else {
+                starts
+            }
+        };
         self.finish_timing()?;
         Ok(merge(corners, self.config.merge_radius))
     }

@@ -227,31 +227,41 @@ pub(crate) fn pack_pixels(img: &GreyImage, mask: Option<&[bool]>) -> Vec<Pixel> 
 /// The best `max_corners` candidates, spread over the image: each is ranked
 /// within its `grid_cell`-sized cell, and candidates are taken rank by rank
 /// (ties by score, then position). Deterministic whatever the input order.
-pub(crate) fn select_spread(mut cands: Vec<Candidate>, cfg: &HarrisConfig) -> Vec<Candidate> {
+pub(crate) fn select_spread(cands: Vec<Candidate>, cfg: &HarrisConfig) -> Vec<Candidate> {
+    select_spread_indices(&cands, cfg)
+        .into_iter()
+        .map(|i| cands[i])
+        .collect()
+}
+
+/// [`select_spread`] as indices into `cands`, in the selection's order.
+pub(crate) fn select_spread_indices(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<usize> {
     let by_score = |a: &Candidate, b: &Candidate| {
         b.score
             .total_cmp(&a.score)
             .then(a.y.cmp(&b.y))
             .then(a.x.cmp(&b.x))
     };
-    cands.sort_by(by_score);
+    let mut order: Vec<usize> = (0..cands.len()).collect();
+    order.sort_by(|&a, &b| by_score(&cands[a], &cands[b]));
     if cfg.grid_cell == 0 {
-        cands.truncate(cfg.max_corners);
-        return cands;
+        order.truncate(cfg.max_corners);
+        return order;
     }
     let cell = cfg.grid_cell;
     let mut rank_in_cell = std::collections::HashMap::new();
-    let mut ranked: Vec<(u32, Candidate)> = cands
+    let mut ranked: Vec<(u32, usize)> = order
         .into_iter()
-        .map(|c| {
+        .map(|i| {
+            let c = &cands[i];
             let r = rank_in_cell.entry((c.x / cell, c.y / cell)).or_insert(0u32);
             *r += 1;
-            (*r, c)
+            (*r, i)
         })
         .collect();
-    ranked.sort_by(|(ra, a), (rb, b)| ra.cmp(rb).then(by_score(a, b)));
+    ranked.sort_by(|&(ra, a), &(rb, b)| ra.cmp(&rb).then(by_score(&cands[a], &cands[b])));
     ranked.truncate(cfg.max_corners);
-    ranked.into_iter().map(|(_, c)| c).collect()
+    ranked.into_iter().map(|(_, i)| i).collect()
 }
 
 /// Greedy merge of refined corners closer than `radius`, strongest first
