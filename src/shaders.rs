@@ -43,6 +43,7 @@ pub const ALL: &[(&str, &str)] = &[
     ("present", include_str!("../shaders/present.wgsl")),
     ("verify", include_str!("../shaders/verify.wgsl")),
     ("frame", include_str!("../shaders/frame.wgsl")),
+    ("outline", include_str!("../shaders/outline.wgsl")),
 ];
 
 /// What every shader shares: structs and helpers (composed after the
@@ -108,6 +109,14 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         (
             "CHECK_WORKGROUP",
             U32(crate::tracker::verify_gpu::CHECK_WORKGROUP),
+        ),
+        (
+            "OUTLINE_WINDOW",
+            U32(crate::tracker::outline_gpu::OUTLINE_WINDOW),
+        ),
+        (
+            "OUTLINE_MIN_GRADIENT",
+            U32(crate::tracker::outline_gpu::OUTLINE_MIN_GRADIENT),
         ),
         ("LUMA_R", F32(crate::features::image::LUMA[0])),
         ("LUMA_G", F32(crate::features::image::LUMA[1])),
@@ -255,6 +264,8 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::MatchOut>(),
         RustLayout::of::<crate::view::present::PresentParams>(),
         RustLayout::of::<crate::tracker::verify_gpu::CheckParams>(),
+        RustLayout::of::<crate::tracker::outline_gpu::OutlineParams>(),
+        RustLayout::of::<crate::tracker::outline_gpu::OutlinePoint>(),
         RustLayout::of::<crate::features::resident::FrameParams>(),
         RustLayout::of::<crate::features::resident::WindowParams>(),
     ]

@@ -537,6 +537,63 @@ fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
     }
 }
 
+/// The contour's outline found on the GPU (shaders/outline.wgsl, the
+/// default on GPUs) or on the host from a readback of the window's depth
+/// (the default on CPU adapters): the points are the same bit for bit
+/// (tests/outline_gpu.rs), and so are the coverage the colours are learnt
+/// from and the poses; a few integers a point and a bit a pixel come back
+/// instead of 4 bytes a pixel (measured: 16-18 times fewer bytes a frame;
+/// asserted: 10). The untextured object's first 8 frames at 320x240,
+/// contour alone.
+#[test]
+fn the_outline_found_on_the_gpu_gives_the_hosts_poses_from_fewer_bytes() {
+    use splattrack::tracker::{Modalities, Status, TrackerConfig};
+    let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
+    let (model, frames) = plain_frames(camera, 60, 8);
+    // A context of its own, so that other tests' readbacks are not
+    // counted.
+    let own = GpuContext::new(&gpu::AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&gpu::AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let run = |resident: bool| {
+        let config = TrackerConfig {
+            modalities: Modalities::CONTOUR,
+            ..Default::default()
+        };
+        let mut t = splattrack::tracker::Tracker::new(
+            &own,
+            model.clone(),
+            camera,
+            None,
+            config,
+            frames[0].pose,
+        )
+        .unwrap();
+        t.set_resident_outline(resident);
+        // The check scored on the GPU in both (on the host it reads the
+        // view back).
+        t.set_resident_check(true);
+        frames
+            .iter()
+            .map(|f| t.track(&f.image).unwrap())
+            .collect::<Vec<_>>()
+    };
+    let host = run(false);
+    let gpu = run(true);
+    for (i, (a, b)) in host.iter().zip(&gpu).enumerate() {
+        assert_eq!(a.status, Status::Tracking, "frame {i}");
+        assert_eq!(a.pose, b.pose, "frame {i}: the poses differ");
+        assert_eq!(a.inliers, b.inliers, "frame {i}");
+        assert_eq!(a.times.readbacks, b.times.readbacks, "frame {i}");
+        assert!(
+            10.0 * b.times.readback_bytes < a.times.readback_bytes,
+            "frame {i}: {} bytes read back against {}",
+            b.times.readback_bytes,
+            a.times.readback_bytes
+        );
+    }
+}
+
 /// Texture and contour together on the untextured object (640x480, 100k
 /// points, the synth keyframes, lit from elsewhere than the frames): at
 /// frame 28 of the 40-frame Fig. 10 run, started at the true pose of frame

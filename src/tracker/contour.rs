@@ -264,7 +264,7 @@ pub struct ContourPoint {
 }
 
 /// Half-width of the window giving a contour point's normal and offset.
-const WINDOW: i64 = 5;
+const WINDOW: i64 = super::outline_gpu::OUTLINE_WINDOW as i64;
 
 /// The silhouette of a coverage mask (`width x height`, row-major), one
 /// point per `spacing x spacing` cell (the first silhouette pixel of the
@@ -289,7 +289,6 @@ pub fn extract_contour(
     let (cw, ch) = (width.div_ceil(spacing), height.div_ceil(spacing));
     let mut taken = vec![false; cw * ch];
     let mut out = Vec::new();
-    let n_window = ((2 * WINDOW + 1) * (2 * WINDOW + 1)) as f64;
     for y in 0..height as i64 {
         for x in 0..width as i64 {
             if !at(x, y) || (at(x - 1, y) && at(x + 1, y) && at(x, y - 1) && at(x, y + 1)) {
@@ -299,36 +298,46 @@ pub fn extract_contour(
             if taken[cell] {
                 continue;
             }
-            let (mut gx, mut gy, mut covered) = (0.0, 0.0, 0.0);
+            let (mut gx, mut gy, mut covered) = (0i64, 0i64, 0u32);
             for dy in -WINDOW..=WINDOW {
                 for dx in -WINDOW..=WINDOW {
                     if at(x + dx, y + dy) {
-                        gx += dx as f64;
-                        gy += dy as f64;
-                        covered += 1.0;
+                        gx += dx;
+                        gy += dy;
+                        covered += 1;
                     }
                 }
             }
-            let g = (gx * gx + gy * gy).sqrt();
-            // A straight edge through the centre gives |g| = 330 (11x11);
-            // thin parts and corners give less: their normal is unreliable.
-            if g < 120.0 {
+            // |g| < the least (exact in integers): a thin part or a corner,
+            // whose normal is unreliable.
+            let least = super::outline_gpu::OUTLINE_MIN_GRADIENT as i64;
+            if gx * gx + gy * gy < least * least {
                 continue;
             }
-            let normal = Vector2::new(-gx / g, -gy / g);
-            // The covered fraction of the window locates a straight edge:
-            // its chord at the centre is side / max(|nx|, |ny|).
-            let side = (2 * WINDOW + 1) as f64;
-            let offset = (covered / n_window - 0.5) * side * normal.x.abs().max(normal.y.abs());
             taken[cell] = true;
-            out.push(ContourPoint {
-                pixel: [x as u32, y as u32],
-                position: Vector2::new(x as f64, y as f64) + normal * offset,
-                normal,
-            });
+            out.push(contour_point(x as u32, y as u32, gx, gy, covered));
         }
     }
     out
+}
+
+/// The contour point of silhouette pixel `(x, y)` whose window
+/// ([`extract_contour`]'s, `WINDOW` pixels either side) holds `covered`
+/// covered pixels, their offsets from `(x, y)` summing to `(gx, gy)`: the
+/// normal is the sums' direction, turned outward, and the covered fraction
+/// of the window locates a straight edge along it (its chord at the centre
+/// is side / max(|nx|, |ny|)).
+pub(crate) fn contour_point(x: u32, y: u32, gx: i64, gy: i64, covered: u32) -> ContourPoint {
+    let (gx, gy) = (gx as f64, gy as f64);
+    let g = (gx * gx + gy * gy).sqrt();
+    let normal = Vector2::new(-gx / g, -gy / g);
+    let side = (2 * WINDOW + 1) as f64;
+    let offset = (covered as f64 / (side * side) - 0.5) * side * normal.x.abs().max(normal.y.abs());
+    ContourPoint {
+        pixel: [x, y],
+        position: Vector2::new(x as f64, y as f64) + normal * offset,
+        normal,
+    }
 }
 
 /// Foreground (object) and background colour histograms, learnt online
@@ -1350,11 +1359,27 @@ pub fn contour_predictors(
     depth: &crate::splat::SplatImage,
     points: &[ContourPoint],
 ) -> Vec<Observation> {
+    let depths: Vec<f32> = points
+        .iter()
+        .map(|p| depth.pixel(p.pixel[0], p.pixel[1])[0])
+        .collect();
+    contour_predictors_at(cam, points, &depths)
+}
+
+/// [`contour_predictors`] with the depth at each point's pixel given.
+fn contour_predictors_at(
+    cam: &crate::geometry::Intrinsics,
+    points: &[ContourPoint],
+    depths: &[f32],
+) -> Vec<Observation> {
     points
         .iter()
-        .map(|p| {
-            let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
-            let xc = cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z);
+        .zip(depths)
+        .map(|(p, &z)| {
+            let xc = cam.unproject(
+                &Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64),
+                z as f64,
+            );
             contour_row(&cam.motion_predictors(&xc), &p.normal, 0.0)
         })
         .collect()
@@ -1631,26 +1656,49 @@ impl Tracker {
     ) -> Result<Vec<Lifted>, StepError> {
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let depth_only = self.config.contour.depth_only;
-        let cfg = &self.config.contour;
+        let (ww, wh) = (window.width as usize, window.height as usize);
+        let (x0, y0) = (window.x0 as usize, window.y0 as usize);
+        let spacing = self.config.contour.spacing_px;
         // The splatted depth gives the coverage (NaN: empty) and, lifted
         // to the camera-space point, the motion predictors L there: the
         // projection's Jacobian of DESIGN.md section 3, what the motion
-        // targets would hold, without rendering them.
-        let depth = self
-            .splatter
-            .read(&self.ctx, &self.targets, Attribute::Depth)?;
-        let local: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
-        let (ww, wh) = (window.width as usize, window.height as usize);
-        let (x0, y0) = (window.x0 as usize, window.y0 as usize);
-        // The whole frame's coverage, in the buffer of the last render.
-        let coverage = &mut self.contour_mask;
-        coverage.clear();
-        coverage.resize(w * h, false);
-        for y in 0..wh {
-            coverage[(y0 + y) * w + x0..(y0 + y) * w + x0 + ww]
-                .copy_from_slice(&local[y * ww..(y + 1) * ww]);
-        }
-        self.contour_mask_fresh = true;
+        // targets would hold, without rendering them. On the GPU
+        // (depth-only renders, whose normals come from the model): the
+        // outline found there, a few integers a point and the coverage's
+        // bits read back; else the depth read back and the outline found
+        // here. The same points either way.
+        let resident =
+            depth_only && self.outline.resident() && self.outline.fits(window.width, window.height);
+        let (mut points, depths, depth) = if resident {
+            let _batch = self.ctx.batch();
+            let target = self.outline.depth_target(window.width, window.height);
+            self.splatter
+                .resolve_into(&self.ctx, &self.targets, Attribute::Depth, &target)?;
+            let outline = self
+                .outline
+                .extract(window.width, window.height, spacing)
+                .map_err(crate::splat::SplatError::from)?;
+            if let Some(t) = self.gpu_timer.as_ref().map(|_| self.outline.last_timings()) {
+                super::profile::note(&mut self.stages.gpu, "contour outline", t);
+            }
+            self.fill_contour_mask(w, h, window, |x, y| outline.covered(x as u32, y as u32));
+            (outline.points, outline.depths, None)
+        } else {
+            let depth = self
+                .splatter
+                .read(&self.ctx, &self.targets, Attribute::Depth)?;
+            let local: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
+            self.fill_contour_mask(w, h, window, |x, y| local[y * ww + x]);
+            // Window coordinates (the window's origin is a multiple of the
+            // spacing: the same cells as the whole image), then the frame's.
+            let points = extract_contour(&local, ww, wh, spacing as usize);
+            let depths = points
+                .iter()
+                .map(|p| depth.pixel(p.pixel[0], p.pixel[1])[0])
+                .collect();
+            (points, depths, Some(depth))
+        };
+        let cfg = &self.config.contour;
         if !self.colours.model().is_learned()
             && let Some(rect) = self.roi(pose)
             && let Some(centre) = self.centre_px(pose)
@@ -1664,9 +1712,6 @@ impl Tracker {
             };
             self.colours.learn_here(frame, &self.contour_mask, lesson);
         }
-        // Window coordinates (the window's origin is a multiple of the
-        // spacing: the same cells as the whole image), then the frame's.
-        let mut points = extract_contour(&local, ww, wh, cfg.spacing_px as usize);
         if depth_only {
             if self.model_normals.is_none() {
                 self.model_normals = ModelNormals::new(&self.model);
@@ -1676,8 +1721,9 @@ impl Tracker {
                 let eye = inv.translation;
                 let eye = glam::Vec3::new(eye.x as f32, eye.y as f32, eye.z as f32);
                 let rot = pose.rotation;
+                let mut z = depths.iter();
                 limb_normals_with(cam, &mut points, true, |p| {
-                    let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
+                    let z = *z.next().expect("a depth a point") as f64;
                     let xc = cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z);
                     let xo = inv.transform_point(&xc);
                     let n = grid
@@ -1692,26 +1738,49 @@ impl Tracker {
                 .read(&self.ctx, &self.targets, Attribute::Normal)?;
             limb_normals(cam, &normals, &mut points);
         }
+        drop(depth);
         inset(&mut points, cfg.inset_px);
-        let rows = contour_predictors(cam, &depth, &points);
+        let rows = contour_predictors_at(cam, &points, &depths);
         let origin = Vector2::new(x0 as f64, y0 as f64);
         let lifted = points
             .iter()
             .zip(rows)
-            .map(|(p, row)| {
-                let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
-                Lifted {
-                    xc: cam.unproject(&p.position, z),
-                    point: ContourPoint {
-                        pixel: [p.pixel[0] + x0 as u32, p.pixel[1] + y0 as u32],
-                        position: p.position + origin,
-                        normal: p.normal,
-                    },
-                    row,
-                }
+            .zip(&depths)
+            .map(|((p, row), &z)| Lifted {
+                xc: cam.unproject(&p.position, z as f64),
+                point: ContourPoint {
+                    pixel: [p.pixel[0] + x0 as u32, p.pixel[1] + y0 as u32],
+                    position: p.position + origin,
+                    normal: p.normal,
+                },
+                row,
             })
             .collect();
         Ok(lifted)
+    }
+
+    /// The whole frame's coverage (`w x h`) in `contour_mask`, the buffer
+    /// of the last render, from `covered(x, y)` over `window` (window
+    /// pixels); nothing outside it.
+    fn fill_contour_mask(
+        &mut self,
+        w: usize,
+        h: usize,
+        window: Window,
+        covered: impl Fn(usize, usize) -> bool,
+    ) {
+        let (ww, wh) = (window.width as usize, window.height as usize);
+        let (x0, y0) = (window.x0 as usize, window.y0 as usize);
+        let coverage = &mut self.contour_mask;
+        coverage.clear();
+        coverage.resize(w * h, false);
+        for y in 0..wh {
+            let row = &mut coverage[(y0 + y) * w + x0..(y0 + y) * w + x0 + ww];
+            for (x, c) in row.iter_mut().enumerate() {
+                *c = covered(x, y);
+            }
+        }
+        self.contour_mask_fresh = true;
     }
 
     /// One search and solve per line length of `levels` from the points
@@ -1803,6 +1872,15 @@ impl Tracker {
     /// colours, and so the poses, are the same either way.
     pub fn set_background_learning(&mut self, on: bool) {
         self.colours.set_background(on);
+    }
+
+    /// Finds the contour's outline on the GPU (`true`, the default on
+    /// GPUs) or on the host from a readback of the window's depth (the
+    /// default on CPU adapters): [`super::outline_gpu::GpuOutline::resident`].
+    /// Only for depth-only contour renders; the points, and so the poses,
+    /// are the same.
+    pub fn set_resident_outline(&mut self, on: bool) {
+        self.outline.set_resident(on);
     }
 
     /// Learns the colours of `frame` at the last contour render (after a

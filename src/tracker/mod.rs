@@ -42,6 +42,7 @@ pub mod init;
 mod it;
 mod kf;
 mod learner;
+pub mod outline_gpu;
 mod profile;
 pub mod verify;
 pub mod verify_gpu;
@@ -371,6 +372,8 @@ pub struct Tracker {
     gpu_timer: Option<crate::gpu::GpuTimer>,
     /// The check's scoring on the GPU (issue 13).
     check: verify_gpu::GpuCheck,
+    /// The contour's outline found on the GPU (issue 13).
+    outline: outline_gpu::GpuOutline,
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement (issue 13; [`view::Resident`]).
     resident: view::Resident,
@@ -502,9 +505,11 @@ impl Tracker {
             stages: StageTimes::default(),
             gpu_timer: None,
             check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
+            outline: outline_gpu::GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: view::Resident::new(resident),
         };
         tracker.check.set_resident(resident);
+        tracker.outline.set_resident(resident);
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
         }

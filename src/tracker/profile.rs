@@ -25,6 +25,7 @@ impl Tracker {
         self.gpu_timer = Some(GpuTimer::new(&self.ctx, 2));
         self.harris.enable_timing();
         self.check.enable_timing();
+        self.outline.enable_timing();
         for m in [
             &mut self.it_matcher,
             &mut self.kf_matcher,
