@@ -195,6 +195,90 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
 }
 
 #[test]
+fn a_put_off_readback_goes_with_the_next_one() {
+    // `GpuContext::read_buffer_later`: the copy is taken behind the work
+    // before it (later work may overwrite the buffer), nothing waits, and
+    // the thread's next readback maps it too: one wait for both, its bytes
+    // then at hand. Waited for before any other readback, it reads alone.
+    // Another thread's readback does not carry it. Its staging buffers are
+    // kept: the steady state makes none.
+    let c = own_ctx();
+    let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
+    let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
+    let copy = |from: &wgpu::Buffer, to: &wgpu::Buffer| {
+        let mut enc = c.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(from, 0, to, 0, 16);
+        enc
+    };
+    for round in 0..3 {
+        let (reads, made) = (c.readbacks(), c.buffers_created());
+        // b = a's first four, put off; then a is cleared.
+        let pending = c.read_buffer_later(copy(&a, &b), &b, 12).unwrap();
+        let mut enc = c.device.create_command_encoder(&Default::default());
+        enc.clear_buffer(&a, 0, Some(8));
+        c.submit(enc);
+        assert_eq!(c.readbacks(), reads, "round {round}: nothing waits");
+        let got: Vec<u32> = c.read_buffer(&a, 5).unwrap();
+        assert_eq!(got, [0, 0, 3, 4, 5]);
+        assert_eq!(c.readbacks() - reads, 1, "round {round}: one wait");
+        let bytes = pending.wait(&c).unwrap();
+        assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&bytes), [1, 2, 3]);
+        assert_eq!(c.readbacks() - reads, 1, "round {round}: the bytes at hand");
+        if round > 0 {
+            assert_eq!(c.buffers_created(), made, "round {round}: staging kept");
+        }
+        // Restore a.
+        c.queue
+            .write_buffer(&a, 0, bytemuck::cast_slice(&[1u32, 2, 3, 4, 5]));
+    }
+    // Waited for first: a readback of its own.
+    let reads = c.readbacks();
+    let pending = c.read_buffer_later(copy(&a, &b), &b, 16).unwrap();
+    let bytes = pending.wait(&c).unwrap();
+    assert_eq!(
+        bytemuck::pod_collect_to_vec::<u8, u32>(&bytes),
+        [1, 2, 3, 4]
+    );
+    assert_eq!(c.readbacks() - reads, 1);
+    // Within a batch: put off with the batch, one submission with the
+    // readback.
+    let (reads, subs) = (c.readbacks(), c.submissions());
+    {
+        let _batch = c.batch();
+        let pending = c.read_buffer_later(copy(&a, &b), &b, 16).unwrap();
+        assert_eq!(c.submissions(), subs, "put off");
+        let got: Vec<u32> = c.read_buffer(&a, 1).unwrap();
+        assert_eq!(got, [1]);
+        assert_eq!(
+            (c.submissions() - subs, c.readbacks() - reads),
+            (1, 1),
+            "one submission, one wait"
+        );
+        let bytes = pending.wait(&c).unwrap();
+        assert_eq!(
+            bytemuck::pod_collect_to_vec::<u8, u32>(&bytes),
+            [1, 2, 3, 4]
+        );
+    }
+    // Another thread's readback leaves this thread's put-off one alone.
+    let reads = c.readbacks();
+    let pending = c.read_buffer_later(copy(&a, &b), &b, 8).unwrap();
+    std::thread::scope(|s| {
+        s.spawn(|| {
+            let got: Vec<u32> = c.read_buffer(&a, 2).unwrap();
+            assert_eq!(got, [1, 2]);
+        });
+    });
+    let bytes = pending.wait(&c).unwrap();
+    assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&bytes), [1, 2]);
+    assert_eq!(c.readbacks() - reads, 2, "the other thread's, then its own");
+    // An overread is refused, nothing submitted.
+    let subs = c.submissions();
+    assert!(c.read_buffer_later(copy(&a, &b), &b, 20).is_err());
+    assert_eq!(c.submissions(), subs);
+}
+
+#[test]
 fn device_has_the_limits_the_splatter_needs() {
     // Four RGBA32F targets = 64 bytes per sample; wgpu's default is 32.
     assert!(

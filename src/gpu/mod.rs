@@ -117,6 +117,61 @@ struct Health {
     staging: std::sync::Mutex<Option<wgpu::Buffer>>,
     /// The thread batching its submissions ([`GpuContext::batch`]).
     batch: std::sync::Mutex<BatchState>,
+    /// Readbacks put off ([`GpuContext::read_buffer_later`]), to be mapped
+    /// with their thread's next readback.
+    riders: std::sync::Mutex<Vec<std::sync::Arc<Rider>>>,
+    /// Unmapped staging buffers of put-off readbacks, for the next ones.
+    rider_staging: std::sync::Mutex<Vec<wgpu::Buffer>>,
+}
+
+/// A readback put off: its copy is recorded, its bytes not yet mapped.
+struct Rider {
+    thread: std::thread::ThreadId,
+    staging: wgpu::Buffer,
+    /// Bytes to read (a multiple of 4).
+    size: u64,
+    /// Filled by the readback that mapped it.
+    bytes: std::sync::Mutex<Option<Result<Vec<u8>, GpuError>>>,
+}
+
+/// A readback put off by [`GpuContext::read_buffer_later`]: its bytes
+/// come with the next readback of the thread that made it (any other
+/// readback's wait then serves both), or with [`PendingRead::wait`].
+#[must_use = "a pending read is only useful waited for"]
+pub struct PendingRead {
+    rider: std::sync::Arc<Rider>,
+    /// The bytes asked for (the rider reads them rounded up to 4).
+    bytes: u64,
+}
+
+impl PendingRead {
+    /// The bytes read: at once when a readback since has mapped them,
+    /// else in a readback of their own (submitting what a batch put off).
+    pub fn wait(self, ctx: &GpuContext) -> Result<Vec<u8>, GpuError> {
+        let mapped = self
+            .rider
+            .bytes
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        let mut all = match mapped {
+            Some(r) => r?,
+            None => {
+                {
+                    let mut riders = ctx.health.riders.lock().unwrap_or_else(|p| p.into_inner());
+                    riders.retain(|r| !std::sync::Arc::ptr_eq(r, &self.rider));
+                }
+                ctx.health.submit(&ctx.queue, None);
+                let r = ctx.map_read(&self.rider.staging, self.rider.size);
+                if r.is_ok() {
+                    ctx.put_rider_staging(self.rider.staging.clone());
+                }
+                r?
+            }
+        };
+        all.truncate(self.bytes as usize);
+        Ok(all)
+    }
 }
 
 /// A batch of submissions ([`GpuContext::batch`]); dropping it submits
@@ -892,6 +947,87 @@ impl GpuContext {
             .collect())
     }
 
+    /// Puts off reading the first `bytes` of `buffer` (which needs
+    /// `COPY_SRC`) after the work recorded in `enc`: the copy is recorded
+    /// behind that work (into a staging buffer of its own, so later work
+    /// may reuse `buffer`) and submitted ([`GpuContext::submit`]: within a
+    /// batch, put off with it), but nothing waits. The calling thread's
+    /// next readback maps it with its own, so that one wait for the GPU
+    /// serves both; [`PendingRead::wait`] then returns the bytes without
+    /// another. An overread is refused before anything is submitted.
+    #[track_caller]
+    pub fn read_buffer_later(
+        &self,
+        mut enc: wgpu::CommandEncoder,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+    ) -> Result<PendingRead, GpuError> {
+        if bytes > buffer.size() {
+            return Err(GpuError::Readback(format!(
+                "asked for {bytes} bytes of a {}-byte buffer",
+                buffer.size()
+            )));
+        }
+        let size = bytes.next_multiple_of(4).max(4);
+        let kept = {
+            let mut pool = self
+                .health
+                .rider_staging
+                .lock()
+                .unwrap_or_else(|p| p.into_inner());
+            pool.iter()
+                .position(|b| b.size() >= size)
+                .map(|i| pool.swap_remove(i))
+        };
+        let staging = kept.unwrap_or_else(|| {
+            self.buffer(
+                "put-off readback",
+                size.next_power_of_two().max(256),
+                wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            )
+        });
+        if bytes > 0 {
+            enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes.next_multiple_of(4));
+        }
+        self.submit(enc);
+        let rider = std::sync::Arc::new(Rider {
+            thread: std::thread::current().id(),
+            staging,
+            size,
+            bytes: std::sync::Mutex::new(None),
+        });
+        self.health
+            .riders
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .push(rider.clone());
+        Ok(PendingRead { rider, bytes })
+    }
+
+    /// Submits the work this thread's batch put off, without waiting.
+    pub fn flush(&self) {
+        let mine = {
+            let b = self.batch_state();
+            b.thread == Some(std::thread::current().id())
+        };
+        if mine {
+            self.health.submit(&self.queue, None);
+        }
+    }
+
+    /// Keeps an unmapped staging buffer of a put-off readback for the next
+    /// (a few at most).
+    fn put_rider_staging(&self, b: wgpu::Buffer) {
+        let mut pool = self
+            .health
+            .rider_staging
+            .lock()
+            .unwrap_or_else(|p| p.into_inner());
+        if pool.len() < 8 {
+            pool.push(b);
+        }
+    }
+
     /// Reads a whole 2-D texture (which needs `COPY_SRC`) as tightly packed
     /// rows of `bytes_per_pixel` bytes.
     pub fn read_texture(
@@ -930,26 +1066,77 @@ impl GpuContext {
         Ok(out)
     }
 
+    /// Maps `staging` (whose copies are submitted) and reads its first
+    /// `size` bytes, one wait for the GPU, counted as a readback; the
+    /// calling thread's put-off readbacks ([`GpuContext::read_buffer_later`])
+    /// are mapped in the same wait.
     fn map_read(&self, staging: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
+        let me = std::thread::current().id();
+        let riders: Vec<std::sync::Arc<Rider>> = {
+            let mut all = self.health.riders.lock().unwrap_or_else(|p| p.into_inner());
+            let (mine, others) = all.drain(..).partition(|r| r.thread == me);
+            *all = others;
+            mine
+        };
         let slice = staging.slice(..size.next_multiple_of(4));
         let relaxed = std::sync::atomic::Ordering::Relaxed;
+        let rider_bytes: u64 = riders.iter().map(|r| r.size).sum();
         self.health
             .bytes_read
-            .fetch_add(size.next_multiple_of(4), relaxed);
+            .fetch_add(size.next_multiple_of(4) + rider_bytes, relaxed);
         self.health.readbacks.fetch_add(1, relaxed);
-        log::trace!("readback of {size} bytes");
+        log::trace!(
+            "readback of {size} bytes{}",
+            if riders.is_empty() {
+                String::new()
+            } else {
+                format!(" and {} put off ({rider_bytes} bytes)", riders.len())
+            }
+        );
+        let mapped: Vec<_> = riders
+            .iter()
+            .map(|r| {
+                let (tx, rx) = std::sync::mpsc::channel();
+                r.staging
+                    .slice(..r.size)
+                    .map_async(wgpu::MapMode::Read, move |m| {
+                        let _ = tx.send(m);
+                    });
+                rx
+            })
+            .collect();
         let (tx, rx) = std::sync::mpsc::channel();
         slice.map_async(wgpu::MapMode::Read, move |r| {
             let _ = tx.send(r);
         });
-        self.poll_wait()?;
-        rx.recv_timeout(std::time::Duration::from_secs(10))
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .map_err(|e| GpuError::Readback(e.to_string()))?;
-        let bytes = slice
-            .get_mapped_range()
-            .map_err(|e| GpuError::Readback(e.to_string()))?
-            .to_vec();
+        let waited = self.poll_wait();
+        let read = |rx: std::sync::mpsc::Receiver<Result<(), wgpu::BufferAsyncError>>,
+                    slice: wgpu::BufferSlice<'_>|
+         -> Result<Vec<u8>, GpuError> {
+            rx.recv_timeout(std::time::Duration::from_secs(10))
+                .map_err(|e| GpuError::Readback(e.to_string()))?
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            let bytes = slice
+                .get_mapped_range()
+                .map_err(|e| GpuError::Readback(e.to_string()))?
+                .to_vec();
+            Ok(bytes)
+        };
+        for (r, rx) in riders.iter().zip(mapped) {
+            let got = match &waited {
+                Ok(()) => read(rx, r.staging.slice(..r.size)),
+                Err(e) => Err(GpuError::Readback(e.to_string())),
+            };
+            let ok = got.is_ok();
+            *r.bytes.lock().unwrap_or_else(|p| p.into_inner()) = Some(got);
+            // A failed map may leave the buffer pending: dropped, not kept.
+            if ok {
+                r.staging.unmap();
+                self.put_rider_staging(r.staging.clone());
+            }
+        }
+        waited?;
+        let bytes = read(rx, slice)?;
         staging.unmap();
         Ok(bytes)
     }

@@ -70,7 +70,7 @@ pub use error::SplatError;
 pub use gather::{GatherMode, GatherSample};
 pub use gpu_data::GATHER_STRIDE;
 pub use model::{GpuModel, PackedModel, pack_model, spatial_order};
-pub use splatter::Splatter;
+pub use splatter::{PendingGather, Splatter};
 pub use targets::{SplatImage, SplatTargets};
 pub use window::Window;
 pub(crate) use window::box_corners;

@@ -61,6 +61,10 @@ struct Reuse {
     /// Indexed by [`Grown`].
     buffers: [GrowBuffer; 3],
     binds: Vec<(BindKey, wgpu::BindGroup)>,
+    /// A gather went to a batch (put off) since the last flush: its points
+    /// and parameters, written by `Queue::write_buffer`, must not be
+    /// overwritten before it is submitted.
+    gather_put_off: bool,
 }
 
 #[derive(Clone, Copy)]
@@ -258,6 +262,7 @@ impl Splatter {
                     GrowBuffer::new("gather points", STORAGE_IN),
                 ],
                 binds: Vec::new(),
+                gather_put_off: false,
             }),
             busy: std::sync::Mutex::new(()),
         })
@@ -707,13 +712,38 @@ impl Splatter {
         points: &[[f32; 2]],
         mode: GatherMode,
     ) -> Result<Vec<GatherSample>, SplatError> {
+        self.gather_later(ctx, targets, points, mode)?.wait(ctx)
+    }
+
+    /// [`Splatter::gather`] without waiting: the gather is recorded and
+    /// submitted (within a batch, put off with it) and its readback goes
+    /// with the calling thread's next one ([`GpuContext::read_buffer_later`]);
+    /// [`PendingGather::wait`] returns the samples. The next gather
+    /// submits a put-off one first (they share the points' buffer).
+    pub fn gather_later(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        points: &[[f32; 2]],
+        mode: GatherMode,
+    ) -> Result<PendingGather, SplatError> {
         targets.check(Attributes::MOTION, Attribute::Motion)?;
         if points.is_empty() {
-            return Ok(Vec::new());
+            return Ok(PendingGather { read: None, n: 0 });
         }
         let bytes: &[u8] = bytemuck::cast_slice(points);
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         ctx.check_buffer_size("gather points", bytes.len() as u64, STORAGE_IN)?;
+        let put_off = std::mem::take(
+            &mut self
+                .reuse
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .gather_put_off,
+        );
+        if put_off {
+            ctx.flush();
+        }
         let pbuf = self.grown(ctx, Grown::Points, bytes.len() as u64);
         ctx.queue.write_buffer(&pbuf, 0, bytes);
         let n = points.len() * GATHER_STRIDE;
@@ -742,11 +772,15 @@ impl Splatter {
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(workgroups(points.len() as u32, WORKGROUP_1D), 1, 1);
         }
-        let data = ctx.read_buffer_after::<f32>(enc, &out, n)?;
-        Ok(data
-            .chunks(GATHER_STRIDE)
-            .map(GatherSample::from_floats)
-            .collect())
+        let read = ctx.read_buffer_later(enc, &out, (n * 4) as u64)?;
+        self.reuse
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .gather_put_off = true;
+        Ok(PendingGather {
+            read: Some(read),
+            n: points.len(),
+        })
     }
 
     /// One-shot convenience: upload, render and read one attribute.
@@ -761,5 +795,30 @@ impl Splatter {
         let mut targets = SplatTargets::new(ctx, cam.width, cam.height);
         self.render(ctx, model, cam, pose, attribute.needs(), &mut targets)?;
         self.read(ctx, &targets, attribute)
+    }
+}
+
+/// A gather whose readback is put off ([`Splatter::gather_later`]).
+#[must_use = "a pending gather is only useful waited for"]
+pub struct PendingGather {
+    read: Option<crate::gpu::PendingRead>,
+    /// Points gathered.
+    n: usize,
+}
+
+impl PendingGather {
+    /// The samples, one a point: at once when a readback since brought
+    /// them, else after a readback of their own.
+    pub fn wait(self, ctx: &GpuContext) -> Result<Vec<GatherSample>, SplatError> {
+        let Some(read) = self.read else {
+            return Ok(Vec::new());
+        };
+        let bytes = read.wait(ctx)?;
+        let data: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
+        debug_assert_eq!(data.len(), self.n * GATHER_STRIDE);
+        Ok(data
+            .chunks(GATHER_STRIDE)
+            .map(GatherSample::from_floats)
+            .collect())
     }
 }

@@ -9,7 +9,7 @@ use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::Attributes;
+use crate::splat::{Attributes, PendingGather};
 use nalgebra::Vector2;
 
 /// Where `it_interior_px` probes around a corner, in units of that distance.
@@ -27,19 +27,21 @@ const RING: [(f32, f32); 8] = [
 impl Tracker {
     /// IT, where the mode runs it and there is a previous frame (never
     /// while recovering): its outcome and, when fusing, its inliers.
+    /// `early`: the gather [`Tracker::it_gather_early`] put off, if any.
     pub(super) fn it_stage(
         &mut self,
         frame: &Frame,
         pose: &Pose,
         recovering: bool,
+        early: Option<Result<PendingGather, StepError>>,
     ) -> (StepOutcome, Vec<Anchor>) {
-        if !matches!(self.config.mode, Mode::It | Mode::KfIt) || recovering {
+        if !self.it_runs(recovering) {
             return (StepOutcome::default(), Vec::new());
         }
         let Some(prev) = self.prev.take() else {
             return (StepOutcome::default(), Vec::new());
         };
-        match self.it_step(&prev, frame, pose) {
+        match self.it_step(&prev, frame, pose, early) {
             Ok(step) => {
                 let outcome = StepOutcome::from_result(Ok(estimate(&step)));
                 let anchors = if self.config.fuse || self.config.modalities.contour {
@@ -53,19 +55,72 @@ impl Tracker {
         }
     }
 
-    /// Frame-to-frame step from the previous frame's corners.
-    fn it_step(&mut self, prev: &Frame, frame: &Frame, pose: &Pose) -> Result<Refined, StepError> {
+    /// Whether the IT step runs this frame (where the mode runs it, never
+    /// while recovering, and with a previous frame).
+    fn it_runs(&self, recovering: bool) -> bool {
+        matches!(self.config.mode, Mode::It | Mode::KfIt) && !recovering && self.prev.is_some()
+    }
+
+    /// IT's render at `pose` (where the check of the previous frame did
+    /// not make it already) and its gather at the previous frame's
+    /// corners, the gather's readback put off: before the frame's Harris,
+    /// both go with its readback (neither needs the frame). `None` where
+    /// IT does not run.
+    pub(super) fn it_gather_early(
+        &mut self,
+        pose: &Pose,
+        recovering: bool,
+    ) -> Option<Result<PendingGather, StepError>> {
+        if !self.it_runs(recovering) {
+            return None;
+        }
         let t = std::time::Instant::now();
+        let pts: Vec<[f32; 2]> = self
+            .prev
+            .as_ref()?
+            .corners
+            .iter()
+            .map(|c| [c.x, c.y])
+            .collect();
+        let r = self.it_render_and_gather(pose, &pts);
+        self.stages.it_render += t.elapsed();
+        Some(r)
+    }
+
+    /// IT's render and gather at `pts` (module docs of `it_gather_early`).
+    fn it_render_and_gather(
+        &mut self,
+        pose: &Pose,
+        pts: &[[f32; 2]],
+    ) -> Result<PendingGather, StepError> {
         let window = self.view_window(pose);
-        // The render (where the check of the previous frame did not make
-        // it already) goes with the gather's readback.
+        // The render goes with the gather's readback.
         let _batch = self.ctx.batch();
         if !self.reuse_render(pose, window) {
             let cam = self.use_window(window);
             self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;
         }
-        let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
-        let samples = self.gather_frame(&pts)?;
+        Ok(self.gather_frame_later(pts)?)
+    }
+
+    /// Frame-to-frame step from the previous frame's corners (their
+    /// gather `early`, if put off before the frame's Harris).
+    fn it_step(
+        &mut self,
+        prev: &Frame,
+        frame: &Frame,
+        pose: &Pose,
+        early: Option<Result<PendingGather, StepError>>,
+    ) -> Result<Refined, StepError> {
+        let t = std::time::Instant::now();
+        let pending = match early {
+            Some(p) => p?,
+            None => {
+                let pts: Vec<[f32; 2]> = prev.corners.iter().map(|c| [c.x, c.y]).collect();
+                self.it_render_and_gather(pose, &pts)?
+            }
+        };
+        let samples = pending.wait(&self.ctx)?;
         // Only corners on the object take part; with `it_interior_px`, only
         // those whose surroundings are on the object too (see the field).
         let mut on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();

@@ -133,6 +133,12 @@ impl Tracker {
             Search::Motion => self.config.it_search_px,
             Search::Refine => self.config.kf_search_px,
         });
+        // The predictors at every view corner, gathered now and read back
+        // with the matching's readback (one submission and one wait for
+        // both; a corner's sample does not depend on the others).
+        let batch = self.ctx.batch();
+        let pts: Vec<[f32; 2]> = view_corners.iter().map(|c| [c.x, c.y]).collect();
+        let gathered = self.gather_frame_later(&pts)?;
         // Each match: the view's corner and where it lies in the frame
         // (`None`: its refinement failed).
         let found: Vec<Found> = match view {
@@ -143,16 +149,13 @@ impl Tracker {
                 self.kf_match_host(window, &view, &view_corners, frame, search, margin)?
             }
         };
+        drop(batch);
         let timings = self.matcher(search).last_timings().clone();
         self.note_ncc("KF", timings);
-        let pts: Vec<[f32; 2]> = found
-            .iter()
-            .map(|(a, _)| [view_corners[*a].x, view_corners[*a].y])
-            .collect();
-        let samples = self.gather_frame(&pts)?;
+        let all = gathered.wait(&self.ctx)?;
         let obs: Vec<Correspondence> = found
             .iter()
-            .zip(&samples)
+            .map(|f| (f, &all[f.0]))
             .filter(|(_, s)| s.valid)
             .filter_map(|((a, to), s)| {
                 let a = &view_corners[*a];

@@ -662,10 +662,19 @@ impl Tracker {
         let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
         let start_pose = self.pose;
         let texture = self.config.modalities.texture;
+        let recovering = self.lost_streak > 0;
         // The frame's intake and its window's packing go to the GPU with
         // Harris's first readback (their parameters have buffers of their
-        // own).
+        // own), and so do IT's render and gather, which do not need the
+        // frame: that readback brings the gather's samples too.
         let intake = self.ctx.batch();
+        let t_early = Instant::now();
+        let it_early = if texture {
+            self.it_gather_early(&start_pose, recovering)
+        } else {
+            None
+        };
+        let it_early_time = t_early.elapsed();
         if texture {
             self.resident.upload(&self.ctx, rgb)?;
         }
@@ -676,18 +685,18 @@ impl Tracker {
         };
         drop(intake);
         let frame = Frame { grey, corners };
-        times.features = t_features.elapsed();
+        // IT's early render and gather count as IT's.
+        times.features = t_features.elapsed().saturating_sub(it_early_time);
 
         let rules = Rules::of(&self.config);
-        let recovering = self.lost_streak > 0;
         let first_frame = self.prev.is_none() && !recovering;
         let t_it = Instant::now();
         let (it, it_anchors) = if texture {
-            self.it_stage(&frame, &start_pose, recovering)
+            self.it_stage(&frame, &start_pose, recovering, it_early)
         } else {
             (StepOutcome::default(), Vec::new())
         };
-        times.it = t_it.elapsed();
+        times.it = t_it.elapsed() + it_early_time;
         let t_kf = Instant::now();
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
         self.kf_anchors.clear();

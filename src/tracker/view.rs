@@ -479,10 +479,19 @@ impl Tracker {
         &self,
         points: &[[f32; 2]],
     ) -> Result<Vec<GatherSample>, SplatError> {
+        self.gather_frame_later(points)?.wait(&self.ctx)
+    }
+
+    /// [`Tracker::gather_frame`], its readback put off to go with the
+    /// next one ([`crate::splat::Splatter::gather_later`]).
+    pub(super) fn gather_frame_later(
+        &self,
+        points: &[[f32; 2]],
+    ) -> Result<crate::splat::PendingGather, SplatError> {
         let o = self.window.origin();
         let local: Vec<[f32; 2]> = points.iter().map(|p| [p[0] - o[0], p[1] - o[1]]).collect();
         self.splatter
-            .gather(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
+            .gather_later(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
     }
 
     /// Harris corners of the frame `grey` within the region of interest at
