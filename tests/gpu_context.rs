@@ -200,8 +200,9 @@ fn a_put_off_readback_goes_with_the_next_one() {
     // before it (later work may overwrite the buffer), nothing waits, and
     // the thread's next readback maps it too: one wait for both, its bytes
     // then at hand. Waited for before any other readback, it reads alone.
-    // Another thread's readback does not carry it. Its staging buffers are
-    // kept: the steady state makes none.
+    // Another thread's readback does not carry it, nor any readback once
+    // it is dropped. Its staging buffers are kept: the steady state makes
+    // none.
     let c = own_ctx();
     let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
@@ -272,6 +273,12 @@ fn a_put_off_readback_goes_with_the_next_one() {
     let bytes = pending.wait(&c).unwrap();
     assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&bytes), [1, 2]);
     assert_eq!(c.readbacks() - reads, 2, "the other thread's, then its own");
+    // Dropped unwaited: no readback maps it.
+    let read = c.bytes_read();
+    drop(c.read_buffer_later(copy(&a, &b), &b, 16).unwrap());
+    let got: Vec<u32> = c.read_buffer(&a, 1).unwrap();
+    assert_eq!(got, [1]);
+    assert_eq!(c.bytes_read() - read, 4, "its bytes not read");
     // An overread is refused, nothing submitted.
     let subs = c.submissions();
     assert!(c.read_buffer_later(copy(&a, &b), &b, 20).is_err());

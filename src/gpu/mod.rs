@@ -137,9 +137,13 @@ struct Rider {
 /// A readback put off by [`GpuContext::read_buffer_later`]: its bytes
 /// come with the next readback of the thread that made it (any other
 /// readback's wait then serves both), or with [`PendingRead::wait`].
+/// Dropped unwaited, it is taken off its thread's list (no readback maps
+/// it) and its staging buffer kept for the next.
 #[must_use = "a pending read is only useful waited for"]
 pub struct PendingRead {
-    rider: std::sync::Arc<Rider>,
+    /// `None` once waited for.
+    rider: Option<std::sync::Arc<Rider>>,
+    health: std::sync::Arc<Health>,
     /// The bytes asked for (the rider reads them rounded up to 4).
     bytes: u64,
 }
@@ -147,30 +151,35 @@ pub struct PendingRead {
 impl PendingRead {
     /// The bytes read: at once when a readback since has mapped them,
     /// else in a readback of their own (submitting what a batch put off).
-    pub fn wait(self, ctx: &GpuContext) -> Result<Vec<u8>, GpuError> {
-        let mapped = self
-            .rider
-            .bytes
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .take();
+    pub fn wait(mut self, ctx: &GpuContext) -> Result<Vec<u8>, GpuError> {
+        let rider = self.rider.take().expect("waited for once");
+        let mapped = rider.bytes.lock().unwrap_or_else(|p| p.into_inner()).take();
         let mut all = match mapped {
             Some(r) => r?,
             None => {
-                {
-                    let mut riders = ctx.health.riders.lock().unwrap_or_else(|p| p.into_inner());
-                    riders.retain(|r| !std::sync::Arc::ptr_eq(r, &self.rider));
-                }
+                self.health.forget_rider(&rider);
                 ctx.health.submit(&ctx.queue, None);
-                let r = ctx.map_read(&self.rider.staging, self.rider.size);
+                let r = ctx.map_read(&rider.staging, rider.size);
                 if r.is_ok() {
-                    ctx.put_rider_staging(self.rider.staging.clone());
+                    ctx.health.keep_rider_staging(rider.staging.clone());
                 }
                 r?
             }
         };
         all.truncate(self.bytes as usize);
         Ok(all)
+    }
+}
+
+impl Drop for PendingRead {
+    fn drop(&mut self) {
+        if let Some(rider) = self.rider.take()
+            && self.health.forget_rider(&rider)
+        {
+            // Never mapped: its copy, if still running, comes before any
+            // later use of the buffer.
+            self.health.keep_rider_staging(rider.staging.clone());
+        }
     }
 }
 
@@ -208,6 +217,24 @@ struct BatchState {
 }
 
 impl Health {
+    /// Takes `rider` off the list of put-off readbacks; whether it was on
+    /// it (not yet mapped).
+    fn forget_rider(&self, rider: &std::sync::Arc<Rider>) -> bool {
+        let mut riders = self.riders.lock().unwrap_or_else(|p| p.into_inner());
+        let before = riders.len();
+        riders.retain(|r| !std::sync::Arc::ptr_eq(r, rider));
+        riders.len() < before
+    }
+
+    /// Keeps an unmapped staging buffer of a put-off readback for the next
+    /// (a few at most).
+    fn keep_rider_staging(&self, b: wgpu::Buffer) {
+        let mut pool = self.rider_staging.lock().unwrap_or_else(|p| p.into_inner());
+        if pool.len() < 8 {
+            pool.push(b);
+        }
+    }
+
     /// Submits the work a batch put off and then `last`, in one counted
     /// submission (none when there is nothing). The list keeps its
     /// allocation: no allocation a submission.
@@ -1001,7 +1028,11 @@ impl GpuContext {
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .push(rider.clone());
-        Ok(PendingRead { rider, bytes })
+        Ok(PendingRead {
+            rider: Some(rider),
+            health: self.health.clone(),
+            bytes,
+        })
     }
 
     /// Submits the work this thread's batch put off, without waiting.
@@ -1012,19 +1043,6 @@ impl GpuContext {
         };
         if mine {
             self.health.submit(&self.queue, None);
-        }
-    }
-
-    /// Keeps an unmapped staging buffer of a put-off readback for the next
-    /// (a few at most).
-    fn put_rider_staging(&self, b: wgpu::Buffer) {
-        let mut pool = self
-            .health
-            .rider_staging
-            .lock()
-            .unwrap_or_else(|p| p.into_inner());
-        if pool.len() < 8 {
-            pool.push(b);
         }
     }
 
@@ -1132,7 +1150,7 @@ impl GpuContext {
             // A failed map may leave the buffer pending: dropped, not kept.
             if ok {
                 r.staging.unmap();
-                self.put_rider_staging(r.staging.clone());
+                self.health.keep_rider_staging(r.staging.clone());
             }
         }
         waited?;
