@@ -5,7 +5,7 @@
 //! reference) in it and packs the window's coverage into bits. What comes
 //! back is a few integers a point and a bit a pixel, not the depth's four
 //! bytes a pixel; the host finishes each point with the reference's own
-//! arithmetic ([`super::contour::contour_point`]), so the points are the
+//! arithmetic (`contour::contour_point`), so the points are the
 //! reference's bit for bit. `tests/outline_gpu.rs` compares the two.
 
 use super::contour::{ContourPoint, contour_point};
