@@ -489,23 +489,24 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
     assert!(worst < 3.0, "worst rotation error {worst:.2} deg");
 }
 
-/// The colours of a tracked frame are learnt on a thread of their own,
-/// beside the next frame's steps (src/tracker/learner.rs): the poses must
-/// be those of learning on the tracking thread, bit for bit, and each
-/// frame after the first reports the learning's time. The untextured
-/// object's first 8 frames at 320x240, contour alone (every frame learns).
-#[test]
-fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
+/// The untextured object's first 8 frames at 320x240, contour alone,
+/// tracked by two trackers set up by `setup(tracker, false)` and
+/// `setup(tracker, true)`: each frame's results, which must be tracking
+/// and give the same poses bit for bit and the same inliers.
+fn contour_alone_both_ways(
+    ctx: &GpuContext,
+    setup: impl Fn(&mut splattrack::tracker::Tracker, bool),
+) -> [Vec<splattrack::tracker::TrackResult>; 2] {
     use splattrack::tracker::{Modalities, Status, TrackerConfig};
     let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
     let (model, frames) = plain_frames(camera, 60, 8);
-    let run = |background: bool| {
+    let run = |on: bool| {
         let config = TrackerConfig {
             modalities: Modalities::CONTOUR,
             ..Default::default()
         };
         let mut t = splattrack::tracker::Tracker::new(
-            ctx(),
+            ctx,
             model.clone(),
             camera,
             None,
@@ -513,18 +514,31 @@ fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
             frames[0].pose,
         )
         .unwrap();
-        t.set_background_learning(background);
+        setup(&mut t, on);
         frames
             .iter()
             .map(|f| t.track(&f.image).unwrap())
             .collect::<Vec<_>>()
     };
-    let here = run(false);
-    let beside = run(true);
-    for (i, (a, b)) in here.iter().zip(&beside).enumerate() {
+    let both = [run(false), run(true)];
+    for (i, (a, b)) in both[0].iter().zip(&both[1]).enumerate() {
         assert_eq!(a.status, Status::Tracking, "frame {i}");
         assert_eq!(a.pose, b.pose, "frame {i}: the poses differ");
         assert_eq!(a.inliers, b.inliers, "frame {i}");
+    }
+    both
+}
+
+/// The colours of a tracked frame are learnt on a thread of their own,
+/// beside the next frame's steps (src/tracker/learner.rs): the poses must
+/// be those of learning on the tracking thread, bit for bit, and each
+/// frame after the first reports the learning's time. The untextured
+/// object's first 8 frames at 320x240, contour alone (every frame learns).
+#[test]
+fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
+    let [here, beside] =
+        contour_alone_both_ways(ctx(), |t, background| t.set_background_learning(background));
+    for (i, (a, b)) in here.iter().zip(&beside).enumerate() {
         // On the tracking thread, a frame's learning is its own; beside,
         // the previous frame's, reported when the contour step takes the
         // colours back (the first frame learns before its search).
@@ -547,43 +561,18 @@ fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
 /// contour alone.
 #[test]
 fn the_outline_found_on_the_gpu_gives_the_hosts_poses_from_fewer_bytes() {
-    use splattrack::tracker::{Modalities, Status, TrackerConfig};
-    let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
-    let (model, frames) = plain_frames(camera, 60, 8);
     // A context of its own, so that other tests' readbacks are not
     // counted.
     let own = GpuContext::new(&gpu::AdapterChoice::Cpu)
         .or_else(|_| GpuContext::new(&gpu::AdapterChoice::Auto))
         .expect("a GPU adapter");
-    let run = |resident: bool| {
-        let config = TrackerConfig {
-            modalities: Modalities::CONTOUR,
-            ..Default::default()
-        };
-        let mut t = splattrack::tracker::Tracker::new(
-            &own,
-            model.clone(),
-            camera,
-            None,
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
+    let [host, gpu] = contour_alone_both_ways(&own, |t, resident| {
         t.set_resident_outline(resident);
         // The check scored on the GPU in both (on the host it reads the
         // view back).
         t.set_resident_check(true);
-        frames
-            .iter()
-            .map(|f| t.track(&f.image).unwrap())
-            .collect::<Vec<_>>()
-    };
-    let host = run(false);
-    let gpu = run(true);
+    });
     for (i, (a, b)) in host.iter().zip(&gpu).enumerate() {
-        assert_eq!(a.status, Status::Tracking, "frame {i}");
-        assert_eq!(a.pose, b.pose, "frame {i}: the poses differ");
-        assert_eq!(a.inliers, b.inliers, "frame {i}");
         assert_eq!(a.times.readbacks, b.times.readbacks, "frame {i}");
         assert!(
             10.0 * b.times.readback_bytes < a.times.readback_bytes,
