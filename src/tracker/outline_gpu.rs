@@ -188,20 +188,21 @@ impl GpuOutline {
     /// into (one f32 a pixel, NaN where empty) for
     /// [`GpuOutline::extract`].
     pub fn depth_target(&mut self, width: u32, height: u32) -> wgpu::Buffer {
-        self.prepare(width, height);
+        self.prepare(width, height, 1);
         self.depth.get().clone()
     }
 
-    fn prepare(&mut self, width: u32, height: u32) {
+    /// Sizes the buffers for a `width x height` window of `cells` cells
+    /// (at most a point a cell).
+    fn prepare(&mut self, width: u32, height: u32, cells: u64) {
         let n = width as u64 * height as u64;
         let ctx = &self.ctx;
-        // At most a point a pixel (a spacing of 1).
         let mut changed = self.depth.ensure(ctx, n * 4);
-        changed |= self.first.ensure(ctx, n * 4);
+        changed |= self.first.ensure(ctx, cells * 4);
         changed |= self.count.ensure(ctx, 16);
         changed |= self
             .points
-            .ensure(ctx, n * std::mem::size_of::<OutlinePoint>() as u64);
+            .ensure(ctx, cells * std::mem::size_of::<OutlinePoint>() as u64);
         changed |= self.bits.ensure(ctx, n.div_ceil(32) * 4);
         if changed || self.bind.is_none() {
             let bufs = [
@@ -229,11 +230,11 @@ impl GpuOutline {
                 "a {width}x{height} window is beyond the GPU outline"
             )));
         }
-        self.prepare(width, height);
-        let ctx = &self.ctx.clone();
         let spacing = spacing.max(1);
         let cells_x = width.div_ceil(spacing);
         let cells = cells_x * height.div_ceil(spacing);
+        self.prepare(width, height, cells as u64);
+        let ctx = &self.ctx.clone();
         let words = (width * height).div_ceil(32);
         let params = OutlineParams {
             width,
