@@ -1090,12 +1090,20 @@ impl GpuContext {
     /// are mapped in the same wait.
     fn map_read(&self, staging: &wgpu::Buffer, size: u64) -> Result<Vec<u8>, GpuError> {
         let me = std::thread::current().id();
-        let riders: Vec<std::sync::Arc<Rider>> = {
-            let mut all = self.health.riders.lock().unwrap_or_else(|p| p.into_inner());
-            let (mine, others) = all.drain(..).partition(|r| r.thread == me);
-            *all = others;
-            mine
-        };
+        // This thread's put-off readbacks, taken off the list (which keeps
+        // its allocation; none is made when there are none).
+        let mut riders: Vec<std::sync::Arc<Rider>> = Vec::new();
+        self.health
+            .riders
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .retain(|r| {
+                let mine = r.thread == me;
+                if mine {
+                    riders.push(r.clone());
+                }
+                !mine
+            });
         let slice = staging.slice(..size.next_multiple_of(4));
         let relaxed = std::sync::atomic::Ordering::Relaxed;
         let rider_bytes: u64 = riders.iter().map(|r| r.size).sum();
