@@ -430,9 +430,8 @@ impl Tracker {
     /// Searches the whole frame for the object (module docs): the pose
     /// found, checked against the image, or `None`.
     pub fn find(&mut self, frame: &image::RgbImage) -> Result<Option<Pose>, TrackError> {
-        let grey = GreyImage::from_rgb8(frame);
-        let corners = self.harris.detect(&grey, None)?;
-        let grey_frame = Frame { grey, corners };
+        let mut grey_frame = Frame::new(frame.clone());
+        grey_frame.corners = self.harris.detect(grey_frame.grey(), None)?;
         let found = self.find_in(&grey_frame, frame);
         if self.config.modalities.contour {
             // The candidates' colours are not the object's: the first
@@ -455,7 +454,7 @@ impl Tracker {
         let diam_px = self.cam.fx.max(self.cam.fy) * 2.0 * self.radius / d0;
         let cfg = self.config.init.clone();
         let f = ((diam_px / cfg.template_px).floor() as usize).clamp(1, 16);
-        let (coarse, cw, ch) = shrink(&frame.grey.data, w, h, f);
+        let (coarse, cw, ch) = shrink(&frame.grey().data, w, h, f);
         let edges = EdgeMap::new(&coarse, cw, ch);
         // Templates rendered at twice the coarse size, then shrunk by 2:
         // pixel (i, j) of the result is centred where coarse pixel (i, j)
@@ -522,7 +521,7 @@ impl Tracker {
             let Some((refined, by_contour)) = self.refine_candidate(frame, rgb, start)? else {
                 continue;
             };
-            let s = self.verify_scores(&frame.grey, &refined)?;
+            let s = self.verify_scores(frame, &refined)?;
             log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
             // Refined by its outline (no texture step held), the edges
             // decide as they do for a tracked frame.

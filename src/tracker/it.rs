@@ -148,7 +148,7 @@ impl Tracker {
         let margin = self.match_margin(self.config.it_search_px);
         let matches = match self.resident.frames() {
             (Some(now), Some(before)) => {
-                let full = Placed::full(&prev.grey).at;
+                let full = prev.whole();
                 match_near_resident(
                     &mut self.it_matcher,
                     (before, full),
@@ -164,9 +164,9 @@ impl Tracker {
             }
             _ => match_near(
                 &mut self.it_matcher,
-                Placed::full(&prev.grey),
+                Placed::full(prev.grey()),
                 &src,
-                &frame.grey,
+                frame.grey(),
                 &frame.corners,
                 margin,
             )?

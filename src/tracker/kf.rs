@@ -234,7 +234,7 @@ impl Tracker {
             self.matcher(search),
             placed,
             view_corners,
-            &frame.grey,
+            frame.grey(),
             &frame.corners,
             margin,
         )?;

@@ -276,10 +276,42 @@ pub enum TrackError {
 pub struct CameraInvalid(pub String);
 
 /// A frame as the steps see it (the one being tracked, and the previous
-/// one for IT).
+/// one for IT): its bytes, kept (the next frame's frozen check compares
+/// them), its corners, and its grey levels, made from the bytes when a
+/// host path first asks for them ([`Frame::grey`]). The resident loop
+/// never does: the GPU makes its own grey image from the uploaded bytes
+/// ([`crate::features::resident::FrameIntake`]).
 struct Frame {
-    grey: GreyImage,
+    rgb: image::RgbImage,
+    grey: std::sync::OnceLock<GreyImage>,
     corners: Vec<Corner>,
+}
+
+impl Frame {
+    /// Frame `rgb`, its corners to come.
+    fn new(rgb: image::RgbImage) -> Self {
+        Self {
+            rgb,
+            grey: std::sync::OnceLock::new(),
+            corners: Vec::new(),
+        }
+    }
+
+    /// The frame's grey levels ([`GreyImage::from_rgb8`]), made at the
+    /// first call.
+    fn grey(&self) -> &GreyImage {
+        self.grey.get_or_init(|| GreyImage::from_rgb8(&self.rgb))
+    }
+
+    /// The whole frame as a window.
+    fn whole(&self) -> crate::splat::Window {
+        crate::splat::Window {
+            x0: 0,
+            y0: 0,
+            width: self.rgb.width(),
+            height: self.rgb.height(),
+        }
+    }
 }
 
 /// The tracker: create once per sequence, then call [`Tracker::track`] on
@@ -342,6 +374,8 @@ pub struct Tracker {
     radius: f64,
     pose: Pose,
     prev: Option<Frame>,
+    /// The bytes of the frame before `prev`, a buffer for the next one.
+    spare_frame: Option<image::RgbImage>,
     lost_streak: usize,
     /// KF+IT: consecutive frames tracked by IT alone.
     it_only_streak: usize,
@@ -491,6 +525,7 @@ impl Tracker {
             radius,
             pose: initial,
             prev: None,
+            spare_frame: None,
             lost_streak: 0,
             it_only_streak: 0,
             searching: false,
@@ -658,8 +693,20 @@ impl Tracker {
             }
         }
         let t_features = Instant::now();
-        let grey = GreyImage::from_rgb8(frame);
-        let frozen = self.prev.as_ref().is_some_and(|p| p.grey.data == grey.data);
+        // The frame kept for the next one, in the buffer of the frame
+        // before the last where it fits.
+        let kept = match self.spare_frame.take() {
+            Some(mut b) if b.dimensions() == rgb.dimensions() => {
+                b.copy_from_slice(rgb);
+                b
+            }
+            _ => rgb.clone(),
+        };
+        let mut frame = Frame::new(kept);
+        let frozen = self
+            .prev
+            .as_ref()
+            .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
         let start_pose = self.pose;
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
@@ -678,13 +725,10 @@ impl Tracker {
         if texture {
             self.resident.upload(&self.ctx, rgb)?;
         }
-        let corners = if texture {
-            self.frame_corners(&grey, &start_pose)?
-        } else {
-            Vec::new()
-        };
+        if texture {
+            frame.corners = self.frame_corners(&frame, &start_pose)?;
+        }
         drop(intake);
-        let frame = Frame { grey, corners };
         // IT's early render and gather count as IT's.
         times.features = t_features.elapsed().saturating_sub(it_early_time);
 
@@ -749,7 +793,7 @@ impl Tracker {
             let check = if frozen {
                 Err(Unverified::FrozenFrame)
             } else {
-                let s = self.verify_scores(&frame.grey, &d.pose.unwrap_or(start_pose))?;
+                let s = self.verify_scores(&frame, &d.pose.unwrap_or(start_pose))?;
                 scores = Some(s);
                 log::debug!("verify: {s:?}");
                 // Without a trusted texture step the object shows no
@@ -770,7 +814,7 @@ impl Tracker {
                 Err(Unverified::Appearance { .. })
                     if self.config.modalities.contour && texture_held =>
                 {
-                    self.contour_alone(&rules, &frame.grey, rgb, &d, first_frame)?
+                    self.contour_alone(&rules, &frame, rgb, &d, first_frame)?
                 }
                 _ => None,
             };
@@ -799,7 +843,9 @@ impl Tracker {
             // Keep the last good pose: never report a pose that failed.
             self.lost_streak += 1;
         }
-        self.prev = Some(frame);
+        if let Some(old) = self.prev.replace(frame) {
+            self.spare_frame = Some(old.rgb);
+        }
         self.resident.done();
         let sub = std::mem::take(&mut self.stages);
         times.it_render = sub.it_render;
@@ -836,7 +882,7 @@ impl Tracker {
     fn contour_alone(
         &mut self,
         rules: &Rules,
-        grey: &GreyImage,
+        frame: &Frame,
         rgb: &image::RgbImage,
         d: &Decision,
         first_frame: bool,
@@ -858,7 +904,7 @@ impl Tracker {
         let Some(pose) = alone.pose.filter(|_| alone.status == Status::Tracking) else {
             return Ok(None);
         };
-        let s = self.verify_scores(grey, &pose)?;
+        let s = self.verify_scores(frame, &pose)?;
         log::debug!("verify (contour alone): {s:?}");
         match verify::judge_with_contour(&s, &self.config.verify) {
             Ok(()) => {

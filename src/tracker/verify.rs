@@ -423,7 +423,7 @@ impl super::Tracker {
     /// Scores `pose` against `frame` (module docs).
     pub(super) fn verify_scores(
         &mut self,
-        frame: &GreyImage,
+        frame: &super::Frame,
         pose: &crate::geometry::Pose,
     ) -> Result<VerifyScores, super::TrackError> {
         use crate::splat::{Attribute, Attributes};
@@ -472,7 +472,7 @@ impl super::Tracker {
                 self.check
                     .score_prepared(w, h, textured, visible, step, &self.config.verify)
             } else {
-                let frame = super::view::Placed::full(frame).crop(&window);
+                let frame = super::view::Placed::full(frame.grey()).crop(&window);
                 self.check
                     .score(&frame, textured, visible, step, &self.config.verify)
             }
@@ -483,7 +483,7 @@ impl super::Tracker {
             }
             return Ok(s);
         }
-        let frame = super::view::Placed::full(frame).crop(&window);
+        let frame = super::view::Placed::full(frame.grey()).crop(&window);
         let weight = self
             .splatter
             .read(&self.ctx, &self.targets, Attribute::Weight)?;

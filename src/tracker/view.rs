@@ -494,18 +494,18 @@ impl Tracker {
             .gather_later(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
     }
 
-    /// Harris corners of the frame `grey` within the region of interest at
-    /// `pose` (frame coordinates), detected on the region grown by the
-    /// corners' support only.
+    /// Harris corners of `frame` within the region of interest at `pose`
+    /// (frame coordinates), detected on the region grown by the corners'
+    /// support only.
     pub(super) fn frame_corners(
         &mut self,
-        grey: &GreyImage,
+        frame: &super::Frame,
         pose: &Pose,
     ) -> Result<Vec<Corner>, FeatureError> {
         let Some((x0, y0, x1, y1)) = self.roi(pose) else {
             return Ok(Vec::new());
         };
-        let full = Placed::full(grey).at;
+        let full = frame.whole();
         let w = if self.config.windows {
             Window::around(
                 [x0 as f64, y0 as f64, x1 as f64, y1 as f64],
@@ -535,7 +535,7 @@ impl Tracker {
                 let row = (y - w.y0 as usize) * ww;
                 mask[row + x0 - w.x0 as usize..=row + x1 - w.x0 as usize].fill(true);
             }
-            let crop = Placed::full(grey).crop(&w);
+            let crop = Placed::full(frame.grey()).crop(&w);
             self.harris.detect(&crop, Some(&mask))?
         };
         self.note_harris("features");
