@@ -49,6 +49,22 @@ pub fn flat_map_chunks<T: Sync, U: Send>(
     })
 }
 
+/// `f` over `items` split evenly over the cores (at most 8 parts), or in
+/// one part on the calling thread when there is one core or fewer than
+/// `min_items` items (a thread costs tens of microseconds): the same as
+/// one pass over `items`.
+pub fn flat_map_split<T: Sync, U: Send>(
+    items: &[T],
+    min_items: usize,
+    f: impl Fn(&[T]) -> Vec<U> + Sync,
+) -> Vec<U> {
+    let threads = cores().min(8);
+    if threads < 2 || items.len() < min_items {
+        return f(items);
+    }
+    flat_map_chunks(items, items.len().div_ceil(threads), f)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -67,6 +83,10 @@ mod tests {
             assert_eq!(flat_map_chunks(&items, chunk, one), whole, "chunk {chunk}");
         }
         assert!(flat_map_chunks(&[] as &[u32], 4, one).is_empty());
+        for min_items in [0, 64, 1000, 1001] {
+            assert_eq!(flat_map_split(&items, min_items, one), whole);
+        }
+        assert!(flat_map_split(&[] as &[u32], 0, one).is_empty());
         assert!(cores() >= 1);
         assert_eq!(cores(), cores());
     }

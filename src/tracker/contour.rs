@@ -1416,13 +1416,7 @@ fn search_lines(
             ..*row
         })
     };
-    let threads = crate::par::cores().min(8);
-    if threads < 2 || found.len() < 64 {
-        return found.iter().filter_map(one).collect();
-    }
-    crate::par::flat_map_chunks(found, found.len().div_ceil(threads), |part| {
-        part.iter().filter_map(one).collect()
-    })
+    crate::par::flat_map_split(found, 64, |part| part.iter().filter_map(one).collect())
 }
 
 /// The robust-scale groups of the fused solve.
@@ -1721,15 +1715,29 @@ impl Tracker {
                 let eye = inv.translation;
                 let eye = glam::Vec3::new(eye.x as f32, eye.y as f32, eye.z as f32);
                 let rot = pose.rotation;
-                let mut z = depths.iter();
-                limb_normals_with(cam, &mut points, true, |p| {
-                    let z = *z.next().expect("a depth a point") as f64;
-                    let xc = cam.unproject(&Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64), z);
-                    let xo = inv.transform_point(&xc);
-                    let n = grid
-                        .normal_at(glam::Vec3::new(xo.x as f32, xo.y as f32, xo.z as f32), eye)?;
-                    let n = nalgebra::Vector3::new(n.x as f64, n.y as f64, n.z as f64);
-                    (n.norm() > 0.0).then(|| (rot * n).normalize())
+                // Each point's normal on its own: over the cores.
+                let at: Vec<([u32; 2], f32)> = points
+                    .iter()
+                    .map(|p| p.pixel)
+                    .zip(depths.iter().copied())
+                    .collect();
+                let normals = crate::par::flat_map_split(&at, 64, |part| {
+                    part.iter()
+                        .map(|&(pixel, z)| {
+                            let px = Vector2::new(pixel[0] as f64, pixel[1] as f64);
+                            let xo = inv.transform_point(&cam.unproject(&px, z as f64));
+                            let n = grid.normal_at(
+                                glam::Vec3::new(xo.x as f32, xo.y as f32, xo.z as f32),
+                                eye,
+                            )?;
+                            let n = nalgebra::Vector3::new(n.x as f64, n.y as f64, n.z as f64);
+                            (n.norm() > 0.0).then(|| (rot * n).normalize())
+                        })
+                        .collect()
+                });
+                let mut normals = normals.into_iter();
+                limb_normals_with(cam, &mut points, true, |_| {
+                    normals.next().expect("a normal a point")
                 });
             }
         } else {
