@@ -124,7 +124,7 @@ fn bench(c: &mut Criterion) {
     // submissions) or together (`read_buffer_after`, one): the difference
     // is one submission's host cost.
     let work = || {
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         enc.clear_buffer(&tiny, 0, Some(8));
         enc
     };

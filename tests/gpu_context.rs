@@ -98,21 +98,21 @@ fn a_readback_after_recorded_work_is_one_submission() {
     let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[9u32; 3], gpu::STORAGE_OUT);
     let (subs, reads) = (c.submissions(), c.readbacks());
-    let mut enc = c.device.create_command_encoder(&Default::default());
+    let mut enc = c.encoder();
     enc.clear_buffer(&a, 0, Some(8));
     enc.copy_buffer_to_buffer(&b, 0, &a, 12, 4);
     let got: Vec<u32> = c.read_buffer_after(enc, &a, 5).unwrap();
     assert_eq!(got, [0, 0, 3, 9, 5]);
     assert_eq!((c.submissions() - subs, c.readbacks() - reads), (1, 1));
 
-    let mut enc = c.device.create_command_encoder(&Default::default());
+    let mut enc = c.encoder();
     enc.clear_buffer(&b, 4, None);
     let parts = c.read_buffers_after(enc, &[(&b, 12), (&a, 6)]).unwrap();
     assert_eq!(parts[0], bytemuck::cast_slice::<u32, u8>(&[9, 0, 0]));
     assert_eq!(parts[1], bytemuck::cast_slice::<u32, u8>(&[0, 0])[..6]);
     assert_eq!((c.submissions() - subs, c.readbacks() - reads), (2, 2));
 
-    let mut enc = c.device.create_command_encoder(&Default::default());
+    let mut enc = c.encoder();
     enc.clear_buffer(&a, 0, None);
     assert!(matches!(
         c.read_buffer_after::<u32>(enc, &a, 6),
@@ -122,7 +122,7 @@ fn a_readback_after_recorded_work_is_one_submission() {
     assert_eq!(c.read_buffer::<u32>(&a, 5).unwrap(), [0, 0, 3, 9, 5]);
 
     // Nothing to read: the work is submitted alone, without a wait.
-    let mut enc = c.device.create_command_encoder(&Default::default());
+    let mut enc = c.encoder();
     enc.clear_buffer(&a, 16, None);
     assert!(c.read_buffers_after(enc, &[(&a, 0)]).unwrap()[0].is_empty());
     assert_eq!((c.submissions() - subs, c.readbacks() - reads), (4, 3));
@@ -140,11 +140,11 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
     let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
     let step = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
-        let mut enc = c.device.create_command_encoder(&Default::default());
+        let mut enc = c.encoder();
         f(&mut enc);
         c.submit(enc);
     };
-    let subs = c.submissions();
+    let (subs, cbs) = (c.submissions(), c.command_buffers());
     {
         let _batch = c.batch();
         // Each step reads what the one before wrote.
@@ -152,10 +152,11 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
         step(&|e| e.clear_buffer(&a, 0, Some(8)));
         step(&|e| e.copy_buffer_to_buffer(&b, 8, &a, 4, 4));
         assert_eq!(c.submissions(), subs, "put off");
-        let enc = c.device.create_command_encoder(&Default::default());
+        let enc = c.encoder();
         let got: Vec<u32> = c.read_buffer_after(enc, &a, 4).unwrap();
         assert_eq!(got, [0, 2, 3, 4]);
         assert_eq!(c.submissions() - subs, 1, "one submission");
+        assert_eq!(c.command_buffers() - cbs, 1, "one command buffer");
         assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [7, 1, 2, 7]);
         assert_eq!(c.submissions() - subs, 2);
 
@@ -171,7 +172,7 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
         let d = c.buffer_init("d", &[5u32; 4], gpu::STORAGE_OUT);
         std::thread::scope(|s| {
             s.spawn(|| {
-                let mut enc = c.device.create_command_encoder(&Default::default());
+                let mut enc = c.encoder();
                 enc.copy_buffer_to_buffer(&a, 12, &d, 0, 4);
                 c.submit(enc);
                 assert_eq!(c.submissions() - subs, 3, "not batched");
@@ -195,6 +196,70 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
 }
 
 #[test]
+fn a_batch_records_its_work_into_one_encoder() {
+    // Within a batch `GpuContext::encoder` lends the batch's one encoder,
+    // holding the work put off so far: a chain of steps and its readback
+    // make one command buffer. An encoder dropped unsubmitted (an error
+    // path) leaves its work with the batch; one made before the batch
+    // began goes after the batch's work so far. Outside a batch every
+    // encoder is a command buffer of its own.
+    let c = own_ctx();
+    let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
+    let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
+    let step = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
+        let mut enc = c.encoder();
+        f(&mut enc);
+        c.submit(enc);
+    };
+    let mut early = c.encoder();
+    early.copy_buffer_to_buffer(&a, 0, &b, 0, 16);
+    let (subs, cbs) = (c.submissions(), c.command_buffers());
+    {
+        let _batch = c.batch();
+        step(&|e| e.clear_buffer(&a, 0, Some(4)));
+        {
+            let mut enc = c.encoder();
+            enc.clear_buffer(&a, 4, Some(4));
+        }
+        // After both clears: b = [0, 0, 3, 4].
+        c.submit(early);
+        assert_eq!(c.submissions(), subs, "put off");
+        assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0, 0, 3, 4]);
+        assert_eq!(
+            (c.submissions() - subs, c.command_buffers() - cbs),
+            (1, 3),
+            "the batch's encoder, the early one, the readback's"
+        );
+        let cbs = c.command_buffers();
+        step(&|e| e.clear_buffer(&b, 12, None));
+        step(&|e| e.copy_buffer_to_buffer(&a, 8, &b, 0, 4));
+        let mut enc = c.encoder();
+        enc.clear_buffer(&b, 4, Some(4));
+        assert_eq!(
+            c.read_buffer_after::<u32>(enc, &b, 4).unwrap(),
+            [3, 0, 3, 0]
+        );
+        assert_eq!(c.command_buffers() - cbs, 1, "one command buffer");
+        assert_eq!(c.submissions() - subs, 2);
+    }
+    let cbs = c.command_buffers();
+    step(&|e| e.clear_buffer(&a, 0, None));
+    step(&|e| e.clear_buffer(&b, 0, None));
+    assert_eq!(c.command_buffers() - cbs, 2, "no batch: one each");
+    assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0; 4]);
+}
+
+#[test]
+#[should_panic(expected = "lent already")]
+fn a_second_encoder_while_the_batchs_is_lent_is_refused() {
+    // Its work could not be ordered after the lent encoder's.
+    let c = own_ctx();
+    let _batch = c.batch();
+    let _first = c.encoder();
+    let _second = c.encoder();
+}
+
+#[test]
 fn a_put_off_readback_goes_with_the_next_one() {
     // `GpuContext::read_buffer_later`: the copy is taken behind the work
     // before it (later work may overwrite the buffer), nothing waits, and
@@ -207,7 +272,7 @@ fn a_put_off_readback_goes_with_the_next_one() {
     let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
     let copy = |from: &wgpu::Buffer, to: &wgpu::Buffer| {
-        let mut enc = c.device.create_command_encoder(&Default::default());
+        let mut enc = c.encoder();
         enc.copy_buffer_to_buffer(from, 0, to, 0, 16);
         enc
     };
@@ -215,7 +280,7 @@ fn a_put_off_readback_goes_with_the_next_one() {
         let (reads, made) = (c.readbacks(), c.buffers_created());
         // b = a's first four, put off; then a is cleared.
         let pending = c.read_buffer_later(copy(&a, &b), &b, 12).unwrap();
-        let mut enc = c.device.create_command_encoder(&Default::default());
+        let mut enc = c.encoder();
         enc.clear_buffer(&a, 0, Some(8));
         c.submit(enc);
         assert_eq!(c.readbacks(), reads, "round {round}: nothing waits");
@@ -321,7 +386,7 @@ fn timer_reports_pass_durations() {
             &[&params, &x, &y],
         )
         .unwrap();
-    let mut enc = c.device.create_command_encoder(&Default::default());
+    let mut enc = c.encoder();
     for label in ["first", "second"] {
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),

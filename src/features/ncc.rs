@@ -304,7 +304,7 @@ impl NccMatcher {
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
         self.write_positions(&pos, na);
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         self.encode(&mut enc, na, nb, false);
         let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
         self.finish_timing()?;
@@ -365,7 +365,7 @@ impl NccMatcher {
         self.write_positions(&pos, na);
         let px = std::mem::size_of::<Pixel>();
         let (len_a, len_b) = (img_a.width * a_rows.len(), img_b.width * b_rows.len());
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         enc.copy_buffer_to_buffer(
             img_a.pixels,
             (a_rows.start * img_a.width * px) as u64,

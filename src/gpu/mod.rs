@@ -112,6 +112,10 @@ struct Health {
     /// recorded, validated, submitted and, once done, freed: the host's
     /// fixed cost of GPU work).
     submissions: std::sync::atomic::AtomicU64,
+    /// Command buffers submitted (each recorded, validated and, once
+    /// done, freed: a batch records its work into one,
+    /// [`GpuContext::encoder`]).
+    command_buffers: std::sync::atomic::AtomicU64,
     /// The staging buffer of readbacks, grow-only; taken while in use (a
     /// concurrent readback makes its own).
     staging: std::sync::Mutex<Option<wgpu::Buffer>>,
@@ -208,12 +212,65 @@ impl Drop for Batch {
     }
 }
 
-/// Who batches submissions, how many guards deep, and the work put off.
+/// Who batches submissions, how many guards deep, and the work put off:
+/// recorded into one open encoder, lent to one caller at a time
+/// ([`GpuContext::encoder`]), or finished already (`pending`, before the
+/// open encoder's work).
 #[derive(Default)]
 struct BatchState {
     thread: Option<std::thread::ThreadId>,
     depth: usize,
     pending: Vec<wgpu::CommandBuffer>,
+    open: Option<wgpu::CommandEncoder>,
+    /// The open encoder is lent (its work is in the borrower's hands).
+    lent: bool,
+}
+
+/// A command encoder from [`GpuContext::encoder`], which dereferences to
+/// [`wgpu::CommandEncoder`]. Within a batch of the calling thread it is
+/// the batch's one encoder, lent with the work recorded before; it goes
+/// back with [`GpuContext::submit`] or a readback after it, or when
+/// dropped (its work then goes with the batch's). Elsewhere it is a fresh
+/// encoder.
+pub struct Encoder {
+    /// `None` once submitted.
+    enc: Option<wgpu::CommandEncoder>,
+    /// The batch it is lent by.
+    lent: Option<std::sync::Arc<Health>>,
+}
+
+impl std::ops::Deref for Encoder {
+    type Target = wgpu::CommandEncoder;
+    fn deref(&self) -> &wgpu::CommandEncoder {
+        self.enc.as_ref().expect("an encoder until submitted")
+    }
+}
+
+impl std::ops::DerefMut for Encoder {
+    fn deref_mut(&mut self) -> &mut wgpu::CommandEncoder {
+        self.enc.as_mut().expect("an encoder until submitted")
+    }
+}
+
+impl Encoder {
+    /// The encoder, given back to its batch as lent no more (its work is
+    /// the caller's to submit).
+    fn take(mut self) -> wgpu::CommandEncoder {
+        if let Some(h) = self.lent.take() {
+            h.batch_state().lent = false;
+        }
+        self.enc.take().expect("an encoder until submitted")
+    }
+}
+
+impl Drop for Encoder {
+    fn drop(&mut self) {
+        if let (Some(enc), Some(h)) = (self.enc.take(), self.lent.take()) {
+            let mut b = h.batch_state();
+            b.lent = false;
+            b.open = Some(enc);
+        }
+    }
 }
 
 impl Health {
@@ -238,14 +295,26 @@ impl Health {
     /// Submits the work a batch put off and then `last`, in one counted
     /// submission (none when there is nothing). The list keeps its
     /// allocation: no allocation a submission.
-    fn submit(&self, queue: &wgpu::Queue, last: Option<wgpu::CommandBuffer>) {
-        let mut b = self.batch.lock().unwrap_or_else(|p| p.into_inner());
-        if b.pending.is_empty() && last.is_none() {
+    fn submit(&self, queue: &wgpu::Queue, last: Option<wgpu::CommandEncoder>) {
+        let mut b = self.batch_state();
+        if let Some(open) = b.open.take() {
+            b.pending.push(open.finish());
+        }
+        if let Some(last) = last {
+            b.pending.push(last.finish());
+        }
+        if b.pending.is_empty() {
             return;
         }
-        self.submissions
-            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        queue.submit(b.pending.drain(..).chain(last));
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        self.submissions.fetch_add(1, relaxed);
+        self.command_buffers
+            .fetch_add(b.pending.len() as u64, relaxed);
+        queue.submit(b.pending.drain(..));
+    }
+
+    fn batch_state(&self) -> std::sync::MutexGuard<'_, BatchState> {
+        self.batch.lock().unwrap_or_else(|p| p.into_inner())
     }
 
     fn record(&self, e: GpuError) {
@@ -784,18 +853,83 @@ impl GpuContext {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
-    /// Finishes `enc` and submits it, counted by
+    /// Command buffers submitted so far (all clones of this context
+    /// together), counted as [`GpuContext::submissions`]: one a submission
+    /// where every encoder came from [`GpuContext::encoder`] within a
+    /// batch.
+    pub fn command_buffers(&self) -> u64 {
+        self.health
+            .command_buffers
+            .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// An encoder to record GPU work into, for [`GpuContext::submit`] or a
+    /// readback after it ([`GpuContext::read_buffers_after`]). Within a
+    /// batch of the calling thread ([`GpuContext::batch`]) it is the
+    /// batch's one encoder, lent with the work put off so far: a batch's
+    /// passes then cost the host one command buffer, not one each (each
+    /// is validated, tracked and, once done, freed: about 0.3 ms a frame
+    /// on lavapipe for the resident loop's 20 or so, BENCHMARKS.md).
+    ///
+    /// One encoder is lent at a time: submit (or drop) it before asking
+    /// for another on the same thread. A second one asked for meanwhile
+    /// is refused with a panic, as its work could not be ordered after
+    /// the work already in the lent one.
+    #[track_caller]
+    pub fn encoder(&self) -> Encoder {
+        let mut b = self.batch_state();
+        if b.depth > 0 && b.thread == Some(std::thread::current().id()) {
+            if b.lent {
+                drop(b);
+                panic!(
+                    "GpuContext::encoder at {}: the batch's encoder is lent already (submit it first)",
+                    std::panic::Location::caller()
+                );
+            }
+            b.lent = true;
+            let open = b.open.take();
+            drop(b);
+            return Encoder {
+                enc: Some(open.unwrap_or_else(|| self.fresh_encoder())),
+                lent: Some(self.health.clone()),
+            };
+        }
+        drop(b);
+        Encoder {
+            enc: Some(self.fresh_encoder()),
+            lent: None,
+        }
+    }
+
+    fn fresh_encoder(&self) -> wgpu::CommandEncoder {
+        self.device.create_command_encoder(&Default::default())
+    }
+
+    /// Submits the work recorded in `enc`, counted by
     /// [`GpuContext::submissions`], together with any work a batch put off
     /// ([`GpuContext::batch`]). Every submission of the crate goes through
     /// here. Within a batch of the calling thread the work is put off
-    /// instead, to go with the next readback or the batch's end.
+    /// instead, to go with the next readback or the batch's end: the
+    /// batch's encoder is given back, still open.
     #[track_caller]
-    pub fn submit(&self, enc: wgpu::CommandEncoder) {
+    pub fn submit(&self, enc: Encoder) {
         {
             let mut b = self.batch_state();
             if b.depth > 0 && b.thread == Some(std::thread::current().id()) {
                 log::trace!("put off at {}", std::panic::Location::caller());
-                b.pending.push(enc.finish());
+                if enc.lent.is_some() {
+                    drop(b);
+                    // Dropped, a lent encoder goes back open.
+                    drop(enc);
+                } else {
+                    // Made before the batch began: after the batch's work
+                    // so far.
+                    let enc = enc.take();
+                    if let Some(open) = b.open.take() {
+                        b.pending.push(open.finish());
+                    }
+                    b.pending.push(enc.finish());
+                }
                 return;
             }
         }
@@ -806,13 +940,14 @@ impl GpuContext {
     /// submission). Readbacks submit here: their copies must run before
     /// they wait.
     #[track_caller]
-    fn submit_now(&self, enc: wgpu::CommandEncoder) {
+    fn submit_now(&self, enc: Encoder) {
         log::trace!("submit at {}", std::panic::Location::caller());
-        self.health.submit(&self.queue, Some(enc.finish()));
+        let enc = enc.take();
+        self.health.submit(&self.queue, Some(enc));
     }
 
     fn batch_state(&self) -> std::sync::MutexGuard<'_, BatchState> {
-        self.health.batch.lock().unwrap_or_else(|p| p.into_inner())
+        self.health.batch_state()
     }
 
     /// Batches this thread's submissions until the guard is dropped: work
@@ -896,7 +1031,7 @@ impl GpuContext {
         if count == 0 || std::mem::size_of::<T>() == 0 {
             return Ok(Vec::new());
         }
-        let enc = self.device.create_command_encoder(&Default::default());
+        let enc = self.encoder();
         self.read_buffer_after(enc, buffer, count)
     }
 
@@ -908,7 +1043,7 @@ impl GpuContext {
     #[track_caller]
     pub fn read_buffer_after<T: bytemuck::Pod>(
         &self,
-        enc: wgpu::CommandEncoder,
+        enc: Encoder,
         buffer: &wgpu::Buffer,
         count: usize,
     ) -> Result<Vec<T>, GpuError> {
@@ -928,7 +1063,7 @@ impl GpuContext {
         if parts.iter().all(|(_, bytes)| *bytes == 0) {
             return Ok(parts.iter().map(|_| Vec::new()).collect());
         }
-        let enc = self.device.create_command_encoder(&Default::default());
+        let enc = self.encoder();
         self.read_buffers_after(enc, parts)
     }
 
@@ -938,7 +1073,7 @@ impl GpuContext {
     #[track_caller]
     pub fn read_buffers_after(
         &self,
-        mut enc: wgpu::CommandEncoder,
+        mut enc: Encoder,
         parts: &[(&wgpu::Buffer, u64)],
     ) -> Result<Vec<Vec<u8>>, GpuError> {
         let mut offsets = Vec::with_capacity(parts.len());
@@ -985,7 +1120,7 @@ impl GpuContext {
     #[track_caller]
     pub fn read_buffer_later(
         &self,
-        mut enc: wgpu::CommandEncoder,
+        mut enc: Encoder,
         buffer: &wgpu::Buffer,
         bytes: u64,
     ) -> Result<PendingRead, GpuError> {
@@ -1061,7 +1196,7 @@ impl GpuContext {
             (padded * h) as u64,
             wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
         );
-        let mut enc = self.device.create_command_encoder(&Default::default());
+        let mut enc = self.encoder();
         enc.copy_texture_to_buffer(
             texture.as_image_copy(),
             wgpu::TexelCopyBufferInfo {

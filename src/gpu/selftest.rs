@@ -42,7 +42,7 @@ pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f
         &pipeline.get_bind_group_layout(0),
         &[&params, &xb, &yb],
     )?;
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
+    let mut enc = ctx.encoder();
     {
         let mut pass = enc.begin_compute_pass(&Default::default());
         pass.set_pipeline(&pipeline);

@@ -299,7 +299,7 @@ impl ComputeSplatter {
         let groups = workgroups(model.count, WORKGROUP_1D);
         let gx = groups.clamp(1, 65_535);
         let gy = groups.div_ceil(gx);
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         // The depth keys and sums are zero: made so (wgpu zeroes new
         // buffers), and `finish` clears every pixel it reads.
         enc.clear_buffer(&scratch.bounds, 0, None);

@@ -338,7 +338,7 @@ impl Splatter {
             return Ok(());
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         self.visibility_pass(
             &mut enc,
             (&self.visibility, "splat visibility", &[]),
@@ -423,7 +423,7 @@ impl Splatter {
             return Ok(());
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         let colors = cleared_attachments(targets, Attributes::GEOMETRY);
         self.visibility_pass(
             &mut enc,
@@ -624,7 +624,7 @@ impl Splatter {
         targets: &SplatTargets,
         attribute: Attribute,
         out: &wgpu::Buffer,
-    ) -> Result<wgpu::CommandEncoder, SplatError> {
+    ) -> Result<crate::gpu::Encoder, SplatError> {
         targets.check(attribute.needs(), attribute)?;
         let (w, h) = (targets.width, targets.height);
         let n = w as u64 * h as u64 * attribute.channels() as u64;
@@ -653,7 +653,7 @@ impl Splatter {
             out,
             None,
         );
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.resolve);
@@ -765,7 +765,7 @@ impl Splatter {
             &out,
             Some(&pbuf),
         );
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.gather);

@@ -252,7 +252,7 @@ impl GpuOutline {
             .bind
             .as_ref()
             .ok_or_else(|| GpuError::Readback("the outline's bind group failed".into()))?;
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         enc.clear_buffer(self.first.get(), 0, Some(cells as u64 * 4));
         enc.clear_buffer(self.count.get(), 0, None);
         let passes = [

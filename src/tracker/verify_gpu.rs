@@ -222,7 +222,7 @@ impl GpuCheck {
             .bind
             .as_ref()
             .ok_or_else(|| GpuError::Readback("the check's bind group failed".into()))?;
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         {
             let mut pass = compute_pass(&mut enc, "rows", self.timer.as_mut());
             pass.set_pipeline(&self.rows);

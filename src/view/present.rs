@@ -281,7 +281,7 @@ impl Presenter {
             })
         })?;
         let view = target.create_view(&Default::default());
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         self.draw(ctx, &mut enc, picture, &view, dst)?;
         ctx.submit(enc);
         let bytes = ctx.read_texture(&target, 4)?;

@@ -252,7 +252,7 @@ impl WindowSink {
             ..Default::default()
         });
         let dst = (texture.texture.width(), texture.texture.height());
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let mut enc = self.ctx.encoder();
         self.presenter
             .draw(&self.ctx, &mut enc, picture, &view, dst)?;
         self.ctx.submit(enc);

@@ -248,7 +248,7 @@ impl Harris {
         &mut self,
         input: Input,
         mask: Option<&[bool]>,
-    ) -> Result<wgpu::CommandEncoder, FeatureError> {
+    ) -> Result<crate::gpu::Encoder, FeatureError> {
         self.encode_maps_refining(input, mask, 0)
     }
 
@@ -260,7 +260,7 @@ impl Harris {
         input: Input,
         mask: Option<&[bool]>,
         refined: usize,
-    ) -> Result<wgpu::CommandEncoder, FeatureError> {
+    ) -> Result<crate::gpu::Encoder, FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
         let ctx = &self.ctx.clone();
@@ -308,7 +308,7 @@ impl Harris {
             workgroups(w as u32, WORKGROUP_2D),
             workgroups(h as u32, WORKGROUP_2D),
         );
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         if let Input::Rgb(_) = input {
             let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
             pass.set_pipeline(&self.grey);
@@ -637,7 +637,7 @@ impl Harris {
     fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
             let ctx = &self.ctx.clone();
-            let mut enc = ctx.device.create_command_encoder(&Default::default());
+            let mut enc = ctx.encoder();
             t.resolve(&mut enc);
             ctx.submit(enc);
             self.last_timings = t.read(ctx)?;
@@ -669,7 +669,7 @@ impl Harris {
             .collect();
         ctx.queue
             .write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
-        let mut enc = ctx.device.create_command_encoder(&Default::default());
+        let mut enc = ctx.encoder();
         {
             let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
             pass.set_pipeline(&self.refine);
