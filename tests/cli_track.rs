@@ -351,6 +351,13 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             readbacks >= 1.0 && submissions >= readbacks && submissions <= readbacks + 1.0,
             "{readbacks} readbacks, {submissions} submissions a frame: {stdout}"
         );
+        // A batch's passes are recorded into one encoder
+        // (`GpuContext::encoder`): about one command buffer a submission.
+        let buffers = field("GPU work", 4);
+        assert!(
+            buffers >= submissions && buffers <= submissions + 1.0,
+            "{buffers} command buffers in {submissions} submissions a frame: {stdout}"
+        );
         field("read back from the GPU", 5)
     };
     let (on, off) = (bytes_read("on"), bytes_read("off"));

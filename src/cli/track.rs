@@ -653,7 +653,10 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         "  {:<26} {:8.0} bytes in {:.1} readbacks\n",
         "read back from the GPU", t.readback_bytes, t.readbacks
     );
-    out += &format!("  {:<26} {:8.1} submissions\n", "GPU work", t.submissions);
+    out += &format!(
+        "  {:<26} {:8.1} submissions, {:.1} command buffers\n",
+        "GPU work", t.submissions, t.command_buffers
+    );
     if t.contour_rounds > 0.0 {
         out += &format!(
             "  {:<26} {:8.2} ({:.2} renders)\n",

@@ -117,6 +117,10 @@ pub struct StageTimes {
     /// ([`GpuContext::submissions`]).
     #[serde(default)]
     pub submissions: f64,
+    /// Command buffers in those submissions
+    /// ([`GpuContext::command_buffers`]).
+    #[serde(default)]
+    pub command_buffers: f64,
     /// Rounds (searches and solves) of the contour step during the call
     /// (a mean over frames is fractional).
     #[serde(default)]
@@ -164,6 +168,7 @@ impl StageTimes {
         self.readback_bytes += other.readback_bytes * k;
         self.readbacks += other.readbacks * k;
         self.submissions += other.submissions * k;
+        self.command_buffers += other.command_buffers * k;
         self.contour_rounds += other.contour_rounds * k;
         self.contour_renders += other.contour_renders * k;
         for (label, ms) in &other.gpu {
@@ -652,6 +657,7 @@ impl Tracker {
             self.ctx.bytes_read(),
             self.ctx.readbacks(),
             self.ctx.submissions(),
+            self.ctx.command_buffers(),
         );
         self.resident.begin();
         self.contour_rounds = 0;
@@ -857,6 +863,7 @@ impl Tracker {
         times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.submissions = (self.ctx.submissions() - read0.2) as f64;
+        times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
         times.contour_rounds = self.contour_rounds as f64;
         times.contour_renders = self.contour_renders as f64;
         (times.colour_learning, times.colour_wait) = self.colours.take_times();
