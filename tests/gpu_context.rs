@@ -139,18 +139,13 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
     let c = own_ctx();
     let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
-    let step = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
-        let mut enc = c.encoder();
-        f(&mut enc);
-        c.submit(enc);
-    };
     let (subs, cbs) = (c.submissions(), c.command_buffers());
     {
         let _batch = c.batch();
         // Each step reads what the one before wrote.
-        step(&|e| e.copy_buffer_to_buffer(&a, 0, &b, 4, 8));
-        step(&|e| e.clear_buffer(&a, 0, Some(8)));
-        step(&|e| e.copy_buffer_to_buffer(&b, 8, &a, 4, 4));
+        step(&c, |e| e.copy_buffer_to_buffer(&a, 0, &b, 4, 8));
+        step(&c, |e| e.clear_buffer(&a, 0, Some(8)));
+        step(&c, |e| e.copy_buffer_to_buffer(&b, 8, &a, 4, 4));
         assert_eq!(c.submissions(), subs, "put off");
         let enc = c.encoder();
         let got: Vec<u32> = c.read_buffer_after(enc, &a, 4).unwrap();
@@ -163,7 +158,7 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
         // Nested: the inner guard's end submits nothing.
         {
             let _inner = c.batch();
-            step(&|e| e.clear_buffer(&b, 0, None));
+            step(&c, |e| e.clear_buffer(&b, 0, None));
         }
         assert_eq!(c.submissions() - subs, 2);
 
@@ -182,10 +177,10 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
         assert_eq!(c.read_buffer::<u32>(&d, 4).unwrap(), [4, 5, 5, 5]);
         assert_eq!(c.read_buffer::<u32>(&a, 4).unwrap(), [0, 2, 3, 4]);
         let done = c.submissions();
-        step(&|e| e.clear_buffer(&a, 0, Some(4)));
+        step(&c, |e| e.clear_buffer(&a, 0, Some(4)));
         c.wait().unwrap();
         assert_eq!(c.submissions() - done, 1, "wait submits what is put off");
-        step(&|e| e.clear_buffer(&a, 4, Some(4)));
+        step(&c, |e| e.clear_buffer(&a, 4, Some(4)));
         assert_eq!(c.submissions() - done, 1);
     }
     // The guard's end submitted the last clear.
@@ -206,17 +201,12 @@ fn a_batch_records_its_work_into_one_encoder() {
     let c = own_ctx();
     let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
-    let step = |f: &dyn Fn(&mut wgpu::CommandEncoder)| {
-        let mut enc = c.encoder();
-        f(&mut enc);
-        c.submit(enc);
-    };
     let mut early = c.encoder();
     early.copy_buffer_to_buffer(&a, 0, &b, 0, 16);
     let (subs, cbs) = (c.submissions(), c.command_buffers());
     {
         let _batch = c.batch();
-        step(&|e| e.clear_buffer(&a, 0, Some(4)));
+        step(&c, |e| e.clear_buffer(&a, 0, Some(4)));
         {
             let mut enc = c.encoder();
             enc.clear_buffer(&a, 4, Some(4));
@@ -231,8 +221,8 @@ fn a_batch_records_its_work_into_one_encoder() {
             "the batch's encoder, the early one, the readback's"
         );
         let cbs = c.command_buffers();
-        step(&|e| e.clear_buffer(&b, 12, None));
-        step(&|e| e.copy_buffer_to_buffer(&a, 8, &b, 0, 4));
+        step(&c, |e| e.clear_buffer(&b, 12, None));
+        step(&c, |e| e.copy_buffer_to_buffer(&a, 8, &b, 0, 4));
         let mut enc = c.encoder();
         enc.clear_buffer(&b, 4, Some(4));
         assert_eq!(
@@ -243,8 +233,8 @@ fn a_batch_records_its_work_into_one_encoder() {
         assert_eq!(c.submissions() - subs, 2);
     }
     let cbs = c.command_buffers();
-    step(&|e| e.clear_buffer(&a, 0, None));
-    step(&|e| e.clear_buffer(&b, 0, None));
+    step(&c, |e| e.clear_buffer(&a, 0, None));
+    step(&c, |e| e.clear_buffer(&b, 0, None));
     assert_eq!(c.command_buffers() - cbs, 2, "no batch: one each");
     assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0; 4]);
 }
@@ -444,6 +434,13 @@ fn invalid_shader_names_are_errors_not_panics() {
 }
 
 /// A fresh device (not the shared one: these tests break theirs).
+/// Records `f` into an encoder of `c` and submits it.
+fn step(c: &GpuContext, f: impl FnOnce(&mut wgpu::CommandEncoder)) {
+    let mut enc = c.encoder();
+    f(&mut enc);
+    c.submit(enc);
+}
+
 fn own_ctx() -> GpuContext {
     let choice = AdapterChoice::from_env().unwrap();
     let choice = if choice == AdapterChoice::Auto {

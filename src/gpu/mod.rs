@@ -268,7 +268,15 @@ impl Drop for Encoder {
         if let (Some(enc), Some(h)) = (self.enc.take(), self.lent.take()) {
             let mut b = h.batch_state();
             b.lent = false;
-            b.open = Some(enc);
+            match b.open.take() {
+                None => b.open = Some(enc),
+                // Never with one encoder lent at a time; its work is
+                // kept, before the newer, all the same.
+                Some(newer) => {
+                    b.pending.push(enc.finish());
+                    b.open = Some(newer);
+                }
+            }
         }
     }
 }
@@ -868,13 +876,15 @@ impl GpuContext {
     /// batch of the calling thread ([`GpuContext::batch`]) it is the
     /// batch's one encoder, lent with the work put off so far: a batch's
     /// passes then cost the host one command buffer, not one each (each
-    /// is validated, tracked and, once done, freed: about 0.3 ms a frame
-    /// on lavapipe for the resident loop's 20 or so, BENCHMARKS.md).
+    /// is validated, tracked and, once done, freed: 0.3-0.5 ms of the
+    /// host's a frame on lavapipe for the resident loop's 20 or so,
+    /// BENCHMARKS.md, stop 30).
     ///
     /// One encoder is lent at a time: submit (or drop) it before asking
-    /// for another on the same thread. A second one asked for meanwhile
-    /// is refused with a panic, as its work could not be ordered after
-    /// the work already in the lent one.
+    /// for another on the same thread, and before the batch's guard is
+    /// dropped. A second one asked for meanwhile is refused with a panic,
+    /// as its work could not be ordered after the work already in the
+    /// lent one.
     #[track_caller]
     pub fn encoder(&self) -> Encoder {
         let mut b = self.batch_state();
