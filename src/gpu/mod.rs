@@ -108,9 +108,9 @@ struct Health {
     /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
     bytes_read: std::sync::atomic::AtomicU64,
     readbacks: std::sync::atomic::AtomicU64,
-    /// Submissions through [`GpuContext::submit`] (each a command buffer
-    /// recorded, validated, submitted and, once done, freed: the host's
-    /// fixed cost of GPU work).
+    /// Submissions through [`GpuContext::submit`] and the readbacks (each
+    /// a `Queue::submit` of one or more command buffers: the host's fixed
+    /// cost of GPU work).
     submissions: std::sync::atomic::AtomicU64,
     /// Command buffers submitted (each recorded, validated and, once
     /// done, freed: a batch records its work into one,
@@ -965,7 +965,8 @@ impl GpuContext {
     /// the GPU with the next readback's (or when the guard is dropped), in
     /// one submission: a chain of passes ending in a readback costs the
     /// host one submission instead of one a pass (about 46 us each on
-    /// lavapipe, `cargo bench --bench features -- submission`).
+    /// lavapipe, `cargo bench --bench features -- submission`), and, its
+    /// encoders taken from [`GpuContext::encoder`], one command buffer.
     ///
     /// Only for chains whose passes read parameters from buffers of their
     /// own: a `Queue::write_buffer` takes effect before the submission it
