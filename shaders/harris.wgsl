@@ -11,9 +11,11 @@
 // carrying the mask), deriv_h -> deriv_v (Gaussian-derivative gradients),
 // integrate_h -> integrate_v (structure tensor smoothed by a Gaussian, then the
 // response det - k trace^2), nms (3x3 non-maximum suppression, threshold,
-// compaction into `candidates`), and refine (one thread per selected
-// corner: gradient-orthogonality sub-pixel refinement) or
-// refine_candidates (one per candidate, before the selection).
+// compaction into `candidates`), then the selection of the corners among
+// the candidates, their refinement and their merge (see "The selection"
+// below), or, when the host selected (more than SELECT_MAX candidates),
+// refine (one thread per selected corner: gradient-orthogonality
+// sub-pixel refinement).
 //
 // The derivative passes carry a validity flag, the minimum over their
 // support: 1 valid, 0 a pinhole in it (PIXEL_HOLE: an isolated invalid
@@ -43,6 +45,12 @@ struct HarrisParams {
     n_corners: u32,
     max_shift: f32,
     min_weight: f32,
+    max_corners: u32,
+    grid_cell: u32,
+    // The merge radius, squared (f32, as the host squares it).
+    merge_r2: f32,
+    // 1: refine the selected corners; 0: keep them at their pixel.
+    refine: u32,
     pad1: u32,
     pad2: u32,
     // g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -60,7 +68,8 @@ struct Candidate {
 struct Counters {
     max_bits: atomic<u32>,
     count: atomic<u32>,
-    pad0: u32,
+    // The corners the selection on the GPU kept (merge_compact).
+    selected: atomic<u32>,
     pad1: u32,
 }
 
@@ -509,17 +518,317 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
     corners[n] = refined(vec2<f32>(c.x, c.y), c.score);
 }
 
-// Every candidate of the NMS, refined into `corners` in the candidates'
-// order, before the host selects among them: the candidates and their
-// refinements then come back in one readback. Only the first
-// `params.n_corners` (what the readback holds) are refined.
+// ---- The selection of the corners among the candidates, on the GPU ----
+// What the host's select_spread_indices, refinement and merge give
+// (src/features/harris/mod.rs, the CPU reference), run here so that only
+// the final corners come back: select_rank (each candidate's rank within
+// its grid cell) -> select_place (its place in the order rank by rank, the
+// first max_corners kept) -> select_refine (the kept ones refined, in that
+// order) -> merge_order (their place by score, then position) ->
+// merge_links (each one's earlier corners closer than the merge radius)
+// -> merge_round (MERGE_ROUNDS times) and merge_rest (the greedy merge:
+// strongest first, a corner too close to a kept one dropped) ->
+// merge_compact (the kept ones into `corners`, their count into
+// `counters.selected`). Every comparison is exact (scores by
+// their bits, positions in IEEE total order, the slot breaking ties as the
+// host's stable sort does), so the corners are the host's. The per-item
+// passes loop over their items with the grid's stride, so any dispatch
+// covers them. At most SELECT_MAX candidates: with more, the passes do
+// nothing and the host selects (it reads the count).
+
+@group(0) @binding(9) var<storage, read_write> select_index: array<u32>;
+@group(0) @binding(10) var<storage, read_write> select_state: array<atomic<u32>>;
+@group(0) @binding(11) var<storage, read_write> ordered: array<RefineCorner>;
+
+const UNDECIDED: u32 = 0u;
+const KEPT: u32 = 1u;
+const DROPPED: u32 = 2u;
+
+// The candidates the selection runs on: none when there are more than
+// SELECT_MAX (the host then selects).
+fn select_count() -> u32 {
+    let n = min(atomicLoad(&counters.count), params.capacity);
+    return select(0u, n, n <= SELECT_MAX);
+}
+
+// The selection's slots: the first max_corners places.
+fn slot_count() -> u32 {
+    return min(select_count(), params.max_corners);
+}
+
+// Whether candidate a comes before b by score (higher first; responses
+// are positive, so their bits order as their values), then y, then x.
+fn score_before(a: Candidate, b: Candidate) -> bool {
+    let sa = bitcast<u32>(a.score);
+    let sb = bitcast<u32>(b.score);
+    if (sa != sb) {
+        return sa > sb;
+    }
+    if (a.y != b.y) {
+        return a.y < b.y;
+    }
+    return a.x < b.x;
+}
+
+fn same_cell(a: Candidate, b: Candidate) -> bool {
+    let g = params.grid_cell;
+    return a.x / g == b.x / g && a.y / g == b.y / g;
+}
+
+// Each candidate's rank within its grid cell (1: the cell's best), into
+// select_index[i]; 0 for all without a grid.
 @compute @workgroup_size(WORKGROUP_1D)
-fn refine_candidates(@builtin(global_invocation_id) id: vec3<u32>) {
-    let n = id.x;
-    let count = min(atomicLoad(&counters.count), params.capacity);
-    if (n >= params.n_corners || n >= count) {
+fn select_rank(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var i = id.x; i < n; i += stride) {
+        var rank = 0u;
+        if (params.grid_cell > 0u) {
+            let c = candidates[i];
+            rank = 1u;
+            for (var j = 0u; j < n; j++) {
+                let o = candidates[j];
+                if (same_cell(o, c) && score_before(o, c)) {
+                    rank++;
+                }
+            }
+        }
+        select_index[i] = rank;
+    }
+}
+
+// Each candidate's place in the order by rank, then by score: the first
+// max_corners places name their candidate in select_index[SELECT_MAX + p].
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_place(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var i = id.x; i < n; i += stride) {
+        let c = candidates[i];
+        let rank = select_index[i];
+        var place = 0u;
+        for (var j = 0u; j < n; j++) {
+            let r = select_index[j];
+            if (r < rank || (r == rank && score_before(candidates[j], c))) {
+                place++;
+            }
+        }
+        if (place < params.max_corners) {
+            select_index[SELECT_MAX + place] = i;
+        }
+    }
+}
+
+// The selected candidates, refined (with refinement on) into `corners`
+// in their selection order.
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_refine(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var s = id.x; s < n; s += stride) {
+        let c = candidates[select_index[SELECT_MAX + s]];
+        let start = vec2<f32>(f32(c.x), f32(c.y));
+        if (params.refine != 0u) {
+            corners[s] = refined(start, c.score);
+        } else {
+            corners[s] = RefineCorner(start.x, start.y, c.score, 0.0);
+        }
+    }
+}
+
+// f32 bits mapped so that unsigned order is IEEE total order (Rust's
+// f32::total_cmp).
+fn total_key(v: f32) -> u32 {
+    let b = bitcast<u32>(v);
+    return select(b | 0x80000000u, ~b, (b & 0x80000000u) != 0u);
+}
+
+// Whether corner a (slot sa) comes before b (slot sb) in the merge's
+// order: score descending, then y, then x, then the selection's order.
+fn merge_before(a: RefineCorner, sa: u32, b: RefineCorner, sb: u32) -> bool {
+    let ka = total_key(a.score);
+    let kb = total_key(b.score);
+    if (ka != kb) {
+        return ka > kb;
+    }
+    let ya = total_key(a.y);
+    let yb = total_key(b.y);
+    if (ya != yb) {
+        return ya < yb;
+    }
+    let xa = total_key(a.x);
+    let xb = total_key(b.x);
+    if (xa != xb) {
+        return xa < xb;
+    }
+    return sa < sb;
+}
+
+// The selected corners in the merge's order, into `ordered`.
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_order(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var s = id.x; s < n; s += stride) {
+        let c = corners[s];
+        var place = 0u;
+        for (var t = 0u; t < n; t++) {
+            if (merge_before(corners[t], t, c, s)) {
+                place++;
+            }
+        }
+        ordered[place] = c;
+    }
+}
+
+// Whether two corners are closer than the merge radius (the host's test,
+// negated: kept when the squared distance is at least the radius's).
+fn too_close(a: RefineCorner, b: RefineCorner) -> bool {
+    let dx = a.x - b.x;
+    let dy = a.y - b.y;
+    return !(dx * dx + dy * dy >= params.merge_r2);
+}
+
+// Each selected corner's earlier corners (in the merge's order) that are
+// too close: their count in select_index[s], the first MERGE_LINKS of
+// them in select_index[SELECT_MAX + s * MERGE_LINKS + k] (the ranks and
+// places are spent by now). Every corner undecided.
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_links(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var s = id.x; s < n; s += stride) {
+        let c = ordered[s];
+        var links = 0u;
+        for (var t = 0u; t < s; t++) {
+            if (too_close(ordered[t], c)) {
+                if (links < MERGE_LINKS) {
+                    select_index[SELECT_MAX + s * MERGE_LINKS + links] = t;
+                }
+                links++;
+            }
+        }
+        select_index[s] = links;
+        atomicStore(&select_state[s], UNDECIDED);
+    }
+}
+
+// The decision on corner s from its earlier close corners' decisions:
+// dropped when one is kept, kept when all are dropped, else undecided.
+fn decide(s: u32) -> u32 {
+    let links = select_index[s];
+    var state = KEPT;
+    if (links <= MERGE_LINKS) {
+        for (var k = 0u; k < links; k++) {
+            let st = atomicLoad(&select_state[select_index[SELECT_MAX + s * MERGE_LINKS + k]]);
+            if (st == KEPT) {
+                return DROPPED;
+            }
+            if (st == UNDECIDED) {
+                state = UNDECIDED;
+            }
+        }
+        return state;
+    }
+    let c = ordered[s];
+    for (var t = 0u; t < s; t++) {
+        if (!too_close(ordered[t], c)) {
+            continue;
+        }
+        let st = atomicLoad(&select_state[t]);
+        if (st == KEPT) {
+            return DROPPED;
+        }
+        if (st == UNDECIDED) {
+            state = UNDECIDED;
+        }
+    }
+    return state;
+}
+
+// One round of the greedy merge (a corner is kept when no kept corner
+// before it is too close), every undecided corner at once: a decision is
+// final whenever it is taken, so decisions seen during the round only
+// speed it. A round decides at least the earliest undecided corner; the
+// host records MERGE_ROUNDS of them, which decide every corner unless
+// close corners chain further (merge_rest finishes).
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_round(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var s = id.x; s < n; s += stride) {
+        if (atomicLoad(&select_state[s]) == UNDECIDED) {
+            let state = decide(s);
+            if (state != UNDECIDED) {
+                atomicStore(&select_state[s], state);
+            }
+        }
+    }
+}
+
+var<workgroup> wg_undecided: atomic<u32>;
+
+// One workgroup: the corners the rounds left undecided, decided one after
+// the other in the merge's order by one thread (nothing to do, and no
+// sequential work, after rounds that decided every corner).
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_rest(@builtin(local_invocation_index) lid: u32) {
+    let n = slot_count();
+    for (var s = lid; s < n; s += WORKGROUP_1D) {
+        if (atomicLoad(&select_state[s]) == UNDECIDED) {
+            atomicStore(&wg_undecided, 1u);
+        }
+    }
+    workgroupBarrier();
+    if (lid != 0u || atomicLoad(&wg_undecided) == 0u) {
         return;
     }
-    let c = candidates[n];
-    corners[n] = refined(vec2<f32>(f32(c.x), f32(c.y)), c.score);
+    for (var s = 0u; s < n; s++) {
+        if (atomicLoad(&select_state[s]) == UNDECIDED) {
+            atomicStore(&select_state[s], decide(s));
+        }
+    }
+}
+
+// The kept corners, in the merge's order, into `corners` (each at the
+// count of kept corners before it) and their count into
+// counters.selected.
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_compact(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var s = id.x; s < n; s += stride) {
+        if (atomicLoad(&select_state[s]) != KEPT) {
+            continue;
+        }
+        var before = 0u;
+        for (var t = 0u; t < s; t++) {
+            if (atomicLoad(&select_state[t]) == KEPT) {
+                before++;
+            }
+        }
+        corners[before] = ordered[s];
+        atomicAdd(&counters.selected, 1u);
+    }
 }

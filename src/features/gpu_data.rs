@@ -21,6 +21,17 @@ pub const MAX_INTEGRATION_RADIUS: usize = 14;
 /// filter passes of a 640x480 image from 205 to 89 ms (each pass timed
 /// alone) and a whole detection from 221 to 115 ms (BENCHMARKS.md).
 pub const HARRIS_BLOCK: u32 = 8;
+/// The most candidates Harris selects among on the GPU
+/// (`shaders/harris.wgsl`, "The selection"): its passes compare every
+/// pair (at most 2^26 comparisons a pass). A detection with more (a
+/// noisy image) reads its candidates back and selects on the host.
+pub const SELECT_MAX: u32 = 8192;
+/// The earlier close corners the merge keeps per corner (more: it rescans
+/// them).
+pub const MERGE_LINKS: u32 = 8;
+/// The merge's parallel rounds (`merge_round`), enough for chains of close
+/// corners up to this long; longer ones are finished in sequence.
+pub const MERGE_ROUNDS: usize = 3;
 
 /// Pixel flags (`Pixel.flags`): the value is finite and usable...
 pub const PIXEL_VALID: u32 = 1;
@@ -165,6 +176,14 @@ wgsl_struct! {
         /// Smallest valid fraction of the structure tensor's Gaussian
         /// weight ([`super::HarrisConfig::min_valid_weight`]).
         pub min_weight: f32,
+        /// [`super::HarrisConfig::max_corners`] (the selection on the GPU).
+        pub max_corners: u32,
+        /// [`super::HarrisConfig::grid_cell`].
+        pub grid_cell: u32,
+        /// [`super::HarrisConfig::merge_radius`], squared.
+        pub merge_r2: f32,
+        /// 1: [`super::HarrisConfig::refine`].
+        pub refine: u32,
         pub _pad1: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -185,12 +204,13 @@ wgsl_struct! {
 
 wgsl_struct! {
     /// Corner counters: the response maximum (f32 bits, positive responses
-    /// only, so integer order is float order) and the candidate count.
+    /// only, so integer order is float order), the candidate count and the
+    /// corners the selection on the GPU kept.
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub struct Counters {
         pub max_bits: u32,
         pub count: u32,
-        pub _pad0: u32,
+        pub selected: u32,
         pub _pad1: u32,
     }
 }

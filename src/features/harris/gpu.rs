@@ -7,7 +7,8 @@ use super::{
 };
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
-    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, RefineCorner, pack_with_holes_into,
+    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS, MERGE_ROUNDS,
+    RefineCorner, SELECT_MAX, pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
@@ -25,7 +26,10 @@ pub struct Harris {
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
     refine: wgpu::ComputePipeline,
-    refine_candidates: wgpu::ComputePipeline,
+    /// The selection's pipelines ([`SELECT_ENTRIES`]), on a layout of
+    /// their own (the map passes' holds eight storage buffers already).
+    select_layout: wgpu::BindGroupLayout,
+    select: Vec<wgpu::ComputePipeline>,
     grey: wgpu::ComputePipeline,
     grey_f32: wgpu::ComputePipeline,
     pack_f32: wgpu::ComputePipeline,
@@ -41,18 +45,50 @@ pub struct Harris {
     counters: GrowBuffer,
     candidates: GrowBuffer,
     corners: GrowBuffer,
+    /// The selection's scratch: ranks and places, then the merge's links
+    /// ((1 + MERGE_LINKS) x SELECT_MAX u32); the merge's decisions
+    /// (SELECT_MAX u32); the selected corners in the merge's order
+    /// (SELECT_MAX corners).
+    select_index: GrowBuffer,
+    select_state: GrowBuffer,
+    ordered: GrowBuffer,
     bind: Option<wgpu::BindGroup>,
+    select_bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
     /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
     scratch: Scratch,
-    /// The candidate counts of the last two detections (on the GPU), to
-    /// size the readback of the next one's candidates.
+    /// The candidate and corner counts of the last two detections (on
+    /// the GPU), to size the next one's selection and readback.
     recent_counts: [usize; 2],
+    recent_corners: [usize; 2],
+    /// The merge's parallel rounds ([`MERGE_ROUNDS`]; the tests try
+    /// none, leaving every decision to the sequential finish).
+    merge_rounds: usize,
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
+
+/// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
+/// in order.
+const SELECT_ENTRIES: [&str; 8] = [
+    "select_rank",
+    "select_place",
+    "select_refine",
+    "merge_order",
+    "merge_links",
+    "merge_round",
+    "merge_rest",
+    "merge_compact",
+];
+
+/// The selection's timed passes: their labels and the entries each runs.
+const SELECT_PASSES: [(&str, &[usize]); 3] = [
+    ("select", &[0, 1]),
+    ("refine", &[2]),
+    ("merge", &[3, 4, 5, 6, 7]),
+];
 
 impl Harris {
     pub fn new(ctx: &GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
@@ -65,30 +101,26 @@ impl Harris {
             "harris",
             &layout,
             &[
-                PASSES[0],
-                PASSES[1],
-                PASSES[2],
-                PASSES[3],
-                PASSES[4],
-                "refine",
-                "refine_candidates",
-                "grey",
-                "grey_f32",
-                "pack_f32",
+                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
+                "grey_f32", "pack_f32",
             ],
         )?;
-        let pack_f32 = all.pop().expect("ten pipelines");
-        let grey_f32 = all.pop().expect("ten pipelines");
-        let grey = all.pop().expect("ten pipelines");
-        let refine_candidates = all.pop().expect("ten pipelines");
-        let refine = all.pop().expect("ten pipelines");
+        let pack_f32 = all.pop().expect("nine pipelines");
+        let grey_f32 = all.pop().expect("nine pipelines");
+        let grey = all.pop().expect("nine pipelines");
+        let refine = all.pop().expect("nine pipelines");
+        let mut select_entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
+        select_entries.extend([3, 5, 6, 7, 9, 10, 11].map(|b| compute_entry(b, storage(false))));
+        let select_layout = ctx.bind_group_layout("harris select", &select_entries);
+        let select = ctx.compute_pipelines("harris", &select_layout, &SELECT_ENTRIES)?;
         Ok(Self {
             ctx: ctx.clone(),
             config,
             layout,
             passes: all,
             refine,
-            refine_candidates,
+            select_layout,
+            select,
             grey,
             grey_f32,
             pack_f32,
@@ -106,12 +138,18 @@ impl Harris {
             counters: GrowBuffer::new("harris counters", STORAGE_OUT),
             candidates: GrowBuffer::new("harris candidates", STORAGE_OUT),
             corners: GrowBuffer::new("harris corners", STORAGE_OUT),
+            select_index: GrowBuffer::new("harris select index", STORAGE_OUT),
+            select_state: GrowBuffer::new("harris select state", STORAGE_OUT),
+            ordered: GrowBuffer::new("harris ordered corners", STORAGE_OUT),
             bind: None,
+            select_bind: None,
             timer: None,
             last_timings: TimerReport::default(),
             host: false,
             scratch: Scratch::default(),
             recent_counts: [0; 2],
+            recent_corners: [0; 2],
+            merge_rounds: MERGE_ROUNDS,
         })
     }
 
@@ -138,9 +176,12 @@ impl Harris {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        // The passes, grey and pack (a resolved view), the refinement of
-        // the candidates and, after a second readback, of the selected.
-        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 4));
+        // The passes, grey and pack (a resolved view), the selection's and,
+        // after the host selected, the refinement.
+        self.timer = Some(GpuTimer::new(
+            &self.ctx,
+            (PASSES.len() + SELECT_PASSES.len()) as u32 + 3,
+        ));
     }
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
@@ -176,6 +217,10 @@ impl Harris {
             n_corners,
             max_shift: c.max_shift(),
             min_weight: c.min_valid_weight,
+            max_corners: c.max_corners.min(u32::MAX as usize) as u32,
+            grid_cell: c.grid_cell,
+            merge_r2: c.merge_radius * c.merge_radius,
+            refine: c.refine as u32,
             _pad1: 0,
             _pad2: 0,
             weights,
@@ -219,11 +264,32 @@ impl Harris {
         changed |= self.response.ensure(ctx, (w * h * 4) as u64);
         changed |= self.counters.ensure(ctx, 16);
         changed |= self.candidates.ensure(ctx, (capacity(w, h) * 16) as u64);
-        // The selected corners, or every candidate a readback holds.
-        changed |= self.corners.ensure(
-            ctx,
-            (self.config.max_corners.max(capacity(w, h)) * 16) as u64,
-        );
+        // The selected corners (by the GPU or the host).
+        let cap = capacity(w, h);
+        changed |= self
+            .corners
+            .ensure(ctx, (self.config.max_corners.min(cap).max(1) * 16) as u64);
+        let max = SELECT_MAX as u64;
+        let mut select_changed = changed;
+        select_changed |= self
+            .select_index
+            .ensure(ctx, (1 + MERGE_LINKS as u64) * max * 4);
+        select_changed |= self.select_state.ensure(ctx, max * 4);
+        select_changed |= self.ordered.ensure(ctx, max * 16);
+        if select_changed || self.select_bind.is_none() {
+            let bufs = [
+                (0, &self.params),
+                (3, self.grad.get()),
+                (5, self.counters.get()),
+                (6, self.candidates.get()),
+                (7, self.corners.get()),
+                (9, self.select_index.get()),
+                (10, self.select_state.get()),
+                (11, self.ordered.get()),
+            ];
+            self.select_bind =
+                Some(ctx.bind_buffers_at("harris select", &self.select_layout, &bufs)?);
+        }
         if changed || self.bind.is_none() {
             let bufs = [
                 &self.params,
@@ -241,34 +307,20 @@ impl Harris {
         Ok(())
     }
 
-    /// Records the map passes and NMS (not the refinement) over `input`,
-    /// its uploads queued, for the caller to submit: with the candidates'
-    /// readback behind them, one submission.
+    /// Records the map passes and NMS over `input`, its uploads queued,
+    /// for the caller to submit (the selection may follow,
+    /// [`Harris::encode_select`]): with a readback behind them, one
+    /// submission.
     fn encode_maps(
         &mut self,
         input: Input,
         mask: Option<&[bool]>,
     ) -> Result<crate::gpu::Encoder, FeatureError> {
-        self.encode_maps_refining(input, mask, 0)
-    }
-
-    /// [`Harris::encode_maps`], and with `refined` > 0 the refinement of
-    /// the first `refined` candidates into `corners` behind them
-    /// (`refine_candidates`).
-    fn encode_maps_refining(
-        &mut self,
-        input: Input,
-        mask: Option<&[bool]>,
-        refined: usize,
-    ) -> Result<crate::gpu::Encoder, FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
         let ctx = &self.ctx.clone();
-        ctx.queue.write_buffer(
-            &self.params,
-            0,
-            bytemuck::bytes_of(&self.params(w, h, refined as u32)),
-        );
+        ctx.queue
+            .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
         match input {
             Input::Grey(img) => ctx.queue.write_buffer(
                 self.pixels.get(),
@@ -299,7 +351,7 @@ impl Harris {
             bytemuck::bytes_of(&Counters {
                 max_bits: 0,
                 count: 0,
-                _pad0: 0,
+                selected: 0,
                 _pad1: 0,
             }),
         );
@@ -347,13 +399,35 @@ impl Harris {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
-        if refined > 0 {
-            let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
-            pass.set_pipeline(&self.refine_candidates);
-            pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(workgroups(refined as u32, WORKGROUP_1D), 1, 1);
-        }
         Ok(enc)
+    }
+
+    /// Records the selection of the corners behind the map passes
+    /// (`shaders/harris.wgsl`, "The selection"): `threads` threads for
+    /// the dispatches over the candidates (they cover any count with the
+    /// grid's stride; as many as there are is fastest), at most
+    /// max_corners of them for those over the selected. Three passes
+    /// (selection, refinement, merge), several dispatches each.
+    fn encode_select(&mut self, enc: &mut wgpu::CommandEncoder, threads: usize) {
+        let bind = self.select_bind.as_ref().expect("prepared");
+        let slots = threads.min(self.config.max_corners);
+        let one_group = WORKGROUP_1D as usize;
+        for (label, entries) in SELECT_PASSES {
+            let mut pass = compute_pass(enc, label, self.timer.as_mut());
+            pass.set_bind_group(0, bind, &[]);
+            for &e in entries {
+                let (n, times) = match SELECT_ENTRIES[e] {
+                    "select_rank" | "select_place" => (threads, 1),
+                    "merge_round" => (slots, self.merge_rounds),
+                    "merge_rest" => (one_group, 1),
+                    _ => (slots, 1),
+                };
+                pass.set_pipeline(&self.select[e]);
+                for _ in 0..times {
+                    pass.dispatch_workgroups(workgroups(n.max(1) as u32, WORKGROUP_1D), 1, 1);
+                }
+            }
+        }
     }
 
     /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
@@ -567,55 +641,52 @@ impl Harris {
             }
             return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
-        // The count, the candidates and (refining) every candidate's
-        // refinement in one readback: as many candidates as recent
-        // detections found and a quarter more. The selection then picks
-        // its corners' refinements, which depend on nothing but their
-        // start (the same as refining the selected ones alone, bit for
-        // bit). When there are more candidates, the rest come in a second
-        // readback and the selected corners are refined after it.
+        // The maps, the candidates and their selection in one submission,
+        // and one readback: the count and the corners, as many as recent
+        // detections kept and a quarter more (the rest, when there are
+        // more, in a second). With more candidates than the GPU selects
+        // among (SELECT_MAX), they come back in a second readback, the
+        // host selects, and the selected are refined on the GPU after it
+        // (a third).
         let room = capacity(w, h);
-        let guess = (self.recent_counts.iter().max().copied().unwrap_or(0) * 5 / 4 + 256).min(room);
-        let refining = self.config.refine;
-        let enc = self.encode_maps_refining(input, mask, if refining { guess } else { 0 })?;
+        let estimate = |recent: &[usize; 2]| recent.iter().max().copied().unwrap_or(0) * 5 / 4 + 64;
+        let threads = estimate(&self.recent_counts).min(SELECT_MAX as usize);
+        let cap = self.config.max_corners.min(room);
+        let guess = estimate(&self.recent_corners).min(cap);
+        let mut enc = self.encode_maps(input, mask)?;
+        self.encode_select(&mut enc, threads);
         let ctx = &self.ctx.clone();
-        let size = std::mem::size_of::<Candidate>();
+        let size = std::mem::size_of::<RefineCorner>();
         let counters_size = std::mem::size_of::<Counters>() as u64;
-        let mut reads = vec![
+        let reads = [
             (self.counters.get(), counters_size),
-            (self.candidates.get(), (guess * size) as u64),
+            (self.corners.get(), (guess * size) as u64),
         ];
-        if refining {
-            let corner = std::mem::size_of::<RefineCorner>();
-            reads.push((self.corners.get(), (guess * corner) as u64));
-        }
         let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
         let count = (counters.count as usize).min(room);
         self.recent_counts = [self.recent_counts[1], count];
-        log::trace!("harris: {count} candidates, {guess} read back");
-        let cands: Vec<Candidate> = if count <= guess {
-            bytemuck::pod_collect_to_vec(&parts[1][..count * size])
-        } else {
-            ctx.read_buffer(self.candidates.get(), count)?
-        };
-        let selected = select_spread_indices(&cands, &self.config);
-        let corners: Vec<Corner> = if refining && count <= guess {
-            let corner = std::mem::size_of::<RefineCorner>();
-            selected
+        let corners = if count <= SELECT_MAX as usize {
+            let kept = (counters.selected as usize).min(cap);
+            self.recent_corners = [self.recent_corners[1], kept];
+            log::trace!("harris: {count} candidates, {kept} corners, {guess} read back");
+            let refined: Vec<RefineCorner> = if kept <= guess {
+                bytemuck::pod_collect_to_vec(&parts[1][..kept * size])
+            } else {
+                ctx.read_buffer(self.corners.get(), kept)?
+            };
+            refined
                 .iter()
-                .map(|&i| {
-                    let r: RefineCorner =
-                        bytemuck::pod_read_unaligned(&parts[2][i * corner..(i + 1) * corner]);
-                    Corner {
-                        x: r.x,
-                        y: r.y,
-                        score: r.score,
-                    }
+                .map(|r| Corner {
+                    x: r.x,
+                    y: r.y,
+                    score: r.score,
                 })
                 .collect()
         } else {
-            let starts: Vec<Corner> = selected
+            log::trace!("harris: {count} candidates, selected on the host");
+            let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
+            let starts: Vec<Corner> = select_spread_indices(&cands, &self.config)
                 .iter()
                 .map(|&i| Corner {
                     x: cands[i].x as f32,
@@ -623,14 +694,16 @@ impl Harris {
                     score: cands[i].score,
                 })
                 .collect();
-            if refining && !starts.is_empty() {
+            self.recent_corners = [self.recent_corners[1], starts.len()];
+            let corners = if self.config.refine && !starts.is_empty() {
                 self.refine(w, h, &starts)?
             } else {
                 starts
-            }
+            };
+            merge(corners, self.config.merge_radius)
         };
         self.finish_timing()?;
-        Ok(merge(corners, self.config.merge_radius))
+        Ok(corners)
     }
 
     /// Resolves and reads the timestamps of the passes just run.
@@ -722,4 +795,178 @@ impl Input<'_> {
 /// Most strict 3x3 maxima an image can hold: no two are 8-neighbours.
 fn capacity(w: usize, h: usize) -> usize {
     w.div_ceil(2) * h.div_ceil(2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::rng::Rng;
+
+    impl Harris {
+        /// The GPU's selection among `cands` in a `w x h` image whose
+        /// gradients are all zero (a refinement keeps every corner at its
+        /// start): the candidates written as NMS writes them, the
+        /// selection's passes, the corners read back.
+        pub(super) fn select_candidates(
+            &mut self,
+            w: usize,
+            h: usize,
+            cands: &[Candidate],
+        ) -> Result<Vec<Corner>, FeatureError> {
+            self.prepare(w, h)?;
+            let ctx = &self.ctx.clone();
+            ctx.queue
+                .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
+            let counters = Counters {
+                max_bits: 0,
+                count: cands.len() as u32,
+                selected: 0,
+                _pad1: 0,
+            };
+            ctx.queue
+                .write_buffer(self.counters.get(), 0, bytemuck::bytes_of(&counters));
+            if !cands.is_empty() {
+                ctx.queue
+                    .write_buffer(self.candidates.get(), 0, bytemuck::cast_slice(cands));
+            }
+            let mut enc = ctx.encoder();
+            enc.clear_buffer(self.grad.get(), 0, None);
+            // Fewer threads than candidates: the passes' stride covers them.
+            self.encode_select(&mut enc, cands.len().div_ceil(3));
+            let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
+            let kept = counters.selected as usize;
+            let out: Vec<RefineCorner> = if kept > 0 {
+                ctx.read_buffer(self.corners.get(), kept)?
+            } else {
+                Vec::new()
+            };
+            Ok(out
+                .iter()
+                .map(|r| Corner {
+                    x: r.x,
+                    y: r.y,
+                    score: r.score,
+                })
+                .collect())
+        }
+    }
+
+    /// `n` candidates at distinct pixels of `w x h`, clustered (so that
+    /// merges chain and cells fill) where `dense`; scores drawn from four
+    /// values where `ties`.
+    pub(super) fn candidates(
+        rng: &mut Rng,
+        n: usize,
+        w: u32,
+        h: u32,
+        dense: bool,
+        ties: bool,
+    ) -> Vec<Candidate> {
+        let mut seen = std::collections::HashSet::new();
+        let mut out = Vec::new();
+        let (cw, ch) = if dense {
+            (w.min(24), h.min(24))
+        } else {
+            (w, h)
+        };
+        while out.len() < n && seen.len() < (cw * ch) as usize {
+            let x = (rng.next_f64() * cw as f64) as u32 % cw;
+            let y = (rng.next_f64() * ch as f64) as u32 % ch;
+            if !seen.insert((x, y)) {
+                continue;
+            }
+            let score = if ties {
+                [0.25f32, 0.5, 0.75, 1.0][(rng.next_f64() * 4.0) as usize % 4]
+            } else {
+                (rng.next_f64() as f32).max(1e-6)
+            };
+            out.push(Candidate {
+                x,
+                y,
+                score,
+                _pad: 0,
+            });
+        }
+        out
+    }
+
+    /// The host's selection and merge (the CPU reference's) of `cands`
+    /// kept at their pixels.
+    pub(super) fn host_selection(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<Corner> {
+        let starts = select_spread_indices(cands, cfg)
+            .iter()
+            .map(|&i| Corner {
+                x: cands[i].x as f32,
+                y: cands[i].y as f32,
+                score: cands[i].score,
+            })
+            .collect();
+        merge(starts, cfg.merge_radius)
+    }
+
+    #[test]
+    fn gpu_selection_is_the_hosts_bit_for_bit_on_random_candidates() {
+        let ctx = crate::gpu::shared_test_context();
+        let mut rng = Rng::new(7);
+        let (w, h) = (200, 150);
+        let mut cases = 0;
+        // One detector (its pipelines built once), its configuration set
+        // for each case.
+        let mut harris = Harris::new(ctx, HarrisConfig::default()).unwrap();
+        for (case, (n, dense)) in [
+            (0, false),
+            (1, false),
+            (37, false),
+            (500, false),
+            (400, true),
+            (3000, false),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            for grid in [0, 1, 16, 32] {
+                for max in [1, 25, 900, 5000] {
+                    for radius in [0.0, 1.5, 4.0] {
+                        for ties in [false, true] {
+                            // A sample of the combinations, every value of
+                            // each parameter seen with each other's.
+                            let key = n + grid as usize + max + (radius * 2.0) as usize;
+                            if !(key + ties as usize).is_multiple_of(3) {
+                                continue;
+                            }
+                            let cfg = HarrisConfig {
+                                max_corners: max,
+                                grid_cell: grid,
+                                merge_radius: radius,
+                                ..HarrisConfig::default()
+                            };
+                            harris.config = cfg.clone();
+                            // Every other case without the parallel rounds:
+                            // the sequential finish decides every corner.
+                            harris.merge_rounds = if (case + cases) % 2 == 0 {
+                                0
+                            } else {
+                                MERGE_ROUNDS
+                            };
+                            let cands = candidates(&mut rng, n, w, h, dense, ties);
+                            let got = harris
+                                .select_candidates(w as usize, h as usize, &cands)
+                                .unwrap();
+                            let want = host_selection(&cands, &cfg);
+                            let first = got.iter().zip(&want).position(|(g, w)| g != w);
+                            assert!(
+                                got == want,
+                                "{n} candidates (dense {dense}, ties {ties}), grid {grid}, max {max}, radius {radius}, {} rounds: {} corners against the host's {}, first difference at {first:?}",
+                                harris.merge_rounds,
+                                got.len(),
+                                want.len()
+                            );
+                            cases += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(cases > 100, "{cases} cases");
+    }
 }
