@@ -70,7 +70,8 @@ struct Counters {
     count: atomic<u32>,
     // The corners the selection on the GPU kept (merge_compact).
     selected: atomic<u32>,
-    pad1: u32,
+    // The corners the merge's rounds left undecided (merge_compact).
+    undecided: atomic<u32>,
 }
 
 // A corner being refined; status 1: refined, 0: kept at its start.
@@ -526,19 +527,22 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
 // first max_corners kept) -> select_refine (the kept ones refined, in that
 // order) -> merge_order (their place by score, then position) ->
 // merge_links (each one's earlier corners closer than the merge radius)
-// -> merge_round (MERGE_ROUNDS times) and merge_rest (the greedy merge:
-// strongest first, a corner too close to a kept one dropped) ->
-// merge_compact (the kept ones into `corners`, their count into
-// `counters.selected`). Every comparison is exact (scores by
+// -> merge_round (MERGE_ROUNDS times: the greedy merge, strongest first,
+// a corner too close to a kept one dropped) -> merge_compact (the kept
+// ones into `corners`, their count into `counters.selected`). The passes
+// run one thread an item, dispatched indirectly (select_sizes). Every comparison is exact (scores by
 // their bits, positions in IEEE total order, the slot breaking ties as the
-// host's stable sort does), so the corners are the host's. The per-item
-// passes loop over their items with the grid's stride, so any dispatch
-// covers them. At most SELECT_MAX candidates: with more, the passes do
-// nothing and the host selects (it reads the count).
+// host's stable sort does), so the corners are the host's. At most
+// SELECT_MAX candidates: with more, the passes do nothing and the host
+// selects (it reads the count); where the rounds leave a corner
+// undecided, the host finishes the merge.
 
 @group(0) @binding(9) var<storage, read_write> select_index: array<u32>;
 @group(0) @binding(10) var<storage, read_write> select_state: array<atomic<u32>>;
 @group(0) @binding(11) var<storage, read_write> ordered: array<RefineCorner>;
+// The dispatches' sizes (select_args): over the candidates at 0, over the
+// selected at 4.
+@group(0) @binding(12) var<storage, read_write> select_args: array<u32>;
 
 const UNDECIDED: u32 = 0u;
 const KEPT: u32 = 1u;
@@ -554,6 +558,22 @@ fn select_count() -> u32 {
 // The selection's slots: the first max_corners places.
 fn slot_count() -> u32 {
     return min(select_count(), params.max_corners);
+}
+
+// One thread: the workgroups of the passes over the candidates and over
+// the selected, for their indirect dispatches. One thread an item: every
+// thread's loops then run at most SELECT_MAX times (lavapipe ends any
+// invocation's loops after 65535 iterations in all).
+@compute @workgroup_size(1)
+fn select_sizes() {
+    let groups = (select_count() + WORKGROUP_1D - 1u) / WORKGROUP_1D;
+    let slot_groups = (slot_count() + WORKGROUP_1D - 1u) / WORKGROUP_1D;
+    select_args[0] = groups;
+    select_args[1] = 1u;
+    select_args[2] = 1u;
+    select_args[4] = slot_groups;
+    select_args[5] = 1u;
+    select_args[6] = 1u;
 }
 
 // Whether candidate a comes before b by score (higher first; responses
@@ -766,7 +786,7 @@ fn decide(s: u32) -> u32 {
 // final whenever it is taken, so decisions seen during the round only
 // speed it. A round decides at least the earliest undecided corner; the
 // host records MERGE_ROUNDS of them, which decide every corner unless
-// close corners chain further (merge_rest finishes).
+// close corners chain further (the host then finishes the merge).
 @compute @workgroup_size(WORKGROUP_1D)
 fn merge_round(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -784,33 +804,11 @@ fn merge_round(
     }
 }
 
-var<workgroup> wg_undecided: atomic<u32>;
-
-// One workgroup: the corners the rounds left undecided, decided one after
-// the other in the merge's order by one thread (nothing to do, and no
-// sequential work, after rounds that decided every corner).
-@compute @workgroup_size(WORKGROUP_1D)
-fn merge_rest(@builtin(local_invocation_index) lid: u32) {
-    let n = slot_count();
-    for (var s = lid; s < n; s += WORKGROUP_1D) {
-        if (atomicLoad(&select_state[s]) == UNDECIDED) {
-            atomicStore(&wg_undecided, 1u);
-        }
-    }
-    workgroupBarrier();
-    if (lid != 0u || atomicLoad(&wg_undecided) == 0u) {
-        return;
-    }
-    for (var s = 0u; s < n; s++) {
-        if (atomicLoad(&select_state[s]) == UNDECIDED) {
-            atomicStore(&select_state[s], decide(s));
-        }
-    }
-}
-
 // The kept corners, in the merge's order, into `corners` (each at the
 // count of kept corners before it) and their count into
-// counters.selected.
+// counters.selected; the corners the rounds left undecided (a chain of
+// close corners longer than MERGE_ROUNDS) counted into
+// counters.undecided, for the host to finish the merge.
 @compute @workgroup_size(WORKGROUP_1D)
 fn merge_compact(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -819,7 +817,11 @@ fn merge_compact(
     let n = slot_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var s = id.x; s < n; s += stride) {
-        if (atomicLoad(&select_state[s]) != KEPT) {
+        let state = atomicLoad(&select_state[s]);
+        if (state == UNDECIDED) {
+            atomicAdd(&counters.undecided, 1u);
+        }
+        if (state != KEPT) {
             continue;
         }
         var before = 0u;

@@ -30,7 +30,7 @@ pub const SELECT_MAX: u32 = 8192;
 /// them).
 pub const MERGE_LINKS: u32 = 8;
 /// The merge's parallel rounds (`merge_round`), enough for chains of close
-/// corners up to this long; longer ones are finished in sequence.
+/// corners up to this long; the host finishes longer ones.
 pub const MERGE_ROUNDS: usize = 3;
 
 /// Pixel flags (`Pixel.flags`): the value is finite and usable...
@@ -204,14 +204,15 @@ wgsl_struct! {
 
 wgsl_struct! {
     /// Corner counters: the response maximum (f32 bits, positive responses
-    /// only, so integer order is float order), the candidate count and the
-    /// corners the selection on the GPU kept.
+    /// only, so integer order is float order), the candidate count, the
+    /// corners the selection on the GPU kept and those its merge left
+    /// undecided.
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub struct Counters {
         pub max_bits: u32,
         pub count: u32,
         pub selected: u32,
-        pub _pad1: u32,
+        pub undecided: u32,
     }
 }
 

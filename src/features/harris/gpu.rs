@@ -30,6 +30,9 @@ pub struct Harris {
     /// their own (the map passes' holds eight storage buffers already).
     select_layout: wgpu::BindGroupLayout,
     select: Vec<wgpu::ComputePipeline>,
+    /// `select_sizes`'s layout: the sizes it writes are read by the
+    /// indirect dispatches, so no bind group of theirs may hold them.
+    sizes_layout: wgpu::BindGroupLayout,
     grey: wgpu::ComputePipeline,
     grey_f32: wgpu::ComputePipeline,
     pack_f32: wgpu::ComputePipeline,
@@ -52,19 +55,21 @@ pub struct Harris {
     select_index: GrowBuffer,
     select_state: GrowBuffer,
     ordered: GrowBuffer,
+    /// The indirect dispatches' sizes (`select_sizes`).
+    select_args: GrowBuffer,
     bind: Option<wgpu::BindGroup>,
     select_bind: Option<wgpu::BindGroup>,
+    sizes_bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
     /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
     scratch: Scratch,
-    /// The candidate and corner counts of the last two detections (on
-    /// the GPU), to size the next one's selection and readback.
-    recent_counts: [usize; 2],
+    /// The corner counts of the last two detections (on the GPU), to
+    /// size the next one's readback.
     recent_corners: [usize; 2],
     /// The merge's parallel rounds ([`MERGE_ROUNDS`]; the tests try
-    /// none, leaving every decision to the sequential finish).
+    /// none, leaving the whole merge to the host's finish).
     merge_rounds: usize,
 }
 
@@ -73,21 +78,21 @@ const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
 /// in order.
 const SELECT_ENTRIES: [&str; 8] = [
+    "select_sizes",
     "select_rank",
     "select_place",
     "select_refine",
     "merge_order",
     "merge_links",
     "merge_round",
-    "merge_rest",
     "merge_compact",
 ];
 
 /// The selection's timed passes: their labels and the entries each runs.
 const SELECT_PASSES: [(&str, &[usize]); 3] = [
-    ("select", &[0, 1]),
-    ("refine", &[2]),
-    ("merge", &[3, 4, 5, 6, 7]),
+    ("select", &[0, 1, 2]),
+    ("refine", &[3]),
+    ("merge", &[4, 5, 6, 7]),
 ];
 
 impl Harris {
@@ -112,7 +117,14 @@ impl Harris {
         let mut select_entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
         select_entries.extend([3, 5, 6, 7, 9, 10, 11].map(|b| compute_entry(b, storage(false))));
         let select_layout = ctx.bind_group_layout("harris select", &select_entries);
-        let select = ctx.compute_pipelines("harris", &select_layout, &SELECT_ENTRIES)?;
+        let sizes_entries = [
+            compute_entry(0, wgpu::BufferBindingType::Uniform),
+            compute_entry(5, storage(false)),
+            compute_entry(12, storage(false)),
+        ];
+        let sizes_layout = ctx.bind_group_layout("harris select sizes", &sizes_entries);
+        let mut select = ctx.compute_pipelines("harris", &sizes_layout, &SELECT_ENTRIES[..1])?;
+        select.extend(ctx.compute_pipelines("harris", &select_layout, &SELECT_ENTRIES[1..])?);
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -121,6 +133,7 @@ impl Harris {
             refine,
             select_layout,
             select,
+            sizes_layout,
             grey,
             grey_f32,
             pack_f32,
@@ -141,13 +154,17 @@ impl Harris {
             select_index: GrowBuffer::new("harris select index", STORAGE_OUT),
             select_state: GrowBuffer::new("harris select state", STORAGE_OUT),
             ordered: GrowBuffer::new("harris ordered corners", STORAGE_OUT),
+            select_args: GrowBuffer::new(
+                "harris select sizes",
+                STORAGE_OUT | wgpu::BufferUsages::INDIRECT,
+            ),
             bind: None,
             select_bind: None,
+            sizes_bind: None,
             timer: None,
             last_timings: TimerReport::default(),
             host: false,
             scratch: Scratch::default(),
-            recent_counts: [0; 2],
             recent_corners: [0; 2],
             merge_rounds: MERGE_ROUNDS,
         })
@@ -276,6 +293,7 @@ impl Harris {
             .ensure(ctx, (1 + MERGE_LINKS as u64) * max * 4);
         select_changed |= self.select_state.ensure(ctx, max * 4);
         select_changed |= self.ordered.ensure(ctx, max * 16);
+        select_changed |= self.select_args.ensure(ctx, 32);
         if select_changed || self.select_bind.is_none() {
             let bufs = [
                 (0, &self.params),
@@ -289,6 +307,13 @@ impl Harris {
             ];
             self.select_bind =
                 Some(ctx.bind_buffers_at("harris select", &self.select_layout, &bufs)?);
+            let bufs = [
+                (0, &self.params),
+                (5, self.counters.get()),
+                (12, self.select_args.get()),
+            ];
+            self.sizes_bind =
+                Some(ctx.bind_buffers_at("harris select sizes", &self.sizes_layout, &bufs)?);
         }
         if changed || self.bind.is_none() {
             let bufs = [
@@ -352,7 +377,7 @@ impl Harris {
                 max_bits: 0,
                 count: 0,
                 selected: 0,
-                _pad1: 0,
+                undecided: 0,
             }),
         );
         let bind = self.bind.as_ref().expect("prepared");
@@ -403,31 +428,72 @@ impl Harris {
     }
 
     /// Records the selection of the corners behind the map passes
-    /// (`shaders/harris.wgsl`, "The selection"): `threads` threads for
-    /// the dispatches over the candidates (they cover any count with the
-    /// grid's stride; as many as there are is fastest), at most
-    /// max_corners of them for those over the selected. Three passes
-    /// (selection, refinement, merge), several dispatches each.
-    fn encode_select(&mut self, enc: &mut wgpu::CommandEncoder, threads: usize) {
+    /// (`shaders/harris.wgsl`, "The selection"): three passes (selection,
+    /// refinement, merge), several dispatches each, one thread an item,
+    /// sized on the GPU (`select_sizes`, then indirect dispatches).
+    fn encode_select(&mut self, enc: &mut wgpu::CommandEncoder) {
         let bind = self.select_bind.as_ref().expect("prepared");
-        let slots = threads.min(self.config.max_corners);
-        let one_group = WORKGROUP_1D as usize;
+        let sizes = self.sizes_bind.as_ref().expect("prepared");
+        let args = self.select_args.get();
         for (label, entries) in SELECT_PASSES {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
-            pass.set_bind_group(0, bind, &[]);
             for &e in entries {
-                let (n, times) = match SELECT_ENTRIES[e] {
-                    "select_rank" | "select_place" => (threads, 1),
-                    "merge_round" => (slots, self.merge_rounds),
-                    "merge_rest" => (one_group, 1),
-                    _ => (slots, 1),
-                };
                 pass.set_pipeline(&self.select[e]);
-                for _ in 0..times {
-                    pass.dispatch_workgroups(workgroups(n.max(1) as u32, WORKGROUP_1D), 1, 1);
+                let first = SELECT_ENTRIES[e] == "select_sizes";
+                pass.set_bind_group(0, if first { sizes } else { bind }, &[]);
+                match SELECT_ENTRIES[e] {
+                    "select_sizes" => pass.dispatch_workgroups(1, 1, 1),
+                    "select_rank" | "select_place" => pass.dispatch_workgroups_indirect(args, 0),
+                    "merge_round" => {
+                        for _ in 0..self.merge_rounds {
+                            pass.dispatch_workgroups_indirect(args, 16);
+                        }
+                    }
+                    _ => pass.dispatch_workgroups_indirect(args, 16),
                 }
             }
         }
+    }
+
+    /// The corners of a selection on the GPU from its counters and the
+    /// first `part` of them read back (bytes of [`RefineCorner`]s): the
+    /// rest read back where it kept more; where its merge left corners
+    /// undecided, the selected corners (in the merge's order) read back
+    /// and merged on the host.
+    fn selected_corners(
+        &mut self,
+        counters: &Counters,
+        part: &[u8],
+        slots: usize,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let ctx = &self.ctx.clone();
+        let corner = |r: &RefineCorner| Corner {
+            x: r.x,
+            y: r.y,
+            score: r.score,
+        };
+        if counters.undecided > 0 {
+            log::trace!(
+                "harris: {} corners left to the host's merge",
+                counters.undecided
+            );
+            let ordered: Vec<RefineCorner> = ctx.read_buffer(self.ordered.get(), slots)?;
+            let corners = merge(
+                ordered.iter().map(corner).collect(),
+                self.config.merge_radius,
+            );
+            self.recent_corners = [self.recent_corners[1], corners.len()];
+            return Ok(corners);
+        }
+        let size = std::mem::size_of::<RefineCorner>();
+        let kept = (counters.selected as usize).min(slots);
+        self.recent_corners = [self.recent_corners[1], kept];
+        let refined: Vec<RefineCorner> = if kept * size <= part.len() {
+            bytemuck::pod_collect_to_vec(&part[..kept * size])
+        } else {
+            ctx.read_buffer(self.corners.get(), kept)?
+        };
+        Ok(refined.iter().map(corner).collect())
     }
 
     /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
@@ -642,19 +708,18 @@ impl Harris {
             return Ok(detect_packed(&mut self.scratch, w, h, &self.config));
         }
         // The maps, the candidates and their selection in one submission,
-        // and one readback: the count and the corners, as many as recent
+        // and one readback: the counts and the corners, as many as recent
         // detections kept and a quarter more (the rest, when there are
         // more, in a second). With more candidates than the GPU selects
         // among (SELECT_MAX), they come back in a second readback, the
         // host selects, and the selected are refined on the GPU after it
         // (a third).
         let room = capacity(w, h);
-        let estimate = |recent: &[usize; 2]| recent.iter().max().copied().unwrap_or(0) * 5 / 4 + 64;
-        let threads = estimate(&self.recent_counts).min(SELECT_MAX as usize);
         let cap = self.config.max_corners.min(room);
-        let guess = estimate(&self.recent_corners).min(cap);
+        let recent = self.recent_corners.iter().max().copied().unwrap_or(0);
+        let guess = (recent * 5 / 4 + 64).min(cap);
         let mut enc = self.encode_maps(input, mask)?;
-        self.encode_select(&mut enc, threads);
+        self.encode_select(&mut enc);
         let ctx = &self.ctx.clone();
         let size = std::mem::size_of::<RefineCorner>();
         let counters_size = std::mem::size_of::<Counters>() as u64;
@@ -665,24 +730,12 @@ impl Harris {
         let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
         let count = (counters.count as usize).min(room);
-        self.recent_counts = [self.recent_counts[1], count];
         let corners = if count <= SELECT_MAX as usize {
-            let kept = (counters.selected as usize).min(cap);
-            self.recent_corners = [self.recent_corners[1], kept];
-            log::trace!("harris: {count} candidates, {kept} corners, {guess} read back");
-            let refined: Vec<RefineCorner> = if kept <= guess {
-                bytemuck::pod_collect_to_vec(&parts[1][..kept * size])
-            } else {
-                ctx.read_buffer(self.corners.get(), kept)?
-            };
-            refined
-                .iter()
-                .map(|r| Corner {
-                    x: r.x,
-                    y: r.y,
-                    score: r.score,
-                })
-                .collect()
+            log::trace!(
+                "harris: {count} candidates, {} corners, {guess} read back",
+                counters.selected
+            );
+            self.selected_corners(&counters, &parts[1], count.min(cap))?
         } else {
             log::trace!("harris: {count} candidates, selected on the host");
             let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
@@ -821,7 +874,7 @@ mod tests {
                 max_bits: 0,
                 count: cands.len() as u32,
                 selected: 0,
-                _pad1: 0,
+                undecided: 0,
             };
             ctx.queue
                 .write_buffer(self.counters.get(), 0, bytemuck::bytes_of(&counters));
@@ -831,23 +884,10 @@ mod tests {
             }
             let mut enc = ctx.encoder();
             enc.clear_buffer(self.grad.get(), 0, None);
-            // Fewer threads than candidates: the passes' stride covers them.
-            self.encode_select(&mut enc, cands.len().div_ceil(3));
+            self.encode_select(&mut enc);
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
-            let kept = counters.selected as usize;
-            let out: Vec<RefineCorner> = if kept > 0 {
-                ctx.read_buffer(self.corners.get(), kept)?
-            } else {
-                Vec::new()
-            };
-            Ok(out
-                .iter()
-                .map(|r| Corner {
-                    x: r.x,
-                    y: r.y,
-                    score: r.score,
-                })
-                .collect())
+            let slots = cands.len().min(self.config.max_corners);
+            self.selected_corners(&counters, &[], slots)
         }
     }
 
@@ -942,7 +982,7 @@ mod tests {
                             };
                             harris.config = cfg.clone();
                             // Every other case without the parallel rounds:
-                            // the sequential finish decides every corner.
+                            // the host finishes the whole merge.
                             harris.merge_rounds = if (case + cases) % 2 == 0 {
                                 0
                             } else {
