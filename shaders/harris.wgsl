@@ -530,9 +530,10 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
 // -> merge_round (MERGE_ROUNDS times: the greedy merge, strongest first,
 // a corner too close to a kept one dropped) -> merge_compact (the kept
 // ones into `corners`, their count into `counters.selected`). The passes
-// run one thread an item, dispatched indirectly (select_sizes). Every comparison is exact (scores by
-// their bits, positions in IEEE total order, the slot breaking ties as the
-// host's stable sort does), so the corners are the host's. At most
+// run one thread an item, dispatched indirectly (select_sizes). Every
+// comparison is exact (scores by their bits, positions in IEEE total
+// order, the slot breaking ties as the host's stable sort does), so the
+// corners are the host's. At most
 // SELECT_MAX candidates: with more, the passes do nothing and the host
 // selects (it reads the count); where the rounds leave a corner
 // undecided, the host finishes the merge.

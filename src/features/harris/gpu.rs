@@ -860,7 +860,7 @@ mod tests {
         /// gradients are all zero (a refinement keeps every corner at its
         /// start): the candidates written as NMS writes them, the
         /// selection's passes, the corners read back.
-        pub(super) fn select_candidates(
+        fn select_candidates(
             &mut self,
             w: usize,
             h: usize,
@@ -894,7 +894,7 @@ mod tests {
     /// `n` candidates at distinct pixels of `w x h`, clustered (so that
     /// merges chain and cells fill) where `dense`; scores drawn from four
     /// values where `ties`.
-    pub(super) fn candidates(
+    fn candidates(
         rng: &mut Rng,
         n: usize,
         w: u32,
@@ -932,7 +932,7 @@ mod tests {
 
     /// The host's selection and merge (the CPU reference's) of `cands`
     /// kept at their pixels.
-    pub(super) fn host_selection(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<Corner> {
+    fn host_selection(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<Corner> {
         let starts = select_spread_indices(cands, cfg)
             .iter()
             .map(|&i| Corner {
