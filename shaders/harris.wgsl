@@ -51,7 +51,8 @@ struct HarrisParams {
     merge_r2: f32,
     // 1: refine the selected corners; 0: keep them at their pixel.
     refine: u32,
-    pad1: u32,
+    // The most candidates selected here (at most SELECT_MAX).
+    select_limit: u32,
     pad2: u32,
     // g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
     weights: array<vec4<f32>, MAX_TAPS / 4u>,
@@ -550,10 +551,10 @@ const KEPT: u32 = 1u;
 const DROPPED: u32 = 2u;
 
 // The candidates the selection runs on: none when there are more than
-// SELECT_MAX (the host then selects).
+// params.select_limit (the host then selects).
 fn select_count() -> u32 {
     let n = min(atomicLoad(&counters.count), params.capacity);
-    return select(0u, n, n <= SELECT_MAX);
+    return select(0u, n, n <= min(params.select_limit, SELECT_MAX));
 }
 
 // The selection's slots: the first max_corners places.

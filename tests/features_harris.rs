@@ -4,8 +4,8 @@
 
 use splattrack::features::patterns::{self, Square};
 use splattrack::features::{
-    Corner, FeatureError, GreyImage, Harris, HarrisConfig, harris_cpu, harris_host,
-    harris_response_cpu, harris_response_host,
+    Corner, FeatureError, GreyImage, Harris, HarrisConfig, SELECT_MAX, SELECT_MAX_CPU, harris_cpu,
+    harris_host, harris_response_cpu, harris_response_host,
 };
 use splattrack::gpu::{self, GpuContext};
 
@@ -181,7 +181,11 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
     for (refine, over) in [(true, 3), (false, 2)] {
         let cfg = HarrisConfig::default().with_refine(refine);
         let mut harris = Harris::new(&c, cfg.clone()).unwrap();
+        // The GPU selects among as many as it can on any adapter (on CPU
+        // adapters by default only among SELECT_MAX_CPU).
+        harris.set_select_limit(SELECT_MAX as usize);
         let mut lax = Harris::new(&c, cfg.clone().with_relative_threshold(0.0)).unwrap();
+        lax.set_select_limit(SELECT_MAX as usize);
         let mut waits = Vec::new();
         for (name, img, strict) in [
             ("few", &few, true),
@@ -210,6 +214,20 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
             assert_same_corners(&format!("refine {refine}, {name}"), &got, &want);
         }
         assert_eq!(waits, [1, 2, 1, 1, 1, 2, over], "refine {refine}");
+        // On a CPU adapter a detector left at its default selects on the
+        // GPU among at most SELECT_MAX_CPU candidates: the busy image's
+        // are selected on the host (its candidates and then, refining,
+        // their refinement read back), the corners the same.
+        if c.is_cpu() {
+            let mut default = Harris::new(&c, cfg.clone()).unwrap();
+            default.detect(&few, None).unwrap();
+            let before = c.readbacks();
+            let got = default.detect(&busy, None).unwrap();
+            assert_eq!(c.readbacks() - before, over, "refine {refine}, busy");
+            let want = harris_cpu(&busy, &cfg, None).unwrap();
+            assert!(want.len() > SELECT_MAX_CPU as usize / 2);
+            assert_same_corners(&format!("refine {refine}, busy, default"), &got, &want);
+        }
     }
 }
 

@@ -26,6 +26,11 @@ pub const HARRIS_BLOCK: u32 = 8;
 /// pair (at most 2^26 comparisons a pass). A detection with more (a
 /// noisy image) reads its candidates back and selects on the host.
 pub const SELECT_MAX: u32 = 8192;
+/// [`SELECT_MAX`] on CPU adapters: there every comparison's loads are
+/// gathers, and 4831 candidates took 0.4 s to select on lavapipe (a
+/// 640x480 noise image), the host's selection a millisecond. The
+/// tracker's few hundred candidates a window stay on the GPU.
+pub const SELECT_MAX_CPU: u32 = 1024;
 /// The earlier close corners the merge keeps per corner (more: it rescans
 /// them).
 pub const MERGE_LINKS: u32 = 8;
@@ -184,7 +189,9 @@ wgsl_struct! {
         pub merge_r2: f32,
         /// 1: [`super::HarrisConfig::refine`].
         pub refine: u32,
-        pub _pad1: u32,
+        /// The most candidates the GPU selects among
+        /// ([`super::Harris::set_select_limit`]).
+        pub select_limit: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
         pub weights: [[f32; 4]; MAX_TAPS / 4],

@@ -8,7 +8,7 @@ use super::{
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
     Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS, MERGE_ROUNDS,
-    RefineCorner, SELECT_MAX, pack_with_holes_into,
+    RefineCorner, SELECT_MAX, SELECT_MAX_CPU, pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
@@ -71,6 +71,8 @@ pub struct Harris {
     /// The merge's parallel rounds ([`MERGE_ROUNDS`]; the tests try
     /// none, leaving the whole merge to the host's finish).
     merge_rounds: usize,
+    /// The most candidates selected on the GPU ([`Harris::set_select_limit`]).
+    select_limit: usize,
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -167,6 +169,11 @@ impl Harris {
             scratch: Scratch::default(),
             recent_corners: [0; 2],
             merge_rounds: MERGE_ROUNDS,
+            select_limit: if ctx.is_cpu() {
+                SELECT_MAX_CPU
+            } else {
+                SELECT_MAX
+            } as usize,
         })
     }
 
@@ -183,6 +190,16 @@ impl Harris {
     /// by default: every test of the shaders runs them.
     pub fn set_host(&mut self, on: bool) {
         self.host = on;
+    }
+
+    /// Selects the corners on the GPU among at most `n` candidates (capped
+    /// at [`SELECT_MAX`]); a detection finding more reads them back and
+    /// selects on the host (the same corners, one or two waits more). By
+    /// default [`SELECT_MAX`], and [`SELECT_MAX_CPU`] on CPU adapters,
+    /// where the GPU's comparisons of every pair cost more than the
+    /// host's sort.
+    pub fn set_select_limit(&mut self, n: usize) {
+        self.select_limit = n.min(SELECT_MAX as usize);
     }
 
     /// Whether detection runs on the host ([`Harris::set_host`]).
@@ -238,7 +255,7 @@ impl Harris {
             grid_cell: c.grid_cell,
             merge_r2: c.merge_radius * c.merge_radius,
             refine: c.refine as u32,
-            _pad1: 0,
+            select_limit: self.select_limit as u32,
             _pad2: 0,
             weights,
         }
@@ -711,7 +728,7 @@ impl Harris {
         // and one readback: the counts and the corners, as many as recent
         // detections kept and a quarter more (the rest, when there are
         // more, in a second). With more candidates than the GPU selects
-        // among (SELECT_MAX), they come back in a second readback, the
+        // among (Harris::set_select_limit), they come back in a second readback, the
         // host selects, and the selected are refined on the GPU after it
         // (a third).
         let room = capacity(w, h);
@@ -730,7 +747,7 @@ impl Harris {
         let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
         let count = (counters.count as usize).min(room);
-        let corners = if count <= SELECT_MAX as usize {
+        let corners = if count <= self.select_limit {
             log::trace!(
                 "harris: {count} candidates, {} corners, {guess} read back",
                 counters.selected
@@ -981,6 +998,7 @@ mod tests {
                                 ..HarrisConfig::default()
                             };
                             harris.config = cfg.clone();
+                            harris.set_select_limit(SELECT_MAX as usize);
                             // Every other case without the parallel rounds:
                             // the host finishes the whole merge.
                             harris.merge_rounds = if (case + cases) % 2 == 0 {
