@@ -2,9 +2,7 @@
 //! [`super::cpu`], the shared host steps are in [`super`].
 
 use super::host::{Scratch, detect_packed};
-use super::{
-    Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread_indices,
-};
+use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, selected_starts};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
     Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS, MERGE_ROUNDS,
@@ -756,14 +754,7 @@ impl Harris {
         } else {
             log::trace!("harris: {count} candidates, selected on the host");
             let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
-            let starts: Vec<Corner> = select_spread_indices(&cands, &self.config)
-                .iter()
-                .map(|&i| Corner {
-                    x: cands[i].x as f32,
-                    y: cands[i].y as f32,
-                    score: cands[i].score,
-                })
-                .collect();
+            let starts = selected_starts(&cands, &self.config);
             self.recent_corners = [self.recent_corners[1], starts.len()];
             let corners = if self.config.refine && !starts.is_empty() {
                 self.refine(w, h, &starts)?
@@ -950,15 +941,7 @@ mod tests {
     /// The host's selection and merge (the CPU reference's) of `cands`
     /// kept at their pixels.
     fn host_selection(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<Corner> {
-        let starts = select_spread_indices(cands, cfg)
-            .iter()
-            .map(|&i| Corner {
-                x: cands[i].x as f32,
-                y: cands[i].y as f32,
-                score: cands[i].score,
-            })
-            .collect();
-        merge(starts, cfg.merge_radius)
+        merge(selected_starts(cands, cfg), cfg.merge_radius)
     }
 
     #[test]

@@ -264,6 +264,19 @@ pub(crate) fn select_spread_indices(cands: &[Candidate], cfg: &HarrisConfig) -> 
     ranked.into_iter().map(|(_, i)| i).collect()
 }
 
+/// The corners [`select_spread_indices`] selects among `cands`, at their
+/// pixels (before any refinement), in the selection's order.
+pub(crate) fn selected_starts(cands: &[Candidate], cfg: &HarrisConfig) -> Vec<Corner> {
+    select_spread_indices(cands, cfg)
+        .iter()
+        .map(|&i| Corner {
+            x: cands[i].x as f32,
+            y: cands[i].y as f32,
+            score: cands[i].score,
+        })
+        .collect()
+}
+
 /// Greedy merge of refined corners closer than `radius`, strongest first
 /// (refinement pulls the split maxima of an X-junction onto one point).
 /// The result is sorted by decreasing score.
