@@ -75,17 +75,30 @@ pub struct Harris {
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
 
+/// How a dispatch of the selection is sized.
+#[derive(Clone, Copy, PartialEq)]
+enum Size {
+    /// One thread (`select_sizes`, which writes the sizes below).
+    One,
+    /// A thread a candidate (indirect, at byte 0 of the sizes).
+    Candidates,
+    /// A thread a selected corner (indirect, at byte 16).
+    Selected,
+    /// As `Selected`, [`MERGE_ROUNDS`] times.
+    Rounds,
+}
+
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
-/// in order.
-const SELECT_ENTRIES: [&str; 8] = [
-    "select_sizes",
-    "select_rank",
-    "select_place",
-    "select_refine",
-    "merge_order",
-    "merge_links",
-    "merge_round",
-    "merge_compact",
+/// in order, and their sizes.
+const SELECT_ENTRIES: [(&str, Size); 8] = [
+    ("select_sizes", Size::One),
+    ("select_rank", Size::Candidates),
+    ("select_place", Size::Candidates),
+    ("select_refine", Size::Selected),
+    ("merge_order", Size::Selected),
+    ("merge_links", Size::Selected),
+    ("merge_round", Size::Rounds),
+    ("merge_compact", Size::Selected),
 ];
 
 /// The selection's timed passes: their labels and the entries each runs.
@@ -123,8 +136,9 @@ impl Harris {
             compute_entry(12, storage(false)),
         ];
         let sizes_layout = ctx.bind_group_layout("harris select sizes", &sizes_entries);
-        let mut select = ctx.compute_pipelines("harris", &sizes_layout, &SELECT_ENTRIES[..1])?;
-        select.extend(ctx.compute_pipelines("harris", &select_layout, &SELECT_ENTRIES[1..])?);
+        let names = SELECT_ENTRIES.map(|(name, _)| name);
+        let mut select = ctx.compute_pipelines("harris", &sizes_layout, &names[..1])?;
+        select.extend(ctx.compute_pipelines("harris", &select_layout, &names[1..])?);
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -453,18 +467,18 @@ impl Harris {
         for (label, entries) in SELECT_PASSES {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             for &e in entries {
+                let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
-                let first = SELECT_ENTRIES[e] == "select_sizes";
-                pass.set_bind_group(0, if first { sizes } else { bind }, &[]);
-                match SELECT_ENTRIES[e] {
-                    "select_sizes" => pass.dispatch_workgroups(1, 1, 1),
-                    "select_rank" | "select_place" => pass.dispatch_workgroups_indirect(args, 0),
-                    "merge_round" => {
+                pass.set_bind_group(0, if size == Size::One { sizes } else { bind }, &[]);
+                match size {
+                    Size::One => pass.dispatch_workgroups(1, 1, 1),
+                    Size::Candidates => pass.dispatch_workgroups_indirect(args, 0),
+                    Size::Selected => pass.dispatch_workgroups_indirect(args, 16),
+                    Size::Rounds => {
                         for _ in 0..self.merge_rounds {
                             pass.dispatch_workgroups_indirect(args, 16);
                         }
                     }
-                    _ => pass.dispatch_workgroups_indirect(args, 16),
                 }
             }
         }
