@@ -836,3 +836,52 @@ fn merge_compact(
         atomicAdd(&counters.selected, 1u);
     }
 }
+
+// ---------------------------------------------------------------------------
+// The export (Harris::export_corners): the corners a detection selected
+// here, handed to the next stages without a readback, as the A side of an
+// NCC matching (NccMatcher::match_resident_exported) and the points of a
+// gather. One thread a slot of `n` (the most corners a detection keeps):
+// slot i < kept gets corner i, the others a point far outside any image
+// (a void window, an empty sample). `kept` is 0 where the corners are not
+// final here (more candidates than the GPU selects among, or a merge left
+// to the host): the host then matches the corners it finishes itself.
+// The points are the corners' positions in the window (the detection's
+// pixels); NCC's positions have the band's first row taken off.
+
+// Twin: ExportParams in src/features/gpu_data.rs.
+struct ExportParams {
+    // The first row of A's band in NCC's pixel buffer.
+    band_y0: f32,
+    n: u32,
+    pad0: u32,
+    pad1: u32,
+}
+
+@group(0) @binding(13) var<uniform> export_params: ExportParams;
+@group(0) @binding(14) var<storage, read_write> export_positions: array<vec2<f32>>;
+@group(0) @binding(15) var<storage, read_write> export_points: array<vec2<f32>>;
+
+// NccMatcher's sanitize: a position far outside any image.
+const FAR_AWAY: f32 = -1.0e9;
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn export_corners(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = id.x;
+    if (i >= export_params.n) {
+        return;
+    }
+    var kept = 0u;
+    if (atomicLoad(&counters.undecided) == 0u) {
+        kept = min(atomicLoad(&counters.selected), slot_count());
+    }
+    var pos = vec2<f32>(FAR_AWAY, FAR_AWAY);
+    var pt = pos;
+    if (i < kept) {
+        let c = corners[i];
+        pt = vec2<f32>(c.x, c.y);
+        pos = vec2<f32>(c.x, c.y - export_params.band_y0);
+    }
+    export_positions[i] = pos;
+    export_points[i] = pt;
+}

@@ -261,6 +261,7 @@ pub fn rust_twins() -> Vec<RustLayout> {
         RustLayout::of::<f::Candidate>(),
         RustLayout::of::<f::Counters>(),
         RustLayout::of::<f::RefineCorner>(),
+        RustLayout::of::<f::ExportParams>(),
         RustLayout::of::<f::NccParams>(),
         RustLayout::of::<f::Best>(),
         RustLayout::of::<f::MatchOut>(),

@@ -446,3 +446,198 @@ fn a_window_of_the_resident_frame_is_the_host_crop_bit_for_bit() {
         }
     }
 }
+
+#[test]
+fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
+    // The chained KF step (issue 13): Harris on a resolved view leaves its
+    // corners on the GPU (`detect_resolved_resident_later`), exports them
+    // as NCC's A side and a gather's points (`export_corners`), and one
+    // readback brings the corners and the matches. Against the detection
+    // read back first and its corners matched from the host
+    // (`match_resident`), on the same bands: the same corners, the same
+    // matches and refined points bit for bit, the points the corners
+    // (far away past them), and one wait instead of two.
+    // Where the corners are not final on the GPU (the host selects: a
+    // select limit of 0) or more come back than the readback's first
+    // rows hold (a first detection), `exported` says so, and the export
+    // wrote no corner. A context of its own, so that other tests'
+    // readbacks are not counted.
+    use splattrack::features::{Harris, HarrisConfig};
+    use splattrack::gpu::{AdapterChoice, GpuContext, STORAGE_OUT};
+    let c = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let mut rng = Rng::new(61);
+    // The view: a window of 120x96 at (37, 22) of a 200x160 frame, empty
+    // (NaN) in a corner, the frame the view moved by a warp, in noise.
+    let (w, h, o) = (120usize, 96usize, [37usize, 22usize]);
+    let mut view = patterns::smooth_noise(w, h, 1.6, 7);
+    for y in 0..30 {
+        for x in 0..(30 - y) {
+            view.data[y * w + x] = f32::NAN;
+        }
+    }
+    let warp = Warp {
+        shift: [0.8, -1.1],
+        angle: 0.015,
+        centre: [60.0, 48.0],
+        gain: 0.95,
+        bias: 0.02,
+    };
+    let moved = warp.image(&view);
+    let noise = patterns::smooth_noise(200, 160, 2.0, 8);
+    let frame = GreyImage::from_fn(200, 160, |x, y| {
+        let (vx, vy) = (x as i64 - o[0] as i64, y as i64 - o[1] as i64);
+        if (0..w as i64).contains(&vx) && (0..h as i64).contains(&vy) {
+            let v = moved.get(vx as usize, vy as usize);
+            if v.is_finite() { v } else { noise.get(x, y) }
+        } else {
+            noise.get(x, y)
+        }
+    });
+    let mut g = GpuGrey::new();
+    g.upload(&c, &frame);
+    let rgb: Vec<f32> = view.data.iter().flat_map(|&v| [v, v, v]).collect();
+    let cfg = NccConfig::default()
+        .with_search_radius(Some(6.0))
+        .with_min_score(0.6);
+    let refine = Some(Refinement {
+        window: 9,
+        max_shift: 2,
+        min_score: 0.5,
+    });
+    let origin = [o[0] as f32, o[1] as f32];
+    // Bands as the tracker cuts them: A's rows from 5 on, B's from 20.
+    let (a_rows, b_rows) = (5..h, 20..150);
+    let (mut reference, mut chained) = (
+        Harris::new(&c, HarrisConfig::default()).unwrap(),
+        Harris::new(&c, HarrisConfig::default()).unwrap(),
+    );
+    let (mut m_ref, mut m) = (
+        NccMatcher::new(&c, cfg.clone()).unwrap(),
+        NccMatcher::new(&c, cfg).unwrap(),
+    );
+    let mut matched = 0;
+    for (round, limit) in [(0, None), (1, None), (2, Some(0)), (3, None)] {
+        let at = format!("round {round}");
+        for harris in [&mut reference, &mut chained] {
+            harris.set_select_limit(limit.unwrap_or(splattrack::features::SELECT_MAX as usize));
+            let target = harris.colour_target(w, h).unwrap();
+            c.queue.write_buffer(&target, 0, bytemuck::cast_slice(&rgb));
+        }
+        // The reference: corners read back, matched from the host.
+        let want_corners = reference.detect_resolved_resident(w, h).unwrap();
+        let a_own = want_corners.clone();
+        // B: the corners moved by the warp (roughly), and strays.
+        let mut b: Vec<Corner> = want_corners
+            .iter()
+            .map(|k| Corner {
+                x: k.x + origin[0] + 0.8 + rng.uniform(-0.3, 0.3) as f32,
+                y: k.y + origin[1] - 1.1 + rng.uniform(-0.3, 0.3) as f32,
+                score: 1.0,
+            })
+            .filter(|k| b_rows.contains(&(k.y as usize)))
+            .collect();
+        b.extend(
+            random_points(&mut rng, 40, 200, 160)
+                .into_iter()
+                .filter(|k| b_rows.contains(&(k.y as usize))),
+        );
+        let view_img = ResidentImage {
+            pixels: &reference.resident_view(w, h).unwrap().pixels.clone(),
+            width: w,
+            height: h,
+        };
+        let b_img = g.image().unwrap();
+        let shift = [-(o[0] as i32), -(o[1] as i32)];
+        let want = m_ref
+            .match_resident(
+                view_img,
+                a_rows.clone(),
+                &a_own,
+                b_img,
+                b_rows.clone(),
+                &b,
+                shift,
+                refine,
+            )
+            .unwrap();
+        // Chained.
+        let before = c.readbacks();
+        let pending = chained.detect_resolved_resident_later(w, h).unwrap();
+        let slots = pending.slots();
+        let rows = pending.rows();
+        let points = c.buffer("points", (slots * 8) as u64, STORAGE_OUT);
+        let view_pixels = chained.resident_view(w, h).unwrap().pixels.clone();
+        let band_y0 = a_rows.start as f32;
+        let pm = {
+            let ch = &mut chained;
+            let mut export = |enc: &mut wgpu::CommandEncoder, pos: &wgpu::Buffer| {
+                ch.export_corners(enc, &pending, band_y0, pos, &points)
+            };
+            m.match_resident_exported(
+                ResidentImage {
+                    pixels: &view_pixels,
+                    width: w,
+                    height: h,
+                },
+                a_rows.clone(),
+                slots,
+                &mut export,
+                g.image().unwrap(),
+                b_rows.clone(),
+                &b,
+                shift,
+                refine,
+                rows,
+            )
+            .unwrap()
+        };
+        let detected = chained.finish_later(pending).unwrap();
+        let waits = c.readbacks() - before;
+        assert_eq!(detected.corners, want_corners, "{at}: corners");
+        let n = want_corners.len();
+        let pts: Vec<[f32; 2]> = c.read_buffer(&points, slots).unwrap();
+        let expect_exported = round != 0 && limit.is_none();
+        assert_eq!(
+            detected.exported, expect_exported,
+            "{at}: {n} corners, {rows} rows"
+        );
+        if !detected.exported {
+            // Nothing usable was exported where the host finished.
+            if limit.is_some() {
+                assert!(pts.iter().all(|p| *p == [-1.0e9, -1.0e9]), "{at}");
+            }
+            continue;
+        }
+        assert_eq!(waits, 1, "{at}: waits");
+        for (i, p) in pts.iter().enumerate() {
+            let want_p = a_own.get(i).map_or([-1.0e9, -1.0e9], |k| [k.x, k.y]);
+            assert_eq!(*p, want_p, "{at}: point {i}");
+        }
+        let got = m.finish_exported(pm, n).unwrap();
+        assert_eq!(got, want, "{at}: matches");
+        matched += got.len();
+    }
+    assert!(matched > 40, "{matched} matches");
+    // A first detection of a view reads back 64 corners with its counters.
+    let mut cold = Harris::new(&c, HarrisConfig::default()).unwrap();
+    let target = cold.colour_target(w, h).unwrap();
+    c.queue.write_buffer(&target, 0, bytemuck::cast_slice(&rgb));
+    let pending = cold.detect_resolved_resident_later(w, h).unwrap();
+    assert_eq!(pending.rows(), 64);
+    // Bad calls are refused: an empty view, host mode, a small buffer.
+    let d = cold.finish_later(pending).unwrap();
+    assert!(d.corners.len() > 64 && !d.exported);
+    assert!(cold.detect_resolved_resident_later(0, h).is_err());
+    let pending = cold.detect_resolved_resident_later(w, h).unwrap();
+    let small = c.buffer("small", 8, STORAGE_OUT);
+    let mut enc = c.device.create_command_encoder(&Default::default());
+    assert!(
+        cold.export_corners(&mut enc, &pending, 0.0, &small, &small)
+            .is_err()
+    );
+    cold.finish_later(pending).unwrap();
+    cold.set_host(true);
+    assert!(cold.detect_resolved_resident_later(w, h).is_err());
+}

@@ -557,3 +557,68 @@ fn features_on_the_host_give_the_shaders_poses() {
     };
     assert_same_poses(on(FeatureBackend::Host), on(FeatureBackend::Gpu), [6, 4]);
 }
+
+#[test]
+fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
+    // Issue 13: the KF step's detection on the novel view, its matching
+    // and the gather at its corners chained on the GPU (the corners go
+    // from Harris to NCC and the gather there; one wait) against the
+    // detection read back first, then the matching and the gather (two):
+    // the same corners, matches and samples, so the same poses, bit for
+    // bit, with texture and with the contour, and one readback a KF step
+    // fewer (the views here keep fewer corners than even a first
+    // detection's readback brings, 64: every step chains; the fallbacks
+    // are tested in tests/features_resident.rs). Features in the
+    // shaders, as on a GPU. A context of its own, so that other tests'
+    // readbacks are not counted.
+    use splattrack::gpu::{AdapterChoice, GpuContext};
+    let f = fixture();
+    let ctx = GpuContext::new(&AdapterChoice::Cpu)
+        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+        .expect("a GPU adapter");
+    let make = |chained: bool, contour: bool| {
+        let mut t = Tracker::new(
+            &ctx,
+            f.scene.model.clone(),
+            f.scene.cam,
+            Some(f.store.clone()),
+            TrackerConfig {
+                feature_backend: FeatureBackend::Gpu,
+                resident: Some(true),
+                modalities: Modalities {
+                    texture: true,
+                    contour,
+                },
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        )
+        .expect("tracker");
+        t.set_chained_kf(chained);
+        t
+    };
+    for (contour, n) in [(false, 6), (true, 4)] {
+        let (mut one, mut two) = (make(true, contour), make(false, contour));
+        let mut fewer = Vec::new();
+        for (i, fr) in f.frames[..n].iter().enumerate() {
+            let r0 = ctx.readbacks();
+            let a = one.track(&fr.image).unwrap();
+            let r1 = ctx.readbacks();
+            let b = two.track(&fr.image).unwrap();
+            let at = format!("contour {contour}, frame {i}");
+            assert_eq!(a.status, Status::Tracking, "{at}");
+            assert_eq!((a.status, a.inliers), (b.status, b.inliers), "{at}");
+            assert_eq!(a.pose.rotation, b.pose.rotation, "{at}");
+            assert_eq!(a.pose.translation, b.pose.translation, "{at}");
+            assert_eq!(a.residual_px, b.residual_px, "{at}");
+            assert_eq!(a.times.readbacks as u64, r1 - r0, "{at}");
+            fewer.push(b.times.readbacks as i64 - a.times.readbacks as i64);
+        }
+        eprintln!("contour {contour}: readbacks fewer a frame {fewer:?}");
+        // One KF step a frame (kf_iterations 1): one wait fewer.
+        assert!(
+            fewer.iter().all(|&d| d == 1),
+            "contour {contour}: {fewer:?}"
+        );
+    }
+}

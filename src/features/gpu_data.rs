@@ -236,6 +236,19 @@ wgsl_struct! {
 }
 
 wgsl_struct! {
+    /// Where [`crate::features::Harris::export_corners`] puts a
+    /// detection's corners: the first row of NCC's band of the view, and
+    /// the slots written.
+    #[derive(Clone, Copy, Debug, Pod, Zeroable)]
+    pub struct ExportParams {
+        pub band_y0: f32,
+        pub n: u32,
+        pub _pad0: u32,
+        pub _pad1: u32,
+    }
+}
+
+wgsl_struct! {
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub struct NccParams {
         pub na: u32,

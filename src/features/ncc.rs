@@ -303,7 +303,7 @@ impl NccMatcher {
         ctx.queue
             .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
-        self.write_positions(&pos, na);
+        self.write_positions(&pos, na, 0);
         let mut enc = ctx.encoder();
         self.encode(&mut enc, na, nb, false);
         let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
@@ -334,15 +334,129 @@ impl NccMatcher {
         offset_b: [i32; 2],
         refine: Option<Refinement>,
     ) -> Result<Vec<ResidentMatch>, FeatureError> {
-        img_a.check(&a_rows)?;
-        img_b.check(&b_rows)?;
-        let (na, nb) = (a.len(), b.len());
-        if na == 0 || nb == 0 || a_rows.is_empty() || b_rows.is_empty() {
+        if a.is_empty() || b.is_empty() || a_rows.is_empty() || b_rows.is_empty() {
+            img_a.check(&a_rows)?;
+            img_b.check(&b_rows)?;
             return Ok(Vec::new());
         }
+        let y0 = b_rows.start as f64;
+        let na = a.len();
+        let bands = Bands {
+            img_a,
+            a_rows,
+            img_b,
+            b_rows,
+            offset_b,
+        };
+        let enc = self.record_resident(bands, ASide::Host(a), b, refine)?;
+        let ctx = &self.ctx.clone();
+        let out: Vec<MatchOut> = ctx.read_buffer_after(enc, self.matched.get(), na)?;
+        self.finish_timing()?;
+        Ok(resident_matches(&out, y0, refine.is_some()))
+    }
+
+    /// [`NccMatcher::match_resident`] with A's features written on the GPU
+    /// by `export` (recorded into the matching's encoder before its passes,
+    /// [`crate::features::Harris::export_corners`]) into the `slots` first
+    /// positions of the buffer it is given, in A's band's pixels (slots
+    /// without a feature far outside any image), and the matches' readback
+    /// put off: the first `rows` rows come back with the next readback.
+    /// [`NccMatcher::finish_exported`] returns the matches.
+    #[allow(clippy::too_many_arguments)]
+    pub fn match_resident_exported(
+        &mut self,
+        img_a: ResidentImage,
+        a_rows: std::ops::Range<usize>,
+        slots: usize,
+        export: &mut dyn FnMut(
+            &mut wgpu::CommandEncoder,
+            &wgpu::Buffer,
+        ) -> Result<(), FeatureError>,
+        img_b: ResidentImage,
+        b_rows: std::ops::Range<usize>,
+        b: &[Corner],
+        offset_b: [i32; 2],
+        refine: Option<Refinement>,
+        rows: usize,
+    ) -> Result<PendingMatches, FeatureError> {
+        if slots == 0 || b.is_empty() || a_rows.is_empty() || b_rows.is_empty() {
+            return Err(FeatureError::Config(format!(
+                "an exported matching of {slots} slots and {} features in bands of {} and {} rows",
+                b.len(),
+                a_rows.len(),
+                b_rows.len()
+            )));
+        }
+        let y0 = b_rows.start as f64;
+        let rows = rows.min(slots);
+        let bands = Bands {
+            img_a,
+            a_rows,
+            img_b,
+            b_rows,
+            offset_b,
+        };
+        let enc = self.record_resident(bands, ASide::Exported { slots, export }, b, refine)?;
+        let size = std::mem::size_of::<MatchOut>();
+        let read = self
+            .ctx
+            .read_buffer_later(enc, self.matched.get(), (rows * size) as u64)?;
+        Ok(PendingMatches {
+            read,
+            rows,
+            y0,
+            refine: refine.is_some(),
+        })
+    }
+
+    /// The matches of [`NccMatcher::match_resident_exported`] among the
+    /// first `kept` features of A (at most the rows read back), as
+    /// [`NccMatcher::match_resident`] gives them for those features.
+    pub fn finish_exported(
+        &mut self,
+        pending: PendingMatches,
+        kept: usize,
+    ) -> Result<Vec<ResidentMatch>, FeatureError> {
+        if kept > pending.rows {
+            return Err(FeatureError::Config(format!(
+                "{kept} features asked of an exported matching, {} read back",
+                pending.rows
+            )));
+        }
+        let bytes = pending.read.wait(&self.ctx)?;
+        let size = std::mem::size_of::<MatchOut>();
+        let out: Vec<MatchOut> = bytemuck::pod_collect_to_vec(&bytes[..kept * size]);
+        self.finish_timing()?;
+        Ok(resident_matches(&out, pending.y0, pending.refine))
+    }
+
+    /// Records a matching on GPU-resident bands (checked), A's features
+    /// from the host or exported on the GPU, into an encoder for the
+    /// caller to read from.
+    fn record_resident(
+        &mut self,
+        bands: Bands,
+        a: ASide,
+        b: &[Corner],
+        refine: Option<Refinement>,
+    ) -> Result<crate::gpu::Encoder, FeatureError> {
+        let Bands {
+            img_a,
+            a_rows,
+            img_b,
+            b_rows,
+            offset_b,
+        } = bands;
+        img_a.check(&a_rows)?;
+        img_b.check(&b_rows)?;
         if let Some(r) = &refine {
             r.validate()?;
         }
+        let na = match &a {
+            ASide::Host(a) => a.len(),
+            ASide::Exported { slots, .. } => *slots,
+        };
+        let nb = b.len();
         let sizes = [(img_a.width, a_rows.len()), (img_b.width, b_rows.len())];
         // B's band origin in A's band's pixels.
         let shift = [
@@ -357,12 +471,22 @@ impl NccMatcher {
             y: c.y - y0 as f32,
             ..*c
         };
-        let pos: Vec<[f32; 2]> = a
-            .iter()
-            .map(|c| sanitize(&band(c, a_rows.start)))
-            .chain(b.iter().map(|c| sanitize(&band(c, b_rows.start))))
-            .collect();
-        self.write_positions(&pos, na);
+        let b_pos = b.iter().map(|c| sanitize(&band(c, b_rows.start)));
+        match &a {
+            ASide::Host(a) => {
+                let pos: Vec<[f32; 2]> = a
+                    .iter()
+                    .map(|c| sanitize(&band(c, a_rows.start)))
+                    .chain(b_pos)
+                    .collect();
+                self.write_positions(&pos, na, 0);
+            }
+            // A's positions are the export's.
+            ASide::Exported { .. } => {
+                let pos: Vec<[f32; 2]> = b_pos.collect();
+                self.write_positions(&pos, 0, na);
+            }
+        }
         let px = std::mem::size_of::<Pixel>();
         let (len_a, len_b) = (img_a.width * a_rows.len(), img_b.width * b_rows.len());
         let mut enc = ctx.encoder();
@@ -380,32 +504,27 @@ impl NccMatcher {
             (len_a * px) as u64,
             (len_b * px) as u64,
         );
+        if let ASide::Exported { export, .. } = a {
+            export(&mut enc, self.positions.get())?;
+        }
         self.encode(&mut enc, na, nb, true);
-        let out: Vec<MatchOut> = ctx.read_buffer_after(enc, self.matched.get(), na)?;
-        self.finish_timing()?;
-        let y0 = b_rows.start as f64;
-        Ok(out
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.b != NO_INDEX)
-            .map(|(i, m)| ResidentMatch {
-                a: i,
-                b: m.b as usize,
-                score: m.score,
-                at: (refine.is_none() || m.refined == 1).then_some([m.x as f64, m.y as f64 + y0]),
-            })
-            .collect())
+        Ok(enc)
     }
 
-    /// Uploads the positions (A's `na`, then B's) and B's
+    /// Uploads the positions `pos` (A's first `na`, then B's) from slot
+    /// `skip` on (the slots before are A's, written on the GPU) and B's
     /// [`spatial_order`] after the window flags in `ok`.
-    fn write_positions(&self, pos: &[[f32; 2]], na: usize) {
+    fn write_positions(&self, pos: &[[f32; 2]], na: usize, skip: usize) {
         let q = &self.ctx.queue;
-        q.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(pos));
+        q.write_buffer(
+            self.positions.get(),
+            (skip * 8) as u64,
+            bytemuck::cast_slice(pos),
+        );
         let order = spatial_order(&pos[na..], self.config.search_radius);
         q.write_buffer(
             self.ok.get(),
-            (pos.len() * 4) as u64,
+            ((skip + pos.len()) * 4) as u64,
             bytemuck::cast_slice(&order),
         );
     }
@@ -555,6 +674,55 @@ impl NccMatcher {
         }
         Ok(())
     }
+}
+
+/// The two GPU-resident bands of a matching
+/// ([`NccMatcher::match_resident`]'s arguments).
+struct Bands<'i> {
+    img_a: ResidentImage<'i>,
+    a_rows: std::ops::Range<usize>,
+    img_b: ResidentImage<'i>,
+    b_rows: std::ops::Range<usize>,
+    offset_b: [i32; 2],
+}
+
+/// Where A's features come from.
+enum ASide<'a> {
+    /// Uploaded by the host.
+    Host(&'a [Corner]),
+    /// Written into the first `slots` positions on the GPU by `export`.
+    Exported {
+        slots: usize,
+        export:
+            &'a mut dyn FnMut(&mut wgpu::CommandEncoder, &wgpu::Buffer) -> Result<(), FeatureError>,
+    },
+}
+
+/// A matching whose readback is put off
+/// ([`NccMatcher::match_resident_exported`]).
+#[must_use = "a pending matching is only useful finished"]
+pub struct PendingMatches {
+    read: crate::gpu::PendingRead,
+    /// A's rows read back.
+    rows: usize,
+    /// B's band's first row.
+    y0: f64,
+    refine: bool,
+}
+
+/// The matches among `mutual_refine`'s rows (one a feature of A), B's
+/// points moved from its band (first row `y0`) into its image.
+fn resident_matches(out: &[MatchOut], y0: f64, refine: bool) -> Vec<ResidentMatch> {
+    out.iter()
+        .enumerate()
+        .filter(|(_, m)| m.b != NO_INDEX)
+        .map(|(i, m)| ResidentMatch {
+            a: i,
+            b: m.b as usize,
+            score: m.score,
+            at: (!refine || m.refined == 1).then_some([m.x as f64, m.y as f64 + y0]),
+        })
+        .collect()
 }
 
 #[cfg(test)]

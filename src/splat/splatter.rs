@@ -727,13 +727,49 @@ impl Splatter {
         points: &[[f32; 2]],
         mode: GatherMode,
     ) -> Result<PendingGather, SplatError> {
+        self.gather_at(ctx, targets, Points::Host(points), mode)
+    }
+
+    /// The buffer of points [`Splatter::gather_written_later`] gathers
+    /// at, grown to hold `n` (8 bytes each: x, y as f32), for work on the
+    /// GPU to write into (such as [`crate::features::Harris::export_corners`]).
+    /// The next [`Splatter::gather_later`] overwrites it.
+    pub fn gather_points(&self, ctx: &GpuContext, n: usize) -> Result<wgpu::Buffer, SplatError> {
+        let bytes = (n.max(1) * 8) as u64;
+        ctx.check_buffer_size("gather points", bytes, STORAGE_IN)?;
+        Ok(self.grown(ctx, Grown::Points, bytes))
+    }
+
+    /// [`Splatter::gather_later`] at the first `n` points written on the
+    /// GPU into [`Splatter::gather_points`] (recorded before this call).
+    pub fn gather_written_later(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        n: usize,
+        mode: GatherMode,
+    ) -> Result<PendingGather, SplatError> {
+        self.gather_at(ctx, targets, Points::Written(n), mode)
+    }
+
+    fn gather_at(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        points: Points,
+        mode: GatherMode,
+    ) -> Result<PendingGather, SplatError> {
         targets.check(Attributes::MOTION, Attribute::Motion)?;
-        if points.is_empty() {
+        let count = match points {
+            Points::Host(p) => p.len(),
+            Points::Written(n) => n,
+        };
+        if count == 0 {
             return Ok(PendingGather { read: None, n: 0 });
         }
-        let bytes: &[u8] = bytemuck::cast_slice(points);
+        let size = (count * 8) as u64;
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
-        ctx.check_buffer_size("gather points", bytes.len() as u64, STORAGE_IN)?;
+        ctx.check_buffer_size("gather points", size, STORAGE_IN)?;
         let put_off = std::mem::take(
             &mut self
                 .reuse
@@ -744,9 +780,24 @@ impl Splatter {
         if put_off {
             ctx.flush();
         }
-        let pbuf = self.grown(ctx, Grown::Points, bytes.len() as u64);
-        ctx.queue.write_buffer(&pbuf, 0, bytes);
-        let n = points.len() * GATHER_STRIDE;
+        let pbuf = match points {
+            Points::Host(p) => {
+                let pbuf = self.grown(ctx, Grown::Points, size);
+                ctx.queue.write_buffer(&pbuf, 0, bytemuck::cast_slice(p));
+                pbuf
+            }
+            Points::Written(_) => {
+                let pbuf = self.grown(ctx, Grown::Points, 0);
+                if pbuf.size() < size {
+                    return Err(SplatError::Gpu(crate::gpu::GpuError::Readback(format!(
+                        "a gather at {count} written points of a {}-byte buffer",
+                        pbuf.size()
+                    ))));
+                }
+                pbuf
+            }
+        };
+        let n = count * GATHER_STRIDE;
         let out = self.grown(ctx, Grown::Gather, (n * 4) as u64);
         let bind = self.resolve_bind(
             ctx,
@@ -754,7 +805,7 @@ impl Splatter {
             ResolveParams {
                 width: targets.width,
                 height: targets.height,
-                kind: points.len() as u32,
+                kind: count as u32,
                 mode: match mode {
                     GatherMode::Nearest => GATHER_NEAREST,
                     GatherMode::Bilinear => GATHER_BILINEAR,
@@ -770,7 +821,7 @@ impl Splatter {
             let mut pass = enc.begin_compute_pass(&Default::default());
             pass.set_pipeline(&self.gather);
             pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(workgroups(points.len() as u32, WORKGROUP_1D), 1, 1);
+            pass.dispatch_workgroups(workgroups(count as u32, WORKGROUP_1D), 1, 1);
         }
         let read = ctx.read_buffer_later(enc, &out, (n * 4) as u64)?;
         self.reuse
@@ -779,7 +830,7 @@ impl Splatter {
             .gather_put_off = true;
         Ok(PendingGather {
             read: Some(read),
-            n: points.len(),
+            n: count,
         })
     }
 
@@ -796,6 +847,15 @@ impl Splatter {
         self.render(ctx, model, cam, pose, attribute.needs(), &mut targets)?;
         self.read(ctx, &targets, attribute)
     }
+}
+
+/// Where a gather's points come from.
+#[derive(Clone, Copy)]
+enum Points<'p> {
+    /// Uploaded.
+    Host(&'p [[f32; 2]]),
+    /// The first n of the points' buffer, written on the GPU.
+    Written(usize),
 }
 
 /// A gather whose readback is put off ([`Splatter::gather_later`]).

@@ -4,7 +4,7 @@
 //! the old positions and the displacements solved for the update.
 
 use super::profile::Texture;
-use super::view::{Placed, match_near, match_near_resident};
+use super::view::{AFeatures, Placed, match_near, match_near_resident};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::Corner;
 use crate::geometry::Pose;
@@ -152,7 +152,7 @@ impl Tracker {
                 match_near_resident(
                     &mut self.it_matcher,
                     (before, full),
-                    &src,
+                    AFeatures::InFrame(&src),
                     now,
                     &frame.corners,
                     margin,

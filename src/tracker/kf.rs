@@ -3,14 +3,15 @@
 //! motion predictors are splatted in one pass; corners of the novel view
 //! matched to the frame's are solved for the correction.
 
-use super::view::{Placed, match_near, match_near_resident};
+use super::view::{AFeatures, Bands, Placed, match_near, match_near_resident, window_crop};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::resident::MAX_REFINE_WINDOW;
-use crate::features::{Corner, GreyImage, Match, NccMatcher, Refinement, refine_match};
+use crate::features::{
+    Corner, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,
+};
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::Window;
-use crate::splat::{Attribute, Attributes};
+use crate::splat::{Attribute, Attributes, GatherMode, GatherSample, Window};
 use nalgebra::Vector2;
 
 /// A KF match: the view's corner, and where it lies in the frame
@@ -19,6 +20,18 @@ type Found = (usize, Option<Vector2<f64>>);
 
 /// How far the sub-pixel refinement of a match searches, pixels.
 const REFINE_SHIFT: i32 = 2;
+
+/// The KF step's detection, matching and gather chained on the GPU
+/// ([`Tracker::kf_chained`]).
+enum Chained {
+    /// All done in one wait: the view's corners (window coordinates), the
+    /// matches, and the samples at the corners.
+    Done(Vec<Corner>, Vec<Found>, Vec<crate::splat::GatherSample>),
+    /// The view's corners only (window coordinates): the GPU's selection
+    /// was not final, or kept more corners than came back at once, so
+    /// what was fed from it is void and done again from these.
+    Corners(Vec<Corner>),
+}
 
 /// How far the KF step searches for matches.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -105,19 +118,43 @@ impl Tracker {
         let target = self.harris.colour_target(w, h)?;
         self.splatter
             .resolve_into(&self.ctx, &self.targets, Attribute::Color, &target)?;
+        let margin = self.match_margin(match search {
+            Search::Recover => self.config.recover_search_px,
+            Search::Motion => self.config.it_search_px,
+            Search::Refine => self.config.kf_search_px,
+        });
         // Resident (the default): the view stays on the GPU for NCC and
         // the refinement; else its grey levels come back for host crops.
         let resident =
             self.resident.frames().0.is_some() && self.config.refine_window <= MAX_REFINE_WINDOW;
-        let (corners, view) = if resident {
-            (self.harris.detect_resolved_resident(w, h)?, None)
+        // Chained (resident, by default): the detection, the matching and
+        // the gather go to the GPU together, and one wait brings them.
+        let chained = if resident && self.resident.chain_kf && !self.harris.host() {
+            self.kf_chained(window, &frame.corners, search, margin)?
         } else {
-            let (c, v) = self.harris.detect_resolved(w, h)?;
-            (c, Some(v))
+            None
+        };
+        let mut done = None;
+        let mut matching = std::time::Duration::ZERO;
+        let (corners, view) = match chained {
+            Some((Chained::Done(corners, found, samples), d)) => {
+                done = Some((found, samples));
+                matching = d;
+                (corners, None)
+            }
+            Some((Chained::Corners(corners), d)) => {
+                matching = d;
+                (corners, None)
+            }
+            None if resident => (self.harris.detect_resolved_resident(w, h)?, None),
+            None => {
+                let (c, v) = self.harris.detect_resolved(w, h)?;
+                (c, Some(v))
+            }
         };
         let o = window.origin();
         let view_corners: Vec<Corner> = corners
-            .into_iter()
+            .iter()
             .map(|c| Corner {
                 x: c.x + o[0],
                 y: c.y + o[1],
@@ -126,33 +163,59 @@ impl Tracker {
             .collect();
         drop(batch);
         self.note_harris("KF");
-        self.stages.kf_harris += t.elapsed();
+        // A chained step's matching and wait count as matching.
+        self.stages.kf_harris += t.elapsed().saturating_sub(matching);
+        self.stages.kf_ncc += matching;
         let t = std::time::Instant::now();
-        let margin = self.match_margin(match search {
-            Search::Recover => self.config.recover_search_px,
-            Search::Motion => self.config.it_search_px,
-            Search::Refine => self.config.kf_search_px,
-        });
-        // The predictors at every view corner, gathered now and read back
-        // with the matching's readback (one submission and one wait for
-        // both; a corner's sample does not depend on the others).
-        let batch = self.ctx.batch();
-        let pts: Vec<[f32; 2]> = view_corners.iter().map(|c| [c.x, c.y]).collect();
-        let gathered = self.gather_frame_later(&pts)?;
-        // Each match: the view's corner and where it lies in the frame
-        // (`None`: its refinement failed).
-        let found: Vec<Found> = match view {
+        let (found, all) = match done {
+            Some(d) => d,
             None => {
-                self.kf_match_resident(window, &view_corners, &frame.corners, search, margin)?
-            }
-            Some(view) => {
-                self.kf_match_host(window, &view, &view_corners, frame, search, margin)?
+                // The predictors at every view corner, gathered now and
+                // read back with the matching's readback (one submission
+                // and one wait for both; a corner's sample does not depend
+                // on the others).
+                // Resident, at the corners in the window's pixels (as the
+                // chained step gathers and matches: the same samples and
+                // matches); else at the corners in the frame's.
+                let batch = self.ctx.batch();
+                let (found, gathered): (Vec<Found>, _) = match view {
+                    None => {
+                        let pts: Vec<[f32; 2]> = corners.iter().map(|c| [c.x, c.y]).collect();
+                        let gathered = self.splatter.gather_later(
+                            &self.ctx,
+                            &self.targets,
+                            &pts,
+                            GatherMode::Bilinear,
+                        )?;
+                        let found = self.kf_match_resident(
+                            window,
+                            &corners,
+                            &frame.corners,
+                            search,
+                            margin,
+                        )?;
+                        (found, gathered)
+                    }
+                    Some(view) => {
+                        let pts: Vec<[f32; 2]> = view_corners.iter().map(|c| [c.x, c.y]).collect();
+                        let gathered = self.gather_frame_later(&pts)?;
+                        let found = self.kf_match_host(
+                            window,
+                            &view,
+                            &view_corners,
+                            frame,
+                            search,
+                            margin,
+                        )?;
+                        (found, gathered)
+                    }
+                };
+                drop(batch);
+                (found, gathered.wait(&self.ctx)?)
             }
         };
-        drop(batch);
         let timings = self.matcher(search).last_timings().clone();
         self.note_ncc("KF", timings);
-        let all = gathered.wait(&self.ctx)?;
         let obs: Vec<Correspondence> = found
             .iter()
             .map(|f| (f, &all[f.0]))
@@ -175,12 +238,121 @@ impl Tracker {
         }
     }
 
-    /// The KF matches on the GPU: the view Harris left there against the
-    /// resident frame, the mutual check and the refinement there too.
+    /// The KF step's detection on the view resolved into Harris's input,
+    /// its matching against the resident frame and the gather of the
+    /// predictors at its corners, chained on the GPU: the corners go from
+    /// Harris to NCC and the gather there
+    /// ([`crate::features::Harris::export_corners`]), and one wait brings
+    /// the corners, the matches and the samples (instead of one for the
+    /// corners, then one for the rest). The matching's crop is the
+    /// window grown by the margin ([`window_crop`]), which it can cut
+    /// before the corners are known: the same matches. `None` where it
+    /// cannot run (no frame corner in the crop, no resident frame): the
+    /// caller detects and matches apart. With the outcome, the time spent
+    /// from the detection's recording on (the matching's and the wait's).
+    fn kf_chained(
+        &mut self,
+        window: Window,
+        frame_corners: &[Corner],
+        search: Search,
+        margin: Option<f64>,
+    ) -> Result<Option<(Chained, std::time::Duration)>, StepError> {
+        let (w, h) = (window.width as usize, window.height as usize);
+        let Some(now) = self.resident.frames().0 else {
+            return Ok(None);
+        };
+        let (now_pixels, nw, nh) = (now.pixels.clone(), now.width, now.height);
+        let full = Window {
+            x0: 0,
+            y0: 0,
+            width: nw as u32,
+            height: nh as u32,
+        };
+        let crop = window_crop(self.matcher(search), window, margin, full);
+        let bands = match Bands::new(window, frame_corners, crop) {
+            Some(b) if w > 0 && h > 0 && !b.b_in.is_empty() => b,
+            _ => return Ok(None),
+        };
+        let refine = (self.config.refine_window > 0).then_some(Refinement {
+            window: self.config.refine_window,
+            max_shift: REFINE_SHIFT as u32,
+            min_score: self.config.ncc.min_score * 0.8,
+        });
+        let pending = self.harris.detect_resolved_resident_later(w, h)?;
+        let t = std::time::Instant::now();
+        let points = self.splatter.gather_points(&self.ctx, pending.slots())?;
+        let view_pixels = self.harris.resident_view(w, h)?.pixels.clone();
+        let band_y0 = bands.a_rows.start as f32;
+        let harris = &mut self.harris;
+        let matcher = match search {
+            Search::Recover => &mut self.recover_matcher,
+            Search::Motion => &mut self.it_matcher,
+            Search::Refine => &mut self.kf_matcher,
+        };
+        let matching = {
+            let mut export = |enc: &mut wgpu::CommandEncoder, positions: &wgpu::Buffer| {
+                harris.export_corners(enc, &pending, band_y0, positions, &points)
+            };
+            matcher.match_resident_exported(
+                ResidentImage {
+                    pixels: &view_pixels,
+                    width: w,
+                    height: h,
+                },
+                bands.a_rows.clone(),
+                pending.slots(),
+                &mut export,
+                ResidentImage {
+                    pixels: &now_pixels,
+                    width: nw,
+                    height: nh,
+                },
+                bands.b_rows.clone(),
+                &bands.b_in,
+                [-(window.x0 as i32), -(window.y0 as i32)],
+                refine,
+                pending.rows(),
+            )?
+        };
+        let gathered = self.splatter.gather_written_later(
+            &self.ctx,
+            &self.targets,
+            pending.rows(),
+            GatherMode::Bilinear,
+        )?;
+        // The one wait.
+        let detected = self.harris.finish_later(pending)?;
+        if !detected.exported {
+            log::trace!("KF: the chained matching is done again from the host's corners");
+            return Ok(Some((Chained::Corners(detected.corners), t.elapsed())));
+        }
+        let kept = detected.corners.len();
+        let matcher = match search {
+            Search::Recover => &mut self.recover_matcher,
+            Search::Motion => &mut self.it_matcher,
+            Search::Refine => &mut self.kf_matcher,
+        };
+        let found = matcher
+            .finish_exported(matching, kept)?
+            .into_iter()
+            .map(|m| (m.a, m.at.map(|p| Vector2::new(p[0], p[1]))))
+            .collect();
+        let mut samples: Vec<GatherSample> = gathered.wait(&self.ctx)?;
+        samples.truncate(kept);
+        Ok(Some((
+            Chained::Done(detected.corners, found, samples),
+            t.elapsed(),
+        )))
+    }
+
+    /// The KF matches on the GPU of the view's `corners` (in its window's
+    /// pixels): the view Harris left there against the resident frame,
+    /// on the crop the chained step cuts, the mutual check and the
+    /// refinement there too.
     fn kf_match_resident(
         &mut self,
         window: Window,
-        view_corners: &[Corner],
+        corners: &[Corner],
         frame_corners: &[Corner],
         search: Search,
         margin: Option<f64>,
@@ -203,7 +375,7 @@ impl Tracker {
         let matches = match_near_resident(
             matcher,
             (view, window),
-            view_corners,
+            AFeatures::InWindow(corners),
             now,
             frame_corners,
             margin,

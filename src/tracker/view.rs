@@ -55,6 +55,9 @@ impl Kept {
 /// GPUs, off on CPU adapters, where the host path measured faster).
 pub(super) struct Resident {
     on: bool,
+    /// The KF step's detection, matching and gather chained on the GPU
+    /// ([`Tracker::set_chained_kf`]).
+    pub(super) chain_kf: bool,
     images: [GpuGrey; 2],
     /// The frames' way in: their bytes uploaded, converted on the GPU
     /// (made on the first upload).
@@ -71,6 +74,7 @@ impl Resident {
     pub(super) fn new(on: bool) -> Self {
         Self {
             on,
+            chain_kf: true,
             images: [GpuGrey::new(), GpuGrey::new()],
             intake: None,
             current: None,
@@ -280,6 +284,76 @@ fn crop_window(matcher: &NccMatcher, a: &[Corner], margin: Option<f64>, full: Wi
     }
 }
 
+/// A's features in a resident matching ([`match_near_resident`]).
+#[derive(Clone, Copy)]
+pub(super) enum AFeatures<'a> {
+    /// In the frame's pixels: the crop is cut around them ([`crop_window`]).
+    InFrame(&'a [Corner]),
+    /// In A's own pixels (a novel view's window, whose corners Harris
+    /// found there): the crop is the window grown by the margin
+    /// ([`window_crop`]), as the chained KF step cuts it.
+    InWindow(&'a [Corner]),
+}
+
+/// The bands of a resident matching on the crop `w` of the frame: B's
+/// features inside it (and their indices in `b`), the rows of A (placed
+/// at `at`) within it, and its own rows.
+pub(super) struct Bands {
+    pub b_idx: Vec<usize>,
+    pub b_in: Vec<Corner>,
+    pub a_rows: std::ops::Range<usize>,
+    pub b_rows: std::ops::Range<usize>,
+}
+
+impl Bands {
+    /// `None` where A has no row in the crop.
+    pub(super) fn new(at: Window, b: &[Corner], w: Window) -> Option<Self> {
+        let o = w.origin();
+        let inside = |c: &Corner| {
+            c.x >= o[0]
+                && c.y >= o[1]
+                && c.x < o[0] + w.width as f32
+                && c.y < o[1] + w.height as f32
+        };
+        let b_idx: Vec<usize> = (0..b.len()).filter(|&i| inside(&b[i])).collect();
+        let b_in: Vec<Corner> = b_idx.iter().map(|&i| b[i]).collect();
+        let a_rows = (w.y0.max(at.y0) - at.y0) as usize
+            ..((w.y0 + w.height).min(at.y0 + at.height)).saturating_sub(at.y0) as usize;
+        let b_rows = w.y0 as usize..(w.y0 + w.height) as usize;
+        (a_rows.start < a_rows.end).then_some(Self {
+            b_idx,
+            b_in,
+            a_rows,
+            b_rows,
+        })
+    }
+}
+
+/// The crop of a matching of features inside the window `at` (a novel
+/// view's): `at` grown by `margin` where the matcher has a search radius
+/// (else the whole frame, as [`crop_window`]). It holds the crop
+/// [`match_near`] cuts around any features inside `at`, and the features
+/// of B it adds lie farther than the search radius from all of them: the
+/// matches are the same.
+pub(super) fn window_crop(
+    matcher: &NccMatcher,
+    at: Window,
+    margin: Option<f64>,
+    full: Window,
+) -> Window {
+    let o = at.origin();
+    let rect = [
+        o[0] as f64,
+        o[1] as f64,
+        (at.x0 + at.width) as f64,
+        (at.y0 + at.height) as f64,
+    ];
+    match (matcher.config().search_radius, margin) {
+        (Some(_), Some(m)) => Window::around(rect, m, 1, full.width, full.height).unwrap_or(full),
+        _ => full,
+    }
+}
+
 /// [`match_near`] on images resident on the GPU: `img_a` placed at window
 /// `at` of the frame (the whole frame, or a novel view's window), the
 /// frame `img_b`; each takes part with the rows of the crop
@@ -287,10 +361,14 @@ fn crop_window(matcher: &NccMatcher, a: &[Corner], margin: Option<f64>, full: Wi
 /// there), so the matches are the same. With `refine`, each match carries
 /// B's refined point (frame coordinates; `None` where the refinement
 /// fails), as [`crate::features::refine_match`] on the crops gives it.
+/// A's features given in its own pixels ([`AFeatures::InWindow`]) are
+/// matched on the crop the chained KF step cuts ([`window_crop`]): the
+/// same matches, B's points and windows within f32 rounding of its band's
+/// rows.
 pub(super) fn match_near_resident(
     matcher: &mut NccMatcher,
     img_a: (ResidentImage, Window),
-    a: &[Corner],
+    a: AFeatures,
     img_b: ResidentImage,
     b: &[Corner],
     margin: Option<f64>,
@@ -302,25 +380,28 @@ pub(super) fn match_near_resident(
         width: img_b.width as u32,
         height: img_b.height as u32,
     };
-    if a.is_empty() || b.is_empty() {
-        return Ok(Vec::new());
-    }
-    let w = crop_window(matcher, a, margin, full);
-    let o = w.origin();
-    let inside = |c: &Corner| {
-        c.x >= o[0] && c.y >= o[1] && c.x < o[0] + w.width as f32 && c.y < o[1] + w.height as f32
-    };
-    let b_idx: Vec<usize> = (0..b.len()).filter(|&i| inside(&b[i])).collect();
-    let b_in: Vec<Corner> = b_idx.iter().map(|&i| b[i]).collect();
-    // A's features in its own pixels; its rows within the crop.
     let (img, at) = img_a;
-    let a_own: Vec<Corner> = a.iter().map(|c| shifted(c, at.origin())).collect();
-    let a_rows = (w.y0.max(at.y0) - at.y0) as usize
-        ..((w.y0 + w.height).min(at.y0 + at.height)).saturating_sub(at.y0) as usize;
-    let b_rows = w.y0 as usize..(w.y0 + w.height) as usize;
-    if a_rows.start >= a_rows.end {
+    let (list, w) = match a {
+        AFeatures::InFrame(a) => (a, crop_window(matcher, a, margin, full)),
+        AFeatures::InWindow(a) => (a, window_crop(matcher, at, margin, full)),
+    };
+    if list.is_empty() || b.is_empty() {
         return Ok(Vec::new());
     }
+    let Some(bands) = Bands::new(at, b, w) else {
+        return Ok(Vec::new());
+    };
+    // A's features in its own pixels.
+    let a_own: Vec<Corner> = match a {
+        AFeatures::InFrame(a) => a.iter().map(|c| shifted(c, at.origin())).collect(),
+        AFeatures::InWindow(a) => a.to_vec(),
+    };
+    let Bands {
+        b_idx,
+        b_in,
+        a_rows,
+        b_rows,
+    } = bands;
     Ok(matcher
         .match_resident(
             img,
@@ -355,6 +436,17 @@ impl Tracker {
             self.resident.current = None;
             self.resident.previous = None;
         }
+    }
+
+    /// Chains the KF step's detection on the novel view, its matching and
+    /// the gather at its corners on the GPU where matching is resident
+    /// (`true`, the default): one wait for the three instead of two, the
+    /// same corners, matches and samples (the corners go from Harris to
+    /// NCC and the gather on the GPU; the matching's crop is the view's
+    /// window grown by the search margin instead of its corners' box,
+    /// which gives the same matches). `false`: detect, then match.
+    pub fn set_chained_kf(&mut self, on: bool) {
+        self.resident.chain_kf = on;
     }
 
     /// The window a render of the model at `pose` needs: every pixel it

@@ -5,14 +5,14 @@ use super::host::{Scratch, detect_packed};
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, selected_starts};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
-    Candidate, Counters, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS, MERGE_ROUNDS,
-    RefineCorner, SELECT_MAX, SELECT_MAX_CPU, pack_with_holes_into,
+    Candidate, Counters, ExportParams, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS,
+    MERGE_ROUNDS, RefineCorner, SELECT_MAX, SELECT_MAX_CPU, pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
-    WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
+    WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
 };
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
@@ -63,14 +63,68 @@ pub struct Harris {
     /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
     scratch: Scratch,
-    /// The corner counts of the last two detections (on the GPU), to
-    /// size the next one's readback.
-    recent_corners: [usize; 2],
+    /// The corner counts of the last two detections (on the GPU) of
+    /// frames (0) and of resolved views (1), to size the next one's
+    /// readback (a view's window keeps far fewer than a frame's, or more).
+    recent_corners: [[usize; 2]; 2],
+    /// What the detection being finished ran on (0: a frame, 1: a view).
+    kind: usize,
     /// The merge's parallel rounds ([`MERGE_ROUNDS`]; the tests try
     /// none, leaving the whole merge to the host's finish).
     merge_rounds: usize,
     /// The most candidates selected on the GPU ([`Harris::set_select_limit`]).
     select_limit: usize,
+    /// The export of a detection's corners to the next stages
+    /// ([`Harris::export_corners`]): its layout, pipeline, parameters and
+    /// last bind group (with the buffers it binds).
+    export_layout: wgpu::BindGroupLayout,
+    export: wgpu::ComputePipeline,
+    export_params: wgpu::Buffer,
+    export_bind: Option<(Vec<wgpu::Buffer>, wgpu::BindGroup)>,
+}
+
+/// A detection whose corners come back with a later readback
+/// ([`Harris::detect_resolved_resident_later`]); [`Harris::finish_later`]
+/// returns them.
+#[must_use = "a pending detection is only useful finished"]
+pub struct PendingCorners {
+    counters: PendingRead,
+    corners: PendingRead,
+    /// The corners read back with the counters.
+    rows: usize,
+    /// The most corners the detection keeps.
+    slots: usize,
+    width: usize,
+    height: usize,
+}
+
+impl PendingCorners {
+    /// The corners that come back with the counters (a guess from recent
+    /// detections; a detection keeping more reads the rest in a readback of
+    /// its own): the rows of exported work worth reading with them.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// The most corners the detection can keep: the slots
+    /// [`Harris::export_corners`] writes.
+    pub fn slots(&self) -> usize {
+        self.slots
+    }
+}
+
+/// The corners of a detection finished by [`Harris::finish_later`].
+#[derive(Debug, Clone)]
+pub struct Detected {
+    /// Strongest first, as [`Harris::detect`] gives them.
+    pub corners: Vec<Corner>,
+    /// Whether these are the corners [`Harris::export_corners`] handed on,
+    /// all within [`PendingCorners::rows`]: the selection ran on the GPU
+    /// and finished there, and none came back in a readback of its own.
+    /// Otherwise the exported slots hold none (the host finished the
+    /// selection) or more than were read back, and work fed from them is
+    /// to be done again from `corners`.
+    pub exported: bool,
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -139,6 +193,19 @@ impl Harris {
         let names = SELECT_ENTRIES.map(|(name, _)| name);
         let mut select = ctx.compute_pipelines("harris", &sizes_layout, &names[..1])?;
         select.extend(ctx.compute_pipelines("harris", &select_layout, &names[1..])?);
+        let export_entries = [
+            compute_entry(0, wgpu::BufferBindingType::Uniform),
+            compute_entry(5, storage(false)),
+            compute_entry(7, storage(false)),
+            compute_entry(13, wgpu::BufferBindingType::Uniform),
+            compute_entry(14, storage(false)),
+            compute_entry(15, storage(false)),
+        ];
+        let export_layout = ctx.bind_group_layout("harris export", &export_entries);
+        let export = ctx
+            .compute_pipelines("harris", &export_layout, &["export_corners"])?
+            .pop()
+            .expect("one pipeline");
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -179,13 +246,22 @@ impl Harris {
             last_timings: TimerReport::default(),
             host: false,
             scratch: Scratch::default(),
-            recent_corners: [0; 2],
+            recent_corners: [[0; 2]; 2],
+            kind: 0,
             merge_rounds: MERGE_ROUNDS,
             select_limit: if ctx.is_cpu() {
                 SELECT_MAX_CPU
             } else {
                 SELECT_MAX
             } as usize,
+            export_layout,
+            export,
+            export_params: ctx.buffer(
+                "harris export params",
+                std::mem::size_of::<ExportParams>() as u64,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            export_bind: None,
         })
     }
 
@@ -222,11 +298,11 @@ impl Harris {
     /// Times every pass with GPU timestamp queries from now on (where the
     /// adapter supports them); see [`Harris::last_timings`].
     pub fn enable_timing(&mut self) {
-        // The passes, grey and pack (a resolved view), the selection's and,
-        // after the host selected, the refinement.
+        // The passes, grey and pack (a resolved view), the selection's,
+        // after the host selected the refinement, and the export.
         self.timer = Some(GpuTimer::new(
             &self.ctx,
-            (PASSES.len() + SELECT_PASSES.len()) as u32 + 3,
+            (PASSES.len() + SELECT_PASSES.len()) as u32 + 4,
         ));
     }
 
@@ -494,7 +570,7 @@ impl Harris {
         counters: &Counters,
         part: &[u8],
         slots: usize,
-    ) -> Result<Vec<Corner>, FeatureError> {
+    ) -> Result<Detected, FeatureError> {
         let ctx = &self.ctx.clone();
         let corner = |r: &RefineCorner| Corner {
             x: r.x,
@@ -511,18 +587,25 @@ impl Harris {
                 ordered.iter().map(corner).collect(),
                 self.config.merge_radius,
             );
-            self.recent_corners = [self.recent_corners[1], corners.len()];
-            return Ok(corners);
+            self.note_kept(corners.len());
+            return Ok(Detected {
+                corners,
+                exported: false,
+            });
         }
         let size = std::mem::size_of::<RefineCorner>();
         let kept = (counters.selected as usize).min(slots);
-        self.recent_corners = [self.recent_corners[1], kept];
-        let refined: Vec<RefineCorner> = if kept * size <= part.len() {
+        self.note_kept(kept);
+        let exported = kept * size <= part.len();
+        let refined: Vec<RefineCorner> = if exported {
             bytemuck::pod_collect_to_vec(&part[..kept * size])
         } else {
             ctx.read_buffer(self.corners.get(), kept)?
         };
-        Ok(refined.iter().map(corner).collect())
+        Ok(Detected {
+            corners: refined.iter().map(corner).collect(),
+            exported,
+        })
     }
 
     /// The response map (row-major, [`crate::features::INVALID_RESPONSE`] where the
@@ -743,10 +826,8 @@ impl Harris {
         // among (Harris::set_select_limit), they come back in a second readback, the
         // host selects, and the selected are refined on the GPU after it
         // (a third).
-        let room = capacity(w, h);
-        let cap = self.config.max_corners.min(room);
-        let recent = self.recent_corners.iter().max().copied().unwrap_or(0);
-        let guess = (recent * 5 / 4 + 64).min(cap);
+        self.kind = matches!(input, Input::Resolved { .. }) as usize;
+        let rows = self.readback_rows(w, h);
         let mut enc = self.encode_maps(input, mask)?;
         self.encode_select(&mut enc);
         let ctx = &self.ctx.clone();
@@ -754,31 +835,202 @@ impl Harris {
         let counters_size = std::mem::size_of::<Counters>() as u64;
         let reads = [
             (self.counters.get(), counters_size),
-            (self.corners.get(), (guess * size) as u64),
+            (self.corners.get(), (rows * size) as u64),
         ];
         let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
+        let detected = self.finish_detection(w, h, &counters, &parts[1], rows)?;
+        self.finish_timing()?;
+        Ok(detected.corners)
+    }
+
+    /// The corners read back with a detection's counters in a `w x h`
+    /// image: as many as the last two detections of its kind kept and a
+    /// quarter more, at most as many as it can keep.
+    fn readback_rows(&self, w: usize, h: usize) -> usize {
+        let cap = self.config.max_corners.min(capacity(w, h));
+        let recent = self.recent_corners[self.kind]
+            .iter()
+            .max()
+            .copied()
+            .unwrap_or(0);
+        (recent * 5 / 4 + 64).min(cap)
+    }
+
+    /// Records the corners a detection of the current kind kept.
+    fn note_kept(&mut self, n: usize) {
+        let r = &mut self.recent_corners[self.kind];
+        *r = [r[1], n];
+    }
+
+    /// The corners of a detection in a `w x h` image from its counters
+    /// and the first `rows` corners read back with them: selected on the
+    /// GPU, or (more candidates than it selects among) read back and
+    /// selected on the host.
+    fn finish_detection(
+        &mut self,
+        w: usize,
+        h: usize,
+        counters: &Counters,
+        part: &[u8],
+        rows: usize,
+    ) -> Result<Detected, FeatureError> {
+        let room = capacity(w, h);
+        let cap = self.config.max_corners.min(room);
         let count = (counters.count as usize).min(room);
-        let corners = if count <= self.select_limit {
+        if count <= self.select_limit {
             log::trace!(
-                "harris: {count} candidates, {} corners, {guess} read back",
+                "harris: {count} candidates, {} corners, {rows} read back",
                 counters.selected
             );
-            self.selected_corners(&counters, &parts[1], count.min(cap))?
+            return self.selected_corners(counters, part, count.min(cap));
+        }
+        log::trace!("harris: {count} candidates, selected on the host");
+        let ctx = &self.ctx.clone();
+        let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
+        let starts = selected_starts(&cands, &self.config);
+        self.note_kept(starts.len());
+        let corners = if self.config.refine && !starts.is_empty() {
+            self.refine(w, h, &starts)?
         } else {
-            log::trace!("harris: {count} candidates, selected on the host");
-            let cands: Vec<Candidate> = ctx.read_buffer(self.candidates.get(), count)?;
-            let starts = selected_starts(&cands, &self.config);
-            self.recent_corners = [self.recent_corners[1], starts.len()];
-            let corners = if self.config.refine && !starts.is_empty() {
-                self.refine(w, h, &starts)?
-            } else {
-                starts
-            };
-            merge(corners, self.config.merge_radius)
+            starts
         };
+        Ok(Detected {
+            corners: merge(corners, self.config.merge_radius),
+            exported: false,
+        })
+    }
+
+    /// [`Harris::detect_resolved_resident`] whose corners come back with
+    /// a later readback: the detection is recorded and submitted (within
+    /// a batch, put off with it) and the reads of its counters and first
+    /// corners put off ([`GpuContext::read_buffer_later`]), so that work
+    /// fed from its corners on the GPU ([`Harris::export_corners`]) goes
+    /// before the one wait. Finish it with [`Harris::finish_later`]. Not
+    /// in host mode, nor for an empty view.
+    pub fn detect_resolved_resident_later(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<PendingCorners, FeatureError> {
+        if self.host {
+            return Err(FeatureError::Config(
+                "a detection read back later in host mode".into(),
+            ));
+        }
+        if width == 0 || height == 0 {
+            return Err(FeatureError::Config(format!(
+                "a detection read back later in an empty {width}x{height} view"
+            )));
+        }
+        let input = Input::Resolved {
+            width,
+            height,
+            keep_grey: false,
+        };
+        self.kind = 1;
+        let rows = self.readback_rows(width, height);
+        let mut enc = self.encode_maps(input, None)?;
+        self.encode_select(&mut enc);
+        let ctx = &self.ctx.clone();
+        let size = std::mem::size_of::<RefineCorner>();
+        let counters_size = std::mem::size_of::<Counters>() as u64;
+        let counters = ctx.read_buffer_later(enc, self.counters.get(), counters_size)?;
+        let corners =
+            ctx.read_buffer_later(ctx.encoder(), self.corners.get(), (rows * size) as u64)?;
+        Ok(PendingCorners {
+            counters,
+            corners,
+            rows,
+            slots: self.config.max_corners.min(capacity(width, height)),
+            width,
+            height,
+        })
+    }
+
+    /// Records into `enc` the export of `pending`'s corners (behind its
+    /// detection; [`PendingCorners::slots`] slots): slot `i` of `points`
+    /// gets corner `i` (its position in the detection's pixels, a
+    /// gather's point) and slot `i` of `positions` the same less
+    /// `band_y0` in y (the first row of A's band, as NCC reads A's
+    /// positions); slots past the corners kept, or all where the host is
+    /// to finish the selection, get a point far outside any image (a void
+    /// NCC window, an empty sample). `shaders/harris.wgsl`, "The export".
+    pub fn export_corners(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        pending: &PendingCorners,
+        band_y0: f32,
+        positions: &wgpu::Buffer,
+        points: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
+        let n = pending.slots;
+        let need = (n * 8) as u64;
+        for (what, b) in [("positions", positions), ("points", points)] {
+            if b.size() < need {
+                return Err(FeatureError::Config(format!(
+                    "the export's {what} buffer holds {} bytes, {need} needed",
+                    b.size()
+                )));
+            }
+        }
+        let params = ExportParams {
+            band_y0,
+            n: n as u32,
+            _pad0: 0,
+            _pad1: 0,
+        };
+        self.ctx
+            .queue
+            .write_buffer(&self.export_params, 0, bytemuck::bytes_of(&params));
+        let bufs = vec![
+            self.counters.get().clone(),
+            self.corners.get().clone(),
+            positions.clone(),
+            points.clone(),
+        ];
+        let fresh = !matches!(&self.export_bind, Some((b, _)) if *b == bufs);
+        if fresh {
+            let at = [
+                (0, &self.params),
+                (5, &bufs[0]),
+                (7, &bufs[1]),
+                (13, &self.export_params),
+                (14, &bufs[2]),
+                (15, &bufs[3]),
+            ];
+            let bind = self
+                .ctx
+                .bind_buffers_at("harris export", &self.export_layout, &at)?;
+            self.export_bind = Some((bufs, bind));
+        }
+        let bind = &self.export_bind.as_ref().expect("just built").1;
+        let mut pass = compute_pass(enc, "export", self.timer.as_mut());
+        pass.set_pipeline(&self.export);
+        pass.set_bind_group(0, bind, &[]);
+        pass.dispatch_workgroups(workgroups(n as u32, WORKGROUP_1D), 1, 1);
+        Ok(())
+    }
+
+    /// The corners of a detection from
+    /// [`Harris::detect_resolved_resident_later`]: its readback (one wait,
+    /// which brings every readback put off since with it), and where the
+    /// host finishes the selection, its waits.
+    pub fn finish_later(&mut self, pending: PendingCorners) -> Result<Detected, FeatureError> {
+        let ctx = &self.ctx.clone();
+        let counters = pending.counters.wait(ctx)?;
+        let part = pending.corners.wait(ctx)?;
+        let counters: Counters = bytemuck::pod_read_unaligned(&counters);
+        self.kind = 1;
+        let detected = self.finish_detection(
+            pending.width,
+            pending.height,
+            &counters,
+            &part,
+            pending.rows,
+        )?;
         self.finish_timing()?;
-        Ok(corners)
+        Ok(detected)
     }
 
     /// Resolves and reads the timestamps of the passes just run.
@@ -910,6 +1162,7 @@ mod tests {
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
             let slots = cands.len().min(self.config.max_corners);
             self.selected_corners(&counters, &[], slots)
+                .map(|d| d.corners)
         }
     }
 
