@@ -563,9 +563,7 @@ fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
 fn the_outline_found_on_the_gpu_gives_the_hosts_poses_from_fewer_bytes() {
     // A context of its own, so that other tests' readbacks are not
     // counted.
-    let own = GpuContext::new(&gpu::AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&gpu::AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    let own = gpu::own_test_context();
     let [host, gpu] = contour_alone_both_ways(&own, |t, resident| {
         t.set_resident_outline(resident);
         // The check scored on the GPU in both (on the host it reads the

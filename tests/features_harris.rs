@@ -165,10 +165,8 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
     // passes before it (GpuContext::read_buffers_after): as many
     // submissions as waits. A context of its own, so that other tests'
     // readbacks are not counted.
-    use splattrack::gpu::AdapterChoice;
-    let c = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    use splattrack::gpu::own_test_context;
+    let c = own_test_context();
     let few = patterns::polygons(64, 64, 3, 5);
     let many = patterns::smooth_noise(320, 240, 1.2, 6);
     // Thousands of candidates after two detections of a few: each still

@@ -463,10 +463,8 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     // wrote no corner. A context of its own, so that other tests'
     // readbacks are not counted.
     use splattrack::features::{Harris, HarrisConfig};
-    use splattrack::gpu::{AdapterChoice, GpuContext, STORAGE_OUT};
-    let c = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    use splattrack::gpu::{STORAGE_OUT, own_test_context};
+    let c = own_test_context();
     let mut rng = Rng::new(61);
     // The view: a window of 120x96 at (37, 22) of a 200x160 frame, empty
     // (NaN) in a corner, the frame the view moved by a warp, in noise.

@@ -442,13 +442,7 @@ fn step(c: &GpuContext, f: impl FnOnce(&mut wgpu::CommandEncoder)) {
 }
 
 fn own_ctx() -> GpuContext {
-    let choice = AdapterChoice::from_env().unwrap();
-    let choice = if choice == AdapterChoice::Auto {
-        AdapterChoice::Cpu
-    } else {
-        choice
-    };
-    GpuContext::new(&choice).expect("a GPU adapter (lavapipe in CI)")
+    splattrack::gpu::own_test_context()
 }
 
 #[test]

@@ -130,10 +130,8 @@ fn more_points_than_the_last_outline_come_in_a_second_readback() {
     // quarter more: a large outline after a small one reads the rest
     // apart (counted), and the points are the reference's either way. A
     // context of its own, so that other tests' readbacks are not counted.
-    use splattrack::gpu::{AdapterChoice, GpuContext};
-    let ctx = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    use splattrack::gpu::own_test_context;
+    let ctx = own_test_context();
     let mut outline = GpuOutline::new(&ctx).expect("outline kernels");
     let (w, h) = (200usize, 160usize);
     let disc = |r: f64| -> Vec<f32> {

@@ -397,11 +397,9 @@ fn steady_loop_allocates_nothing(resident: bool) {
     // window size has been seen (and is still kept: three spare sets) and
     // every buffer has grown, so no frame allocates. A context of its own, so that other tests' buffers are
     // not counted.
-    use splattrack::gpu::{AdapterChoice, GpuContext};
+    use splattrack::gpu::own_test_context;
     let f = fixture();
-    let ctx = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    let ctx = own_test_context();
     let mut t = Tracker::new(
         &ctx,
         f.scene.model.clone(),
@@ -485,11 +483,9 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
     // Features in the shaders, as on a GPU (with Harris on the host the
     // view's colour comes back either way). A context of its own, so that other tests'
     // readbacks are not counted.
-    use splattrack::gpu::{AdapterChoice, GpuContext};
+    use splattrack::gpu::own_test_context;
     let f = fixture();
-    let ctx = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    let ctx = own_test_context();
     let make = |resident: bool, start: usize| {
         let mut t = Tracker::new(
             &ctx,
@@ -571,11 +567,9 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     // are tested in tests/features_resident.rs). Features in the
     // shaders, as on a GPU. A context of its own, so that other tests'
     // readbacks are not counted.
-    use splattrack::gpu::{AdapterChoice, GpuContext};
+    use splattrack::gpu::own_test_context;
     let f = fixture();
-    let ctx = GpuContext::new(&AdapterChoice::Cpu)
-        .or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        .expect("a GPU adapter");
+    let ctx = own_test_context();
     let make = |chained: bool, contour: bool| {
         let mut t = Tracker::new(
             &ctx,

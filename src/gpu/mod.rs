@@ -1394,20 +1394,26 @@ pub fn workgroups(n: u32, size: u32) -> u32 {
     n.div_ceil(size)
 }
 
-/// One device shared by every test in a test binary, on the adapter named
-/// by `SPLATTRACK_ADAPTER`, else a CPU adapter (lavapipe: identical results
-/// on every machine), else any. Panics with instructions when there is no
-/// adapter at all: GPU tests never skip silently.
+/// One device shared by every test in a test binary
+/// ([`own_test_context`]'s adapter).
 #[doc(hidden)]
 pub fn shared_test_context() -> &'static GpuContext {
     static CTX: std::sync::OnceLock<GpuContext> = std::sync::OnceLock::new();
-    CTX.get_or_init(|| {
-        let choice = AdapterChoice::from_env().unwrap_or_else(|e| panic!("{e}"));
-        let ctx = if choice == AdapterChoice::Auto {
-            GpuContext::new(&AdapterChoice::Cpu).or_else(|_| GpuContext::new(&AdapterChoice::Auto))
-        } else {
-            GpuContext::new(&choice)
-        };
-        ctx.unwrap_or_else(|e| panic!("GPU tests need a GPU adapter and found none usable: {e}"))
-    })
+    CTX.get_or_init(own_test_context)
+}
+
+/// A device of its own for a test that counts what its device does
+/// (readbacks, allocations), on the adapter named by `SPLATTRACK_ADAPTER`,
+/// else a CPU adapter (lavapipe: identical results on every machine), else
+/// any. Panics with instructions when there is no adapter at all: GPU
+/// tests never skip silently.
+#[doc(hidden)]
+pub fn own_test_context() -> GpuContext {
+    let choice = AdapterChoice::from_env().unwrap_or_else(|e| panic!("{e}"));
+    let ctx = if choice == AdapterChoice::Auto {
+        GpuContext::new(&AdapterChoice::Cpu).or_else(|_| GpuContext::new(&AdapterChoice::Auto))
+    } else {
+        GpuContext::new(&choice)
+    };
+    ctx.unwrap_or_else(|e| panic!("GPU tests need a GPU adapter and found none usable: {e}"))
 }

@@ -80,7 +80,7 @@ pub struct Harris {
     export_layout: wgpu::BindGroupLayout,
     export: wgpu::ComputePipeline,
     export_params: wgpu::Buffer,
-    export_bind: Option<(Vec<wgpu::Buffer>, wgpu::BindGroup)>,
+    export_bind: Option<([wgpu::Buffer; 4], wgpu::BindGroup)>,
 }
 
 /// A detection whose corners come back with a later readback
@@ -983,7 +983,7 @@ impl Harris {
         self.ctx
             .queue
             .write_buffer(&self.export_params, 0, bytemuck::bytes_of(&params));
-        let bufs = vec![
+        let bufs = [
             self.counters.get().clone(),
             self.corners.get().clone(),
             positions.clone(),
