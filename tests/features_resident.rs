@@ -462,7 +462,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     // rows hold (a first detection), `exported` says so, and the export
     // wrote no corner. A context of its own, so that other tests'
     // readbacks are not counted.
-    use splattrack::features::{Harris, HarrisConfig};
+    use splattrack::features::{ExportPlace, Harris, HarrisConfig};
     use splattrack::gpu::{STORAGE_OUT, own_test_context};
     let c = own_test_context();
     let mut rng = Rng::new(61);
@@ -571,7 +571,13 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
         let pm = {
             let ch = &mut chained;
             let mut export = |enc: &mut wgpu::CommandEncoder, pos: &wgpu::Buffer| {
-                ch.export_corners(enc, &pending, band_y0, pos, &points)
+                ch.export_corners(
+                    enc,
+                    &pending,
+                    ExportPlace::band(band_y0),
+                    pos,
+                    Some(&points),
+                )
             };
             m.match_resident_exported(
                 ResidentImage {
@@ -632,10 +638,243 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     let small = c.buffer("small", 8, STORAGE_OUT);
     let mut enc = c.device.create_command_encoder(&Default::default());
     assert!(
-        cold.export_corners(&mut enc, &pending, 0.0, &small, &small)
-            .is_err()
+        cold.export_corners(
+            &mut enc,
+            &pending,
+            ExportPlace::default(),
+            &small,
+            Some(&small)
+        )
+        .is_err()
     );
     cold.finish_later(pending).unwrap();
     cold.set_host(true);
     assert!(cold.detect_resolved_resident_later(w, h).is_err());
+}
+
+#[test]
+fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
+    // The chained IT step (issue 13): Harris on a packed window of the
+    // resident frame leaves its corners on the GPU (`detect_packed_later`)
+    // and exports them as NCC's B side (`export_corners` with an origin, a
+    // clip rectangle and a first slot), A's features (the previous
+    // frame's, from the host) are gated by a gather's samples at them
+    // (those empty left out), and one readback brings the corners and the
+    // matches. Against the detection read back first, B cut to the crop
+    // on the host and A to its features with a valid sample
+    // (`match_resident`): the same corners, the same matches and points
+    // bit for bit, one wait instead of two. A context of its own, so that
+    // other tests' readbacks are not counted.
+    use splattrack::features::{ExportPlace, FrameIntake, Harris, HarrisConfig};
+    use splattrack::gpu::{STORAGE_IN, own_test_context};
+    use splattrack::splat::GATHER_STRIDE;
+    let c = own_test_context();
+    let mut rng = Rng::new(71);
+    let (w, h) = (220u32, 170u32);
+    let mut intake = FrameIntake::new(&c).unwrap();
+    let (mut before, mut now) = (GpuGrey::new(), GpuGrey::new());
+    let cfg = NccConfig::default()
+        .with_search_radius(Some(7.0))
+        .with_min_score(0.6);
+    let (mut reference, mut chained) = (
+        Harris::new(&c, HarrisConfig::default()).unwrap(),
+        Harris::new(&c, HarrisConfig::default()).unwrap(),
+    );
+    let (mut m_ref, mut m) = (
+        NccMatcher::new(&c, cfg.clone()).unwrap(),
+        NccMatcher::new(&c, cfg).unwrap(),
+    );
+    let (mut matched, mut gated_out, mut clipped) = (0, 0, 0);
+    for round in 0..4u64 {
+        let at = format!("round {round}");
+        let grey = patterns::smooth_noise(w as usize, h as usize, 1.5, 90 + round);
+        let warp = Warp {
+            shift: [1.3, -0.7],
+            angle: 0.01,
+            centre: [110.0, 85.0],
+            gain: 1.02,
+            bias: -0.01,
+        };
+        let moved = warp.image(&grey);
+        let rgb = |g: &GreyImage| {
+            image::RgbImage::from_fn(w, h, |x, y| {
+                let v = g.get(x as usize, y as usize);
+                let b = (if v.is_finite() { v } else { 0.5 }.clamp(0.0, 1.0) * 255.0) as u8;
+                image::Rgb([b, b, b])
+            })
+        };
+        intake.upload(&rgb(&grey), &mut before).unwrap();
+        intake.upload(&rgb(&moved), &mut now).unwrap();
+        // The frame's window for Harris, its region of interest, and the
+        // matching's crop (rows, and x for B) within the frame.
+        let (ww, wh) = (150 + 5 * round as u32, 110u32);
+        let (x0, y0) = (20 + 7 * round as u32, 30 - 5 * round as u32);
+        let allowed = [4, 4, ww - 5, wh - 5];
+        let crop = [30.0f32, 25.0, 30.0 + 150.0, 25.0 + 120.0];
+        let rows = 25..145usize;
+        for harris in [&mut reference, &mut chained] {
+            let target = harris.input_target(ww as usize, wh as usize).unwrap();
+            intake
+                .pack_window(now.image().unwrap(), [x0, y0, ww, wh], allowed, &target)
+                .unwrap();
+        }
+        let o = [x0 as f32, y0 as f32];
+        // A: the previous frame's corners (in the frame), each with a
+        // sample, a quarter of them empty.
+        let a: Vec<Corner> = {
+            let t = reference.input_target(w as usize, h as usize).unwrap();
+            intake
+                .pack_window(
+                    before.image().unwrap(),
+                    [0, 0, w, h],
+                    [0, 0, w - 1, h - 1],
+                    &t,
+                )
+                .unwrap();
+            reference.detect_packed(w as usize, h as usize).unwrap()
+        };
+        let valid: Vec<bool> = (0..a.len()).map(|_| rng.uniform(0.0, 1.0) > 0.25).collect();
+        let samples: Vec<f32> = valid
+            .iter()
+            .flat_map(|&v| {
+                let mut s = [f32::NAN; GATHER_STRIDE];
+                s[GATHER_STRIDE - 1] = if v { 1.0 } else { 0.0 };
+                s
+            })
+            .collect();
+        let gate = c.buffer("gate", (samples.len() * 4) as u64, STORAGE_IN);
+        c.queue
+            .write_buffer(&gate, 0, bytemuck::cast_slice(&samples));
+        // The reference: the corners read back and placed in the frame,
+        // B cut to the crop and A to its valid features on the host.
+        let target = reference.input_target(ww as usize, wh as usize).unwrap();
+        intake
+            .pack_window(now.image().unwrap(), [x0, y0, ww, wh], allowed, &target)
+            .unwrap();
+        let want_corners: Vec<Corner> = reference
+            .detect_packed(ww as usize, wh as usize)
+            .unwrap()
+            .iter()
+            .map(|k| Corner {
+                x: k.x + o[0],
+                y: k.y + o[1],
+                score: k.score,
+            })
+            .collect();
+        let inside =
+            |k: &Corner| k.x >= crop[0] && k.y >= crop[1] && k.x < crop[2] && k.y < crop[3];
+        let b_idx: Vec<usize> = (0..want_corners.len())
+            .filter(|&i| inside(&want_corners[i]))
+            .collect();
+        clipped += want_corners.len() - b_idx.len();
+        let b_in: Vec<Corner> = b_idx.iter().map(|&i| want_corners[i]).collect();
+        let a_idx: Vec<usize> = (0..a.len()).filter(|&i| valid[i]).collect();
+        gated_out += a.len() - a_idx.len();
+        let a_in: Vec<Corner> = a_idx.iter().map(|&i| a[i]).collect();
+        let want: Vec<_> = m_ref
+            .match_resident(
+                before.image().unwrap(),
+                rows.clone(),
+                &a_in,
+                now.image().unwrap(),
+                rows.clone(),
+                &b_in,
+                [0, 0],
+                None,
+            )
+            .unwrap()
+            .into_iter()
+            .map(|r| (a_idx[r.a], b_idx[r.b], r.score, r.at))
+            .collect();
+        // Chained.
+        let waits = c.readbacks();
+        let pending = chained
+            .detect_packed_later(ww as usize, wh as usize)
+            .unwrap();
+        let slots = pending.slots();
+        let place = ExportPlace {
+            origin: o,
+            clip: Some(crop),
+            band_y0: rows.start as f32,
+            first: a.len(),
+        };
+        let pm = {
+            let ch = &mut chained;
+            let mut export = |enc: &mut wgpu::CommandEncoder, pos: &wgpu::Buffer| {
+                ch.export_corners(enc, &pending, place, pos, None)
+            };
+            m.match_resident_exported_b(
+                before.image().unwrap(),
+                rows.clone(),
+                &a,
+                Some(&gate),
+                now.image().unwrap(),
+                rows.clone(),
+                slots,
+                &mut export,
+                [0, 0],
+                None,
+            )
+            .unwrap()
+        };
+        let detected = chained.finish_later(pending).unwrap();
+        let got: Vec<_> = m
+            .finish_exported(pm, a.len())
+            .unwrap()
+            .into_iter()
+            .map(|r| (r.a, r.b, r.score, r.at))
+            .collect();
+        let waits = c.readbacks() - waits;
+        let got_corners: Vec<Corner> = detected
+            .corners
+            .iter()
+            .map(|k| Corner {
+                x: k.x + o[0],
+                y: k.y + o[1],
+                score: k.score,
+            })
+            .collect();
+        assert_eq!(got_corners, want_corners, "{at}: corners");
+        if round == 0 {
+            // A first detection reads back fewer rows than it keeps:
+            // nothing exported, the matching to be done again.
+            assert!(!detected.exported, "{at}");
+            continue;
+        }
+        assert!(detected.exported, "{at}");
+        assert_eq!(waits, 1, "{at}: waits");
+        assert_eq!(got, want, "{at}: matches");
+        matched += got.len();
+    }
+    assert!(matched > 60, "{matched} matches");
+    assert!(
+        gated_out > 10 && clipped > 10,
+        "{gated_out} gated, {clipped} clipped"
+    );
+    // A gate smaller than A's samples is refused.
+    let small = c.buffer("small", 16, STORAGE_IN);
+    let pending = chained.detect_packed_later(50, 40).unwrap();
+    let mut export = |_: &mut wgpu::CommandEncoder, _: &wgpu::Buffer| Ok(());
+    let a = [Corner {
+        x: 10.0,
+        y: 10.0,
+        score: 1.0,
+    }; 3];
+    let img = now.image().unwrap();
+    assert!(
+        m.match_resident_exported_b(
+            img,
+            0..40,
+            &a,
+            Some(&small),
+            img,
+            0..40,
+            4,
+            &mut export,
+            [0, 0],
+            None
+        )
+        .is_err()
+    );
+    chained.finish_later(pending).unwrap();
 }

@@ -616,3 +616,75 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
         );
     }
 }
+
+#[test]
+fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
+    // IT's matching chained behind the frame's Harris on the GPU
+    // (`set_chained_it`, issue 13): the same poses, inliers and residuals
+    // bit for bit as detecting, then matching, and one readback fewer on
+    // every frame IT runs (from the second on), with the contour or
+    // without. Features in the shaders, as on a GPU. A context of its
+    // own, so that other tests' readbacks are not counted.
+    use splattrack::gpu::own_test_context;
+    let f = fixture();
+    let ctx = own_test_context();
+    let make = |chained: bool, contour: bool, host_selects: bool| {
+        let mut t = Tracker::new(
+            &ctx,
+            f.scene.model.clone(),
+            f.scene.cam,
+            Some(f.store.clone()),
+            TrackerConfig {
+                feature_backend: FeatureBackend::Gpu,
+                resident: Some(true),
+                modalities: Modalities {
+                    texture: true,
+                    contour,
+                },
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        )
+        .expect("tracker");
+        t.set_chained_it(chained);
+        if host_selects {
+            t.set_harris_select_limit(0);
+        }
+        t
+    };
+    // Where the host selects the corners (a select limit of 0), the chain
+    // falls back to matching from the host's corners: the same poses, no
+    // wait saved.
+    for (contour, n, host_selects) in [(false, 6, false), (true, 4, false), (false, 3, true)] {
+        let (mut one, mut two) = (
+            make(true, contour, host_selects),
+            make(false, contour, host_selects),
+        );
+        let mut fewer = Vec::new();
+        for (i, fr) in f.frames[..n].iter().enumerate() {
+            let r0 = ctx.readbacks();
+            let a = one.track(&fr.image).unwrap();
+            let r1 = ctx.readbacks();
+            let b = two.track(&fr.image).unwrap();
+            let at = format!("contour {contour}, host {host_selects}, frame {i}");
+            assert_eq!(a.status, Status::Tracking, "{at}");
+            assert_eq!((a.status, a.inliers), (b.status, b.inliers), "{at}");
+            assert_eq!(a.pose.rotation, b.pose.rotation, "{at}");
+            assert_eq!(a.pose.translation, b.pose.translation, "{at}");
+            assert_eq!(a.residual_px, b.residual_px, "{at}");
+            assert_eq!(a.times.readbacks as u64, r1 - r0, "{at}");
+            fewer.push(b.times.readbacks as i64 - a.times.readbacks as i64);
+        }
+        eprintln!("contour {contour}: readbacks fewer a frame {fewer:?}");
+        if host_selects {
+            assert!(fewer.iter().all(|&d| d == 0), "{fewer:?}");
+            continue;
+        }
+        // No IT on the first frame; one wait fewer on every other.
+        assert_eq!(fewer[0], 0, "contour {contour}: {fewer:?}");
+        assert!(
+            fewer[1..].iter().all(|&d| d == 1),
+            "contour {contour}: {fewer:?}"
+        );
+    }
+}

@@ -237,14 +237,24 @@ wgsl_struct! {
 
 wgsl_struct! {
     /// Where [`crate::features::Harris::export_corners`] puts a
-    /// detection's corners: the first row of NCC's band of the view, and
-    /// the slots written.
+    /// detection's corners ([`crate::features::ExportPlace`]): moved by
+    /// the origin, kept where inside the clip rectangle (`clip` 1), less
+    /// the first row of NCC's band in y, from slot `first` of NCC's
+    /// positions on; `n` slots written.
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
     pub struct ExportParams {
+        pub origin_x: f32,
+        pub origin_y: f32,
         pub band_y0: f32,
         pub n: u32,
+        pub first: u32,
+        pub clip: u32,
         pub _pad0: u32,
         pub _pad1: u32,
+        pub clip_x0: f32,
+        pub clip_y0: f32,
+        pub clip_x1: f32,
+        pub clip_y1: f32,
     }
 }
 

@@ -58,11 +58,11 @@ pub mod resident;
 
 pub use gpu_data::{INVALID_RESPONSE, SELECT_MAX, SELECT_MAX_CPU};
 pub use harris::{
-    Corner, Detected, Harris, HarrisConfig, PendingCorners, harris_cpu, harris_host,
+    Corner, Detected, ExportPlace, Harris, HarrisConfig, PendingCorners, harris_cpu, harris_host,
     harris_response_cpu, harris_response_host,
 };
 pub use image::GreyImage;
-pub use ncc::{Match, NccConfig, NccMatcher, PendingMatches};
+pub use ncc::{ExportFn, Match, NccConfig, NccMatcher, PendingMatches};
 pub use ncc_cpu::ncc_match_cpu;
 pub use refine::refine_match;
 pub use resident::{FrameIntake, GpuGrey, Refinement, ResidentImage, ResidentMatch};

@@ -174,6 +174,12 @@ pub struct NccMatcher {
     matched: GrowBuffer,
     mutual_refine: wgpu::ComputePipeline,
     bind: Option<wgpu::BindGroup>,
+    /// The gate ([`NccMatcher::match_resident_exported_b`]): its layout,
+    /// pipeline, count and last bind group (with the buffers it binds).
+    gate_layout: wgpu::BindGroupLayout,
+    gate: wgpu::ComputePipeline,
+    gate_count: wgpu::Buffer,
+    gate_bind: Option<([wgpu::Buffer; 2], wgpu::BindGroup)>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
     /// Match host images on the host ([`NccMatcher::set_host`]).
@@ -206,6 +212,16 @@ impl NccMatcher {
         let col_best_direct = passes.pop().expect("eight pipelines");
         let row_best_direct = passes.pop().expect("eight pipelines");
         let score_direct = passes.pop().expect("eight pipelines");
+        let gate_entries = [
+            compute_entry(20, storage(true)),
+            compute_entry(21, wgpu::BufferBindingType::Uniform),
+            compute_entry(22, storage(false)),
+        ];
+        let gate_layout = ctx.bind_group_layout("ncc gate", &gate_entries);
+        let gate = ctx
+            .compute_pipelines("ncc", &gate_layout, &["gate"])?
+            .pop()
+            .expect("one pipeline");
         Ok(Self {
             ctx: ctx.clone(),
             config,
@@ -229,6 +245,14 @@ impl NccMatcher {
             matched: GrowBuffer::new("ncc matched", STORAGE_OUT),
             mutual_refine,
             bind: None,
+            gate_layout,
+            gate,
+            gate_count: ctx.buffer(
+                "ncc gate count",
+                16,
+                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            ),
+            gate_bind: None,
             timer: None,
             last_timings: TimerReport::default(),
             host: false,
@@ -348,7 +372,7 @@ impl NccMatcher {
             b_rows,
             offset_b,
         };
-        let enc = self.record_resident(bands, ASide::Host(a), b, refine)?;
+        let enc = self.record_resident(bands, Side::Host(a), Side::Host(b), None, None, refine)?;
         let ctx = &self.ctx.clone();
         let out: Vec<MatchOut> = ctx.read_buffer_after(enc, self.matched.get(), na)?;
         self.finish_timing()?;
@@ -368,10 +392,7 @@ impl NccMatcher {
         img_a: ResidentImage,
         a_rows: std::ops::Range<usize>,
         slots: usize,
-        export: &mut dyn FnMut(
-            &mut wgpu::CommandEncoder,
-            &wgpu::Buffer,
-        ) -> Result<(), FeatureError>,
+        export: &mut ExportFn,
         img_b: ResidentImage,
         b_rows: std::ops::Range<usize>,
         b: &[Corner],
@@ -396,7 +417,78 @@ impl NccMatcher {
             b_rows,
             offset_b,
         };
-        let enc = self.record_resident(bands, ASide::Exported { slots, export }, b, refine)?;
+        let enc = self.record_resident(
+            bands,
+            Side::Exported(slots),
+            Side::Host(b),
+            Some(export),
+            None,
+            refine,
+        )?;
+        let size = std::mem::size_of::<MatchOut>();
+        let read = self
+            .ctx
+            .read_buffer_later(enc, self.matched.get(), (rows * size) as u64)?;
+        Ok(PendingMatches {
+            read,
+            rows,
+            y0,
+            refine: refine.is_some(),
+        })
+    }
+
+    /// [`NccMatcher::match_resident`] with B's features written on the
+    /// GPU by `export` (recorded into the matching's encoder before its
+    /// passes: [`crate::features::Harris::export_corners`] placed from
+    /// slot `a.len()` on) into the `slots` positions after A's, in B's
+    /// band's pixels (slots without a feature far outside any image: those
+    /// outside the crop too, where the host leaves them out); with `gate`
+    /// (a gather's samples at A's features, [`crate::splat::GATHER_STRIDE`]
+    /// floats each, its validity last, left on the GPU by
+    /// [`crate::splat::Splatter::gather_later`]), A's features whose
+    /// sample is empty left out as if not given. The matches' readback is
+    /// put off (every row of A); [`NccMatcher::finish_exported`] with
+    /// `a.len()` returns them, B's indices those of the slots. The same
+    /// matches as [`NccMatcher::match_resident`] on the kept features.
+    #[allow(clippy::too_many_arguments)]
+    pub fn match_resident_exported_b(
+        &mut self,
+        img_a: ResidentImage,
+        a_rows: std::ops::Range<usize>,
+        a: &[Corner],
+        gate: Option<&wgpu::Buffer>,
+        img_b: ResidentImage,
+        b_rows: std::ops::Range<usize>,
+        slots: usize,
+        export: &mut ExportFn,
+        offset_b: [i32; 2],
+        refine: Option<Refinement>,
+    ) -> Result<PendingMatches, FeatureError> {
+        if slots == 0 || a.is_empty() || a_rows.is_empty() || b_rows.is_empty() {
+            return Err(FeatureError::Config(format!(
+                "an exported matching of {} features and {slots} slots in bands of {} and {} rows",
+                a.len(),
+                a_rows.len(),
+                b_rows.len()
+            )));
+        }
+        let y0 = b_rows.start as f64;
+        let rows = a.len();
+        let bands = Bands {
+            img_a,
+            a_rows,
+            img_b,
+            b_rows,
+            offset_b,
+        };
+        let enc = self.record_resident(
+            bands,
+            Side::Host(a),
+            Side::Exported(slots),
+            Some(export),
+            gate,
+            refine,
+        )?;
         let size = std::mem::size_of::<MatchOut>();
         let read = self
             .ctx
@@ -430,14 +522,16 @@ impl NccMatcher {
         Ok(resident_matches(&out, pending.y0, pending.refine))
     }
 
-    /// Records a matching on GPU-resident bands (checked), A's features
-    /// from the host or exported on the GPU, into an encoder for the
-    /// caller to read from.
+    /// Records a matching on GPU-resident bands (checked), each side's
+    /// features from the host or written on the GPU by `export`, A's
+    /// gated by `gate`, into an encoder for the caller to read from.
     fn record_resident(
         &mut self,
         bands: Bands,
-        a: ASide,
-        b: &[Corner],
+        a: Side,
+        b: Side,
+        export: Option<&mut ExportFn>,
+        gate: Option<&wgpu::Buffer>,
         refine: Option<Refinement>,
     ) -> Result<crate::gpu::Encoder, FeatureError> {
         let Bands {
@@ -452,11 +546,16 @@ impl NccMatcher {
         if let Some(r) = &refine {
             r.validate()?;
         }
-        let na = match &a {
-            ASide::Host(a) => a.len(),
-            ASide::Exported { slots, .. } => *slots,
-        };
-        let nb = b.len();
+        let (na, nb) = (a.len(), b.len());
+        if let Some(g) = gate {
+            let need = (na * crate::splat::GATHER_STRIDE * 4) as u64;
+            if g.size() < need {
+                return Err(FeatureError::Config(format!(
+                    "a gate of {} bytes for {na} features ({need} needed)",
+                    g.size()
+                )));
+            }
+        }
         let sizes = [(img_a.width, a_rows.len()), (img_b.width, b_rows.len())];
         // B's band origin in A's band's pixels.
         let shift = [
@@ -471,20 +570,35 @@ impl NccMatcher {
             y: c.y - y0 as f32,
             ..*c
         };
-        let b_pos = b.iter().map(|c| sanitize(&band(c, b_rows.start)));
-        match &a {
-            ASide::Host(a) => {
-                let pos: Vec<[f32; 2]> = a
-                    .iter()
-                    .map(|c| sanitize(&band(c, a_rows.start)))
-                    .chain(b_pos)
-                    .collect();
+        let in_band = |f: &[Corner], y0: usize| -> Vec<[f32; 2]> {
+            f.iter().map(|c| sanitize(&band(c, y0))).collect()
+        };
+        match (&a, &b) {
+            (Side::Host(a), Side::Host(b)) => {
+                let mut pos = in_band(a, a_rows.start);
+                pos.extend(in_band(b, b_rows.start));
                 self.write_positions(&pos, na, 0);
             }
             // A's positions are the export's.
-            ASide::Exported { .. } => {
-                let pos: Vec<[f32; 2]> = b_pos.collect();
-                self.write_positions(&pos, 0, na);
+            (Side::Exported(_), Side::Host(b)) => {
+                self.write_positions(&in_band(b, b_rows.start), 0, na);
+            }
+            // B's positions are the export's, in no spatial order.
+            (Side::Host(a), Side::Exported(_)) => {
+                let q = &ctx.queue;
+                let pos = in_band(a, a_rows.start);
+                q.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+                let order: Vec<u32> = (0..nb as u32).collect();
+                q.write_buffer(
+                    self.ok.get(),
+                    ((na + nb) * 4) as u64,
+                    bytemuck::cast_slice(&order),
+                );
+            }
+            (Side::Exported(_), Side::Exported(_)) => {
+                return Err(FeatureError::Config(
+                    "a matching of two exported sides".into(),
+                ));
             }
         }
         let px = std::mem::size_of::<Pixel>();
@@ -504,11 +618,46 @@ impl NccMatcher {
             (len_a * px) as u64,
             (len_b * px) as u64,
         );
-        if let ASide::Exported { export, .. } = a {
+        if let Some(export) = export {
             export(&mut enc, self.positions.get())?;
+        }
+        if let Some(g) = gate {
+            self.record_gate(&mut enc, g, na)?;
         }
         self.encode(&mut enc, na, nb, true);
         Ok(enc)
+    }
+
+    /// Records the gate of A's `na` positions by the gather's samples
+    /// `samples` (`shaders/ncc.wgsl`, "The gate").
+    fn record_gate(
+        &mut self,
+        enc: &mut wgpu::CommandEncoder,
+        samples: &wgpu::Buffer,
+        na: usize,
+    ) -> Result<(), FeatureError> {
+        self.ctx.queue.write_buffer(
+            &self.gate_count,
+            0,
+            bytemuck::cast_slice(&[na as u32, 0, 0, 0]),
+        );
+        let bufs = [samples.clone(), self.positions.get().clone()];
+        if !matches!(&self.gate_bind, Some((b, _)) if *b == bufs) {
+            let at = [(20, &bufs[0]), (21, &self.gate_count), (22, &bufs[1])];
+            let bind = self
+                .ctx
+                .bind_buffers_at("ncc gate", &self.gate_layout, &at)?;
+            self.gate_bind = Some((bufs, bind));
+        }
+        let bind = &self.gate_bind.as_ref().expect("just built").1;
+        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("ncc gate"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&self.gate);
+        pass.set_bind_group(0, bind, &[]);
+        pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
+        Ok(())
     }
 
     /// Uploads the positions `pos` (A's first `na`, then B's) from slot
@@ -686,16 +835,28 @@ struct Bands<'i> {
     offset_b: [i32; 2],
 }
 
-/// Where A's features come from.
-enum ASide<'a> {
+/// Work recorded into a matching's encoder before its passes that writes
+/// the exported side's positions into the buffer it is given
+/// ([`NccMatcher::match_resident_exported`]).
+pub type ExportFn<'a> =
+    dyn FnMut(&mut wgpu::CommandEncoder, &wgpu::Buffer) -> Result<(), FeatureError> + 'a;
+
+/// Where one side's features come from.
+enum Side<'a> {
     /// Uploaded by the host.
     Host(&'a [Corner]),
-    /// Written into the first `slots` positions on the GPU by `export`.
-    Exported {
-        slots: usize,
-        export:
-            &'a mut dyn FnMut(&mut wgpu::CommandEncoder, &wgpu::Buffer) -> Result<(), FeatureError>,
-    },
+    /// Written into this many positions on the GPU (A's first, B's after
+    /// A's) by the matching's `export`.
+    Exported(usize),
+}
+
+impl Side<'_> {
+    fn len(&self) -> usize {
+        match self {
+            Side::Host(f) => f.len(),
+            Side::Exported(slots) => *slots,
+        }
+    }
 }
 
 /// A matching whose readback is put off

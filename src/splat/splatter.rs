@@ -740,6 +740,15 @@ impl Splatter {
         Ok(self.grown(ctx, Grown::Points, bytes))
     }
 
+    /// The buffer the last gather wrote its samples into
+    /// ([`GATHER_STRIDE`] floats a point, its validity last), for work on
+    /// the GPU fed from them (such as
+    /// [`crate::features::NccMatcher::match_resident_exported_b`]'s gate),
+    /// recorded after that gather; the next gather overwrites it.
+    pub fn gathered_samples(&self, ctx: &GpuContext) -> wgpu::Buffer {
+        self.grown(ctx, Grown::Gather, 0)
+    }
+
     /// [`Splatter::gather_later`] at the first `n` points written on the
     /// GPU into [`Splatter::gather_points`] (recorded before this call).
     pub fn gather_written_later(

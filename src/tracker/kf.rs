@@ -7,7 +7,7 @@ use super::view::{AFeatures, Bands, Placed, match_near, match_near_resident, win
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::resident::MAX_REFINE_WINDOW;
 use crate::features::{
-    Corner, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,
+    Corner, ExportPlace, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,
 };
 use crate::geometry::Pose;
 use crate::pose::{Anchor, Correspondence, Refined};
@@ -291,7 +291,13 @@ impl Tracker {
         };
         let matching = {
             let mut export = |enc: &mut wgpu::CommandEncoder, positions: &wgpu::Buffer| {
-                harris.export_corners(enc, &pending, band_y0, positions, &points)
+                harris.export_corners(
+                    enc,
+                    &pending,
+                    ExportPlace::band(band_y0),
+                    positions,
+                    Some(&points),
+                )
             };
             matcher.match_resident_exported(
                 ResidentImage {

@@ -731,9 +731,15 @@ impl Tracker {
         if texture {
             self.resident.upload(&self.ctx, rgb)?;
         }
-        if texture {
-            frame.corners = self.frame_corners(&frame, &start_pose)?;
-        }
+        // With IT's matching chained behind the frame's Harris where it
+        // can be (one wait for both).
+        let it_early = if texture {
+            let (corners, early) = self.frame_corners_chained(&frame, &start_pose, it_early)?;
+            frame.corners = corners;
+            early
+        } else {
+            None
+        };
         drop(intake);
         // IT's early render and gather count as IT's.
         times.features = t_features.elapsed().saturating_sub(it_early_time);

@@ -58,6 +58,9 @@ pub(super) struct Resident {
     /// The KF step's detection, matching and gather chained on the GPU
     /// ([`Tracker::set_chained_kf`]).
     pub(super) chain_kf: bool,
+    /// The frame's detection and IT's matching chained on the GPU
+    /// ([`Tracker::set_chained_it`]).
+    pub(super) chain_it: bool,
     images: [GpuGrey; 2],
     /// The frames' way in: their bytes uploaded, converted on the GPU
     /// (made on the first upload).
@@ -75,6 +78,7 @@ impl Resident {
         Self {
             on,
             chain_kf: true,
+            chain_it: true,
             images: [GpuGrey::new(), GpuGrey::new()],
             intake: None,
             current: None,
@@ -263,7 +267,12 @@ pub(super) fn match_near(
 /// The window of the frame `full` that [`match_near`] crops: the box of
 /// the features `a` grown by `margin`, or the whole frame (no search
 /// radius, no margin, or no box).
-fn crop_window(matcher: &NccMatcher, a: &[Corner], margin: Option<f64>, full: Window) -> Window {
+pub(super) fn crop_window(
+    matcher: &NccMatcher,
+    a: &[Corner],
+    margin: Option<f64>,
+    full: Window,
+) -> Window {
     let (x0, y0, x1, y1) = a.iter().fold(
         (
             f64::INFINITY,
@@ -449,6 +458,29 @@ impl Tracker {
         self.resident.chain_kf = on;
     }
 
+    /// Chains the frame's detection and IT's matching on the GPU where
+    /// matching is resident (`true`, the default): one wait for both
+    /// instead of two, the same corners and matches. The frame's corners
+    /// go from Harris to NCC on the GPU as B's features (those outside the
+    /// crop left out there), the previous frame's corners off the object
+    /// are left out there by the gate (their samples in IT's gather,
+    /// which never comes back first), and the crop is cut around all the
+    /// previous frame's corners instead of those on the object, which
+    /// gives the same matches. Not with `it_interior_px` (its probes need
+    /// the gather first). `false`: detect, then match.
+    pub fn set_chained_it(&mut self, on: bool) {
+        self.resident.chain_it = on;
+    }
+
+    /// The most candidates Harris selects among on the GPU
+    /// ([`crate::features::Harris::set_select_limit`]; more are selected
+    /// on the host, and the chained steps fall back to matching from the
+    /// host's corners): for tests of those fallbacks.
+    #[doc(hidden)]
+    pub fn set_harris_select_limit(&mut self, n: usize) {
+        self.harris.set_select_limit(n);
+    }
+
     /// The window a render of the model at `pose` needs: every pixel it
     /// can cover, plus `margin` pixels.
     pub(super) fn view_window(&self, pose: &Pose) -> Window {
@@ -586,17 +618,16 @@ impl Tracker {
             .gather_later(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
     }
 
-    /// Harris corners of `frame` within the region of interest at `pose`
-    /// (frame coordinates), detected on the region grown by the corners'
-    /// support only.
-    pub(super) fn frame_corners(
-        &mut self,
+    /// The window of `frame` Harris looks in at `pose` (the region of
+    /// interest grown by the corners' support) and the region of interest
+    /// (`x0, y0, x1, y1`, inclusive); `None` where the object is not in
+    /// view.
+    pub(super) fn frame_window(
+        &self,
         frame: &super::Frame,
         pose: &Pose,
-    ) -> Result<Vec<Corner>, FeatureError> {
-        let Some((x0, y0, x1, y1)) = self.roi(pose) else {
-            return Ok(Vec::new());
-        };
+    ) -> Option<(Window, [usize; 4])> {
+        let (x0, y0, x1, y1) = self.roi(pose)?;
         let full = frame.whole();
         let w = if self.config.windows {
             Window::around(
@@ -610,16 +641,43 @@ impl Tracker {
         } else {
             full
         };
+        Some((w, [x0, y0, x1, y1]))
+    }
+
+    /// Packs the resident frame's window `w` for Harris on the GPU, the
+    /// region of interest `roi` allowed (as the host packs the crop), and
+    /// returns its size.
+    pub(super) fn pack_frame_window(
+        &mut self,
+        w: Window,
+        roi: [usize; 4],
+    ) -> Result<(usize, usize), FeatureError> {
+        let (ww, wh) = (w.width as usize, w.height as usize);
+        let target = self.harris.input_target(ww, wh)?;
+        let (ox, oy) = (w.x0 as usize, w.y0 as usize);
+        let [x0, y0, x1, y1] = roi;
+        let allowed = [x0 - ox, y0 - oy, x1 - ox, y1 - oy].map(|v| v as u32);
+        self.resident
+            .pack_window([w.x0, w.y0, w.width, w.height], allowed, &target)?;
+        Ok((ww, wh))
+    }
+
+    /// Harris corners of `frame` within the region of interest at `pose`
+    /// (frame coordinates), detected on the region grown by the corners'
+    /// support only.
+    pub(super) fn frame_corners(
+        &mut self,
+        frame: &super::Frame,
+        pose: &Pose,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let Some((w, [x0, y0, x1, y1])) = self.frame_window(frame, pose) else {
+            return Ok(Vec::new());
+        };
         let (ww, wh) = (w.width as usize, w.height as usize);
         let o = w.origin();
         let corners = if !self.harris.host() && self.resident.frames().0.is_some() {
-            // The frame is on the GPU: its window is packed there, the
-            // region of interest allowed, as the host packs the crop.
-            let target = self.harris.input_target(ww, wh)?;
-            let (ox, oy) = (w.x0 as usize, w.y0 as usize);
-            let allowed = [x0 - ox, y0 - oy, x1 - ox, y1 - oy].map(|v| v as u32);
-            self.resident
-                .pack_window([w.x0, w.y0, w.width, w.height], allowed, &target)?;
+            // The frame is on the GPU: its window is packed there.
+            self.pack_frame_window(w, [x0, y0, x1, y1])?;
             self.harris.detect_packed(ww, wh)?
         } else {
             let mut mask = vec![false; ww * wh];

@@ -81,6 +81,8 @@ pub struct Harris {
     export: wgpu::ComputePipeline,
     export_params: wgpu::Buffer,
     export_bind: Option<([wgpu::Buffer; 4], wgpu::BindGroup)>,
+    /// The points of an export that needs none.
+    export_scratch: GrowBuffer,
 }
 
 /// A detection whose corners come back with a later readback
@@ -96,6 +98,8 @@ pub struct PendingCorners {
     slots: usize,
     width: usize,
     height: usize,
+    /// Frames (0) or views (1): whose recent detections size the readback.
+    kind: usize,
 }
 
 impl PendingCorners {
@@ -125,6 +129,32 @@ pub struct Detected {
     /// selection) or more than were read back, and work fed from them is
     /// to be done again from `corners`.
     pub exported: bool,
+}
+
+/// Where [`Harris::export_corners`] puts a detection's corners among an
+/// NCC matching's positions: each corner moved by `origin` (the
+/// detection's window in the matched image's pixels), left out (a point
+/// far outside any image) where outside `clip` (`[x0, y0, x1, y1)` in those
+/// pixels, as the host leaves features outside its crop out), less
+/// `band_y0` in y (the first row of the band NCC reads), from slot `first`
+/// of the positions on (A's features first, then B's).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ExportPlace {
+    pub origin: [f32; 2],
+    pub clip: Option<[f32; 4]>,
+    pub band_y0: f32,
+    pub first: usize,
+}
+
+impl ExportPlace {
+    /// In the detection's own pixels, every corner kept, from slot 0: NCC's
+    /// A side of a view matched where it was detected.
+    pub fn band(band_y0: f32) -> Self {
+        Self {
+            band_y0,
+            ..Self::default()
+        }
+    }
 }
 
 const PASSES: [&str; 5] = ["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"];
@@ -262,6 +292,7 @@ impl Harris {
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             export_bind: None,
+            export_scratch: GrowBuffer::new("harris export points", STORAGE_OUT),
         })
     }
 
@@ -913,6 +944,30 @@ impl Harris {
         width: usize,
         height: usize,
     ) -> Result<PendingCorners, FeatureError> {
+        let input = Input::Resolved {
+            width,
+            height,
+            keep_grey: false,
+        };
+        self.detect_later(input, 1)
+    }
+
+    /// [`Harris::detect_packed`] whose corners come back with a later
+    /// readback, as [`Harris::detect_resolved_resident_later`] (a frame's
+    /// window: its readback sized by recent frames' detections). Not in
+    /// host mode, nor for an empty window.
+    pub fn detect_packed_later(
+        &mut self,
+        width: usize,
+        height: usize,
+    ) -> Result<PendingCorners, FeatureError> {
+        self.detect_later(Input::Packed { width, height }, 0)
+    }
+
+    /// A detection of `input` (of `kind`: frames 0, views 1) recorded and
+    /// submitted, its readbacks put off.
+    fn detect_later(&mut self, input: Input, kind: usize) -> Result<PendingCorners, FeatureError> {
+        let (width, height) = input.size();
         if self.host {
             return Err(FeatureError::Config(
                 "a detection read back later in host mode".into(),
@@ -920,15 +975,10 @@ impl Harris {
         }
         if width == 0 || height == 0 {
             return Err(FeatureError::Config(format!(
-                "a detection read back later in an empty {width}x{height} view"
+                "a detection read back later in an empty {width}x{height} image"
             )));
         }
-        let input = Input::Resolved {
-            width,
-            height,
-            keep_grey: false,
-        };
-        self.kind = 1;
+        self.kind = kind;
         let rows = self.readback_rows(width, height);
         let mut enc = self.encode_maps(input, None)?;
         self.encode_select(&mut enc);
@@ -945,28 +995,40 @@ impl Harris {
             slots: self.config.max_corners.min(capacity(width, height)),
             width,
             height,
+            kind,
         })
     }
 
     /// Records into `enc` the export of `pending`'s corners (behind its
     /// detection; [`PendingCorners::slots`] slots): slot `i` of `points`
     /// gets corner `i` (its position in the detection's pixels, a
-    /// gather's point) and slot `i` of `positions` the same less
-    /// `band_y0` in y (the first row of A's band, as NCC reads A's
-    /// positions); slots past the corners kept, or all where the host is
-    /// to finish the selection, get a point far outside any image (a void
-    /// NCC window, an empty sample). `shaders/harris.wgsl`, "The export".
+    /// gather's point; with `None`, a scratch buffer of the detector's)
+    /// and slot `place.first + i` of `positions` the same placed as
+    /// [`ExportPlace`] says (as NCC reads its positions); slots past the
+    /// corners kept, or all where the host is to finish the selection, get
+    /// a point far outside any image (a void NCC window, an empty sample).
+    /// `shaders/harris.wgsl`, "The export".
     pub fn export_corners(
         &mut self,
         enc: &mut wgpu::CommandEncoder,
         pending: &PendingCorners,
-        band_y0: f32,
+        place: ExportPlace,
         positions: &wgpu::Buffer,
-        points: &wgpu::Buffer,
+        points: Option<&wgpu::Buffer>,
     ) -> Result<(), FeatureError> {
         let n = pending.slots;
-        let need = (n * 8) as u64;
-        for (what, b) in [("positions", positions), ("points", points)] {
+        let points = match points {
+            Some(p) => p.clone(),
+            None => {
+                self.export_scratch.ensure(&self.ctx, (n.max(1) * 8) as u64);
+                self.export_scratch.get().clone()
+            }
+        };
+        let need = [((place.first + n) * 8) as u64, (n * 8) as u64];
+        for ((what, b), need) in [("positions", positions), ("points", &points)]
+            .into_iter()
+            .zip(need)
+        {
             if b.size() < need {
                 return Err(FeatureError::Config(format!(
                     "the export's {what} buffer holds {} bytes, {need} needed",
@@ -974,11 +1036,20 @@ impl Harris {
                 )));
             }
         }
+        let clip = place.clip.unwrap_or([0.0; 4]);
         let params = ExportParams {
-            band_y0,
+            origin_x: place.origin[0],
+            origin_y: place.origin[1],
+            band_y0: place.band_y0,
             n: n as u32,
+            first: place.first as u32,
+            clip: place.clip.is_some() as u32,
             _pad0: 0,
             _pad1: 0,
+            clip_x0: clip[0],
+            clip_y0: clip[1],
+            clip_x1: clip[2],
+            clip_y1: clip[3],
         };
         self.ctx
             .queue
@@ -987,7 +1058,7 @@ impl Harris {
             self.counters.get().clone(),
             self.corners.get().clone(),
             positions.clone(),
-            points.clone(),
+            points,
         ];
         let fresh = !matches!(&self.export_bind, Some((b, _)) if *b == bufs);
         if fresh {
@@ -1021,7 +1092,7 @@ impl Harris {
         let counters = pending.counters.wait(ctx)?;
         let part = pending.corners.wait(ctx)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&counters);
-        self.kind = 1;
+        self.kind = pending.kind;
         let detected = self.finish_detection(
             pending.width,
             pending.height,

@@ -13,7 +13,7 @@ mod gpu;
 mod host;
 
 pub use cpu::{harris_cpu, harris_response_cpu};
-pub use gpu::{Detected, Harris, PendingCorners};
+pub use gpu::{Detected, ExportPlace, Harris, PendingCorners};
 pub use host::{harris_host, harris_response_host};
 
 use super::FeatureError;
