@@ -408,8 +408,6 @@ impl NccMatcher {
                 b_rows.len()
             )));
         }
-        let y0 = b_rows.start as f64;
-        let rows = rows.min(slots);
         let bands = Bands {
             img_a,
             a_rows,
@@ -417,24 +415,8 @@ impl NccMatcher {
             b_rows,
             offset_b,
         };
-        let enc = self.record_resident(
-            bands,
-            Side::Exported(slots),
-            Side::Host(b),
-            Some(export),
-            None,
-            refine,
-        )?;
-        let size = std::mem::size_of::<MatchOut>();
-        let read = self
-            .ctx
-            .read_buffer_later(enc, self.matched.get(), (rows * size) as u64)?;
-        Ok(PendingMatches {
-            read,
-            rows,
-            y0,
-            refine: refine.is_some(),
-        })
+        let sides = (Side::Exported(slots), Side::Host(b));
+        self.record_later(bands, sides, export, None, refine, rows.min(slots))
     }
 
     /// [`NccMatcher::match_resident`] with B's features written on the
@@ -472,8 +454,6 @@ impl NccMatcher {
                 b_rows.len()
             )));
         }
-        let y0 = b_rows.start as f64;
-        let rows = a.len();
         let bands = Bands {
             img_a,
             a_rows,
@@ -481,14 +461,23 @@ impl NccMatcher {
             b_rows,
             offset_b,
         };
-        let enc = self.record_resident(
-            bands,
-            Side::Host(a),
-            Side::Exported(slots),
-            Some(export),
-            gate,
-            refine,
-        )?;
+        let sides = (Side::Host(a), Side::Exported(slots));
+        self.record_later(bands, sides, export, gate, refine, a.len())
+    }
+
+    /// Records an exported matching ([`NccMatcher::record_resident`]) and
+    /// puts off the readback of its first `rows` rows of A.
+    fn record_later(
+        &mut self,
+        bands: Bands,
+        (a, b): (Side, Side),
+        export: &mut ExportFn,
+        gate: Option<&wgpu::Buffer>,
+        refine: Option<Refinement>,
+        rows: usize,
+    ) -> Result<PendingMatches, FeatureError> {
+        let y0 = bands.b_rows.start as f64;
+        let enc = self.record_resident(bands, a, b, Some(export), gate, refine)?;
         let size = std::mem::size_of::<MatchOut>();
         let read = self
             .ctx

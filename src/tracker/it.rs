@@ -4,7 +4,7 @@
 //! the old positions and the displacements solved for the update.
 
 use super::profile::Texture;
-use super::view::{AFeatures, Placed, crop_window, match_near, match_near_resident};
+use super::view::{AFeatures, Placed, crop_window, match_near, match_near_resident, placed};
 use super::{Frame, Mode, StepError, StepOutcome, TrackError, Tracker, estimate};
 use crate::features::{Corner, ExportPlace, FeatureError, ResidentImage};
 use crate::geometry::Pose;
@@ -229,15 +229,7 @@ impl Tracker {
         // The one wait.
         let detected = self.harris.finish_later(pending)?;
         self.note_harris("features");
-        let corners: Vec<Corner> = detected
-            .corners
-            .iter()
-            .map(|c| Corner {
-                x: c.x + o[0],
-                y: c.y + o[1],
-                score: c.score,
-            })
-            .collect();
+        let corners = placed(&detected.corners, o);
         let matching = match matching {
             Ok(m) => m,
             Err(e) => return Ok((corners, Some(Err(e.into())))),

@@ -3,7 +3,9 @@
 //! motion predictors are splatted in one pass; corners of the novel view
 //! matched to the frame's are solved for the correction.
 
-use super::view::{AFeatures, Bands, Placed, match_near, match_near_resident, window_crop};
+use super::view::{
+    AFeatures, Bands, Placed, match_near, match_near_resident, placed, shifted, window_crop,
+};
 use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
 use crate::features::resident::MAX_REFINE_WINDOW;
 use crate::features::{
@@ -153,14 +155,7 @@ impl Tracker {
             }
         };
         let o = window.origin();
-        let view_corners: Vec<Corner> = corners
-            .iter()
-            .map(|c| Corner {
-                x: c.x + o[0],
-                y: c.y + o[1],
-                score: c.score,
-            })
-            .collect();
+        let view_corners = placed(&corners, o);
         drop(batch);
         self.note_harris("KF");
         // A chained step's matching and wait count as matching.
@@ -417,11 +412,7 @@ impl Tracker {
             margin,
         )?;
         let mo = mw.origin();
-        let local = |c: &Corner| Corner {
-            x: c.x - mo[0],
-            y: c.y - mo[1],
-            score: c.score,
-        };
+        let local = |c: &Corner| shifted(c, mo);
         Ok(matches
             .iter()
             .map(|m: &Match| {

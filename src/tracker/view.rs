@@ -214,8 +214,22 @@ impl<'a> Placed<'a> {
     }
 }
 
+/// Corners found in a window's pixels placed in the image's: moved by the
+/// window's `origin` (one f32 addition each, as the export on the GPU
+/// moves them: `ExportPlace`).
+pub(super) fn placed(corners: &[Corner], origin: [f32; 2]) -> Vec<Corner> {
+    corners
+        .iter()
+        .map(|c| Corner {
+            x: c.x + origin[0],
+            y: c.y + origin[1],
+            score: c.score,
+        })
+        .collect()
+}
+
 /// Moves a corner by `-origin`.
-fn shifted(c: &Corner, origin: [f32; 2]) -> Corner {
+pub(super) fn shifted(c: &Corner, origin: [f32; 2]) -> Corner {
     Corner {
         x: c.x - origin[0],
         y: c.y - origin[1],
@@ -689,13 +703,6 @@ impl Tracker {
             self.harris.detect(&crop, Some(&mask))?
         };
         self.note_harris("features");
-        Ok(corners
-            .into_iter()
-            .map(|c| Corner {
-                x: c.x + o[0],
-                y: c.y + o[1],
-                score: c.score,
-            })
-            .collect())
+        Ok(placed(&corners, o))
     }
 }
