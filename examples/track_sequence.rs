@@ -101,7 +101,7 @@ fn run(
         camera_path: sequence.camera_path.clone(),
         sequence: Some(sequence),
         init: Some(init),
-        keyframes,
+        keyframes: keyframes.map(std::sync::Arc::new),
     };
 
     // Ground truth, when the sequence has it, to print the error as we go.

@@ -228,8 +228,9 @@ pub struct TrackInputs {
     /// The pose of the first frame; `None`: the tracker searches the
     /// frames for the object ([`Tracker::new_searching`]).
     pub init: Option<Pose>,
-    /// The keyframe store, when there is one.
-    pub keyframes: Option<KeyframeStore>,
+    /// The keyframe store, when there is one (shared with each run's
+    /// tracker, not copied: [`Tracker::new_shared`]).
+    pub keyframes: Option<Arc<KeyframeStore>>,
 }
 
 impl TrackInputs {
@@ -270,7 +271,7 @@ impl TrackInputs {
             camera_path: sequence.camera_path.clone(),
             sequence: Some(sequence),
             init,
-            keyframes,
+            keyframes: keyframes.map(Arc::new),
         })
     }
 
@@ -303,7 +304,7 @@ impl TrackInputs {
             camera: cam,
             camera_path: camera.to_owned(),
             init,
-            keyframes,
+            keyframes: keyframes.map(Arc::new),
         })
     }
 
@@ -530,8 +531,8 @@ impl<'a> TrackRun<'a> {
             self.inputs.keyframes.clone(),
         );
         let mut tracker = match self.inputs.init {
-            Some(init) => Tracker::new(self.ctx, model, cam, store, self.config, init),
-            None => Tracker::new_searching(self.ctx, model, cam, store, self.config),
+            Some(init) => Tracker::new_shared(self.ctx, model, cam, store, self.config, init),
+            None => Tracker::new_searching_shared(self.ctx, model, cam, store, self.config),
         }
         .map_err(|e| AppError::Start {
             sequence: source.name().to_owned(),

@@ -65,7 +65,7 @@ fn ten_thousand_frames_with_flat_memory() {
         mode: Mode::KfIt,
         ..Default::default()
     };
-    let mut tracker = Tracker::new(
+    let mut tracker = Tracker::new_shared(
         ctx,
         inputs.model.clone(),
         inputs.tracking_camera(),

@@ -673,7 +673,7 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
     if !t.gpu.is_empty() {
         out += "GPU passes per frame (mean, timestamp queries):\n";
         for (name, v) in &t.gpu {
-            out += &format!("  {name:<26} {v:8.1} ms\n");
+            out += &format!("  {name:<26} {v:8.3} ms\n");
         }
         let features_timed = t
             .gpu

@@ -290,7 +290,9 @@ impl NccMatcher {
     /// Times every pass with GPU timestamp queries from now on (where
     /// supported); see [`NccMatcher::last_timings`].
     pub fn enable_timing(&mut self) {
-        self.timer = Some(GpuTimer::new(&self.ctx, PASSES.len() as u32 + 1));
+        // Room for every entry point twice plus the gate: a frame's chained
+        // matchings record up to two matchings before one readback.
+        self.timer = Some(GpuTimer::new(&self.ctx, 2 * ENTRIES.len() as u32 + 2));
     }
 
     /// Per-pass GPU durations of the last match (empty unless enabled).

@@ -65,6 +65,7 @@ use crate::model::PointModel;
 use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
 use crate::splat::{Attribute, Attributes, GatherSample, GpuModel, SplatTargets, Splatter, Window};
 use nalgebra::{Matrix3, Vector2, Vector3};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 /// Wall-clock time of each stage of one frame (GPU work included, since
@@ -355,7 +356,7 @@ pub struct Tracker {
     cam: Intrinsics,
     config: TrackerConfig,
     model: PointModel,
-    store: Option<KeyframeStore>,
+    store: Option<Arc<KeyframeStore>>,
     splatter: Splatter,
     geometry: GpuModel,
     textured: crate::keyframes::TexturedCache,
@@ -432,10 +433,27 @@ impl Tracker {
         config: TrackerConfig,
         initial: Pose,
     ) -> Result<Self, TrackError> {
+        Self::new_shared(ctx, model, cam, keyframes.map(Arc::new), config, initial)
+    }
+
+    /// [`Tracker::new`] with a keyframe store shared with the caller
+    /// instead of moved in: a store holds 12 bytes of colour per point and
+    /// keyframe (144 MB for a 1M-point model and 12 keyframes), which a
+    /// caller that keeps its own (an application tracking several runs
+    /// from one set of inputs) need not copy.
+    pub fn new_shared(
+        ctx: &GpuContext,
+        model: PointModel,
+        cam: Intrinsics,
+        keyframes: Option<Arc<KeyframeStore>>,
+        config: TrackerConfig,
+        initial: Pose,
+    ) -> Result<Self, TrackError> {
         config.validate()?;
         cam.validate().map_err(CameraInvalid)?;
         initial.validate()?;
-        let store = keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial));
+        let store =
+            keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial).map(Arc::new));
         if store.is_none() && config.mode != Mode::It {
             return Err(TrackError::NeedsKeyframes(config.mode.name()));
         }
@@ -567,6 +585,18 @@ impl Tracker {
         keyframes: Option<KeyframeStore>,
         config: TrackerConfig,
     ) -> Result<Self, TrackError> {
+        Self::new_searching_shared(ctx, model, cam, keyframes.map(Arc::new), config)
+    }
+
+    /// [`Tracker::new_searching`] with a shared keyframe store (see
+    /// [`Tracker::new_shared`]).
+    pub fn new_searching_shared(
+        ctx: &GpuContext,
+        model: PointModel,
+        cam: Intrinsics,
+        keyframes: Option<Arc<KeyframeStore>>,
+        config: TrackerConfig,
+    ) -> Result<Self, TrackError> {
         // A placeholder pose: the object's centre on the axis, a third of
         // the image across; the store's own viewpoint when there is one.
         let bounds = crate::splat::ModelBounds::of(&model);
@@ -580,7 +610,7 @@ impl Tracker {
             Some(k) => placeholder(k.pose.rotation)?,
             None => placeholder(Matrix3::identity())?,
         };
-        let mut t = Self::new(ctx, model, cam, keyframes, config, initial)?;
+        let mut t = Self::new_shared(ctx, model, cam, keyframes, config, initial)?;
         if t.store.is_none() {
             return Err(TrackError::NeedsKeyframes("search (no initial pose)"));
         }
@@ -611,7 +641,7 @@ impl Tracker {
     /// The keyframe store in use: the one given to [`Tracker::new`], or
     /// the single texture made from the model's colours, or none (IT mode).
     pub fn keyframes(&self) -> Option<&KeyframeStore> {
-        self.store.as_ref()
+        self.store.as_deref()
     }
 
     /// The radius, pixels, of the object's bounding sphere seen at `pose`
