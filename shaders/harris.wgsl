@@ -592,33 +592,77 @@ fn score_before(a: Candidate, b: Candidate) -> bool {
     return a.x < b.x;
 }
 
-fn same_cell(a: Candidate, b: Candidate) -> bool {
+// A candidate's grid cell, packed (x and y below 2^16: images are at most
+// 32768 pixels a side); equal for two candidates exactly when
+// x / g and y / g both are.
+fn cell_of(c: Candidate) -> u32 {
     let g = params.grid_cell;
-    return a.x / g == b.x / g && a.y / g == b.y / g;
+    return ((c.y / g) << 16u) | (c.x / g);
 }
+
+// The O(n^2) passes below (select_rank, select_place, merge_order,
+// merge_links) compare each item with every other (or every earlier)
+// one. A workgroup walks the others in tiles of WORKGROUP_1D: each thread
+// loads one item of the tile into workgroup memory (with its cell or
+// rank, computed once a load instead of once a comparison), then every
+// thread compares its own with the whole tile. The comparisons and their
+// order are the one-thread-an-item loop's, so the counts are the same
+// integers; what changes is that a workgroup reads each item from
+// global memory once instead of each thread reading all of them (the
+// H200's first measurement put these passes at most of a whole-image
+// detection, BENCHMARKS.md "NVIDIA H200"). The item count comes through
+// workgroupUniformLoad so that the tile loops, and their barriers, are
+// uniform over the workgroup.
+var<workgroup> sel_count: u32;
+var<workgroup> sel_tile: array<Candidate, WORKGROUP_1D>;
+var<workgroup> sel_key: array<u32, WORKGROUP_1D>;
+var<workgroup> mrg_tile: array<RefineCorner, WORKGROUP_1D>;
 
 // Each candidate's rank within its grid cell (1: the cell's best), into
 // select_index[i]; 0 for all without a grid.
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_rank(
-    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = select_count();
+    if (lid == 0u) {
+        sel_count = select_count();
+    }
+    let n = workgroupUniformLoad(&sel_count);
     let stride = groups.x * WORKGROUP_1D;
-    for (var i = id.x; i < n; i += stride) {
-        var rank = 0u;
-        if (params.grid_cell > 0u) {
-            let c = candidates[i];
-            rank = 1u;
-            for (var j = 0u; j < n; j++) {
-                let o = candidates[j];
-                if (same_cell(o, c) && score_before(o, c)) {
+    for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
+        let i = base + lid;
+        if (params.grid_cell == 0u) {
+            if (i < n) {
+                select_index[i] = 0u;
+            }
+            continue;
+        }
+        var c = Candidate(0u, 0u, 0.0, 0u);
+        if (i < n) {
+            c = candidates[i];
+        }
+        let cell = cell_of(c);
+        var rank = 1u;
+        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+            workgroupBarrier();
+            if (t0 + lid < n) {
+                let o = candidates[t0 + lid];
+                sel_tile[lid] = o;
+                sel_key[lid] = cell_of(o);
+            }
+            workgroupBarrier();
+            let m = min(WORKGROUP_1D, n - t0);
+            for (var k = 0u; k < m; k++) {
+                if (sel_key[k] == cell && score_before(sel_tile[k], c)) {
                     rank++;
                 }
             }
         }
-        select_index[i] = rank;
+        if (i < n) {
+            select_index[i] = rank;
+        }
     }
 }
 
@@ -626,22 +670,42 @@ fn select_rank(
 // max_corners places name their candidate in select_index[SELECT_MAX + p].
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_place(
-    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = select_count();
+    if (lid == 0u) {
+        sel_count = select_count();
+    }
+    let n = workgroupUniformLoad(&sel_count);
     let stride = groups.x * WORKGROUP_1D;
-    for (var i = id.x; i < n; i += stride) {
-        let c = candidates[i];
-        let rank = select_index[i];
+    for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
+        let i = base + lid;
+        var c = Candidate(0u, 0u, 0.0, 0u);
+        var rank = 0u;
+        if (i < n) {
+            c = candidates[i];
+            rank = select_index[i];
+        }
         var place = 0u;
-        for (var j = 0u; j < n; j++) {
-            let r = select_index[j];
-            if (r < rank || (r == rank && score_before(candidates[j], c))) {
-                place++;
+        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+            workgroupBarrier();
+            if (t0 + lid < n) {
+                sel_tile[lid] = candidates[t0 + lid];
+                sel_key[lid] = select_index[t0 + lid];
+            }
+            workgroupBarrier();
+            let m = min(WORKGROUP_1D, n - t0);
+            for (var k = 0u; k < m; k++) {
+                let r = sel_key[k];
+                if (r < rank || (r == rank && score_before(sel_tile[k], c))) {
+                    place++;
+                }
             }
         }
-        if (place < params.max_corners) {
+        // Every thread has read this round's ranks before any place is
+        // written (the places live above SELECT_MAX, the ranks below).
+        if (i < n && place < params.max_corners) {
             select_index[SELECT_MAX + place] = i;
         }
     }
@@ -695,9 +759,155 @@ fn merge_before(a: RefineCorner, sa: u32, b: RefineCorner, sb: u32) -> bool {
     return sa < sb;
 }
 
-// The selected corners in the merge's order, into `ordered`.
+// The selected corners in the merge's order, into `ordered` (tiled as
+// select_rank).
 @compute @workgroup_size(WORKGROUP_1D)
 fn merge_order(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    if (lid == 0u) {
+        sel_count = slot_count();
+    }
+    let n = workgroupUniformLoad(&sel_count);
+    let stride = groups.x * WORKGROUP_1D;
+    for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
+        let s = base + lid;
+        var c = RefineCorner(0.0, 0.0, 0.0, 0.0);
+        if (s < n) {
+            c = corners[s];
+        }
+        var place = 0u;
+        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+            workgroupBarrier();
+            if (t0 + lid < n) {
+                mrg_tile[lid] = corners[t0 + lid];
+            }
+            workgroupBarrier();
+            let m = min(WORKGROUP_1D, n - t0);
+            for (var k = 0u; k < m; k++) {
+                if (merge_before(mrg_tile[k], t0 + k, c, s)) {
+                    place++;
+                }
+            }
+        }
+        if (s < n) {
+            ordered[place] = c;
+        }
+    }
+}
+
+// Whether two corners are closer than the merge radius (the host's test,
+// negated: kept when the squared distance is at least the radius's).
+fn too_close(a: RefineCorner, b: RefineCorner) -> bool {
+    let dx = a.x - b.x;
+    let dy = a.y - b.y;
+    return !(dx * dx + dy * dy >= params.merge_r2);
+}
+
+// Each selected corner's earlier corners (in the merge's order) that are
+// too close: their count in select_index[s], the first MERGE_LINKS of
+// them in select_index[SELECT_MAX + s * MERGE_LINKS + k] (the ranks and
+// places are spent by now). Every corner undecided. Tiled as select_rank,
+// over the tiles that hold the workgroup's earlier corners.
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_links(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    if (lid == 0u) {
+        sel_count = slot_count();
+    }
+    let n = workgroupUniformLoad(&sel_count);
+    let stride = groups.x * WORKGROUP_1D;
+    for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
+        let s = base + lid;
+        var c = RefineCorner(0.0, 0.0, 0.0, 0.0);
+        if (s < n) {
+            c = ordered[s];
+        }
+        var links = 0u;
+        // The earlier corners of the workgroup's last one: base + 63.
+        let last = min(base + WORKGROUP_1D, n);
+        for (var t0 = 0u; t0 < last; t0 += WORKGROUP_1D) {
+            workgroupBarrier();
+            if (t0 + lid < n) {
+                mrg_tile[lid] = ordered[t0 + lid];
+            }
+            workgroupBarrier();
+            let m = min(WORKGROUP_1D, n - t0);
+            for (var k = 0u; k < m; k++) {
+                let t = t0 + k;
+                if (t < s && too_close(mrg_tile[k], c)) {
+                    if (links < MERGE_LINKS) {
+                        select_index[SELECT_MAX + s * MERGE_LINKS + links] = t;
+                    }
+                    links++;
+                }
+            }
+        }
+        if (s < n) {
+            select_index[s] = links;
+            atomicStore(&select_state[s], UNDECIDED);
+        }
+    }
+}
+
+// The same four passes one thread an item, every thread reading every
+// other item from global memory (the selection before stop 34): the
+// default on CPU adapters, where a workgroup barrier costs more than the
+// loads it saves (lavapipe: the tiled passes took 1.4-1.6x as long in the
+// real cube's GPU loop, GPU timestamps); `Harris::set_tiled_selection`.
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_rank_direct(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var i = id.x; i < n; i += stride) {
+        var rank = 0u;
+        if (params.grid_cell > 0u) {
+            let c = candidates[i];
+            rank = 1u;
+            for (var j = 0u; j < n; j++) {
+                let o = candidates[j];
+                if (cell_of(o) == cell_of(c) && score_before(o, c)) {
+                    rank++;
+                }
+            }
+        }
+        select_index[i] = rank;
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_place_direct(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    let stride = groups.x * WORKGROUP_1D;
+    for (var i = id.x; i < n; i += stride) {
+        let c = candidates[i];
+        let rank = select_index[i];
+        var place = 0u;
+        for (var j = 0u; j < n; j++) {
+            let r = select_index[j];
+            if (r < rank || (r == rank && score_before(candidates[j], c))) {
+                place++;
+            }
+        }
+        if (place < params.max_corners) {
+            select_index[SELECT_MAX + place] = i;
+        }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_order_direct(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
@@ -715,20 +925,8 @@ fn merge_order(
     }
 }
 
-// Whether two corners are closer than the merge radius (the host's test,
-// negated: kept when the squared distance is at least the radius's).
-fn too_close(a: RefineCorner, b: RefineCorner) -> bool {
-    let dx = a.x - b.x;
-    let dy = a.y - b.y;
-    return !(dx * dx + dy * dy >= params.merge_r2);
-}
-
-// Each selected corner's earlier corners (in the merge's order) that are
-// too close: their count in select_index[s], the first MERGE_LINKS of
-// them in select_index[SELECT_MAX + s * MERGE_LINKS + k] (the ranks and
-// places are spent by now). Every corner undecided.
 @compute @workgroup_size(WORKGROUP_1D)
-fn merge_links(
+fn merge_links_direct(
     @builtin(global_invocation_id) id: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {

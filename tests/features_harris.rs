@@ -229,6 +229,42 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
     }
 }
 
+/// Both forms of the selection's O(n^2) passes (tiles of the items in
+/// workgroup memory, the default on GPUs; one thread reading every item,
+/// the default on CPU adapters) give the reference's corners bit for bit:
+/// with and without the grid, with and without refinement, on images with
+/// a few candidates (one partial tile) and thousands (many tiles, the last
+/// partial).
+#[test]
+fn tiled_and_direct_selections_give_the_references_corners() {
+    let few = patterns::polygons(64, 64, 3, 5);
+    let busy = patterns::smooth_noise(640, 480, 1.5, 9);
+    let odd = patterns::smooth_noise(203, 157, 1.1, 4);
+    let configs = [
+        HarrisConfig::default(),
+        HarrisConfig::default()
+            .with_grid_cell(0)
+            .with_max_corners(300),
+        HarrisConfig::default()
+            .with_refine(false)
+            .with_grid_cell(13)
+            .with_max_corners(77),
+    ];
+    for (ci, cfg) in configs.iter().enumerate() {
+        for tiled in [true, false] {
+            let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
+            harris.set_select_limit(SELECT_MAX as usize);
+            harris.set_tiled_selection(tiled);
+            for (name, img) in [("few", &few), ("busy", &busy), ("odd", &odd)] {
+                let got = harris.detect(img, None).unwrap();
+                let want = harris_cpu(img, cfg, None).unwrap();
+                assert!(!want.is_empty(), "{name}");
+                assert_same_corners(&format!("config {ci}, tiled {tiled}, {name}"), &got, &want);
+            }
+        }
+    }
+}
+
 /// Detections within `radius` of `p`.
 fn near(corners: &[Corner], p: [f32; 2], radius: f32) -> Vec<Corner> {
     corners

@@ -74,6 +74,9 @@ pub struct Harris {
     merge_rounds: usize,
     /// The most candidates selected on the GPU ([`Harris::set_select_limit`]).
     select_limit: usize,
+    /// Whether the selection's O(n^2) passes share tiles of the items in
+    /// workgroup memory ([`Harris::set_tiled_selection`]).
+    tiled_select: bool,
     /// The export of a detection's corners to the next stages
     /// ([`Harris::export_corners`]): its layout, pipeline, parameters and
     /// last bind group (with the buffers it binds).
@@ -174,7 +177,7 @@ enum Size {
 
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
 /// in order, and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 8] = [
+const SELECT_ENTRIES: [(&str, Size); 12] = [
     ("select_sizes", Size::One),
     ("select_rank", Size::Candidates),
     ("select_place", Size::Candidates),
@@ -183,7 +186,25 @@ const SELECT_ENTRIES: [(&str, Size); 8] = [
     ("merge_links", Size::Selected),
     ("merge_round", Size::Rounds),
     ("merge_compact", Size::Selected),
+    // One thread an item without workgroup tiles, in place of entries
+    // 1, 2, 4 and 5 ([`Harris::set_tiled_selection`]).
+    ("select_rank_direct", Size::Candidates),
+    ("select_place_direct", Size::Candidates),
+    ("merge_order_direct", Size::Selected),
+    ("merge_links_direct", Size::Selected),
 ];
+
+/// The entry run for `e` of [`SELECT_PASSES`]: the direct twin of a tiled
+/// O(n^2) pass unless `tiled`.
+fn select_entry(e: usize, tiled: bool) -> usize {
+    match (e, tiled) {
+        (1, false) => 8,
+        (2, false) => 9,
+        (4, false) => 10,
+        (5, false) => 11,
+        _ => e,
+    }
+}
 
 /// The selection's timed passes: their labels and the entries each runs.
 const SELECT_PASSES: [(&str, &[usize]); 3] = [
@@ -284,6 +305,7 @@ impl Harris {
             } else {
                 SELECT_MAX
             } as usize,
+            tiled_select: !ctx.is_cpu(),
             export_layout,
             export,
             export_params: ctx.buffer(
@@ -319,6 +341,17 @@ impl Harris {
     /// host's sort.
     pub fn set_select_limit(&mut self, n: usize) {
         self.select_limit = n.min(SELECT_MAX as usize);
+    }
+
+    /// Chooses the selection's O(n^2) passes (each candidate's rank in its
+    /// cell and place, each corner's place in the merge's order and its
+    /// close earlier corners): tiles of the items shared in workgroup
+    /// memory, each read once a workgroup (the default on GPUs), or one
+    /// thread an item reading every other item itself (the default on CPU
+    /// adapters, where the tiles' barriers cost more than they save). The
+    /// same comparisons: the same corners, bit for bit.
+    pub fn set_tiled_selection(&mut self, tiled: bool) {
+        self.tiled_select = tiled;
     }
 
     /// Whether detection runs on the host ([`Harris::set_host`]).
@@ -565,7 +598,8 @@ impl Harris {
 
     /// Records the selection of the corners behind the map passes
     /// (`shaders/harris.wgsl`, "The selection"): three passes (selection,
-    /// refinement, merge), several dispatches each, one thread an item,
+    /// refinement, merge), several dispatches each, one thread an item
+    /// (the O(n^2) ones tiled or not: [`Harris::set_tiled_selection`]),
     /// sized on the GPU (`select_sizes`, then indirect dispatches).
     fn encode_select(&mut self, enc: &mut wgpu::CommandEncoder) {
         let bind = self.select_bind.as_ref().expect("prepared");
@@ -574,6 +608,7 @@ impl Harris {
         for (label, entries) in SELECT_PASSES {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             for &e in entries {
+                let e = select_entry(e, self.tiled_select);
                 let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
                 pass.set_bind_group(0, if size == Size::One { sizes } else { bind }, &[]);
