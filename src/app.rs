@@ -504,7 +504,9 @@ impl<'a> TrackRun<'a> {
         let mut source: Box<dyn FrameSource + 'a> = match self.source.take() {
             Some(s) => s,
             None => match &inputs.sequence {
-                Some(seq) => Box::new(SequenceFrames::new(seq, self.start)),
+                Some(seq) => {
+                    Box::new(SequenceFrames::new(seq, self.start).read_ahead(!self.ctx.is_cpu()))
+                }
                 None => return Err(AppError::NoSource),
             },
         };
