@@ -53,6 +53,13 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
     );
     assert_eq!(r.status, Status::Tracking, "{:?}", r.reason);
     assert!(ok, "{rot:.2} deg, {tr:.4}");
+    // The search's own KF-like steps are counted as "search", not as the
+    // KF stage's parts (which exceeded the stage before stop 34:
+    // `--profile` printed a negative "solve").
+    let tm = r.times;
+    assert!(tm.search > std::time::Duration::ZERO);
+    assert!(tm.kf_render + tm.kf_harris + tm.kf_ncc <= tm.kf, "{tm:?}");
+    assert!(tm.it_render + tm.it_ncc <= tm.it, "{tm:?}");
     for f in &frames[1..] {
         let r = t.track(&f.image).unwrap();
         assert_eq!(r.status, Status::Tracking);

@@ -702,6 +702,19 @@ impl Tracker {
         {
             let found = self.find(frame)?;
             times.search = t0.elapsed();
+            // The search's KF-like steps are its own time ("search"), not
+            // the KF stage's parts, which would otherwise exceed it (the
+            // passes' GPU times stay, under their own labels).
+            let s = &mut self.stages;
+            for part in [
+                &mut s.it_render,
+                &mut s.it_ncc,
+                &mut s.kf_render,
+                &mut s.kf_harris,
+                &mut s.kf_ncc,
+            ] {
+                *part = Duration::ZERO;
+            }
             match found {
                 Some(p) => {
                     log::info!("object found by search");
