@@ -567,3 +567,35 @@ fn memory_report_counts_live_buffers() {
     let after = c.memory_report();
     assert_eq!(after.buffers, before.buffers, "{before:?} {after:?}");
 }
+
+/// A `BindCache` binds anew only when one of its buffers is another one
+/// (by identity; a clone of the same buffer is the same).
+#[test]
+fn a_bind_cache_binds_again_only_for_other_buffers() {
+    let c = ctx();
+    let layout = c.bind_group_layout(
+        "bind cache test",
+        &[
+            gpu::compute_entry(0, gpu::storage(false)),
+            gpu::compute_entry(1, gpu::storage(false)),
+        ],
+    );
+    let make = |label| c.buffer(label, 64, gpu::STORAGE_OUT);
+    let (a, b, other) = (make("a"), make("b"), make("other"));
+    let mut cache = gpu::BindCache::<2>::default();
+    let mut binds = 0;
+    let mut get = |bufs: [wgpu::Buffer; 2]| {
+        cache
+            .get(bufs, |bs| {
+                binds += 1;
+                c.bind_buffers("bind cache test", &layout, &[&bs[0], &bs[1]])
+            })
+            .map(|_| ())
+    };
+    get([a.clone(), b.clone()]).unwrap();
+    get([a.clone(), b.clone()]).unwrap();
+    get([a.clone(), other.clone()]).unwrap();
+    get([a.clone(), other.clone()]).unwrap();
+    get([a.clone(), b.clone()]).unwrap();
+    assert_eq!(binds, 3);
+}

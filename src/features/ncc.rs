@@ -7,8 +7,8 @@ use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
-    compute_entry, compute_pass, storage, workgroups,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport,
+    WORKGROUP_1D, compute_entry, compute_pass, storage, workgroups,
 };
 
 /// A mutual best match: feature `a` of the first image and feature `b` of
@@ -179,7 +179,7 @@ pub struct NccMatcher {
     gate_layout: wgpu::BindGroupLayout,
     gate: wgpu::ComputePipeline,
     gate_count: wgpu::Buffer,
-    gate_bind: Option<([wgpu::Buffer; 2], wgpu::BindGroup)>,
+    gate_bind: BindCache<2>,
     timer: Option<GpuTimer>,
     last_timings: TimerReport,
     /// Match host images on the host ([`NccMatcher::set_host`]).
@@ -252,7 +252,7 @@ impl NccMatcher {
                 16,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
-            gate_bind: None,
+            gate_bind: BindCache::default(),
             timer: None,
             last_timings: TimerReport::default(),
             host: false,
@@ -633,14 +633,10 @@ impl NccMatcher {
             bytemuck::cast_slice(&[na as u32, 0, 0, 0]),
         );
         let bufs = [samples.clone(), self.positions.get().clone()];
-        if !matches!(&self.gate_bind, Some((b, _)) if *b == bufs) {
-            let at = [(20, &bufs[0]), (21, &self.gate_count), (22, &bufs[1])];
-            let bind = self
-                .ctx
-                .bind_buffers_at("ncc gate", &self.gate_layout, &at)?;
-            self.gate_bind = Some((bufs, bind));
-        }
-        let bind = &self.gate_bind.as_ref().expect("just built").1;
+        let (ctx, layout, count) = (&self.ctx, &self.gate_layout, &self.gate_count);
+        let bind = self.gate_bind.get(bufs, |b| {
+            ctx.bind_buffers_at("ncc gate", layout, &[(20, &b[0]), (21, count), (22, &b[1])])
+        })?;
         let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("ncc gate"),
             timestamp_writes: None,

@@ -1394,6 +1394,36 @@ pub fn workgroups(n: u32, size: u32) -> u32 {
     n.div_ceil(size)
 }
 
+/// A bind group kept for as long as the buffers it binds are the same ones
+/// (wgpu buffers compare by identity): a pass whose inputs are grow-only
+/// buffers, or buffers lent by another stage, binds anew only when one of
+/// them was replaced.
+pub struct BindCache<const N: usize> {
+    held: Option<([wgpu::Buffer; N], wgpu::BindGroup)>,
+}
+
+impl<const N: usize> Default for BindCache<N> {
+    fn default() -> Self {
+        Self { held: None }
+    }
+}
+
+impl<const N: usize> BindCache<N> {
+    /// The bind group of `buffers`: the one held when it binds these,
+    /// else `bind(&buffers)`'s, held from now on.
+    pub fn get<E>(
+        &mut self,
+        buffers: [wgpu::Buffer; N],
+        bind: impl FnOnce(&[wgpu::Buffer; N]) -> Result<wgpu::BindGroup, E>,
+    ) -> Result<&wgpu::BindGroup, E> {
+        if !matches!(&self.held, Some((held, _)) if *held == buffers) {
+            let group = bind(&buffers)?;
+            self.held = Some((buffers, group));
+        }
+        Ok(&self.held.as_ref().expect("just bound").1)
+    }
+}
+
 /// One device shared by every test in a test binary
 /// ([`own_test_context`]'s adapter).
 #[doc(hidden)]

@@ -11,7 +11,7 @@ use crate::features::gpu_data::{
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
     WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
 };
 
@@ -83,7 +83,7 @@ pub struct Harris {
     export_layout: wgpu::BindGroupLayout,
     export: wgpu::ComputePipeline,
     export_params: wgpu::Buffer,
-    export_bind: Option<([wgpu::Buffer; 4], wgpu::BindGroup)>,
+    export_bind: BindCache<4>,
     /// The points of an export that needs none.
     export_scratch: GrowBuffer,
 }
@@ -313,7 +313,7 @@ impl Harris {
                 std::mem::size_of::<ExportParams>() as u64,
                 wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
-            export_bind: None,
+            export_bind: BindCache::default(),
             export_scratch: GrowBuffer::new("harris export points", STORAGE_OUT),
         })
     }
@@ -1095,22 +1095,19 @@ impl Harris {
             positions.clone(),
             points,
         ];
-        let fresh = !matches!(&self.export_bind, Some((b, _)) if *b == bufs);
-        if fresh {
+        let (ctx, layout) = (&self.ctx, &self.export_layout);
+        let (params, export_params) = (&self.params, &self.export_params);
+        let bind = self.export_bind.get(bufs, |b| {
             let at = [
-                (0, &self.params),
-                (5, &bufs[0]),
-                (7, &bufs[1]),
-                (13, &self.export_params),
-                (14, &bufs[2]),
-                (15, &bufs[3]),
+                (0, params),
+                (5, &b[0]),
+                (7, &b[1]),
+                (13, export_params),
+                (14, &b[2]),
+                (15, &b[3]),
             ];
-            let bind = self
-                .ctx
-                .bind_buffers_at("harris export", &self.export_layout, &at)?;
-            self.export_bind = Some((bufs, bind));
-        }
-        let bind = &self.export_bind.as_ref().expect("just built").1;
+            ctx.bind_buffers_at("harris export", layout, &at)
+        })?;
         let mut pass = compute_pass(enc, "export", self.timer.as_mut());
         pass.set_pipeline(&self.export);
         pass.set_bind_group(0, bind, &[]);
