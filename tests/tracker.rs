@@ -16,7 +16,7 @@ mod tracking_common;
 
 use splattrack::features::FeatureBackend;
 use splattrack::geometry::Pose;
-use splattrack::gpu::shared_test_context;
+use splattrack::gpu::{GpuContext, shared_test_context};
 use splattrack::keyframes::KeyframeStore;
 use splattrack::rng::Rng;
 use splattrack::tracker::{Modalities, Mode, Status, TrackError, Tracker, TrackerConfig};
@@ -43,6 +43,30 @@ fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker {
             ..Default::default()
         },
         initial,
+    )
+    .expect("tracker")
+}
+
+/// A tracker on `ctx` with a GPU's frame loop (features in the shaders,
+/// the resident loop), texture and optionally the contour, from the
+/// window's first frame.
+fn gpu_loop_tracker(ctx: &GpuContext, contour: bool) -> Tracker {
+    let f = fixture();
+    Tracker::new(
+        ctx,
+        f.scene.model.clone(),
+        f.scene.cam,
+        Some(f.store.clone()),
+        TrackerConfig {
+            feature_backend: FeatureBackend::Gpu,
+            resident: Some(true),
+            modalities: Modalities {
+                texture: true,
+                contour,
+            },
+            ..Default::default()
+        },
+        f.frames[0].pose,
     )
     .expect("tracker")
 }
@@ -612,23 +636,7 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     let f = fixture();
     let ctx = own_test_context();
     let make = |chained: bool, contour: bool| {
-        let mut t = Tracker::new(
-            &ctx,
-            f.scene.model.clone(),
-            f.scene.cam,
-            Some(f.store.clone()),
-            TrackerConfig {
-                feature_backend: FeatureBackend::Gpu,
-                resident: Some(true),
-                modalities: Modalities {
-                    texture: true,
-                    contour,
-                },
-                ..Default::default()
-            },
-            f.frames[0].pose,
-        )
-        .expect("tracker");
+        let mut t = gpu_loop_tracker(&ctx, contour);
         t.set_chained_kf(chained);
         t
     };
@@ -670,23 +678,7 @@ fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     let f = fixture();
     let ctx = own_test_context();
     let make = |chained: bool, contour: bool, host_selects: bool| {
-        let mut t = Tracker::new(
-            &ctx,
-            f.scene.model.clone(),
-            f.scene.cam,
-            Some(f.store.clone()),
-            TrackerConfig {
-                feature_backend: FeatureBackend::Gpu,
-                resident: Some(true),
-                modalities: Modalities {
-                    texture: true,
-                    contour,
-                },
-                ..Default::default()
-            },
-            f.frames[0].pose,
-        )
-        .expect("tracker");
+        let mut t = gpu_loop_tracker(&ctx, contour);
         t.set_chained_it(chained);
         if host_selects {
             t.set_harris_select_limit(0);
