@@ -618,6 +618,47 @@ var<workgroup> sel_tile: array<Candidate, WORKGROUP_1D>;
 var<workgroup> sel_key: array<u32, WORKGROUP_1D>;
 var<workgroup> mrg_tile: array<RefineCorner, WORKGROUP_1D>;
 
+// `n` as the whole workgroup sees it (thread 0's), uniform for the loops
+// whose barriers every thread must pass.
+fn uniform_count(lid: u32, n: u32) -> u32 {
+    if (lid == 0u) {
+        sel_count = n;
+    }
+    return workgroupUniformLoad(&sel_count);
+}
+
+// The tile of candidates from t0 (of n) into sel_tile, each with its cell
+// or (`ranks`) its rank from select_index into sel_key, between barriers.
+fn load_candidate_tile(lid: u32, t0: u32, n: u32, ranks: bool) {
+    workgroupBarrier();
+    let j = t0 + lid;
+    if (j < n) {
+        let o = candidates[j];
+        sel_tile[lid] = o;
+        if (ranks) {
+            sel_key[lid] = select_index[j];
+        } else {
+            sel_key[lid] = cell_of(o);
+        }
+    }
+    workgroupBarrier();
+}
+
+// The tile of selected corners from t0 (of n) into mrg_tile, from
+// `corners` or (`merged`) from `ordered`, between barriers.
+fn load_corner_tile(lid: u32, t0: u32, n: u32, merged: bool) {
+    workgroupBarrier();
+    let j = t0 + lid;
+    if (j < n) {
+        if (merged) {
+            mrg_tile[lid] = ordered[j];
+        } else {
+            mrg_tile[lid] = corners[j];
+        }
+    }
+    workgroupBarrier();
+}
+
 // Each candidate's rank within its grid cell (1: the cell's best), into
 // select_index[i]; 0 for all without a grid.
 @compute @workgroup_size(WORKGROUP_1D)
@@ -626,10 +667,7 @@ fn select_rank(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if (lid == 0u) {
-        sel_count = select_count();
-    }
-    let n = workgroupUniformLoad(&sel_count);
+    let n = uniform_count(lid, select_count());
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let i = base + lid;
@@ -646,13 +684,7 @@ fn select_rank(
         let cell = cell_of(c);
         var rank = 1u;
         for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
-            workgroupBarrier();
-            if (t0 + lid < n) {
-                let o = candidates[t0 + lid];
-                sel_tile[lid] = o;
-                sel_key[lid] = cell_of(o);
-            }
-            workgroupBarrier();
+            load_candidate_tile(lid, t0, n, false);
             let m = min(WORKGROUP_1D, n - t0);
             for (var k = 0u; k < m; k++) {
                 if (sel_key[k] == cell && score_before(sel_tile[k], c)) {
@@ -674,10 +706,7 @@ fn select_place(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if (lid == 0u) {
-        sel_count = select_count();
-    }
-    let n = workgroupUniformLoad(&sel_count);
+    let n = uniform_count(lid, select_count());
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let i = base + lid;
@@ -689,12 +718,7 @@ fn select_place(
         }
         var place = 0u;
         for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
-            workgroupBarrier();
-            if (t0 + lid < n) {
-                sel_tile[lid] = candidates[t0 + lid];
-                sel_key[lid] = select_index[t0 + lid];
-            }
-            workgroupBarrier();
+            load_candidate_tile(lid, t0, n, true);
             let m = min(WORKGROUP_1D, n - t0);
             for (var k = 0u; k < m; k++) {
                 let r = sel_key[k];
@@ -767,10 +791,7 @@ fn merge_order(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if (lid == 0u) {
-        sel_count = slot_count();
-    }
-    let n = workgroupUniformLoad(&sel_count);
+    let n = uniform_count(lid, slot_count());
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let s = base + lid;
@@ -780,11 +801,7 @@ fn merge_order(
         }
         var place = 0u;
         for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
-            workgroupBarrier();
-            if (t0 + lid < n) {
-                mrg_tile[lid] = corners[t0 + lid];
-            }
-            workgroupBarrier();
+            load_corner_tile(lid, t0, n, false);
             let m = min(WORKGROUP_1D, n - t0);
             for (var k = 0u; k < m; k++) {
                 if (merge_before(mrg_tile[k], t0 + k, c, s)) {
@@ -817,10 +834,7 @@ fn merge_links(
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    if (lid == 0u) {
-        sel_count = slot_count();
-    }
-    let n = workgroupUniformLoad(&sel_count);
+    let n = uniform_count(lid, slot_count());
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let s = base + lid;
@@ -832,11 +846,7 @@ fn merge_links(
         // The earlier corners of the workgroup's last one: base + 63.
         let last = min(base + WORKGROUP_1D, n);
         for (var t0 = 0u; t0 < last; t0 += WORKGROUP_1D) {
-            workgroupBarrier();
-            if (t0 + lid < n) {
-                mrg_tile[lid] = ordered[t0 + lid];
-            }
-            workgroupBarrier();
+            load_corner_tile(lid, t0, n, true);
             let m = min(WORKGROUP_1D, n - t0);
             for (var k = 0u; k < m; k++) {
                 let t = t0 + k;
