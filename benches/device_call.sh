@@ -89,7 +89,11 @@ B=/tmp/dev/bin
 [ -e ../shared ] || ln -s "$PWD/.dev/shared" ../shared
 echo "setup $(( $(date +%s) - START )) s; repo $PWD"
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,memory.used,temperature.gpu,utilization.gpu --format=csv 2>&1 | head -3
-lscpu | grep -E "Model name|^CPU\(s\)" 
+lscpu | grep -E "Model name|^CPU\(s\)"
+# The SM clock and load through the run (an idle GPU clocks down: stop 34's
+# one-off pass timings after CPU benches were suspect), in results.tgz.
+(nvidia-smi --query-gpu=timestamp,clocks.sm,utilization.gpu,power.draw --format=csv -lms 500 \
+    >$R/smi.csv 2>/dev/null &)
 if ! $B/splattrack info > $R/info.txt 2>&1; then
   cat $R/info.txt
   ls -la /usr/local/nvidia/share/vulkan/icd.d/ /etc/vulkan/icd.d /usr/share/vulkan/icd.d 2>&1
