@@ -10,7 +10,9 @@
 //!   10k and 100k points (1M with `SPLATTRACK_BENCH_1M=1`), at 640x480 and
 //!   1280x720;
 //! - `track/kf+it+contour/auto/WxH/POINTS`: KF+IT with the contour modality
-//!   too (`--modalities texture,contour`), at 100k points (and 1M).
+//!   too (`--modalities texture,contour`), at 100k points (and 1M);
+//! - `track/kf+it/compute/direct-selection/640x480/100000` (GPUs only):
+//!   the corner selection one thread an item instead of tiled.
 //!
 //! The loop is the tracker's as it runs (windows, render reuse, the pose
 //! check, the default splatter where `auto`). Each case also prints the GPU
@@ -85,6 +87,7 @@ fn store(ctx: &GpuContext, scene: &Scene, model: &PointModel) -> KeyframeStore {
     .unwrap()
 }
 
+#[allow(clippy::too_many_arguments)]
 fn case(
     group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
     ctx: &GpuContext,
@@ -93,9 +96,10 @@ fn case(
     store: &KeyframeStore,
     config: TrackerConfig,
     id: String,
+    tiled_selection: Option<bool>,
 ) {
     let new = || {
-        Tracker::new(
+        let mut t = Tracker::new(
             ctx,
             model.clone(),
             scene.cfg.camera,
@@ -103,7 +107,11 @@ fn case(
             config.clone(),
             scene.frames[0].pose,
         )
-        .unwrap()
+        .unwrap();
+        if let Some(tiled) = tiled_selection {
+            t.set_harris_tiled_selection(tiled);
+        }
+        t
     };
     let mut tracker = new();
     let mut i = 0usize;
@@ -179,7 +187,7 @@ fn bench(c: &mut Criterion) {
                         ..Default::default()
                     };
                     let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
-                    case(&mut group, &ctx, &scene, &model, &store, config, id);
+                    case(&mut group, &ctx, &scene, &model, &store, config, id, None);
                 }
             }
             if n >= 100_000 {
@@ -192,7 +200,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it+contour/auto/{w}x{h}/{n}");
-                case(&mut group, &ctx, &scene, &model, &store, config, id);
+                case(&mut group, &ctx, &scene, &model, &store, config, id, None);
             }
             for backend in [Backend::RenderPass, Backend::Compute] {
                 let config = TrackerConfig {
@@ -201,7 +209,28 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it/{backend}/{w}x{h}/{n}");
-                case(&mut group, &ctx, &scene, &model, &store, config, id);
+                case(&mut group, &ctx, &scene, &model, &store, config, id, None);
+            }
+            // On GPUs the corner selection runs tiled; the same frames
+            // with it one thread an item (what CPU adapters run), to
+            // compare the two in the loop.
+            if (w, n) == (640, 100_000) && !ctx.is_cpu() {
+                let config = TrackerConfig {
+                    mode: Mode::KfIt,
+                    splatter: Backend::Compute,
+                    ..Default::default()
+                };
+                let id = format!("kf+it/compute/direct-selection/{w}x{h}/{n}");
+                case(
+                    &mut group,
+                    &ctx,
+                    &scene,
+                    &model,
+                    &store,
+                    config,
+                    id,
+                    Some(false),
+                );
             }
         }
     }

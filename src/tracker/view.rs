@@ -495,6 +495,14 @@ impl Tracker {
         self.harris.set_select_limit(n);
     }
 
+    /// The corner selection's O(n^2) passes tiled in workgroup memory or
+    /// one thread an item ([`crate::features::Harris::set_tiled_selection`]):
+    /// for the tracker bench's comparison of the two in the loop.
+    #[doc(hidden)]
+    pub fn set_harris_tiled_selection(&mut self, tiled: bool) {
+        self.harris.set_tiled_selection(tiled);
+    }
+
     /// The window a render of the model at `pose` needs: every pixel it
     /// can cover, plus `margin` pixels.
     pub(super) fn view_window(&self, pose: &Pose) -> Window {
