@@ -65,6 +65,44 @@ pub fn flat_map_split<T: Sync, U: Send>(
     flat_map_chunks(items, items.len().div_ceil(threads), f)
 }
 
+/// A thread that runs as long as one end of its channel stays open (the
+/// sender of its work, or the receiver of its results): dropped, it closes
+/// that end, which ends the thread's loop, then joins the thread. The
+/// contour's colour learner and the frames read ahead run on one each.
+pub(crate) struct ChannelThread<E> {
+    end: Option<E>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl<E> ChannelThread<E> {
+    /// `body` on a new thread named `name`, kept while `end` is held.
+    pub(crate) fn spawn(
+        name: &str,
+        end: E,
+        body: impl FnOnce() + Send + 'static,
+    ) -> std::io::Result<Self> {
+        let thread = std::thread::Builder::new().name(name.into()).spawn(body)?;
+        Ok(Self {
+            end: Some(end),
+            thread: Some(thread),
+        })
+    }
+
+    /// The end of the channel held.
+    pub(crate) fn end(&self) -> &E {
+        self.end.as_ref().expect("held until dropped")
+    }
+}
+
+impl<E> Drop for ChannelThread<E> {
+    fn drop(&mut self) {
+        self.end.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

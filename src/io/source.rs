@@ -12,6 +12,7 @@
 use crate::geometry::Intrinsics;
 use crate::io::sequence::{Frame, Sequence, SequenceError};
 use crate::io::video::VideoError;
+use crate::par::ChannelThread;
 use std::path::Path;
 
 /// Why a source could not give its next frame.
@@ -161,48 +162,27 @@ pub struct SequenceFrames<'a> {
     ahead: Option<Ahead>,
 }
 
-/// The frames decoded ahead, and the thread decoding them.
-struct Ahead {
-    rx: Option<std::sync::mpsc::Receiver<Result<Frame, SequenceError>>>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
+/// The frames decoded ahead: the receiving end of the thread decoding
+/// them (dropped, it ends the thread after the frame it is decoding).
+type Ahead = ChannelThread<std::sync::mpsc::Receiver<Result<Frame, SequenceError>>>;
 
-impl Ahead {
-    /// Reads frames `start..` of a copy of `seq` (its paths and camera:
-    /// the undistortion maps are shared) on a new thread; `None` when no
-    /// thread can be made (the frames are then read in the caller's).
-    fn start(seq: &Sequence, start: usize) -> Option<Self> {
-        let seq = seq.clone();
-        let (tx, rx) = std::sync::mpsc::sync_channel(1);
-        let thread = std::thread::Builder::new()
-            .name("frames ahead".into())
-            .spawn(move || {
-                for i in start..seq.frames.len() {
-                    let frame = seq.frame(i);
-                    let failed = frame.is_err();
-                    // A closed channel: the source was dropped.
-                    if tx.send(frame).is_err() || failed {
-                        break;
-                    }
-                }
-            })
-            .ok()?;
-        Some(Self {
-            rx: Some(rx),
-            thread: Some(thread),
-        })
-    }
-}
-
-impl Drop for Ahead {
-    fn drop(&mut self) {
-        // Closing the channel first ends the thread after the frame it is
-        // decoding, if any.
-        self.rx.take();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
+/// Reads frames `start..` of a copy of `seq` (its paths and camera: the
+/// undistortion maps are shared) on a new thread; `None` when no thread
+/// can be made (the frames are then read in the caller's).
+fn read_ahead_from(seq: &Sequence, start: usize) -> Option<Ahead> {
+    let seq = seq.clone();
+    let (tx, rx) = std::sync::mpsc::sync_channel(1);
+    ChannelThread::spawn("frames ahead", rx, move || {
+        for i in start..seq.frames.len() {
+            let frame = seq.frame(i);
+            let failed = frame.is_err();
+            // A closed channel: the source was dropped.
+            if tx.send(frame).is_err() || failed {
+                break;
+            }
         }
-    }
+    })
+    .ok()
 }
 
 impl<'a> SequenceFrames<'a> {
@@ -255,13 +235,9 @@ impl FrameSource for SequenceFrames<'_> {
             return Ok(None);
         }
         if self.read_ahead && self.ahead.is_none() {
-            self.ahead = Ahead::start(self.seq, self.next);
+            self.ahead = read_ahead_from(self.seq, self.next);
         }
-        let received = self
-            .ahead
-            .as_ref()
-            .and_then(|a| a.rx.as_ref())
-            .and_then(|rx| rx.recv().ok());
+        let received = self.ahead.as_ref().and_then(|a| a.end().recv().ok());
         // Without a thread (or after one that died), in this one.
         let f = match received {
             Some(f) => f,

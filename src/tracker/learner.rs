@@ -17,9 +17,9 @@
 //! histograms with it: they start afresh, with an error logged).
 
 use super::contour::ColourModel;
+use crate::par::ChannelThread;
 use nalgebra::Vector2;
 use std::sync::{Mutex, mpsc};
-use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// What one learning needs (besides the model and buffers): the frame's
@@ -56,41 +56,28 @@ impl Job {
 
 /// The worker thread and its two queues.
 struct Worker {
-    jobs: Option<mpsc::Sender<Job>>,
+    /// Closing it (dropping the worker) ends the thread's loop.
+    jobs: ChannelThread<mpsc::Sender<Job>>,
     /// Behind a lock only to keep the tracker `Sync`.
     done: Mutex<mpsc::Receiver<Job>>,
-    thread: Option<JoinHandle<()>>,
 }
 
 impl Worker {
     fn start() -> std::io::Result<Self> {
         let (jobs, inbox) = mpsc::channel::<Job>();
         let (outbox, done) = mpsc::channel::<Job>();
-        let thread = std::thread::Builder::new()
-            .name("splattrack-colours".into())
-            .spawn(move || {
-                while let Ok(mut job) = inbox.recv() {
-                    job.run();
-                    if outbox.send(job).is_err() {
-                        break;
-                    }
+        let jobs = ChannelThread::spawn("splattrack-colours", jobs, move || {
+            while let Ok(mut job) = inbox.recv() {
+                job.run();
+                if outbox.send(job).is_err() {
+                    break;
                 }
-            })?;
+            }
+        })?;
         Ok(Self {
-            jobs: Some(jobs),
+            jobs,
             done: Mutex::new(done),
-            thread: Some(thread),
         })
-    }
-}
-
-impl Drop for Worker {
-    fn drop(&mut self) {
-        // Closing the queue ends the worker's loop.
-        self.jobs.take();
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
     }
 }
 
@@ -183,7 +170,7 @@ impl Colours {
             }
         }
         let sender = match (&self.worker, self.background) {
-            (Some(w), true) => w.jobs.as_ref(),
+            (Some(w), true) => Some(w.jobs.end()),
             _ => None,
         };
         // (A copy of an image's own pixels always makes an image.)
