@@ -17,7 +17,9 @@
 # device. Logs and criterion's results come back as $OUT/results.tgz
 # (refreshed after every item, so a cut-off run still returns what it
 # did) and the summary as $OUT/log.txt. `DRY=1 ADAPTER=cpu` tries the
-# script here (15 s an item).
+# script here (15 s an item); `SKIP=regex` leaves out the items whose
+# names match (e.g. `SKIP='bench_splat|render|nores'` when those are
+# already measured).
 set -u
 case "${1:-}" in
 pack)
@@ -67,6 +69,7 @@ left() { echo $((BUDGET - ($(date +%s) - START))); }
 snap() { tar czf $OUT/results.tgz -C $R . 2>/dev/null; }
 item() { # name limit cmd...
   local name=$1 lim=$2; shift 2
+  if [ -n "${SKIP:-}" ] && [[ $name =~ $SKIP ]]; then echo "SKIP $name (SKIP=$SKIP)"; return; fi
   local l=$(( $(left) - 5 )); [ "${DRY:-0}" = 1 ] && lim=15
   [ $lim -gt $l ] && lim=$l
   if [ $lim -lt 8 ]; then echo "SKIP $name (no time left)"; return; fi

@@ -92,6 +92,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("NO_SCORE", F32(f::NO_SCORE)),
         ("NO_INDEX", U32(f::NO_INDEX)),
         ("NCC_TILE", U32(f::NCC_TILE)),
+        ("REFINE_LOCAL_WINDOW", U32(f::REFINE_LOCAL_WINDOW)),
         ("GATHER_STRIDE", U32(s::GATHER_STRIDE as u32)),
         ("RESOLVE_WORKGROUP", U32(s::RESOLVE_WORKGROUP)),
         ("RESOLVE_COLOR", U32(s::RESOLVE_COLOR)),

@@ -78,6 +78,9 @@ fn resident_matches_and_refinements_equal_the_host_path() {
         bias: 0.05,
     };
     let mut b = warp.image(&a);
+    // The pair without invalid pixels, for the widest windows (which the
+    // holes below would void).
+    let clean = (a.clone(), b.clone(), upload(&a), upload(&b));
     // Invalid pixels: a hole region in A, scattered pinholes in B.
     let mut a = a;
     for y in 30..40 {
@@ -91,15 +94,15 @@ fn resident_matches_and_refinements_equal_the_host_path() {
         let (x, y) = (rng.below(96) as usize, 22 + rng.below(36) as usize);
         b.data[y * 96 + x] = f32::NAN;
     }
-    let (ga, gb) = (upload(&a), upload(&b));
+    let holed = (upload(&a), upload(&b));
     let refine = Refinement {
         window: 11,
         max_shift: 2,
         min_score: 0.5,
     };
     let cases = [
-        (0..80, 0..80, None, NccConfig::default()),
-        (0..80, 0..80, Some(refine), NccConfig::default()),
+        (0..80, 0..80, None, NccConfig::default(), false),
+        (0..80, 0..80, Some(refine), NccConfig::default(), false),
         (
             12..70,
             20..75,
@@ -107,6 +110,7 @@ fn resident_matches_and_refinements_equal_the_host_path() {
             NccConfig::default()
                 .with_search_radius(Some(6.0))
                 .with_min_score(0.5),
+            false,
         ),
         (
             5..60,
@@ -117,10 +121,43 @@ fn resident_matches_and_refinements_equal_the_host_path() {
                 min_score: 0.0,
             }),
             NccConfig::default().with_window(7).with_min_score(-1.0),
+            false,
+        ),
+        // More integer shifts than the workgroup's grid holds: each
+        // thread samples its shifts' windows (mutual_refine).
+        (
+            0..80,
+            0..80,
+            Some(Refinement {
+                window: 9,
+                max_shift: 5,
+                min_score: 0.3,
+            }),
+            NccConfig::default(),
+            false,
+        ),
+        // A window wider than the workgroup's memory holds:
+        // mutual_refine_wide (on the pair without holes, which would void
+        // most windows this wide).
+        (
+            0..80,
+            0..80,
+            Some(Refinement {
+                window: 23,
+                max_shift: 2,
+                min_score: 0.3,
+            }),
+            NccConfig::default(),
+            true,
         ),
     ];
     let (mut total, mut refined) = (0, 0);
-    for (ci, (ra, rb, r, cfg)) in cases.into_iter().enumerate() {
+    for (ci, (ra, rb, r, cfg, whole)) in cases.into_iter().enumerate() {
+        let (a, b, (ga, gb)) = if whole {
+            (&clean.0, &clean.1, (&clean.2, &clean.3))
+        } else {
+            (&a, &b, (&holed.0, &holed.1))
+        };
         let pa = random_points(&mut rng, 70, 96, 80);
         // B's features: A's moved by the warp plus noise, and strays.
         let mut pb: Vec<Corner> = pa
@@ -133,37 +170,49 @@ fn resident_matches_and_refinements_equal_the_host_path() {
             .collect();
         pb.extend(random_points(&mut rng, 30, 96, 80));
         let mut m = NccMatcher::new(ctx(), cfg).unwrap();
-        let want = host(&mut m, (&a, ra.clone(), &pa), (&b, rb.clone(), &pb), r);
-        let got = m
-            .match_resident(
-                ga.image().unwrap(),
-                ra,
-                &pa,
-                gb.image().unwrap(),
-                rb,
-                &pb,
-                [0, 0],
-                r,
-            )
-            .unwrap();
-        assert_eq!(got.len(), want.len(), "case {ci}: match counts");
-        for (g, w) in got.iter().zip(&want) {
-            assert_eq!((g.a, g.b), (w.0, w.1), "case {ci}");
-            // The same scores as match_features (the same kernels).
-            assert!((g.score - w.2).abs() <= 1e-6, "case {ci}: {g:?} {w:?}");
-            // Refined points within 1e-3 px (f32 sums of up to 121 terms;
-            // the GPU may fuse multiply-adds), failures the same.
-            match (g.at, w.3) {
-                (Some(p), Some(q)) => {
-                    let d = (p[0] - q[0]).abs().max((p[1] - q[1]).abs());
-                    assert!(d <= 1e-3, "case {ci}: {p:?} vs {q:?}");
-                    refined += 1;
+        let want = host(&mut m, (a, ra.clone(), &pa), (b, rb.clone(), &pb), r);
+        let refined_before = refined;
+        // Both kernels: the refinement from workgroup memory (tiled, the
+        // GPUs' default) and sampling the images (the CPU adapters').
+        for tiled in [true, false] {
+            m.set_tiled(tiled);
+            let got = m
+                .match_resident(
+                    ga.image().unwrap(),
+                    ra.clone(),
+                    &pa,
+                    gb.image().unwrap(),
+                    rb.clone(),
+                    &pb,
+                    [0, 0],
+                    r,
+                )
+                .unwrap();
+            assert_eq!(got.len(), want.len(), "case {ci}: match counts");
+            for (g, w) in got.iter().zip(&want) {
+                assert_eq!((g.a, g.b), (w.0, w.1), "case {ci}, tiled {tiled}");
+                // The same scores as match_features (the same kernels).
+                assert!((g.score - w.2).abs() <= 1e-6, "case {ci}: {g:?} {w:?}");
+                // Refined points within 1e-3 px (f32 sums of up to 121 terms;
+                // the GPU may fuse multiply-adds), failures the same.
+                match (g.at, w.3) {
+                    (Some(p), Some(q)) => {
+                        let d = (p[0] - q[0]).abs().max((p[1] - q[1]).abs());
+                        assert!(d <= 1e-3, "case {ci}, tiled {tiled}: {p:?} vs {q:?}");
+                        refined += 1;
+                    }
+                    (None, None) => {}
+                    other => panic!("case {ci}, tiled {tiled}: refinement {other:?}"),
                 }
-                (None, None) => {}
-                other => panic!("case {ci}: refinement {other:?}"),
             }
         }
-        total += got.len();
+        // Every refining case refines some (each path of the kernels).
+        assert!(
+            r.is_none() || refined - refined_before >= 10,
+            "case {ci}: {} refined",
+            refined - refined_before
+        );
+        total += want.len();
     }
     assert!(
         total > 60 && refined > 20,

@@ -311,6 +311,11 @@ wgsl_struct! {
     }
 }
 
+/// The largest refinement window (odd, in pixels a side) whose samples
+/// `mutual_refine` holds in workgroup memory; wider ones run
+/// `mutual_refine_wide`, which samples the images for every score.
+pub const REFINE_LOCAL_WINDOW: u32 = 21;
+
 /// Tile edge (and workgroup size) of the score kernels; descriptor rows are
 /// padded with zeros to a multiple of it.
 pub const NCC_TILE: u32 = 16;

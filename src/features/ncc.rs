@@ -2,7 +2,9 @@
 //! [`super::ncc_match_cpu`]. See the module docs of [`super`].
 
 use super::FeatureError;
-use super::gpu_data::{Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, pack_with_holes};
+use super::gpu_data::{
+    Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, REFINE_LOCAL_WINDOW, pack_with_holes,
+};
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::resident::{Refinement, ResidentImage, ResidentMatch};
@@ -173,6 +175,11 @@ pub struct NccMatcher {
     best: GrowBuffer,
     matched: GrowBuffer,
     mutual_refine: wgpu::ComputePipeline,
+    /// `mutual_refine` for refinement windows over
+    /// [`REFINE_LOCAL_WINDOW`] (every score sampled from the images).
+    mutual_refine_wide: wgpu::ComputePipeline,
+    /// Whether the last prepared refinement needs `mutual_refine_wide`.
+    refine_wide: bool,
     bind: Option<wgpu::BindGroup>,
     /// The gate ([`NccMatcher::match_resident_exported_b`]): its layout,
     /// pipeline, count and last bind group (with the buffers it binds).
@@ -187,7 +194,7 @@ pub struct NccMatcher {
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
-const ENTRIES: [&str; 8] = [
+const ENTRIES: [&str; 9] = [
     "vectorize",
     "score_tiled",
     "row_best",
@@ -196,6 +203,7 @@ const ENTRIES: [&str; 8] = [
     "row_best_direct",
     "col_best_direct",
     "mutual_refine",
+    "mutual_refine_wide",
 ];
 
 impl NccMatcher {
@@ -208,10 +216,11 @@ impl NccMatcher {
         entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
         let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
-        let mutual_refine = passes.pop().expect("eight pipelines");
-        let col_best_direct = passes.pop().expect("eight pipelines");
-        let row_best_direct = passes.pop().expect("eight pipelines");
-        let score_direct = passes.pop().expect("eight pipelines");
+        let mutual_refine_wide = passes.pop().expect("nine pipelines");
+        let mutual_refine = passes.pop().expect("nine pipelines");
+        let col_best_direct = passes.pop().expect("nine pipelines");
+        let row_best_direct = passes.pop().expect("nine pipelines");
+        let score_direct = passes.pop().expect("nine pipelines");
         let gate_entries = [
             compute_entry(20, storage(true)),
             compute_entry(21, wgpu::BufferBindingType::Uniform),
@@ -244,6 +253,8 @@ impl NccMatcher {
             best: GrowBuffer::new("ncc best", STORAGE_OUT),
             matched: GrowBuffer::new("ncc matched", STORAGE_OUT),
             mutual_refine,
+            mutual_refine_wide,
+            refine_wide: false,
             bind: None,
             gate_layout,
             gate,
@@ -278,11 +289,14 @@ impl NccMatcher {
         self.host
     }
 
-    /// Chooses the kernels: the score tiled in workgroup memory and a
-    /// workgroup's reduction per row and column of bests (the default on
-    /// GPUs), or one thread per score and per row or column (the default on
-    /// CPU adapters, where workgroup barriers are slow). Both give the same
-    /// scores and bests.
+    /// Chooses the kernels: the score tiled in workgroup memory, a
+    /// workgroup's reduction per row and column of bests and the
+    /// refinement's samples in workgroup memory (the default on GPUs), or
+    /// one thread per score and per row or column and the refinement
+    /// sampling the images for every score (the default on CPU adapters,
+    /// where workgroup barriers are slow: lavapipe's KF refinement took
+    /// 16-19 ms more a frame of the real cube tiled). Both give the same
+    /// scores, bests and refined points.
     pub fn set_tiled(&mut self, tiled: bool) {
         self.tiled = tiled;
     }
@@ -727,6 +741,7 @@ impl NccMatcher {
             ];
             self.bind = Some(ctx.bind_buffers("ncc", &self.layout, &bufs)?);
         }
+        self.refine_wide = refine.is_some_and(|r| 2 * (r.window / 2) + 1 > REFINE_LOCAL_WINDOW);
         let c = &self.config;
         let r = refine.unwrap_or(Refinement {
             window: 1,
@@ -794,7 +809,11 @@ impl NccMatcher {
         if mutual {
             let mut pass = compute_pass(enc, "mutual_refine", self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
-            pass.set_pipeline(&self.mutual_refine);
+            pass.set_pipeline(if self.refine_wide || !self.tiled {
+                &self.mutual_refine_wide
+            } else {
+                &self.mutual_refine
+            });
             // One workgroup per feature of A.
             pass.dispatch_workgroups(na as u32, 1, 1);
         }
