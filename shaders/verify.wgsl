@@ -101,78 +101,112 @@ fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
     return false;
 }
 
+// A pixel's share of the sums (CHECK_SUMS of them, in the order above).
+struct Sums {
+    covered_px: f32,
+    n: f32,
+    sa: f32,
+    sb: f32,
+    saa: f32,
+    sbb: f32,
+    sab: f32,
+    contour: f32,
+    hits: f32,
+    texture_px: f32,
+    lap2: f32,
+}
+
+fn no_sums() -> Sums {
+    return Sums(0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+}
+
+fn plus(a: Sums, b: Sums) -> Sums {
+    return Sums(
+        a.covered_px + b.covered_px,
+        a.n + b.n,
+        a.sa + b.sa,
+        a.sb + b.sb,
+        a.saa + b.saa,
+        a.sbb + b.sbb,
+        a.sab + b.sab,
+        a.contour + b.contour,
+        a.hits + b.hits,
+        a.texture_px + b.texture_px,
+        a.lap2 + b.lap2,
+    );
+}
+
+// Adds pixel (x, y)'s share into `s` (`verify::score`'s rules).
+fn add_pixel(x: u32, y: u32, s: ptr<function, Sums>) {
+    let w = params.width;
+    let h = params.height;
+    let d = max(params.texture_step, 1u);
+    if !covered(x, y) {
+        return;
+    }
+    (*s).covered_px += 1.0;
+    if x == 0u || y == 0u || x + 1u >= w || y + 1u >= h {
+        return;
+    }
+    let four = covered(x - 1u, y) && covered(x + 1u, y) && covered(x, y - 1u)
+        && covered(x, y + 1u);
+    if four {
+        let i = y * w + x;
+        let a = view_grey(i) - params.centre;
+        let b = frame[i] - params.centre;
+        (*s).n += 1.0;
+        (*s).sa += a;
+        (*s).sb += b;
+        (*s).saa += a * a;
+        (*s).sbb += b * b;
+        (*s).sab += a * b;
+        if x >= d && y >= d && x + d < w && y + d < h && covered(x - d, y)
+            && covered(x + d, y) && covered(x, y - d) && covered(x, y + d) {
+            let lap = 4.0 * view_grey(i) - (view_grey(i - d) + view_grey(i + d)
+                + view_grey(i - d * w) + view_grey(i + d * w));
+            (*s).texture_px += 1.0;
+            (*s).lap2 += lap * lap;
+        }
+        return;
+    }
+    let m = mask_sobel(x, y);
+    let norm = length(m);
+    if norm < 1e-9 {
+        return;
+    }
+    (*s).contour += 1.0;
+    (*s).hits += select(0.0, 1.0, supported(x, y, m / norm));
+}
+
+fn write_partial(o: u32, s: Sums) {
+    partial[o] = s.covered_px;
+    partial[o + 1u] = s.n;
+    partial[o + 2u] = s.sa;
+    partial[o + 3u] = s.sb;
+    partial[o + 4u] = s.saa;
+    partial[o + 5u] = s.sbb;
+    partial[o + 6u] = s.sab;
+    partial[o + 7u] = s.contour;
+    partial[o + 8u] = s.hits;
+    partial[o + 9u] = s.texture_px;
+    partial[o + 10u] = s.lap2;
+}
+
 // One thread per row: scalar sums and no barrier (barriers and arrays
-// indexed at run time are slow on CPU adapters; a window has hundreds of
-// rows, enough threads for a GPU too).
+// indexed at run time are slow on CPU adapters). The CPU adapters'
+// kernel: on the H200 a thread a row took 0.27 ms of the real cube's
+// frame (a few hundred threads each walking a whole row), see rows_tiled.
 @compute @workgroup_size(CHECK_WORKGROUP)
 fn rows(@builtin(global_invocation_id) id: vec3<u32>) {
     let y = id.x;
-    let w = params.width;
-    let h = params.height;
-    if y >= h {
+    if y >= params.height {
         return;
     }
-    var covered_px = 0.0;
-    var n = 0.0;
-    var sa = 0.0;
-    var sb = 0.0;
-    var saa = 0.0;
-    var sbb = 0.0;
-    var sab = 0.0;
-    var contour = 0.0;
-    var hits = 0.0;
-    var texture_px = 0.0;
-    var lap2 = 0.0;
-    let d = max(params.texture_step, 1u);
-    for (var x = 0u; x < w; x++) {
-        if !covered(x, y) {
-            continue;
-        }
-        covered_px += 1.0;
-        if x == 0u || y == 0u || x + 1u >= w || y + 1u >= h {
-            continue;
-        }
-        let four = covered(x - 1u, y) && covered(x + 1u, y) && covered(x, y - 1u)
-            && covered(x, y + 1u);
-        if four {
-            let i = y * w + x;
-            let a = view_grey(i) - params.centre;
-            let b = frame[i] - params.centre;
-            n += 1.0;
-            sa += a;
-            sb += b;
-            saa += a * a;
-            sbb += b * b;
-            sab += a * b;
-            if x >= d && y >= d && x + d < w && y + d < h && covered(x - d, y)
-                && covered(x + d, y) && covered(x, y - d) && covered(x, y + d) {
-                let lap = 4.0 * view_grey(i) - (view_grey(i - d) + view_grey(i + d)
-                    + view_grey(i - d * w) + view_grey(i + d * w));
-                texture_px += 1.0;
-                lap2 += lap * lap;
-            }
-            continue;
-        }
-        let m = mask_sobel(x, y);
-        let norm = length(m);
-        if norm < 1e-9 {
-            continue;
-        }
-        contour += 1.0;
-        hits += select(0.0, 1.0, supported(x, y, m / norm));
+    var s = no_sums();
+    for (var x = 0u; x < params.width; x++) {
+        add_pixel(x, y, &s);
     }
-    let o = y * CHECK_SUMS;
-    partial[o] = covered_px;
-    partial[o + 1u] = n;
-    partial[o + 2u] = sa;
-    partial[o + 3u] = sb;
-    partial[o + 4u] = saa;
-    partial[o + 5u] = sbb;
-    partial[o + 6u] = sab;
-    partial[o + 7u] = contour;
-    partial[o + 8u] = hits;
-    partial[o + 9u] = texture_px;
-    partial[o + 10u] = lap2;
+    write_partial(y * CHECK_SUMS, s);
 }
 
 // One thread per sum, over the rows.
@@ -183,4 +217,55 @@ fn sum_rows(@builtin(local_invocation_index) k: u32) {
         s += partial[y * CHECK_SUMS + k];
     }
     total[k] = s;
+}
+
+// The GPUs' twins of rows and sum_rows: a workgroup a row, its threads
+// taking every CHECK_WORKGROUP-th pixel (neighbours load neighbours),
+// their sums added pairwise in workgroup memory; then a workgroup a sum,
+// likewise over the rows. Another order of the f32 additions than the
+// one-thread-a-row passes (both within the test's tolerance of the CPU
+// reference, which sums in f64); the counts are exact in both.
+var<workgroup> wg_sums: array<Sums, CHECK_WORKGROUP>;
+var<workgroup> wg_one: array<f32, CHECK_WORKGROUP>;
+
+@compute @workgroup_size(CHECK_WORKGROUP)
+fn rows_tiled(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+    let y = wid.x;
+    var s = no_sums();
+    if y < params.height {
+        for (var x = t; x < params.width; x += CHECK_WORKGROUP) {
+            add_pixel(x, y, &s);
+        }
+    }
+    wg_sums[t] = s;
+    workgroupBarrier();
+    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
+        if t < half {
+            wg_sums[t] = plus(wg_sums[t], wg_sums[t + half]);
+        }
+        workgroupBarrier();
+    }
+    if t == 0u && y < params.height {
+        write_partial(y * CHECK_SUMS, wg_sums[0]);
+    }
+}
+
+@compute @workgroup_size(CHECK_WORKGROUP)
+fn sum_rows_tiled(@builtin(local_invocation_index) t: u32, @builtin(workgroup_id) wid: vec3<u32>) {
+    let k = wid.x;
+    var s = 0.0;
+    for (var y = t; y < params.height; y += CHECK_WORKGROUP) {
+        s += partial[y * CHECK_SUMS + k];
+    }
+    wg_one[t] = s;
+    workgroupBarrier();
+    for (var half = CHECK_WORKGROUP / 2u; half > 0u; half /= 2u) {
+        if t < half {
+            wg_one[t] = wg_one[t] + wg_one[t + half];
+        }
+        workgroupBarrier();
+    }
+    if t == 0u {
+        total[k] = wg_one[0];
+    }
 }

@@ -66,7 +66,10 @@ fn gpu_scores_are_the_cpu_reference_on_random_views() {
     // count differently; measured: identical on these cases).
     let mut check = GpuCheck::new(shared_test_context()).unwrap();
     let mut rng = Rng::new(13);
-    for case in 0..12 {
+    for case in 0..24 {
+        // Both kernels (a workgroup a row, the GPUs' default, and a
+        // thread a row, the CPU adapters'), each on its own cases.
+        check.set_tiled(case % 2 == 0);
         let (w, h) = (24 + rng.below(200) as usize, 16 + rng.below(150) as usize);
         let cfg = VerifyConfig {
             edge_search_px: rng.below(4) as usize,
@@ -74,7 +77,7 @@ fn gpu_scores_are_the_cpu_reference_on_random_views() {
             ..Default::default()
         };
         let (frame, weight, colour) = random_case(&mut rng, w, h);
-        let step = 1 + case % 6;
+        let step = 1 + (case / 2) % 6;
         let want = cpu(&frame, &weight, &colour, step, &cfg);
         let got = check
             .score_host(&frame, &weight, Some(&colour), 0.9, step, &cfg)

@@ -44,6 +44,10 @@ pub struct GpuCheck {
     layout: wgpu::BindGroupLayout,
     rows: wgpu::ComputePipeline,
     sum_rows: wgpu::ComputePipeline,
+    rows_tiled: wgpu::ComputePipeline,
+    sum_rows_tiled: wgpu::ComputePipeline,
+    /// A workgroup a row and a sum ([`GpuCheck::set_tiled`]).
+    tiled: bool,
     params: wgpu::Buffer,
     weight: GrowBuffer,
     colour: GrowBuffer,
@@ -64,15 +68,22 @@ impl GpuCheck {
         entries.extend((1..4).map(|b| compute_entry(b, storage(true))));
         entries.extend((4..6).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("verify", &entries);
-        let [rows, sum_rows]: [wgpu::ComputePipeline; 2] = ctx
-            .compute_pipelines("verify", &layout, &["rows", "sum_rows"])?
+        let [rows, sum_rows, rows_tiled, sum_rows_tiled]: [wgpu::ComputePipeline; 4] = ctx
+            .compute_pipelines(
+                "verify",
+                &layout,
+                &["rows", "sum_rows", "rows_tiled", "sum_rows_tiled"],
+            )?
             .try_into()
-            .expect("two pipelines");
+            .expect("four pipelines");
         Ok(Self {
             ctx: ctx.clone(),
             layout,
             rows,
             sum_rows,
+            rows_tiled,
+            sum_rows_tiled,
+            tiled: !ctx.is_cpu(),
             params: ctx.buffer(
                 "verify params",
                 std::mem::size_of::<CheckParams>() as u64,
@@ -88,6 +99,18 @@ impl GpuCheck {
             last_timings: Default::default(),
             resident: !ctx.is_cpu(),
         })
+    }
+
+    /// Chooses the kernels: a workgroup a row (its threads taking every
+    /// [`CHECK_WORKGROUP`]-th pixel, their sums added pairwise in
+    /// workgroup memory) and a workgroup a sum over the rows (the default
+    /// on GPUs: a thread a row took 0.27 ms of the real cube's frame on
+    /// the H200), or a thread a row and a thread a sum, with no barrier
+    /// (the default on CPU adapters). The counts are the same; the sums
+    /// are added in another order (both within tests/verify_gpu.rs's
+    /// tolerances of the CPU reference).
+    pub fn set_tiled(&mut self, tiled: bool) {
+        self.tiled = tiled;
     }
 
     /// Whether the tracker scores its check here (the default on GPUs) or
@@ -118,7 +141,8 @@ impl GpuCheck {
     /// Whether a `width x height` window can be scored here: the counts
     /// are f32 sums, exact below 2^24 pixels.
     pub fn fits(&self, width: u32, height: u32) -> bool {
-        (width as u64 * height as u64) < (1 << 24) && width >= 1 && height >= 1
+        // (A workgroup a row: at most 65535 of them in a dispatch.)
+        (width as u64 * height as u64) < (1 << 24) && width >= 1 && (1..=65535).contains(&height)
     }
 
     /// The buffers the splatter resolves the view's weight (1 float per
@@ -225,15 +249,25 @@ impl GpuCheck {
         let mut enc = ctx.encoder();
         {
             let mut pass = compute_pass(&mut enc, "rows", self.timer.as_mut());
-            pass.set_pipeline(&self.rows);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(h.div_ceil(CHECK_WORKGROUP), 1, 1);
+            if self.tiled {
+                pass.set_pipeline(&self.rows_tiled);
+                pass.dispatch_workgroups(h, 1, 1);
+            } else {
+                pass.set_pipeline(&self.rows);
+                pass.dispatch_workgroups(h.div_ceil(CHECK_WORKGROUP), 1, 1);
+            }
         }
         {
             let mut pass = compute_pass(&mut enc, "sum", self.timer.as_mut());
-            pass.set_pipeline(&self.sum_rows);
             pass.set_bind_group(0, bind, &[]);
-            pass.dispatch_workgroups(1, 1, 1);
+            if self.tiled {
+                pass.set_pipeline(&self.sum_rows_tiled);
+                pass.dispatch_workgroups(CHECK_SUMS, 1, 1);
+            } else {
+                pass.set_pipeline(&self.sum_rows);
+                pass.dispatch_workgroups(1, 1, 1);
+            }
         }
         if let Some(t) = &self.timer {
             t.resolve(&mut enc);
