@@ -93,6 +93,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
         ("NO_INDEX", U32(f::NO_INDEX)),
         ("NCC_TILE", U32(f::NCC_TILE)),
         ("REFINE_LOCAL_WINDOW", U32(f::REFINE_LOCAL_WINDOW)),
+        ("REFINE_GROUP_RADIUS", U32(f::REFINE_GROUP_RADIUS)),
         ("GATHER_STRIDE", U32(s::GATHER_STRIDE as u32)),
         ("RESOLVE_WORKGROUP", U32(s::RESOLVE_WORKGROUP)),
         ("RESOLVE_COLOR", U32(s::RESOLVE_COLOR)),

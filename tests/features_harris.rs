@@ -4,8 +4,8 @@
 
 use splattrack::features::patterns::{self, Square};
 use splattrack::features::{
-    Corner, FeatureError, GreyImage, Harris, HarrisConfig, SELECT_MAX, SELECT_MAX_CPU, harris_cpu,
-    harris_host, harris_response_cpu, harris_response_host,
+    Corner, FeatureError, GreyImage, Harris, HarrisConfig, REFINE_GROUP_RADIUS, SELECT_MAX,
+    SELECT_MAX_CPU, harris_cpu, harris_host, harris_response_cpu, harris_response_host,
 };
 use splattrack::gpu::{self, GpuContext};
 
@@ -249,6 +249,12 @@ fn tiled_and_direct_selections_give_the_references_corners() {
             .with_refine(false)
             .with_grid_cell(13)
             .with_max_corners(77),
+        // A refinement window wider than select_refine_group holds: a
+        // thread a corner even where tiled.
+        HarrisConfig {
+            refine_radius: REFINE_GROUP_RADIUS + 2,
+            ..HarrisConfig::default()
+        },
     ];
     for (ci, cfg) in configs.iter().enumerate() {
         for tiled in [true, false] {

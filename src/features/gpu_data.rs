@@ -311,6 +311,11 @@ wgsl_struct! {
     }
 }
 
+/// The largest Harris refinement radius `select_refine_group` (a
+/// workgroup a corner) holds a window's terms of in workgroup memory; with
+/// a larger one the corners are refined a thread each (`select_refine`).
+pub const REFINE_GROUP_RADIUS: u32 = 10;
+
 /// The largest refinement window (odd, in pixels a side) whose samples
 /// `mutual_refine` holds in workgroup memory; wider ones run
 /// `mutual_refine_wide`, which samples the images for every score.

@@ -6,7 +6,8 @@ use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, sel
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
     Candidate, Counters, ExportParams, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS,
-    MERGE_ROUNDS, RefineCorner, SELECT_MAX, SELECT_MAX_CPU, pack_with_holes_into,
+    MERGE_ROUNDS, REFINE_GROUP_RADIUS, RefineCorner, SELECT_MAX, SELECT_MAX_CPU,
+    pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
@@ -173,11 +174,13 @@ enum Size {
     Selected,
     /// As `Selected`, [`MERGE_ROUNDS`] times.
     Rounds,
+    /// A workgroup a selected corner (indirect, at byte 32).
+    SelectedGroups,
 }
 
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
 /// in order, and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 12] = [
+const SELECT_ENTRIES: [(&str, Size); 13] = [
     ("select_sizes", Size::One),
     ("select_rank", Size::Candidates),
     ("select_place", Size::Candidates),
@@ -192,12 +195,17 @@ const SELECT_ENTRIES: [(&str, Size); 12] = [
     ("select_place_direct", Size::Candidates),
     ("merge_order_direct", Size::Selected),
     ("merge_links_direct", Size::Selected),
+    // A workgroup a corner, in place of entry 3 where tiled and the
+    // refinement's window fits ([`REFINE_GROUP_RADIUS`]).
+    ("select_refine_group", Size::SelectedGroups),
 ];
 
 /// The entry run for `e` of [`SELECT_PASSES`]: the direct twin of a tiled
-/// O(n^2) pass unless `tiled`.
-fn select_entry(e: usize, tiled: bool) -> usize {
+/// O(n^2) pass unless `tiled`; where tiled, the refinement a workgroup a
+/// corner when its radius (`refine_radius`) fits.
+fn select_entry(e: usize, tiled: bool, refine_radius: u32) -> usize {
     match (e, tiled) {
+        (3, true) if refine_radius <= REFINE_GROUP_RADIUS => 12,
         (1, false) => 8,
         (2, false) => 9,
         (4, false) => 10,
@@ -462,7 +470,7 @@ impl Harris {
             .ensure(ctx, (1 + MERGE_LINKS as u64) * max * 4);
         select_changed |= self.select_state.ensure(ctx, max * 4);
         select_changed |= self.ordered.ensure(ctx, max * 16);
-        select_changed |= self.select_args.ensure(ctx, 32);
+        select_changed |= self.select_args.ensure(ctx, 48);
         if select_changed || self.select_bind.is_none() {
             let bufs = [
                 (0, &self.params),
@@ -608,7 +616,7 @@ impl Harris {
         for (label, entries) in SELECT_PASSES {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             for &e in entries {
-                let e = select_entry(e, self.tiled_select);
+                let e = select_entry(e, self.tiled_select, self.config.refine_radius);
                 let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
                 pass.set_bind_group(0, if size == Size::One { sizes } else { bind }, &[]);
@@ -616,6 +624,7 @@ impl Harris {
                     Size::One => pass.dispatch_workgroups(1, 1, 1),
                     Size::Candidates => pass.dispatch_workgroups_indirect(args, 0),
                     Size::Selected => pass.dispatch_workgroups_indirect(args, 16),
+                    Size::SelectedGroups => pass.dispatch_workgroups_indirect(args, 32),
                     Size::Rounds => {
                         for _ in 0..self.merge_rounds {
                             pass.dispatch_workgroups_indirect(args, 16);
