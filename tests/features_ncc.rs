@@ -5,7 +5,7 @@
 use splattrack::features::patterns::{self, Warp};
 use splattrack::features::{
     Corner, FeatureError, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher,
-    harris_cpu, ncc_match_cpu,
+    VECTORIZE_GROUP_WINDOW, harris_cpu, ncc_match_cpu,
 };
 use splattrack::rng::Rng;
 
@@ -43,10 +43,14 @@ fn gpu_matches_equal_cpu_on_random_images_and_features() {
             .with_search_radius(Some(12.0))
             .with_min_score(0.5),
         NccConfig::default().with_window(11).with_min_score(0.3),
+        // Wider than vectorize_group holds: a thread a window, tiled too.
+        NccConfig::default()
+            .with_window(VECTORIZE_GROUP_WINDOW + 2)
+            .with_min_score(0.3),
     ];
     for (ci, cfg) in configs.iter().enumerate() {
         let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
-        // Both score kernels, whatever the adapter's default.
+        // Both kernels, whatever the adapter's default.
         for ((name, ia, ib), tiled) in [("noise/warped", &a, &b), ("noise/polygons", &a, &c)]
             .into_iter()
             .flat_map(|case| [(case, true), (case, false)])

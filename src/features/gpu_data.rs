@@ -321,6 +321,11 @@ pub const REFINE_GROUP_RADIUS: u32 = 10;
 /// `mutual_refine_wide`, which samples the images for every score.
 pub const REFINE_LOCAL_WINDOW: u32 = 21;
 
+/// The largest NCC window (pixels a side) whose samples `vectorize_group`
+/// (a workgroup a window) holds in workgroup memory; wider ones run
+/// `vectorize`, a thread a window.
+pub const VECTORIZE_GROUP_WINDOW: u32 = 31;
+
 /// Tile edge (and workgroup size) of the score kernels; descriptor rows are
 /// padded with zeros to a multiple of it.
 pub const NCC_TILE: u32 = 16;

@@ -56,7 +56,9 @@ pub mod patterns;
 pub mod refine;
 pub mod resident;
 
-pub use gpu_data::{INVALID_RESPONSE, REFINE_GROUP_RADIUS, SELECT_MAX, SELECT_MAX_CPU};
+pub use gpu_data::{
+    INVALID_RESPONSE, REFINE_GROUP_RADIUS, SELECT_MAX, SELECT_MAX_CPU, VECTORIZE_GROUP_WINDOW,
+};
 pub use harris::{
     Corner, Detected, ExportPlace, Harris, HarrisConfig, PendingCorners, harris_cpu, harris_host,
     harris_response_cpu, harris_response_host,

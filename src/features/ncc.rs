@@ -3,7 +3,8 @@
 
 use super::FeatureError;
 use super::gpu_data::{
-    Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, REFINE_LOCAL_WINDOW, pack_with_holes,
+    Best, MatchOut, NCC_TILE, NO_INDEX, NccParams, Pixel, REFINE_LOCAL_WINDOW,
+    VECTORIZE_GROUP_WINDOW, pack_with_holes,
 };
 use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
@@ -180,6 +181,9 @@ pub struct NccMatcher {
     mutual_refine_wide: wgpu::ComputePipeline,
     /// Whether the last prepared refinement needs `mutual_refine_wide`.
     refine_wide: bool,
+    /// `vectorize` a workgroup a window (where tiled and the window is at
+    /// most [`VECTORIZE_GROUP_WINDOW`]).
+    vectorize_group: wgpu::ComputePipeline,
     bind: Option<wgpu::BindGroup>,
     /// The gate ([`NccMatcher::match_resident_exported_b`]): its layout,
     /// pipeline, count and last bind group (with the buffers it binds).
@@ -194,7 +198,7 @@ pub struct NccMatcher {
 }
 
 const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
-const ENTRIES: [&str; 9] = [
+const ENTRIES: [&str; 10] = [
     "vectorize",
     "score_tiled",
     "row_best",
@@ -204,6 +208,7 @@ const ENTRIES: [&str; 9] = [
     "col_best_direct",
     "mutual_refine",
     "mutual_refine_wide",
+    "vectorize_group",
 ];
 
 impl NccMatcher {
@@ -216,11 +221,12 @@ impl NccMatcher {
         entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
         let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
-        let mutual_refine_wide = passes.pop().expect("nine pipelines");
-        let mutual_refine = passes.pop().expect("nine pipelines");
-        let col_best_direct = passes.pop().expect("nine pipelines");
-        let row_best_direct = passes.pop().expect("nine pipelines");
-        let score_direct = passes.pop().expect("nine pipelines");
+        let vectorize_group = passes.pop().expect("ten pipelines");
+        let mutual_refine_wide = passes.pop().expect("ten pipelines");
+        let mutual_refine = passes.pop().expect("ten pipelines");
+        let col_best_direct = passes.pop().expect("ten pipelines");
+        let row_best_direct = passes.pop().expect("ten pipelines");
+        let score_direct = passes.pop().expect("ten pipelines");
         let gate_entries = [
             compute_entry(20, storage(true)),
             compute_entry(21, wgpu::BufferBindingType::Uniform),
@@ -255,6 +261,7 @@ impl NccMatcher {
             mutual_refine,
             mutual_refine_wide,
             refine_wide: false,
+            vectorize_group,
             bind: None,
             gate_layout,
             gate,
@@ -289,14 +296,15 @@ impl NccMatcher {
         self.host
     }
 
-    /// Chooses the kernels: the score tiled in workgroup memory, a
-    /// workgroup's reduction per row and column of bests and the
-    /// refinement's samples in workgroup memory (the default on GPUs), or
-    /// one thread per score and per row or column and the refinement
-    /// sampling the images for every score (the default on CPU adapters,
+    /// Chooses the kernels: a workgroup a window's descriptor, the score
+    /// tiled in workgroup memory, a workgroup's reduction per row and
+    /// column of bests and the refinement's samples in workgroup memory
+    /// (the default on GPUs), or a thread a window, one thread per score
+    /// and per row or column and the refinement sampling the images for
+    /// every score (the default on CPU adapters,
     /// where workgroup barriers are slow: lavapipe's KF refinement took
     /// 16-19 ms more a frame of the real cube tiled). Both give the same
-    /// scores, bests and refined points.
+    /// descriptors, scores, bests and refined points.
     pub fn set_tiled(&mut self, tiled: bool) {
         self.tiled = tiled;
     }
@@ -791,7 +799,11 @@ impl NccMatcher {
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
-            if label == "score" && !self.tiled {
+            if label == "vectorize" && self.tiled && self.config.window <= VECTORIZE_GROUP_WINDOW {
+                pass.set_pipeline(&self.vectorize_group);
+                // A workgroup a window (they stride over any beyond).
+                pass.dispatch_workgroups(((na + nb) as u32).clamp(1, 65535), 1, 1);
+            } else if label == "score" && !self.tiled {
                 pass.set_pipeline(&self.score_direct);
                 // Four columns per thread.
                 pass.dispatch_workgroups(workgroups(nb as u32, 4 * NCC_TILE), gy, 1);
