@@ -581,6 +581,14 @@ fn select_sizes() {
     select_args[8] = min(slot_count(), 65535u);
     select_args[9] = 1u;
     select_args[10] = 1u;
+    // The split counts (select_rank, select_place, merge_order): items by
+    // chunks of others.
+    select_args[12] = groups;
+    select_args[13] = chunks(select_count());
+    select_args[14] = 1u;
+    select_args[16] = slot_groups;
+    select_args[17] = chunks(slot_count());
+    select_args[18] = 1u;
 }
 
 // Whether candidate a comes before b by score (higher first; responses
@@ -664,8 +672,36 @@ fn load_corner_tile(lid: u32, t0: u32, n: u32, merged: bool) {
     workgroupBarrier();
 }
 
-// Each candidate's rank within its grid cell (1: the cell's best), into
-// select_index[i]; 0 for all without a grid.
+// The tiled O(n^2) counts split over the others too (GPUs): a workgroup
+// (wid.x) takes WORKGROUP_1D items against one chunk (wid.y) of
+// SELECT_CHUNK others, in tiles as above, and adds its count to the item's
+// in select_state (zeroed before: select_clear; the counts are integers,
+// so the sums are the one-pass counts whatever the order). Then a thread
+// an item turns the count into its rank or place (`*_finish`). A
+// workgroup comparing its items with every candidate walked thousands of
+// them through two barriers a tile: 0.94 ms for a whole 640x480 image's
+// selection on the H200 (BENCHMARKS.md "NVIDIA H200").
+const SELECT_CHUNK: u32 = 16u * WORKGROUP_1D;
+
+// The chunks of `n` others: the y size of the split dispatches.
+fn chunks(n: u32) -> u32 {
+    return max((n + SELECT_CHUNK - 1u) / SELECT_CHUNK, 1u);
+}
+
+// select_state zeroed over the candidates, for the split counts.
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_clear(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    for (var i = id.x; i < n; i += groups.x * WORKGROUP_1D) {
+        atomicStore(&select_state[i], 0u);
+    }
+}
+
+// How many of the chunk `wid_y`'s candidates come before each item in its
+// grid cell (the rank less one), added into select_state.
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_rank(
     @builtin(local_invocation_index) lid: u32,
@@ -673,38 +709,51 @@ fn select_rank(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let n = uniform_count(lid, select_count());
+    if (params.grid_cell == 0u) {
+        return;
+    }
+    let c0 = wid.y * SELECT_CHUNK;
+    let c1 = min(c0 + SELECT_CHUNK, n);
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let i = base + lid;
-        if (params.grid_cell == 0u) {
-            if (i < n) {
-                select_index[i] = 0u;
-            }
-            continue;
-        }
         var c = Candidate(0u, 0u, 0.0, 0u);
         if (i < n) {
             c = candidates[i];
         }
         let cell = cell_of(c);
-        var rank = 1u;
-        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+        var count = 0u;
+        for (var t0 = c0; t0 < c1; t0 += WORKGROUP_1D) {
             load_candidate_tile(lid, t0, n, false);
-            let m = min(WORKGROUP_1D, n - t0);
+            let m = min(WORKGROUP_1D, c1 - t0);
             for (var k = 0u; k < m; k++) {
                 if (sel_key[k] == cell && score_before(sel_tile[k], c)) {
-                    rank++;
+                    count++;
                 }
             }
         }
-        if (i < n) {
-            select_index[i] = rank;
+        if (i < n && count > 0u) {
+            atomicAdd(&select_state[i], count);
         }
     }
 }
 
-// Each candidate's place in the order by rank, then by score: the first
-// max_corners places name their candidate in select_index[SELECT_MAX + p].
+// Each candidate's rank within its grid cell (1: the cell's best), into
+// select_index[i]; 0 for all without a grid. select_state zeroed again.
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_rank_finish(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    for (var i = id.x; i < n; i += groups.x * WORKGROUP_1D) {
+        let count = atomicExchange(&select_state[i], 0u);
+        select_index[i] = select(0u, 1u + count, params.grid_cell > 0u);
+    }
+}
+
+// How many of the chunk's candidates come before each item in the order
+// by rank, then by score, added into select_state.
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_place(
     @builtin(local_invocation_index) lid: u32,
@@ -712,6 +761,8 @@ fn select_place(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let n = uniform_count(lid, select_count());
+    let c0 = wid.y * SELECT_CHUNK;
+    let c1 = min(c0 + SELECT_CHUNK, n);
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let i = base + lid;
@@ -721,20 +772,36 @@ fn select_place(
             c = candidates[i];
             rank = select_index[i];
         }
-        var place = 0u;
-        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+        var count = 0u;
+        for (var t0 = c0; t0 < c1; t0 += WORKGROUP_1D) {
             load_candidate_tile(lid, t0, n, true);
-            let m = min(WORKGROUP_1D, n - t0);
+            let m = min(WORKGROUP_1D, c1 - t0);
             for (var k = 0u; k < m; k++) {
                 let r = sel_key[k];
                 if (r < rank || (r == rank && score_before(sel_tile[k], c))) {
-                    place++;
+                    count++;
                 }
             }
         }
-        // Every thread has read this round's ranks before any place is
-        // written (the places live above SELECT_MAX, the ranks below).
-        if (i < n && place < params.max_corners) {
+        if (i < n && count > 0u) {
+            atomicAdd(&select_state[i], count);
+        }
+    }
+}
+
+// Each candidate's place in the order by rank, then by score: the first
+// max_corners places name their candidate in select_index[SELECT_MAX + p]
+// (the ranks below SELECT_MAX are not read again). select_state zeroed
+// again, for merge_order.
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_place_finish(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = select_count();
+    for (var i = id.x; i < n; i += groups.x * WORKGROUP_1D) {
+        let place = atomicExchange(&select_state[i], 0u);
+        if (place < params.max_corners) {
             select_index[SELECT_MAX + place] = i;
         }
     }
@@ -912,8 +979,9 @@ fn merge_before(a: RefineCorner, sa: u32, b: RefineCorner, sb: u32) -> bool {
     return sa < sb;
 }
 
-// The selected corners in the merge's order, into `ordered` (tiled as
-// select_rank).
+// How many of the chunk's selected corners come before each one in the
+// merge's order, added into select_state (split as select_rank; zeroed by
+// select_place_finish).
 @compute @workgroup_size(WORKGROUP_1D)
 fn merge_order(
     @builtin(local_invocation_index) lid: u32,
@@ -921,6 +989,8 @@ fn merge_order(
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
     let n = uniform_count(lid, slot_count());
+    let c0 = wid.y * SELECT_CHUNK;
+    let c1 = min(c0 + SELECT_CHUNK, n);
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let s = base + lid;
@@ -928,19 +998,32 @@ fn merge_order(
         if (s < n) {
             c = corners[s];
         }
-        var place = 0u;
-        for (var t0 = 0u; t0 < n; t0 += WORKGROUP_1D) {
+        var count = 0u;
+        for (var t0 = c0; t0 < c1; t0 += WORKGROUP_1D) {
             load_corner_tile(lid, t0, n, false);
-            let m = min(WORKGROUP_1D, n - t0);
+            let m = min(WORKGROUP_1D, c1 - t0);
             for (var k = 0u; k < m; k++) {
                 if (merge_before(mrg_tile[k], t0 + k, c, s)) {
-                    place++;
+                    count++;
                 }
             }
         }
-        if (s < n) {
-            ordered[place] = c;
+        if (s < n && count > 0u) {
+            atomicAdd(&select_state[s], count);
         }
+    }
+}
+
+// The selected corners in the merge's order, into `ordered`. (merge_links
+// then sets select_state over the slots.)
+@compute @workgroup_size(WORKGROUP_1D)
+fn merge_order_finish(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let n = slot_count();
+    for (var s = id.x; s < n; s += groups.x * WORKGROUP_1D) {
+        ordered[atomicLoad(&select_state[s])] = corners[s];
     }
 }
 

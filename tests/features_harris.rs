@@ -249,6 +249,11 @@ fn tiled_and_direct_selections_give_the_references_corners() {
             .with_refine(false)
             .with_grid_cell(13)
             .with_max_corners(77),
+        // More selected corners than a chunk of the split counts (the
+        // merge's order over several chunks).
+        HarrisConfig::default()
+            .with_grid_cell(0)
+            .with_max_corners(3000),
         // A refinement window wider than select_refine_group holds: a
         // thread a corner even where tiled.
         HarrisConfig {

@@ -176,50 +176,61 @@ enum Size {
     Rounds,
     /// A workgroup a selected corner (indirect, at byte 32).
     SelectedGroups,
+    /// Workgroups of candidates by chunks of others (indirect, at byte 48).
+    CandidatesSplit,
+    /// Workgroups of selected corners by chunks of others (indirect, at
+    /// byte 64).
+    SelectedSplit,
 }
 
-/// The selection's entry points (`shaders/harris.wgsl`, "The selection"),
-/// in order, and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 13] = [
+/// The selection's entry points (`shaders/harris.wgsl`, "The selection")
+/// and their sizes.
+const SELECT_ENTRIES: [(&str, Size); 17] = [
     ("select_sizes", Size::One),
-    ("select_rank", Size::Candidates),
-    ("select_place", Size::Candidates),
+    ("select_clear", Size::Candidates),
+    ("select_rank", Size::CandidatesSplit),
+    ("select_rank_finish", Size::Candidates),
+    ("select_place", Size::CandidatesSplit),
+    ("select_place_finish", Size::Candidates),
     ("select_refine", Size::Selected),
-    ("merge_order", Size::Selected),
+    ("select_refine_group", Size::SelectedGroups),
+    ("merge_order", Size::SelectedSplit),
+    ("merge_order_finish", Size::Selected),
     ("merge_links", Size::Selected),
     ("merge_round", Size::Rounds),
     ("merge_compact", Size::Selected),
-    // One thread an item without workgroup tiles, in place of entries
-    // 1, 2, 4 and 5 ([`Harris::set_tiled_selection`]).
+    // One thread an item, without workgroup tiles or splits.
     ("select_rank_direct", Size::Candidates),
     ("select_place_direct", Size::Candidates),
     ("merge_order_direct", Size::Selected),
     ("merge_links_direct", Size::Selected),
-    // A workgroup a corner, in place of entry 3 where tiled and the
-    // refinement's window fits ([`REFINE_GROUP_RADIUS`]).
-    ("select_refine_group", Size::SelectedGroups),
 ];
 
-/// The entry run for `e` of [`SELECT_PASSES`]: the direct twin of a tiled
-/// O(n^2) pass unless `tiled`; where tiled, the refinement a workgroup a
-/// corner when its radius (`refine_radius`) fits.
-fn select_entry(e: usize, tiled: bool, refine_radius: u32) -> usize {
-    match (e, tiled) {
-        (3, true) if refine_radius <= REFINE_GROUP_RADIUS => 12,
-        (1, false) => 8,
-        (2, false) => 9,
-        (4, false) => 10,
-        (5, false) => 11,
-        _ => e,
+/// The selection's timed passes (their labels) and the entries each runs,
+/// on GPUs (`tiled`): the O(n^2) counts tiled in workgroup memory and
+/// split over the others, the refinement a workgroup a corner (where its
+/// radius fits [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread
+/// an item ([`Harris::set_tiled_selection`]).
+fn select_passes(tiled: bool, refine_radius: u32) -> [(&'static str, Vec<usize>); 3] {
+    let refine = if tiled && refine_radius <= REFINE_GROUP_RADIUS {
+        7
+    } else {
+        6
+    };
+    if tiled {
+        [
+            ("select", vec![0, 1, 2, 3, 4, 5]),
+            ("refine", vec![refine]),
+            ("merge", vec![8, 9, 10, 11, 12]),
+        ]
+    } else {
+        [
+            ("select", vec![0, 13, 14]),
+            ("refine", vec![refine]),
+            ("merge", vec![15, 16, 11, 12]),
+        ]
     }
 }
-
-/// The selection's timed passes: their labels and the entries each runs.
-const SELECT_PASSES: [(&str, &[usize]); 3] = [
-    ("select", &[0, 1, 2]),
-    ("refine", &[3]),
-    ("merge", &[4, 5, 6, 7]),
-];
 
 impl Harris {
     pub fn new(ctx: &GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
@@ -374,7 +385,7 @@ impl Harris {
         // after the host selected the refinement, and the export.
         self.timer = Some(GpuTimer::new(
             &self.ctx,
-            (PASSES.len() + SELECT_PASSES.len()) as u32 + 4,
+            (PASSES.len() + select_passes(true, 0).len()) as u32 + 4,
         ));
     }
 
@@ -470,7 +481,7 @@ impl Harris {
             .ensure(ctx, (1 + MERGE_LINKS as u64) * max * 4);
         select_changed |= self.select_state.ensure(ctx, max * 4);
         select_changed |= self.ordered.ensure(ctx, max * 16);
-        select_changed |= self.select_args.ensure(ctx, 48);
+        select_changed |= self.select_args.ensure(ctx, 80);
         if select_changed || self.select_bind.is_none() {
             let bufs = [
                 (0, &self.params),
@@ -613,10 +624,9 @@ impl Harris {
         let bind = self.select_bind.as_ref().expect("prepared");
         let sizes = self.sizes_bind.as_ref().expect("prepared");
         let args = self.select_args.get();
-        for (label, entries) in SELECT_PASSES {
+        for (label, entries) in select_passes(self.tiled_select, self.config.refine_radius) {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
-            for &e in entries {
-                let e = select_entry(e, self.tiled_select, self.config.refine_radius);
+            for e in entries {
                 let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
                 pass.set_bind_group(0, if size == Size::One { sizes } else { bind }, &[]);
@@ -625,6 +635,8 @@ impl Harris {
                     Size::Candidates => pass.dispatch_workgroups_indirect(args, 0),
                     Size::Selected => pass.dispatch_workgroups_indirect(args, 16),
                     Size::SelectedGroups => pass.dispatch_workgroups_indirect(args, 32),
+                    Size::CandidatesSplit => pass.dispatch_workgroups_indirect(args, 48),
+                    Size::SelectedSplit => pass.dispatch_workgroups_indirect(args, 64),
                     Size::Rounds => {
                         for _ in 0..self.merge_rounds {
                             pass.dispatch_workgroups_indirect(args, 16);
