@@ -331,8 +331,9 @@ fn a_shared_store_is_used_in_place_and_tracks_the_same() {
 /// the first 8 frames in KF+IT (4 with texture and contour). The windows
 /// give the full image's pixels up to f32 rounding
 /// (tests/splat_window.rs), which may move a corner by a rounding or flip
-/// a match at its threshold: the poses agree within 0.05 degrees and 0.05%
-/// of the diameter, every status is the same. With the contour, within
+/// a match at its threshold: the poses agree as [`assert_same_poses`]
+/// says (frame 3's two poses 0.06 degrees apart: the H200 found the
+/// other one with its kernels), every status is the same. With the contour, within
 /// 0.15 degrees and 0.1%: a covered pixel at a splat's very edge may flip
 /// with the rounding, which moves a contour point within its cell, and
 /// the frames after follow from poses 1e-5 degrees apart (measured
@@ -364,16 +365,34 @@ fn windows_give_the_poses_of_the_whole_image() {
 
 /// Trackers of configurations `a(contour)` and `b(contour)` from the first
 /// frame's true pose, over the first `n[0]` frames without the contour and
-/// `n[1]` with it: `tracking` at every frame in both, the poses within 0.05
-/// degrees and 0.05% of the diameter (with the contour 0.15 and 0.1).
+/// `n[1]` with it: `tracking` at every frame in both, the poses within 0.1
+/// degrees and 0.05% of the diameter at every frame and 0.03 degrees on
+/// average without the contour (with it 0.15 degrees and 0.1%). (Frame 3
+/// of this sequence solves to one of two poses 0.06 degrees apart, 0.369
+/// and 0.394 degrees from the truth, as one match falls on either side of
+/// a threshold: which one depends on roundings that differ between the
+/// configurations compared here, between adapters and between kernels of
+/// the same arithmetic compiled differently; the frames after it come back
+/// within 0.01 degrees.)
 fn assert_same_poses(
     a: impl Fn(bool) -> TrackerConfig,
     b: impl Fn(bool) -> TrackerConfig,
     n: [usize; 2],
 ) {
+    assert_same_poses_set(a, b, n, |_, _| {});
+}
+
+/// [`assert_same_poses`] with `set(tracker, is_b)` applied to each new
+/// tracker.
+fn assert_same_poses_set(
+    a: impl Fn(bool) -> TrackerConfig,
+    b: impl Fn(bool) -> TrackerConfig,
+    n: [usize; 2],
+    set: impl Fn(&mut Tracker, bool),
+) {
     let f = fixture();
-    let make = |config: TrackerConfig| {
-        Tracker::new(
+    let make = |config: TrackerConfig, is_b: bool| {
+        let mut t = Tracker::new(
             shared_test_context(),
             f.scene.model.clone(),
             f.scene.cam,
@@ -381,10 +400,13 @@ fn assert_same_poses(
             config,
             f.frames[0].pose,
         )
-        .expect("tracker")
+        .expect("tracker");
+        set(&mut t, is_b);
+        t
     };
     for (contour, n) in [(false, n[0]), (true, n[1])] {
-        let (mut ta, mut tb) = (make(a(contour)), make(b(contour)));
+        let (mut ta, mut tb) = (make(a(contour), false), make(b(contour), true));
+        let mut sum_rot = 0.0;
         for (i, fr) in f.frames[..n].iter().enumerate() {
             let (ra, rb) = (ta.track(&fr.image).unwrap(), tb.track(&fr.image).unwrap());
             let rot = ra.pose.rotation_error_deg(&rb.pose);
@@ -395,13 +417,38 @@ fn assert_same_poses(
             );
             assert_eq!(ra.status, Status::Tracking, "contour {contour}, frame {i}");
             assert_eq!(ra.status, rb.status, "contour {contour}, frame {i}");
-            let (most_rot, most_tr) = if contour { (0.15, 0.1) } else { (0.05, 0.05) };
+            let (most_rot, most_tr) = if contour { (0.15, 0.1) } else { (0.1, 0.05) };
             assert!(
                 rot < most_rot && tr < most_tr,
                 "contour {contour}, frame {i}: {rot} deg, {tr}%"
             );
+            sum_rot += rot;
+        }
+        if !contour {
+            let mean = sum_rot / n as f64;
+            assert!(mean < 0.03, "{mean} degrees apart on average");
         }
     }
+}
+
+/// The GPUs' kernels (workgroup tiles, split counts, a workgroup a match,
+/// window or corner: `Tracker::set_gpu_kernels`) against the CPU
+/// adapters' (one thread an item) in the GPU frame loop (resident, features
+/// in the shaders), on lavapipe whatever its defaults: the same poses.
+#[test]
+fn the_gpus_kernels_give_the_cpu_adapters_poses() {
+    let gpu_loop = |contour| TrackerConfig {
+        resident: Some(true),
+        feature_backend: FeatureBackend::Gpu,
+        modalities: Modalities {
+            texture: true,
+            contour,
+        },
+        ..Default::default()
+    };
+    assert_same_poses_set(gpu_loop, gpu_loop, [6, 4], |t, is_b| {
+        t.set_gpu_kernels(!is_b)
+    });
 }
 
 #[test]
@@ -601,9 +648,9 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
 /// (tests/features_harris.rs) and the host matcher is the reference, which
 /// the shaders match to f32 rounding (Harris responses within 1e-5,
 /// corners within 1e-3 px; NCC scores within 1e-5), so the statuses are
-/// the same and the poses agree within 0.05 degrees and 0.05% of the
-/// diameter (with the contour, as windows do, 0.15 and 0.1; measured at
-/// most 6e-5 degrees).
+/// the same and the poses agree as [`assert_same_poses`] says (on
+/// lavapipe at most 6e-5 degrees apart; with the GPU loop's kernels, as
+/// on the H200, frame 3 may fall on its other pose, 0.06 degrees away).
 #[test]
 fn features_on_the_host_give_the_shaders_poses() {
     let on = |feature_backend: FeatureBackend| {

@@ -503,6 +503,19 @@ impl Tracker {
         self.harris.set_tiled_selection(tiled);
     }
 
+    /// Every kernel choice between a GPU's (workgroup tiles, splits and
+    /// groups) and a CPU adapter's (one thread an item), whatever the
+    /// adapter: Harris's selection, the three matchers and the check.
+    /// For tests that run the GPUs' kernels in the loop on lavapipe.
+    #[doc(hidden)]
+    pub fn set_gpu_kernels(&mut self, gpu: bool) {
+        self.harris.set_tiled_selection(gpu);
+        self.it_matcher.set_tiled(gpu);
+        self.kf_matcher.set_tiled(gpu);
+        self.recover_matcher.set_tiled(gpu);
+        self.check.set_tiled(gpu);
+    }
+
     /// The window a render of the model at `pose` needs: every pixel it
     /// can cover, plus `margin` pixels.
     pub(super) fn view_window(&self, pose: &Pose) -> Window {
