@@ -672,12 +672,89 @@ fn parabola_peak(a: f32, b: f32, c: f32) -> f32 {
 // Threads of a mutual_refine workgroup (one workgroup per feature of A).
 const REFINE_GROUP: u32 = 32u;
 
-var<workgroup> wg_score: array<f32, REFINE_GROUP>;
-var<workgroup> wg_index: array<u32, REFINE_GROUP>;
 var<workgroup> wg_centre: vec2<f32>;
 var<workgroup> wg_peak: f32;
 // 1 while the refinement holds, 0 once it failed.
 var<workgroup> wg_state: u32;
+
+// Feature i of A's row best, whether it is a mutual match of at least
+// min_score, and the two points (zero where not).
+struct Mutual {
+    r: Best,
+    mutual: bool,
+    pa: vec2<f32>,
+    pb: vec2<f32>,
+}
+
+fn mutual_of(i: u32) -> Mutual {
+    var m = Mutual(Best(NO_INDEX, NO_SCORE), false, vec2<f32>(0.0), vec2<f32>(0.0));
+    if (i < params.na) {
+        m.r = best[i];
+        m.mutual = m.r.index != NO_INDEX && m.r.score >= params.min_score
+            && best[params.na + m.r.index].index == i;
+    }
+    if (m.mutual) {
+        m.pa = positions[i];
+        m.pb = positions[params.na + m.r.index];
+    }
+    return m;
+}
+
+// Where a parabola step's five scores are taken, in its steps: centre,
+// left, right, up, down.
+const PARABOLA_OFFSETS = array<vec2<f32>, 5>(
+    vec2<f32>(0.0, 0.0),
+    vec2<f32>(-1.0, 0.0),
+    vec2<f32>(1.0, 0.0),
+    vec2<f32>(0.0, -1.0),
+    vec2<f32>(0.0, 1.0),
+);
+
+// A parabola step of `step` pixels from `centre` through the five scores
+// (centre, left, right, up, down): the new centre, and z = 0 where a
+// window was void (a score below -1.5), 1 else.
+fn parabola_step(s: array<f32, 5>, centre: vec2<f32>, step: f32) -> vec3<f32> {
+    if (min(min(s[0], s[1]), min(min(s[2], s[3]), s[4])) < -1.5) {
+        return vec3<f32>(centre, 0.0);
+    }
+    return vec3<f32>(
+        centre.x + parabola_peak(s[1], s[0], s[2]) * step,
+        centre.y + parabola_peak(s[3], s[0], s[4]) * step,
+        1.0,
+    );
+}
+
+// The best integer shift of the first `n` threads' (rl_score, rl_index):
+// ties to the first in raster order, as the host's loop.
+fn best_shift(n: u32) -> Best {
+    var b = Best(NO_INDEX, -1.0e30);
+    for (var j = 0u; j < n; j++) {
+        let sj = rl_score[j];
+        let kj = rl_index[j];
+        if (kj != NO_INDEX && (sj > b.score || (sj == b.score && kj < b.index))) {
+            b = Best(kj, sj);
+        }
+    }
+    return b;
+}
+
+// Feature i of A's row of `matched`: B's point, refined to `centre` (with
+// its peak score) where `refined`.
+fn match_out(m: Mutual, refined: bool, centre: vec2<f32>, peak: f32) -> MatchOut {
+    var out = MatchOut(NO_INDEX, m.r.score, 0.0, 0.0, 0.0, 0u);
+    if (m.mutual) {
+        out.b = m.r.index;
+        out.x = m.pb.x;
+        out.y = m.pb.y;
+        if (params.refine_on != 0u && refined) {
+            out.x = centre.x;
+            out.y = centre.y;
+            out.peak = peak;
+            out.refined = 1u;
+        }
+    }
+    return out;
+}
 
 // `mutual_refine` for windows and searches too large for its workgroup
 // memory (window over REFINE_LOCAL_WINDOW, or a patch or a grid of shifts
@@ -693,20 +770,10 @@ var<workgroup> wg_state: u32;
 fn mutual_refine_wide(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let i = wid.x;
     let t = lid.x;
-    var mutual = false;
-    var r = Best(NO_INDEX, NO_SCORE);
-    if (i < params.na) {
-        r = best[i];
-        mutual = r.index != NO_INDEX && r.score >= params.min_score
-            && best[params.na + r.index].index == i;
-    }
-    var pa = vec2<f32>(0.0);
-    var pb = vec2<f32>(0.0);
-    if (mutual) {
-        pa = positions[i];
-        pb = positions[params.na + r.index];
-    }
-    var live = mutual && params.refine_on != 0u;
+    let mm = mutual_of(i);
+    let pa = mm.pa;
+    let pb = mm.pb;
+    var live = mm.mutual && params.refine_on != 0u;
     var ta = vec3<f32>(0.0, 0.0, -1.0);
     if (live) {
         ta = window_stats(false, pa.x, pa.y);
@@ -725,20 +792,13 @@ fn mutual_refine_wide(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(wor
             }
         }
     }
-    wg_score[t] = bs;
-    wg_index[t] = bk;
+    rl_score[t] = bs;
+    rl_index[t] = bk;
     workgroupBarrier();
     if (t == 0u) {
-        var s = -1.0e30;
-        var k = NO_INDEX;
-        for (var j = 0u; j < REFINE_GROUP; j++) {
-            let sj = wg_score[j];
-            let kj = wg_index[j];
-            if (kj != NO_INDEX && (sj > s || (sj == s && kj < k))) {
-                s = sj;
-                k = kj;
-            }
-        }
+        let b = best_shift(REFINE_GROUP);
+        let s = b.score;
+        let k = b.index;
         var state = 0u;
         if (live && k != NO_INDEX) {
             let dx = i32(k % side) - m;
@@ -752,55 +812,30 @@ fn mutual_refine_wide(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(wor
         wg_state = state;
     }
     workgroupBarrier();
-    // Centre, left, right, up, down.
-    let offsets = array<vec2<f32>, 5>(
-        vec2<f32>(0.0, 0.0),
-        vec2<f32>(-1.0, 0.0),
-        vec2<f32>(1.0, 0.0),
-        vec2<f32>(0.0, -1.0),
-        vec2<f32>(0.0, 1.0),
-    );
+    let offsets = PARABOLA_OFFSETS;
     for (var n = 0u; n < 2u; n++) {
         let step = select(0.5, 1.0, n == 0u);
         let state = wg_state;
         let centre = wg_centre;
         if (state == 1u && t < 5u) {
             let q = centre + offsets[t] * step;
-            wg_score[t] = refine_score(pa, ta, q.x, q.y);
+            rl_score[t] = refine_score(pa, ta, q.x, q.y);
         }
         workgroupBarrier();
         if (t == 0u && state == 1u) {
-            let c = wg_score[0];
-            let l = wg_score[1];
-            let rr = wg_score[2];
-            let u = wg_score[3];
-            let d = wg_score[4];
-            if (min(min(c, l), min(min(rr, u), d)) < -1.5) {
+            let sc = array<f32, 5>(rl_score[0], rl_score[1], rl_score[2], rl_score[3], rl_score[4]);
+            let next = parabola_step(sc, centre, step);
+            if (next.z == 0.0) {
                 wg_state = 0u;
             } else {
-                wg_centre = vec2<f32>(
-                    centre.x + parabola_peak(l, c, rr) * step,
-                    centre.y + parabola_peak(u, c, d) * step,
-                );
-                wg_peak = c;
+                wg_centre = next.xy;
+                wg_peak = sc[0];
             }
         }
         workgroupBarrier();
     }
     if (t == 0u && i < params.na) {
-        var out = MatchOut(NO_INDEX, r.score, 0.0, 0.0, 0.0, 0u);
-        if (mutual) {
-            out.b = r.index;
-            out.x = pb.x;
-            out.y = pb.y;
-            if (params.refine_on != 0u && wg_state == 1u) {
-                out.x = wg_centre.x;
-                out.y = wg_centre.y;
-                out.peak = wg_peak;
-                out.refined = 1u;
-            }
-        }
-        matched[i] = out;
+        matched[i] = match_out(mm, wg_state == 1u, wg_centre, wg_peak);
     }
 }
 
@@ -934,20 +969,10 @@ fn sampled_score(x: f32, y: f32) -> f32 {
 fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let i = wid.x;
     let t = lid.x;
-    var mutual = false;
-    var r = Best(NO_INDEX, NO_SCORE);
-    if (i < params.na) {
-        r = best[i];
-        mutual = r.index != NO_INDEX && r.score >= params.min_score
-            && best[params.na + r.index].index == i;
-    }
-    var pa = vec2<f32>(0.0);
-    var pb = vec2<f32>(0.0);
-    if (mutual) {
-        pa = positions[i];
-        pb = positions[params.na + r.index];
-    }
-    let live = mutual && params.refine_on != 0u;
+    let mm = mutual_of(i);
+    let pa = mm.pa;
+    let pb = mm.pb;
+    let live = mm.mutual && params.refine_on != 0u;
     let half = params.refine_half;
     let win = 2u * half + 1u;
     let d = win * win;
@@ -1038,16 +1063,9 @@ fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgrou
     rl_index[t] = bk;
     workgroupBarrier();
     if (t == 0u) {
-        var s = -1.0e30;
-        var k = NO_INDEX;
-        for (var j = 0u; j < REFINE_LOCAL_GROUP; j++) {
-            let sj = rl_score[j];
-            let kj = rl_index[j];
-            if (kj != NO_INDEX && (sj > s || (sj == s && kj < k))) {
-                s = sj;
-                k = kj;
-            }
-        }
+        let b = best_shift(REFINE_LOCAL_GROUP);
+        let s = b.score;
+        let k = b.index;
         var state = 0u;
         if (on && k != NO_INDEX) {
             let dx = i32(k % side) - i32(m);
@@ -1059,19 +1077,19 @@ fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgrou
                 // The first step's five scores from the grid.
                 if (cut) {
                     let g = u32(dy + i32(m)) * side + u32(dx + i32(m));
-                    let c = rl_grid[g];
-                    let l = rl_grid[g - 1u];
-                    let rr = rl_grid[g + 1u];
-                    let u = rl_grid[g - side];
-                    let dd = rl_grid[g + side];
-                    if (min(min(c, l), min(min(rr, u), dd)) < -1.5) {
+                    let sc = array<f32, 5>(
+                        rl_grid[g],
+                        rl_grid[g - 1u],
+                        rl_grid[g + 1u],
+                        rl_grid[g - side],
+                        rl_grid[g + side],
+                    );
+                    let next = parabola_step(sc, rl_centre, 1.0);
+                    if (next.z == 0.0) {
                         state = 0u;
                     } else {
-                        rl_centre = vec2<f32>(
-                            rl_centre.x + parabola_peak(l, c, rr),
-                            rl_centre.y + parabola_peak(u, c, dd),
-                        );
-                        rl_peak = c;
+                        rl_centre = next.xy;
+                        rl_peak = sc[0];
                     }
                 }
             }
@@ -1079,14 +1097,7 @@ fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgrou
         rl_state = state;
     }
     workgroupBarrier();
-    // Centre, left, right, up, down.
-    let offsets = array<vec2<f32>, 5>(
-        vec2<f32>(0.0, 0.0),
-        vec2<f32>(-1.0, 0.0),
-        vec2<f32>(1.0, 0.0),
-        vec2<f32>(0.0, -1.0),
-        vec2<f32>(0.0, 1.0),
-    );
+    let offsets = PARABOLA_OFFSETS;
     for (var n = 0u; n < 2u; n++) {
         let step = select(0.5, 1.0, n == 0u);
         // With a patch, the first step is done.
@@ -1109,37 +1120,19 @@ fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgrou
         }
         workgroupBarrier();
         if (t == 0u && run) {
-            let c = rl_score[0];
-            let l = rl_score[1];
-            let rr = rl_score[2];
-            let u = rl_score[3];
-            let dd = rl_score[4];
-            if (min(min(c, l), min(min(rr, u), dd)) < -1.5) {
+            let sc = array<f32, 5>(rl_score[0], rl_score[1], rl_score[2], rl_score[3], rl_score[4]);
+            let next = parabola_step(sc, centre, step);
+            if (next.z == 0.0) {
                 rl_state = 0u;
             } else {
-                rl_centre = vec2<f32>(
-                    centre.x + parabola_peak(l, c, rr) * step,
-                    centre.y + parabola_peak(u, c, dd) * step,
-                );
-                rl_peak = c;
+                rl_centre = next.xy;
+                rl_peak = sc[0];
             }
         }
         workgroupBarrier();
     }
     if (t == 0u && i < params.na) {
-        var out = MatchOut(NO_INDEX, r.score, 0.0, 0.0, 0.0, 0u);
-        if (mutual) {
-            out.b = r.index;
-            out.x = pb.x;
-            out.y = pb.y;
-            if (params.refine_on != 0u && rl_state == 1u) {
-                out.x = rl_centre.x;
-                out.y = rl_centre.y;
-                out.peak = rl_peak;
-                out.refined = 1u;
-            }
-        }
-        matched[i] = out;
+        matched[i] = match_out(mm, rl_state == 1u, rl_centre, rl_peak);
     }
 }
 
