@@ -193,7 +193,7 @@ fn resident_matches_and_refinements_equal_the_host_path() {
                 assert_eq!((g.a, g.b), (w.0, w.1), "case {ci}, tiled {tiled}");
                 // The same scores as match_features (the same kernels).
                 assert!((g.score - w.2).abs() <= 1e-6, "case {ci}: {g:?} {w:?}");
-                // Refined points within 1e-3 px (f32 sums of up to 121 terms;
+                // Refined points within 1e-3 px (f32 sums of up to 529 terms;
                 // the GPU may fuse multiply-adds), failures the same.
                 match (g.at, w.3) {
                     (Some(p), Some(q)) => {

@@ -211,23 +211,23 @@ const SELECT_ENTRIES: [(&str, Size); 17] = [
 /// split over the others, the refinement a workgroup a corner (where its
 /// radius fits [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread
 /// an item ([`Harris::set_tiled_selection`]).
-fn select_passes(tiled: bool, refine_radius: u32) -> [(&'static str, Vec<usize>); 3] {
-    let refine = if tiled && refine_radius <= REFINE_GROUP_RADIUS {
-        7
+fn select_passes(tiled: bool, refine_radius: u32) -> [(&'static str, &'static [usize]); 3] {
+    let refine: &'static [usize] = if tiled && refine_radius <= REFINE_GROUP_RADIUS {
+        &[7]
     } else {
-        6
+        &[6]
     };
     if tiled {
         [
-            ("select", vec![0, 1, 2, 3, 4, 5]),
-            ("refine", vec![refine]),
-            ("merge", vec![8, 9, 10, 11, 12]),
+            ("select", &[0, 1, 2, 3, 4, 5]),
+            ("refine", refine),
+            ("merge", &[8, 9, 10, 11, 12]),
         ]
     } else {
         [
-            ("select", vec![0, 13, 14]),
-            ("refine", vec![refine]),
-            ("merge", vec![15, 16, 11, 12]),
+            ("select", &[0, 13, 14]),
+            ("refine", refine),
+            ("merge", &[15, 16, 11, 12]),
         ]
     }
 }
@@ -626,7 +626,7 @@ impl Harris {
         let args = self.select_args.get();
         for (label, entries) in select_passes(self.tiled_select, self.config.refine_radius) {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
-            for e in entries {
+            for &e in entries {
                 let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
                 pass.set_bind_group(0, if size == Size::One { sizes } else { bind }, &[]);
