@@ -700,34 +700,30 @@ fn select_clear(
     }
 }
 
-// How many of the chunk `wid_y`'s candidates come before each item in its
-// grid cell (the rank less one), added into select_state.
-@compute @workgroup_size(WORKGROUP_1D)
-fn select_rank(
-    @builtin(local_invocation_index) lid: u32,
-    @builtin(workgroup_id) wid: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
+// How many of the chunk (wid.y) of candidates come before each item,
+// added into select_state: with `places`, in the order by rank (from
+// select_index), then by score; else by score within the item's grid
+// cell (its rank less one). select_rank and select_place.
+fn count_before(lid: u32, wid: vec3<u32>, groups: vec3<u32>, places: bool) {
     let n = uniform_count(lid, select_count());
-    if (params.grid_cell == 0u) {
-        return;
-    }
     let c0 = wid.y * SELECT_CHUNK;
     let c1 = min(c0 + SELECT_CHUNK, n);
     let stride = groups.x * WORKGROUP_1D;
     for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
         let i = base + lid;
         var c = Candidate(0u, 0u, 0.0, 0u);
+        var key = 0u;
         if (i < n) {
             c = candidates[i];
+            key = select(cell_of(c), select_index[i], places);
         }
-        let cell = cell_of(c);
         var count = 0u;
         for (var t0 = c0; t0 < c1; t0 += WORKGROUP_1D) {
-            load_candidate_tile(lid, t0, n, false);
+            load_candidate_tile(lid, t0, n, places);
             let m = min(WORKGROUP_1D, c1 - t0);
             for (var k = 0u; k < m; k++) {
-                if (sel_key[k] == cell && score_before(sel_tile[k], c)) {
+                let r = sel_key[k];
+                if ((places && r < key) || (r == key && score_before(sel_tile[k], c))) {
                     count++;
                 }
             }
@@ -735,6 +731,18 @@ fn select_rank(
         if (i < n && count > 0u) {
             atomicAdd(&select_state[i], count);
         }
+    }
+}
+
+@compute @workgroup_size(WORKGROUP_1D)
+fn select_rank(
+    @builtin(local_invocation_index) lid: u32,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    // Without a grid every rank is 0 (select_rank_finish).
+    if (params.grid_cell != 0u) {
+        count_before(lid, wid, groups, false);
     }
 }
 
@@ -752,41 +760,13 @@ fn select_rank_finish(
     }
 }
 
-// How many of the chunk's candidates come before each item in the order
-// by rank, then by score, added into select_state.
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_place(
     @builtin(local_invocation_index) lid: u32,
     @builtin(workgroup_id) wid: vec3<u32>,
     @builtin(num_workgroups) groups: vec3<u32>,
 ) {
-    let n = uniform_count(lid, select_count());
-    let c0 = wid.y * SELECT_CHUNK;
-    let c1 = min(c0 + SELECT_CHUNK, n);
-    let stride = groups.x * WORKGROUP_1D;
-    for (var base = wid.x * WORKGROUP_1D; base < n; base += stride) {
-        let i = base + lid;
-        var c = Candidate(0u, 0u, 0.0, 0u);
-        var rank = 0u;
-        if (i < n) {
-            c = candidates[i];
-            rank = select_index[i];
-        }
-        var count = 0u;
-        for (var t0 = c0; t0 < c1; t0 += WORKGROUP_1D) {
-            load_candidate_tile(lid, t0, n, true);
-            let m = min(WORKGROUP_1D, c1 - t0);
-            for (var k = 0u; k < m; k++) {
-                let r = sel_key[k];
-                if (r < rank || (r == rank && score_before(sel_tile[k], c))) {
-                    count++;
-                }
-            }
-        }
-        if (i < n && count > 0u) {
-            atomicAdd(&select_state[i], count);
-        }
-    }
+    count_before(lid, wid, groups, true);
 }
 
 // Each candidate's place in the order by rank, then by score: the first
