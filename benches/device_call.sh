@@ -12,7 +12,8 @@
 # of value: `splattrack info`; the real cube tracked with `--profile`
 # (texture and fused, three times each; render-pass splatter; resident
 # loop off), peak host RSS of each; synthetic blobs of 1M and 100k points
-# tracked with `--profile`; the features, splat (colour + predictors) and
+# tracked with `--profile`, and the cube and the 1M blob without it (no
+# timestamp queries); the features, splat (colour + predictors) and
 # tracker benches with the 1M models; then the GPU test binaries on the
 # device. Logs and criterion's results come back as $OUT/results.tgz
 # (refreshed after every item, so a cut-off run still returns what it
@@ -76,7 +77,7 @@ item() { # name limit cmd...
   local t0=$(date +%s.%N)
   timeout -k 5 $lim "$@" > $R/$name.log 2>&1; local rc=$?
   printf 'ITEM %-28s rc=%-3s %6.1f s (limit %s)\n' $name $rc $(awk "BEGIN{print $(date +%s.%N) - $t0}") $lim
-  tail -n ${TAILN:-3} $R/$name.log | sed 's/^/    /'
+  [ "${TAILN:-3}" -gt 0 ] && tail -n ${TAILN:-3} $R/$name.log | sed 's/^/    /'
   snap
 }
 
@@ -108,21 +109,36 @@ if ! $B/splattrack info > $R/info.txt 2>&1; then
 fi
 cat $R/info.txt; snap
 C=.dev/shared/data/visp_rbt_cube
-TAILN=14
+# The profile's summary lines (its GPU passes stay in the logs).
+summary() { grep -E "^tracked|frame source|^  (features|IT|KF|contour|pose check|total|read back|waiting|GPU work) |end to end|peak rss" $R/$1.log | sed 's/^/    /'; }
+TAILN=0
 for k in 1 2 3; do
+  # Without --profile (no timestamp queries), then with it.
+  item cube_plain$k 40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_plain$k.csv
+  summary cube_plain$k
   item cube_tex$k   40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_tex$k.csv --profile
+  summary cube_tex$k
   item cube_fused$k 40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_fused$k.csv --modalities texture,contour --profile
+  summary cube_fused$k
 done
-TAILN=3
 item cube_tex_render 30 $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_tex_render.csv --splatter render --profile
+summary cube_tex_render
 item cube_tex_nores  30 $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_tex_nores.csv --resident off --profile
+summary cube_tex_nores
+TAILN=3
 item synth1m        60 $B/splattrack synth --object blob --frames 40 --width 640 --height 480 --points 1000000 --out /tmp/blob1m
-TAILN=14
+TAILN=0
+item blob1m_plain   50 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob1m/model.ply --sequence /tmp/blob1m --out $R/blob1m_plain.csv
+summary blob1m_plain
 item blob1m_tex     50 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob1m/model.ply --sequence /tmp/blob1m --out $R/blob1m_tex.csv --profile
+summary blob1m_tex
 item blob1m_fused   50 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob1m/model.ply --sequence /tmp/blob1m --out $R/blob1m_fused.csv --modalities texture,contour --profile
+summary blob1m_fused
 TAILN=3
 item synth100k      40 $B/splattrack synth --object blob --frames 40 --width 640 --height 480 --points 100000 --out /tmp/blob100k
+TAILN=0
 item blob100k_tex   40 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob100k/model.ply --sequence /tmp/blob100k --out $R/blob100k_tex.csv --profile
+summary blob100k_tex
 export CRITERION_HOME=$R/criterion SPLATTRACK_BENCH_1M=1
 TAILN=30
 item bench_features 130 $B/features --bench

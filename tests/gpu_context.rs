@@ -405,6 +405,108 @@ fn timer_reports_pass_durations() {
     }
 }
 
+/// Timings read later come with the next readback: timing passes adds no
+/// wait for the GPU and no submission of its own (`track --profile`
+/// counts the loop's own), whether the resolve goes into the timed work's
+/// encoder (`resolve_later`) or behind work already submitted
+/// (`read_later`, carried by the next submission, even past the end of a
+/// batch with nothing of its own).
+#[test]
+fn timings_come_with_the_next_readback() {
+    let c = own_ctx();
+    let mut timer = GpuTimer::new(&c, 4);
+    if !timer.enabled() {
+        panic!("{}: no timestamp queries", c.describe());
+    }
+    let pipeline = c.compute_pipeline("selftest", "saxpy").unwrap();
+    let n = 1 << 12;
+    let params = c.buffer_init(
+        "p",
+        &[gpu::selftest::SelftestParams {
+            a: 1.0,
+            n: n as u32,
+            _pad0: 0,
+            _pad1: 0,
+        }],
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let x = c.buffer_init("x", &vec![1.0f32; n], gpu::STORAGE_IN);
+    let y = c.buffer_init("y", &vec![0.0f32; n], gpu::STORAGE_OUT);
+    let bind = c
+        .bind_buffers(
+            "saxpy",
+            &pipeline.get_bind_group_layout(0),
+            &[&params, &x, &y],
+        )
+        .unwrap();
+    let record = |enc: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, labels: &[&str]| {
+        for label in labels {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(label),
+                timestamp_writes: timer.compute_pass(label),
+            });
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            pass.dispatch_workgroups(gpu::workgroups(n as u32, gpu::WORKGROUP_1D), 1, 1);
+        }
+    };
+    let counts = || (c.readbacks(), c.submissions());
+    let check = |report: &splattrack::gpu::TimerReport, labels: &[&str]| {
+        let got: Vec<&str> = report.passes.iter().map(|(l, _)| l.as_str()).collect();
+        assert_eq!(got, labels);
+        for (label, ms) in &report.passes {
+            assert!(
+                ms.is_finite() && *ms >= 0.0 && *ms < 10_000.0,
+                "{label}: {ms} ms"
+            );
+        }
+    };
+
+    // Resolved into the timed work's encoder, read with its readback.
+    let (r0, s0) = counts();
+    let mut enc = c.encoder();
+    record(&mut enc, &mut timer, &["a", "b"]);
+    let t = timer.resolve_later(&c, &mut enc).unwrap();
+    let v: Vec<f32> = c.read_buffer_after(enc, &y, n).unwrap();
+    assert!(v.iter().all(|&v| v == 2.0));
+    assert_eq!(counts(), (r0 + 1, s0 + 1));
+    check(&t.wait(&c), &["a", "b"]);
+    assert_eq!(counts(), (r0 + 1, s0 + 1), "the timings waited again");
+
+    // Behind submitted work: no submission of their own, not even at the
+    // end of a batch that has nothing else; the next readback brings them.
+    let mut enc = c.encoder();
+    record(&mut enc, &mut timer, &["c"]);
+    c.submit(enc);
+    let t = timer.read_later(&c).unwrap();
+    drop(c.batch());
+    assert_eq!(counts(), (r0 + 1, s0 + 2));
+    let mut enc = c.encoder();
+    record(&mut enc, &mut timer, &["d"]);
+    c.submit(enc);
+    let mut later = timer.read_later(&c).unwrap();
+    // The readback's submission carries both resolves.
+    let v: Vec<f32> = c.read_buffer(&y, n).unwrap();
+    assert!(v.iter().all(|&v| v == 4.0));
+    assert_eq!(counts(), (r0 + 2, s0 + 4));
+    check(&t.wait(&c), &["c"]);
+    later.append(Default::default());
+    assert_eq!(counts(), (r0 + 2, s0 + 4), "the timings waited again");
+
+    // Timings never read cost one wait when asked for, for all.
+    let mut enc = c.encoder();
+    record(&mut enc, &mut timer, &["e"]);
+    c.submit(enc);
+    let mut more = timer.read_later(&c).unwrap();
+    let mut enc = c.encoder();
+    record(&mut enc, &mut timer, &["f"]);
+    c.submit(enc);
+    more.append(timer.read_later(&c).unwrap());
+    later.append(more);
+    check(&later.wait(&c), &["d", "e", "f"]);
+    assert_eq!(counts(), (r0 + 3, s0 + 7));
+}
+
 #[test]
 fn adapter_choice_parses_and_unknown_names_fail_clearly() {
     assert_eq!("CPU".parse::<AdapterChoice>().unwrap(), AdapterChoice::Cpu);

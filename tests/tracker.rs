@@ -713,6 +713,70 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     }
 }
 
+/// `--profile`'s GPU timing (`Tracker::enable_gpu_timing`) reads its
+/// timestamps with the frame's own readbacks: a timed frame loop waits
+/// for the GPU and submits work as often as an untimed one, gives the
+/// same poses bit for bit, and reports the passes of every stage (the
+/// contour's outline found on the GPU). A context of its own, so that
+/// other tests' readbacks are not counted.
+#[test]
+fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
+    use splattrack::gpu::own_test_context;
+    let f = fixture();
+    let ctx = own_test_context();
+    for (contour, n) in [(false, 4), (true, 3)] {
+        let make = |timed: bool| {
+            let mut t = gpu_loop_tracker(&ctx, contour);
+            t.set_resident_outline(true);
+            if timed {
+                t.enable_gpu_timing();
+            }
+            t
+        };
+        let (mut timed, mut plain) = (make(true), make(false));
+        for (i, fr) in f.frames[..n].iter().enumerate() {
+            let (r0, s0) = (ctx.readbacks(), ctx.submissions());
+            let a = timed.track(&fr.image).unwrap();
+            let (r1, s1) = (ctx.readbacks(), ctx.submissions());
+            let b = plain.track(&fr.image).unwrap();
+            let (r2, s2) = (ctx.readbacks(), ctx.submissions());
+            let at = format!("contour {contour}, frame {i}");
+            assert_eq!(a.status, Status::Tracking, "{at}");
+            assert_eq!(a.pose.rotation, b.pose.rotation, "{at}");
+            assert_eq!(a.pose.translation, b.pose.translation, "{at}");
+            assert_eq!(
+                (r1 - r0, s1 - s0),
+                (r2 - r1, s2 - s1),
+                "{at}: readbacks, submissions"
+            );
+            assert_eq!(a.times.readbacks as u64, r1 - r0, "{at}");
+            assert!(b.times.gpu.is_empty(), "{at}");
+            let mut want = vec!["features harris", "KF splat", "KF harris", "KF ncc"];
+            want.extend(["check splat", "check score"]);
+            if i > 0 {
+                want.push("IT ncc");
+            }
+            if contour {
+                want.push("contour outline");
+            }
+            for stage in want {
+                let passes: Vec<f64> = a
+                    .times
+                    .gpu
+                    .iter()
+                    .filter(|(l, _)| l.starts_with(stage))
+                    .map(|(_, ms)| *ms)
+                    .collect();
+                assert!(
+                    !passes.is_empty() && passes.iter().all(|ms| ms.is_finite() && *ms >= 0.0),
+                    "{at}: {stage}: {:?}",
+                    a.times.gpu
+                );
+            }
+        }
+    }
+}
+
 #[test]
 fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
     // IT's matching chained behind the frame's Harris on the GPU

@@ -654,6 +654,17 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         "read back from the GPU", t.readback_bytes, t.readbacks
     );
     out += &format!(
+        "  {:<26} {:8.1} ms in those waits (the GPU's work and latency); the host's own work {:.1} ms{}\n",
+        "waiting for the GPU",
+        ms(t.gpu_wait),
+        ms(t.total) - ms(t.gpu_wait),
+        if cpu_adapter {
+            " (a CPU adapter runs the GPU's work inside submissions too: the split says little there)"
+        } else {
+            ""
+        }
+    );
+    out += &format!(
         "  {:<26} {:8.1} submissions, {:.1} command buffers\n",
         "GPU work", t.submissions, t.command_buffers
     );

@@ -10,7 +10,7 @@ use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use crate::gpu::{
-    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, Timings,
     WORKGROUP_1D, compute_entry, compute_pass, storage, workgroups,
 };
 
@@ -192,7 +192,7 @@ pub struct NccMatcher {
     gate_count: wgpu::Buffer,
     gate_bind: BindCache<2>,
     timer: Option<GpuTimer>,
-    last_timings: TimerReport,
+    timings: Timings,
     /// Match host images on the host ([`NccMatcher::set_host`]).
     host: bool,
 }
@@ -272,7 +272,7 @@ impl NccMatcher {
             ),
             gate_bind: BindCache::default(),
             timer: None,
-            last_timings: TimerReport::default(),
+            timings: Default::default(),
             host: false,
         })
     }
@@ -318,8 +318,15 @@ impl NccMatcher {
     }
 
     /// Per-pass GPU durations of the last match (empty unless enabled).
-    pub fn last_timings(&self) -> &TimerReport {
-        &self.last_timings
+    pub fn last_timings(&mut self) -> TimerReport {
+        std::mem::take(&mut self.timings).wait(&self.ctx)
+    }
+
+    /// The timings of the passes run since they were last taken, their
+    /// timestamps still to come with a readback: a frame loop gathers
+    /// them and reads them at its end without a wait of their own.
+    pub fn take_timings(&mut self) -> Timings {
+        std::mem::take(&mut self.timings)
     }
 
     /// Mutual best NCC matches between the features `a` of `img_a` and `b`
@@ -336,7 +343,7 @@ impl NccMatcher {
         check_mask(img_a, None)?;
         check_mask(img_b, None)?;
         if self.host {
-            self.last_timings = TimerReport::default();
+            self.timings = Default::default();
             return super::ncc_match_cpu(img_a, a, img_b, b, &self.config);
         }
         let (na, nb) = (a.len(), b.len());
@@ -355,7 +362,6 @@ impl NccMatcher {
         let mut enc = ctx.encoder();
         self.encode(&mut enc, na, nb, false);
         let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
-        self.finish_timing()?;
         Ok(mutual(&best[..na], &best[na..], self.config.min_score))
     }
 
@@ -399,7 +405,6 @@ impl NccMatcher {
         let enc = self.record_resident(bands, Side::Host(a), Side::Host(b), None, None, refine)?;
         let ctx = &self.ctx.clone();
         let out: Vec<MatchOut> = ctx.read_buffer_after(enc, self.matched.get(), na)?;
-        self.finish_timing()?;
         Ok(resident_matches(&out, y0, refine.is_some()))
     }
 
@@ -531,7 +536,6 @@ impl NccMatcher {
         let bytes = pending.read.wait(&self.ctx)?;
         let size = std::mem::size_of::<MatchOut>();
         let out: Vec<MatchOut> = bytemuck::pod_collect_to_vec(&bytes[..kept * size]);
-        self.finish_timing()?;
         Ok(resident_matches(&out, pending.y0, pending.refine))
     }
 
@@ -829,17 +833,13 @@ impl NccMatcher {
             // One workgroup per feature of A.
             pass.dispatch_workgroups(na as u32, 1, 1);
         }
-        if let Some(t) = &self.timer {
-            t.resolve(enc);
-        }
-    }
-
-    /// Reads the timestamps of the passes just run (when timing is on).
-    fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
-            self.last_timings = t.read(&self.ctx)?;
+            // The timestamps come with this matching's readback.
+            match t.resolve_later(&self.ctx, enc) {
+                Ok(read) => self.timings.append(read),
+                Err(e) => log::warn!("GPU timer: {e}"),
+            }
         }
-        Ok(())
     }
 }
 

@@ -16,7 +16,7 @@ pub mod selftest;
 mod timer;
 
 pub use pipeline::{GrowBuffer, buffer_entry, compute_entry, compute_pass, storage, texture_entry};
-pub use timer::{GpuTimer, TimerReport};
+pub use timer::{GpuTimer, TimerReport, Timings};
 
 use std::fmt;
 use std::str::FromStr;
@@ -108,6 +108,10 @@ struct Health {
     /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
     bytes_read: std::sync::atomic::AtomicU64,
     readbacks: std::sync::atomic::AtomicU64,
+    /// Nanoseconds the host spent blocked in those waits (the GPU's work
+    /// and its latency as the host sees them; the rest of a frame is the
+    /// host's own).
+    waited_ns: std::sync::atomic::AtomicU64,
     /// Submissions through [`GpuContext::submit`] and the readbacks (each
     /// a `Queue::submit` of one or more command buffers: the host's fixed
     /// cost of GPU work).
@@ -207,6 +211,11 @@ impl Drop for Batch {
             return;
         }
         b.thread = None;
+        if b.pending.is_empty() && b.open_deferred {
+            // Nothing of the batch's own: what was put off for the next
+            // submission waits for it.
+            return;
+        }
         drop(b);
         health.submit(&queue, None);
     }
@@ -224,6 +233,10 @@ struct BatchState {
     open: Option<wgpu::CommandEncoder>,
     /// The open encoder is lent (its work is in the borrower's hands).
     lent: bool,
+    /// The open encoder holds only work put off to go with the next
+    /// submission ([`GpuContext::encoder_for_next`]): a batch's end leaves
+    /// it open instead of submitting it alone.
+    open_deferred: bool,
 }
 
 /// A command encoder from [`GpuContext::encoder`], which dereferences to
@@ -237,6 +250,9 @@ pub struct Encoder {
     enc: Option<wgpu::CommandEncoder>,
     /// The batch it is lent by.
     lent: Option<std::sync::Arc<Health>>,
+    /// Lent by [`GpuContext::encoder_for_next`] with only such work
+    /// before.
+    deferred: bool,
 }
 
 impl std::ops::Deref for Encoder {
@@ -269,7 +285,10 @@ impl Drop for Encoder {
             let mut b = h.batch_state();
             b.lent = false;
             match b.open.take() {
-                None => b.open = Some(enc),
+                None => {
+                    b.open = Some(enc);
+                    b.open_deferred = self.deferred;
+                }
                 // Never with one encoder lent at a time; its work is
                 // kept, before the newer, all the same.
                 Some(newer) => {
@@ -295,7 +314,8 @@ impl Health {
     /// (a few at most).
     fn keep_rider_staging(&self, b: wgpu::Buffer) {
         let mut pool = self.rider_staging.lock().unwrap_or_else(|p| p.into_inner());
-        if pool.len() < 8 {
+        // A profiled frame puts off a read of timestamps a step.
+        if pool.len() < 24 {
             pool.push(b);
         }
     }
@@ -645,10 +665,15 @@ impl GpuContext {
     /// seconds, then reports any failure the device saw ([`GpuContext::check`]).
     fn poll_wait(&self) -> Result<(), GpuError> {
         let secs = Self::timeout_s();
+        let t0 = std::time::Instant::now();
         let r = self.device.poll(wgpu::PollType::Wait {
             submission_index: None,
             timeout: Some(std::time::Duration::from_secs(secs)),
         });
+        self.health.waited_ns.fetch_add(
+            t0.elapsed().as_nanos() as u64,
+            std::sync::atomic::Ordering::Relaxed,
+        );
         self.check()?;
         match r {
             Ok(_) => Ok(()),
@@ -853,6 +878,17 @@ impl GpuContext {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// The time the host has spent so far blocked in those readbacks'
+    /// waits for the GPU (all threads): its work queued before them and
+    /// the round trip.
+    pub fn waited(&self) -> std::time::Duration {
+        std::time::Duration::from_nanos(
+            self.health
+                .waited_ns
+                .load(std::sync::atomic::Ordering::Relaxed),
+        )
+    }
+
     /// Submissions so far through [`GpuContext::submit`] (all clones of
     /// this context together), counted as [`GpuContext::readbacks`].
     pub fn submissions(&self) -> u64 {
@@ -902,12 +938,51 @@ impl GpuContext {
             return Encoder {
                 enc: Some(open.unwrap_or_else(|| self.fresh_encoder())),
                 lent: Some(self.health.clone()),
+                deferred: false,
             };
         }
         drop(b);
         Encoder {
             enc: Some(self.fresh_encoder()),
             lent: None,
+            deferred: false,
+        }
+    }
+
+    /// An encoder whose work goes with this thread's next submission,
+    /// not in one of its own: the batch's encoder ([`GpuContext::encoder`])
+    /// or, outside any batch, one kept open for the next submission of
+    /// any thread (work that must only come after work already
+    /// submitted, such as a resolve of timestamps). Give it back with
+    /// [`GpuContext::defer`]. Where another thread batches, a fresh
+    /// encoder, which `defer` submits.
+    pub fn encoder_for_next(&self) -> Encoder {
+        let mut b = self.batch_state();
+        let mine = b.thread.is_none_or(|t| t == std::thread::current().id());
+        if mine && !b.lent {
+            b.lent = true;
+            let open = b.open.take();
+            let deferred = open.is_none() || b.open_deferred;
+            drop(b);
+            return Encoder {
+                enc: Some(open.unwrap_or_else(|| self.fresh_encoder())),
+                lent: Some(self.health.clone()),
+                deferred,
+            };
+        }
+        drop(b);
+        self.encoder()
+    }
+
+    /// Gives back an encoder from [`GpuContext::encoder_for_next`]: its
+    /// work goes with the next submission (submitted now only where it
+    /// is not the batch's or the kept one).
+    #[track_caller]
+    pub fn defer(&self, enc: Encoder) {
+        if enc.lent.is_some() {
+            drop(enc);
+        } else {
+            self.submit(enc);
         }
     }
 
@@ -1135,6 +1210,21 @@ impl GpuContext {
         buffer: &wgpu::Buffer,
         bytes: u64,
     ) -> Result<PendingRead, GpuError> {
+        let read = self.copy_for_later(&mut enc, buffer, bytes)?;
+        self.submit(enc);
+        Ok(read)
+    }
+
+    /// [`GpuContext::read_buffer_later`] without the submission: the copy
+    /// is recorded into `enc`, which the caller must submit
+    /// ([`GpuContext::submit`], or a readback after it) before this
+    /// thread's next readback, which maps it.
+    pub fn copy_for_later(
+        &self,
+        enc: &mut wgpu::CommandEncoder,
+        buffer: &wgpu::Buffer,
+        bytes: u64,
+    ) -> Result<PendingRead, GpuError> {
         if bytes > buffer.size() {
             return Err(GpuError::Readback(format!(
                 "asked for {bytes} bytes of a {}-byte buffer",
@@ -1162,7 +1252,6 @@ impl GpuContext {
         if bytes > 0 {
             enc.copy_buffer_to_buffer(buffer, 0, &staging, 0, bytes.next_multiple_of(4));
         }
-        self.submit(enc);
         let rider = std::sync::Arc::new(Rider {
             thread: std::thread::current().id(),
             staging,

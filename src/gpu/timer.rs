@@ -1,7 +1,7 @@
 //! GPU timers from timestamp queries: per-pass durations measured on the
 //! device itself, which is what benchmarks of individual passes report.
 
-use super::{GpuContext, GpuError};
+use super::{GpuContext, GpuError, PendingRead};
 
 /// Durations of the labelled passes of one submission, in milliseconds.
 #[derive(Debug, Clone, Default)]
@@ -23,6 +23,64 @@ impl TimerReport {
             .map(|(_, ms)| *ms)
             .collect();
         (!v.is_empty()).then(|| v.iter().sum())
+    }
+}
+
+/// Timestamps resolved and copied but not yet read: their bytes come with
+/// the thread's next readback ([`GpuContext::copy_for_later`]), so that
+/// timing the passes adds no wait for the GPU.
+pub struct PendingTimes {
+    labels: Vec<String>,
+    read: PendingRead,
+    period_ns: f64,
+}
+
+/// The timings of the passes a module ran since they were last taken:
+/// read, or still to come with a readback ([`GpuTimer::resolve_later`]).
+#[derive(Default)]
+pub struct Timings {
+    ready: TimerReport,
+    pending: Vec<PendingTimes>,
+}
+
+impl Timings {
+    /// Appends `other`'s passes after these; of the reads still to come,
+    /// the last [`Timings::KEPT`] are kept (timings never taken do not
+    /// pile up).
+    pub fn append(&mut self, other: Timings) {
+        self.ready.passes.extend(other.ready.passes);
+        self.pending.extend(other.pending);
+        let extra = self.pending.len().saturating_sub(Self::KEPT);
+        self.pending.drain(..extra);
+    }
+
+    /// Reads of timestamps kept by [`Timings::append`].
+    pub const KEPT: usize = 8;
+
+    /// The durations, in the order the passes were timed: at once where a
+    /// readback since has mapped their timestamps, else after a wait of
+    /// their own (one for all).
+    pub fn try_wait(self, ctx: &GpuContext) -> Result<TimerReport, GpuError> {
+        let mut report = self.ready;
+        for p in self.pending {
+            let ticks: Vec<u64> = bytemuck::pod_collect_to_vec(&p.read.wait(ctx)?);
+            report
+                .passes
+                .extend(p.labels.into_iter().enumerate().map(|(i, l)| {
+                    let dt = ticks[2 * i + 1].wrapping_sub(ticks[2 * i]);
+                    (l, dt as f64 * p.period_ns * 1e-6)
+                }));
+        }
+        Ok(report)
+    }
+
+    /// [`Timings::try_wait`], a failed read logged and reported as no
+    /// passes: timings never fail the work they time.
+    pub fn wait(self, ctx: &GpuContext) -> TimerReport {
+        self.try_wait(ctx).unwrap_or_else(|e| {
+            log::warn!("GPU timer: {e}");
+            TimerReport::default()
+        })
     }
 }
 
@@ -103,33 +161,65 @@ impl GpuTimer {
     /// Records the resolve of all timestamps written so far; call once,
     /// after the timed passes, in the same or a later encoder.
     pub fn resolve(&self, encoder: &mut wgpu::CommandEncoder) {
+        self.resolve_labelled(encoder, self.labels.len());
+    }
+
+    /// Records the resolve of the first `passes` passes' timestamps.
+    fn resolve_labelled(&self, encoder: &mut wgpu::CommandEncoder, passes: usize) {
         if let (Some(qs), Some(buf)) = (&self.query_set, &self.resolve) {
-            let n = 2 * self.labels.len() as u32;
+            let n = 2 * passes as u32;
             if n > 0 {
                 encoder.resolve_query_set(qs, 0..n, buf, 0);
             }
         }
     }
 
-    /// Reads the durations (after the submission that resolved them) and
-    /// clears the labels for the next submission.
-    pub fn read(&mut self, ctx: &GpuContext) -> Result<TimerReport, GpuError> {
+    /// Records into `enc` the resolve of the timestamps written so far and
+    /// the copy of their values for a later read, and clears the labels
+    /// for the next passes; the caller submits `enc` before its thread's
+    /// next readback, which maps them ([`GpuContext::copy_for_later`]).
+    pub fn resolve_later(
+        &mut self,
+        ctx: &GpuContext,
+        enc: &mut wgpu::CommandEncoder,
+    ) -> Result<Timings, GpuError> {
         let labels = std::mem::take(&mut self.labels);
         let Some(buf) = &self.resolve else {
-            return Ok(TimerReport::default());
+            return Ok(Timings::default());
         };
         if labels.is_empty() {
-            return Ok(TimerReport::default());
+            return Ok(Timings::default());
         }
-        let ticks: Vec<u64> = ctx.read_buffer(buf, 2 * labels.len())?;
-        let passes = labels
-            .into_iter()
-            .enumerate()
-            .map(|(i, l)| {
-                let dt = ticks[2 * i + 1].wrapping_sub(ticks[2 * i]);
-                (l, dt as f64 * self.period_ns * 1e-6)
-            })
-            .collect();
-        Ok(TimerReport { passes })
+        self.resolve_labelled(enc, labels.len());
+        let read = ctx.copy_for_later(enc, buf, 16 * labels.len() as u64)?;
+        Ok(Timings {
+            ready: TimerReport::default(),
+            pending: vec![PendingTimes {
+                labels,
+                read,
+                period_ns: self.period_ns,
+            }],
+        })
+    }
+
+    /// [`GpuTimer::resolve_later`] recorded to go with the next
+    /// submission ([`GpuContext::encoder_for_next`]): after the timed
+    /// passes' work, submitted or put off before, and without a
+    /// submission of its own.
+    pub fn read_later(&mut self, ctx: &GpuContext) -> Result<Timings, GpuError> {
+        if self.resolve.is_none() || self.labels.is_empty() {
+            self.labels.clear();
+            return Ok(Timings::default());
+        }
+        let mut enc = ctx.encoder_for_next();
+        let t = self.resolve_later(ctx, &mut enc);
+        ctx.defer(enc);
+        t
+    }
+
+    /// Reads the durations of the passes timed so far (in a readback of
+    /// their own) and clears the labels for the next submission.
+    pub fn read(&mut self, ctx: &GpuContext) -> Result<TimerReport, GpuError> {
+        self.read_later(ctx)?.try_wait(ctx)
     }
 }

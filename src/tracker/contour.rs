@@ -1616,12 +1616,7 @@ impl Tracker {
                 &mut self.targets,
                 self.gpu_timer.as_mut(),
             )?;
-            if let Some(t) = self.gpu_timer.as_mut() {
-                match t.read(&self.ctx) {
-                    Ok(r) => super::profile::note(&mut self.stages.gpu, "contour splat", &r),
-                    Err(e) => log::warn!("GPU timer: {e}"),
-                }
-            }
+            self.note_splat("contour splat");
         } else {
             self.splat(
                 super::profile::Texture::None,
@@ -1672,9 +1667,8 @@ impl Tracker {
                 .outline
                 .extract(window.width, window.height, spacing)
                 .map_err(crate::splat::SplatError::from)?;
-            if let Some(t) = self.gpu_timer.as_ref().map(|_| self.outline.last_timings()) {
-                super::profile::note(&mut self.stages.gpu, "contour outline", t);
-            }
+            let t = self.outline.take_timings();
+            self.note_timings("contour outline", t);
             self.fill_contour_mask(w, h, window, |x, y| outline.covered(x as u32, y as u32));
             (outline.points, outline.depths, None)
         } else {

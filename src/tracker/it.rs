@@ -253,8 +253,8 @@ impl Tracker {
                 let samples = gather.wait(&self.ctx)?;
                 Ok(ItEarly::Matched { samples, matches })
             });
-        let timings = self.it_matcher.last_timings().clone();
-        self.note_ncc("IT", timings);
+        let timings = self.it_matcher.take_timings();
+        self.note_timings("IT ncc", timings);
         self.stages.it_ncc += t.elapsed();
         Ok((corners, Some(early)))
     }
@@ -364,8 +364,8 @@ impl Tracker {
             .map(|m| (m.a, m.b))
             .collect(),
         };
-        let timings = self.it_matcher.last_timings().clone();
-        self.note_ncc("IT", timings);
+        let timings = self.it_matcher.take_timings();
+        self.note_timings("IT ncc", timings);
         self.stages.it_ncc += t.elapsed();
         let obs: Vec<Correspondence> = matches
             .iter()

@@ -209,8 +209,8 @@ impl Tracker {
                 (found, gathered.wait(&self.ctx)?)
             }
         };
-        let timings = self.matcher(search).last_timings().clone();
-        self.note_ncc("KF", timings);
+        let timings = self.matcher(search).take_timings();
+        self.note_timings("KF ncc", timings);
         let obs: Vec<Correspondence> = found
             .iter()
             .map(|f| (f, &all[f.0]))

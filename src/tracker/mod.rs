@@ -114,6 +114,11 @@ pub struct StageTimes {
     /// ([`GpuContext::readbacks`]).
     #[serde(default)]
     pub readbacks: f64,
+    /// The time the host spent blocked in those readbacks' waits
+    /// ([`GpuContext::waited`]): the GPU's work queued before them and the
+    /// round trip; the rest of `total` is the host's own work.
+    #[serde(default)]
+    pub gpu_wait: Duration,
     /// Submissions of GPU work during the call
     /// ([`GpuContext::submissions`]).
     #[serde(default)]
@@ -161,6 +166,7 @@ impl StageTimes {
             (&mut self.kf_ncc, other.kf_ncc),
             (&mut self.colour_learning, other.colour_learning),
             (&mut self.colour_wait, other.colour_wait),
+            (&mut self.gpu_wait, other.gpu_wait),
             (&mut self.total, other.total),
         ];
         for (acc, d) in pairs {
@@ -410,6 +416,9 @@ pub struct Tracker {
     stages: StageTimes,
     /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
     gpu_timer: Option<crate::gpu::GpuTimer>,
+    /// The frame's timed passes by label prefix, their timestamps still
+    /// to come with the frame's readbacks (read at its end).
+    pending_gpu: Vec<(String, crate::gpu::Timings)>,
     /// The check's scoring on the GPU (issue 13).
     check: verify_gpu::GpuCheck,
     /// The contour's outline found on the GPU (issue 13).
@@ -562,6 +571,7 @@ impl Tracker {
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
+            pending_gpu: Vec::new(),
             check: verify_gpu::GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
             outline: outline_gpu::GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: view::Resident::new(resident),
@@ -688,8 +698,10 @@ impl Tracker {
             self.ctx.readbacks(),
             self.ctx.submissions(),
             self.ctx.command_buffers(),
+            self.ctx.waited(),
         );
         self.resident.begin();
+        self.pending_gpu.clear();
         self.contour_rounds = 0;
         self.contour_renders = 0;
         self.contour_mask_fresh = false;
@@ -902,6 +914,7 @@ impl Tracker {
             self.spare_frame = Some(old.rgb);
         }
         self.resident.done();
+        self.collect_gpu_times();
         let sub = std::mem::take(&mut self.stages);
         times.it_render = sub.it_render;
         times.it_ncc = sub.it_ncc;
@@ -913,6 +926,7 @@ impl Tracker {
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.submissions = (self.ctx.submissions() - read0.2) as f64;
         times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
+        times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
         times.contour_rounds = self.contour_rounds as f64;
         times.contour_renders = self.contour_renders as f64;
         (times.colour_learning, times.colour_wait) = self.colours.take_times();

@@ -10,8 +10,8 @@
 
 use super::contour::{ContourPoint, contour_point};
 use crate::gpu::{
-    GpuContext, GpuError, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, WORKGROUP_1D,
-    WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    GpuContext, GpuError, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, Timings,
+    WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
 };
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
@@ -96,7 +96,7 @@ pub struct GpuOutline {
     /// Points found by the last extraction, to size the next readback.
     recent: usize,
     timer: Option<GpuTimer>,
-    last_timings: TimerReport,
+    timings: Timings,
     /// Whether the tracker finds its outlines here ([`GpuOutline::resident`]).
     resident: bool,
 }
@@ -135,7 +135,7 @@ impl GpuOutline {
             bind: None,
             recent: 0,
             timer: None,
-            last_timings: TimerReport::default(),
+            timings: Default::default(),
             resident: !ctx.is_cpu(),
         })
     }
@@ -160,8 +160,15 @@ impl GpuOutline {
     }
 
     /// Per-pass GPU durations of the last [`GpuOutline::extract`].
-    pub fn last_timings(&self) -> &TimerReport {
-        &self.last_timings
+    pub fn last_timings(&mut self) -> TimerReport {
+        std::mem::take(&mut self.timings).wait(&self.ctx)
+    }
+
+    /// The timings of the passes run since they were last taken, their
+    /// timestamps still to come with a readback: a frame loop gathers
+    /// them and reads them at its end without a wait of their own.
+    pub fn take_timings(&mut self) -> Timings {
+        std::mem::take(&mut self.timings)
     }
 
     /// Whether a `width x height` window fits the kernels: raster indices
@@ -281,8 +288,9 @@ impl GpuOutline {
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut enc);
+        if let Some(t) = self.timer.as_mut() {
+            // The timestamps come with the outline.
+            self.timings.append(t.resolve_later(ctx, &mut enc)?);
         }
         let size = std::mem::size_of::<OutlinePoint>();
         // Before any: the window's perimeter in cells (an object filling
@@ -301,9 +309,6 @@ impl GpuOutline {
                 (self.bits.get(), words as u64 * 4),
             ],
         )?;
-        if let Some(t) = self.timer.as_mut() {
-            self.last_timings = t.read(ctx)?;
-        }
         let count = (u32::from_le_bytes(parts[0][..4].try_into().expect("4 bytes")) as usize)
             .min(cells as usize);
         self.recent = count;

@@ -1,12 +1,14 @@
 //! GPU time per pass for `track --profile` (issue 13, Deliver 3): with
 //! timing on, every splat pass, Harris pass and NCC pass of a frame is
 //! timed by GPU timestamp queries and reported by stage in
-//! [`super::StageTimes::gpu`]. Off by default: reading the timestamps back
-//! waits for each submission.
+//! [`super::StageTimes::gpu`]. Off by default. The timestamps of a
+//! frame's passes are copied behind them and mapped by the frame's own
+//! readbacks ([`crate::gpu::GpuTimer::resolve_later`]), so timing adds
+//! no wait for the GPU: the readbacks `--profile` counts are the loop's.
 
 use super::Tracker;
 use crate::geometry::{Intrinsics, Pose};
-use crate::gpu::{GpuTimer, TimerReport};
+use crate::gpu::{GpuTimer, TimerReport, Timings};
 use crate::splat::{Attributes, SplatError};
 
 /// Which model a render splats.
@@ -61,27 +63,42 @@ impl Tracker {
             &mut self.targets,
             self.gpu_timer.as_mut(),
         )?;
+        self.note_splat(&format!("{stage} splat"));
+        Ok(())
+    }
+
+    /// Notes the passes of the splat just recorded as `label`.
+    pub(super) fn note_splat(&mut self, label: &str) {
         if let Some(t) = self.gpu_timer.as_mut() {
-            match t.read(&self.ctx) {
-                Ok(r) => note(&mut self.stages.gpu, &format!("{stage} splat"), &r),
+            match t.read_later(&self.ctx) {
+                Ok(r) => self.pending_gpu.push((label.to_owned(), r)),
                 Err(e) => log::warn!("GPU timer: {e}"),
             }
         }
-        Ok(())
     }
 
     /// Notes the last Harris run's passes under `stage`.
     pub(super) fn note_harris(&mut self, stage: &str) {
         if self.gpu_timer.is_some() {
-            let r = self.harris.last_timings().clone();
-            note(&mut self.stages.gpu, &format!("{stage} harris"), &r);
+            let t = self.harris.take_timings();
+            self.pending_gpu.push((format!("{stage} harris"), t));
         }
     }
 
-    /// Notes a matcher's last passes under `stage`.
-    pub(super) fn note_ncc(&mut self, stage: &str, r: TimerReport) {
+    /// Notes passes taken from a module (`t`) as `label`.
+    pub(super) fn note_timings(&mut self, label: &str, t: Timings) {
         if self.gpu_timer.is_some() {
-            note(&mut self.stages.gpu, &format!("{stage} ncc"), &r);
+            self.pending_gpu.push((label.to_owned(), t));
+        }
+    }
+
+    /// Reads the frame's noted passes into its stage times: their
+    /// timestamps came with the frame's readbacks (those noted after the
+    /// last, if any, in one wait of their own).
+    pub(super) fn collect_gpu_times(&mut self) {
+        for (label, t) in std::mem::take(&mut self.pending_gpu) {
+            let r = t.wait(&self.ctx);
+            note(&mut self.stages.gpu, &label, &r);
         }
     }
 }

@@ -477,10 +477,8 @@ impl super::Tracker {
                     .score(&frame, textured, visible, step, &self.config.verify)
             }
             .map_err(crate::splat::SplatError::from)?;
-            if self.gpu_timer.is_some() {
-                let r = self.check.last_timings().clone();
-                super::profile::note(&mut self.stages.gpu, "check score", &r);
-            }
+            let t = self.check.take_timings();
+            self.note_timings("check score", t);
             return Ok(s);
         }
         let frame = super::view::Placed::full(frame.grey()).crop(&window);

@@ -56,7 +56,7 @@ pub struct GpuCheck {
     total: GrowBuffer,
     bind: Option<wgpu::BindGroup>,
     timer: Option<crate::gpu::GpuTimer>,
-    last_timings: crate::gpu::TimerReport,
+    timings: crate::gpu::Timings,
     /// Whether the tracker scores here ([`GpuCheck::resident`]).
     resident: bool,
 }
@@ -96,7 +96,7 @@ impl GpuCheck {
             total: GrowBuffer::new("verify total", STORAGE_OUT),
             bind: None,
             timer: None,
-            last_timings: Default::default(),
+            timings: Default::default(),
             resident: !ctx.is_cpu(),
         })
     }
@@ -134,8 +134,15 @@ impl GpuCheck {
     }
 
     /// Per-pass GPU durations of the last [`GpuCheck::score`].
-    pub fn last_timings(&self) -> &crate::gpu::TimerReport {
-        &self.last_timings
+    pub fn last_timings(&mut self) -> crate::gpu::TimerReport {
+        std::mem::take(&mut self.timings).wait(&self.ctx)
+    }
+
+    /// The timings of the passes run since they were last taken, their
+    /// timestamps still to come with a readback: a frame loop gathers
+    /// them and reads them at its end without a wait of their own.
+    pub fn take_timings(&mut self) -> crate::gpu::Timings {
+        std::mem::take(&mut self.timings)
     }
 
     /// Whether a `width x height` window can be scored here: the counts
@@ -269,13 +276,11 @@ impl GpuCheck {
                 pass.dispatch_workgroups(1, 1, 1);
             }
         }
-        if let Some(t) = &self.timer {
-            t.resolve(&mut enc);
+        if let Some(t) = self.timer.as_mut() {
+            // The timestamps come with the sums.
+            self.timings.append(t.resolve_later(ctx, &mut enc)?);
         }
         let s: Vec<f32> = ctx.read_buffer_after(enc, self.total.get(), CHECK_SUMS as usize)?;
-        if let Some(t) = self.timer.as_mut() {
-            self.last_timings = t.read(ctx)?;
-        }
         let s: Vec<f64> = s.iter().map(|v| *v as f64).collect();
         let contour = s[7].round() as usize;
         Ok(VerifyScores {

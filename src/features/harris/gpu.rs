@@ -13,7 +13,7 @@ use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
     BindCache, GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
-    WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    Timings, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
 };
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
@@ -60,7 +60,7 @@ pub struct Harris {
     select_bind: Option<wgpu::BindGroup>,
     sizes_bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
-    last_timings: TimerReport,
+    timings: Timings,
     /// Detect on the host ([`Harris::set_host`]), in these images.
     host: bool,
     scratch: Scratch,
@@ -313,7 +313,7 @@ impl Harris {
             select_bind: None,
             sizes_bind: None,
             timer: None,
-            last_timings: TimerReport::default(),
+            timings: Default::default(),
             host: false,
             scratch: Scratch::default(),
             recent_corners: [[0; 2]; 2],
@@ -391,8 +391,15 @@ impl Harris {
 
     /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
     /// timing is enabled and supported).
-    pub fn last_timings(&self) -> &TimerReport {
-        &self.last_timings
+    pub fn last_timings(&mut self) -> TimerReport {
+        std::mem::take(&mut self.timings).wait(&self.ctx)
+    }
+
+    /// The timings of the passes run since they were last taken, their
+    /// timestamps still to come with a readback: a frame loop gathers
+    /// them and reads them at its end without a wait of their own.
+    pub fn take_timings(&mut self) -> Timings {
+        std::mem::take(&mut self.timings)
     }
 
     fn params(&self, w: usize, h: usize, n_corners: u32) -> HarrisParams {
@@ -852,7 +859,7 @@ impl Harris {
     fn resolved_grey(&mut self, width: usize, height: usize) -> Result<GreyImage, FeatureError> {
         self.prepare(width, height)?;
         let rgb: Vec<f32> = self.ctx.read_buffer(self.rgba.get(), width * height * 3)?;
-        self.last_timings = TimerReport::default();
+        self.timings = Default::default();
         GreyImage::from_rgb_f32(width, height, &rgb)
     }
 
@@ -885,7 +892,7 @@ impl Harris {
             return Ok(Vec::new());
         }
         if self.host {
-            self.last_timings = TimerReport::default();
+            self.timings = Default::default();
             let pixels = &mut self.scratch.pixels;
             match input {
                 Input::Grey(img) => pack_with_holes_into(img, mask, true, pixels),
@@ -1157,14 +1164,12 @@ impl Harris {
         Ok(detected)
     }
 
-    /// Resolves and reads the timestamps of the passes just run.
+    /// Resolves the timestamps of the passes just run, to be read with
+    /// the next readback ([`Harris::take_timings`]).
     fn finish_timing(&mut self) -> Result<(), FeatureError> {
         if let Some(t) = self.timer.as_mut() {
-            let ctx = &self.ctx.clone();
-            let mut enc = ctx.encoder();
-            t.resolve(&mut enc);
-            ctx.submit(enc);
-            self.last_timings = t.read(ctx)?;
+            let read = t.read_later(&self.ctx)?;
+            self.timings.append(read);
         }
         Ok(())
     }
