@@ -618,36 +618,46 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
     let rest = |whole: std::time::Duration, parts: &[std::time::Duration]| {
         ms(whole) - parts.iter().map(|d| ms(*d)).sum::<f64>()
     };
+    let w = &t.waits;
     let mut rows = vec![
-        ("features (frame Harris)", ms(t.features)),
-        ("IT", ms(t.it)),
-        ("  render + gather", ms(t.it_render)),
-        ("  NCC", ms(t.it_ncc)),
-        ("  solve", rest(t.it, &[t.it_render, t.it_ncc])),
-        ("KF", ms(t.kf)),
-        ("  render + read", ms(t.kf_render)),
-        ("  Harris", ms(t.kf_harris)),
-        ("  NCC + gather + refine", ms(t.kf_ncc)),
-        ("  solve", rest(t.kf, &[t.kf_render, t.kf_harris, t.kf_ncc])),
-        ("contour", ms(t.contour)),
-        ("pose check", ms(t.verify)),
-        ("search", ms(t.search)),
+        ("features (frame Harris)", ms(t.features), Some(w.features)),
+        ("IT", ms(t.it), Some(w.it)),
+        ("  render + gather", ms(t.it_render), None),
+        ("  NCC", ms(t.it_ncc), None),
+        ("  solve", rest(t.it, &[t.it_render, t.it_ncc]), None),
+        ("KF", ms(t.kf), Some(w.kf)),
+        ("  render + read", ms(t.kf_render), None),
+        ("  Harris", ms(t.kf_harris), None),
+        ("  NCC + gather + refine", ms(t.kf_ncc), None),
+        (
+            "  solve",
+            rest(t.kf, &[t.kf_render, t.kf_harris, t.kf_ncc]),
+            None,
+        ),
+        ("contour", ms(t.contour), Some(w.contour)),
+        ("pose check", ms(t.verify), Some(w.verify)),
+        ("search", ms(t.search), Some(w.search)),
         (
             "other",
             rest(
                 t.total,
                 &[t.features, t.it, t.kf, t.contour, t.verify, t.search],
             ),
+            None,
         ),
-        ("total", ms(t.total)),
+        ("total", ms(t.total), Some(t.gpu_wait)),
     ];
     if t.contour_rounds > 0.0 {
-        let at = rows.iter().position(|(n, _)| *n == "contour").unwrap_or(0) + 1;
-        rows.insert(at, ("  waiting for its colours", ms(t.colour_wait)));
+        let at = rows.iter().position(|(n, ..)| *n == "contour").unwrap_or(0) + 1;
+        rows.insert(at, ("  waiting for its colours", ms(t.colour_wait), None));
     }
-    let mut out = String::from("per frame (mean):\n");
-    for (name, v) in rows {
-        out += &format!("  {name:<26} {v:8.1} ms\n");
+    let mut out = String::from("per frame (mean; in brackets the wait for the GPU):\n");
+    for (name, v, wait) in rows {
+        out += &format!("  {name:<26} {v:8.1} ms");
+        if let Some(d) = wait.filter(|d| !d.is_zero()) {
+            out += &format!("  ({:.1} waiting)", ms(d));
+        }
+        out += "\n";
     }
     out += &format!(
         "  {:<26} {:8.0} bytes in {:.1} readbacks\n",

@@ -119,6 +119,9 @@ pub struct StageTimes {
     /// round trip; the rest of `total` is the host's own work.
     #[serde(default)]
     pub gpu_wait: Duration,
+    /// That time by stage.
+    #[serde(default)]
+    pub waits: StageWaits,
     /// Submissions of GPU work during the call
     /// ([`GpuContext::submissions`]).
     #[serde(default)]
@@ -149,6 +152,25 @@ pub struct StageTimes {
     pub total: Duration,
 }
 
+/// The host's time blocked waiting for the GPU within each stage of
+/// [`StageTimes`] ([`GpuContext::waited`]): what the stage's time is not
+/// the host's own work.
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct StageWaits {
+    /// In [`StageTimes::features`].
+    pub features: Duration,
+    /// In [`StageTimes::it`].
+    pub it: Duration,
+    /// In [`StageTimes::kf`].
+    pub kf: Duration,
+    /// In [`StageTimes::contour`].
+    pub contour: Duration,
+    /// In [`StageTimes::verify`].
+    pub verify: Duration,
+    /// In [`StageTimes::search`].
+    pub search: Duration,
+}
+
 impl StageTimes {
     /// Adds `other`'s times multiplied by `k` (for means over frames).
     pub fn add_scaled(&mut self, other: &StageTimes, k: f64) {
@@ -167,6 +189,12 @@ impl StageTimes {
             (&mut self.colour_learning, other.colour_learning),
             (&mut self.colour_wait, other.colour_wait),
             (&mut self.gpu_wait, other.gpu_wait),
+            (&mut self.waits.features, other.waits.features),
+            (&mut self.waits.it, other.waits.it),
+            (&mut self.waits.kf, other.waits.kf),
+            (&mut self.waits.contour, other.waits.contour),
+            (&mut self.waits.verify, other.waits.verify),
+            (&mut self.waits.search, other.waits.search),
             (&mut self.total, other.total),
         ];
         for (acc, d) in pairs {
@@ -714,6 +742,7 @@ impl Tracker {
         {
             let found = self.find(frame)?;
             times.search = t0.elapsed();
+            times.waits.search = self.ctx.waited().saturating_sub(read0.4);
             // The search's KF-like steps are its own time ("search"), not
             // the KF stage's parts, which would otherwise exceed it (the
             // passes' GPU times stay, under their own labels).
@@ -754,6 +783,7 @@ impl Tracker {
             }
         }
         let t_features = Instant::now();
+        let w_features = self.ctx.waited();
         // The frame kept for the next one, in the buffer of the frame
         // before the last where it fits.
         let kept = match self.spare_frame.take() {
@@ -798,17 +828,21 @@ impl Tracker {
         drop(intake);
         // IT's early render and gather count as IT's.
         times.features = t_features.elapsed().saturating_sub(it_early_time);
+        times.waits.features = self.ctx.waited().saturating_sub(w_features);
 
         let rules = Rules::of(&self.config);
         let first_frame = self.prev.is_none() && !recovering;
         let t_it = Instant::now();
+        let w_it = self.ctx.waited();
         let (it, it_anchors) = if texture {
             self.it_stage(&frame, &start_pose, recovering, it_early)
         } else {
             (StepOutcome::default(), Vec::new())
         };
         times.it = t_it.elapsed() + it_early_time;
+        times.waits.it = self.ctx.waited().saturating_sub(w_it);
         let t_kf = Instant::now();
+        let w_kf = self.ctx.waited();
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
         self.kf_anchors.clear();
         let (kf, keyframe) = if texture {
@@ -818,7 +852,9 @@ impl Tracker {
             (StepOutcome::default(), None)
         };
         times.kf = t_kf.elapsed();
+        times.waits.kf = self.ctx.waited().saturating_sub(w_kf);
         let t_contour = Instant::now();
+        let w_contour = self.ctx.waited();
         let contour = if self.config.modalities.contour {
             // From the best texture estimate, fused with its inliers; else
             // from the previous pose with longer lines.
@@ -838,6 +874,7 @@ impl Tracker {
             StepOutcome::default()
         };
         times.contour = t_contour.elapsed();
+        times.waits.contour = self.ctx.waited().saturating_sub(w_contour);
 
         let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
             || it.estimate.is_some_and(|e| rules.trusted(&e));
@@ -855,6 +892,7 @@ impl Tracker {
         let mut scores = None;
         let mut texture_set_aside = false;
         let t_verify = Instant::now();
+        let w_verify = self.ctx.waited();
         let mut d = d;
         if d.status == Status::Tracking && self.config.verify.enabled {
             let check = if frozen {
@@ -895,6 +933,7 @@ impl Tracker {
             }
         }
         times.verify = t_verify.elapsed();
+        times.waits.verify = self.ctx.waited().saturating_sub(w_verify);
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
