@@ -467,6 +467,52 @@ fn reused_targets_keep_nothing_of_the_previous_render() {
 }
 
 #[test]
+fn reused_targets_render_each_models_colours_and_geometry() {
+    // The compute back end keeps the bind groups of recent models
+    // (a keyframe's colours, the bare geometry): renders into the same
+    // targets alternating between two colourings of one geometry, a
+    // second geometry, and back, each equal bit for bit to the model
+    // rendered alone into fresh targets.
+    let sphere = shapes::sphere(Vec3::ZERO, 0.5, 3000, 1.2);
+    let mut rng = Rng::new(11);
+    let mut recoloured = sphere.clone();
+    let colours: Vec<[f32; 3]> = (0..sphere.positions.len())
+        .map(|_| [0; 3].map(|_: u8| rng.uniform(0.0, 1.0) as f32))
+        .collect();
+    recoloured.colors = Some(colours.clone());
+    let other = shapes::sphere(Vec3::new(0.2, 0.0, 0.1), 0.3, 2000, 1.2);
+    let geometry = GpuModel::new(ctx(), &sphere).unwrap();
+    let painted = geometry.with_colors(ctx(), &colours).unwrap();
+    let second = GpuModel::new(ctx(), &other).unwrap();
+    let cam = Intrinsics::new(120, 90, 110.0, 110.0, 59.5, 44.5);
+    let pose = look_at(
+        &Vector3::new(0.0, 0.2, -1.3),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let s = splatter(Backend::Compute);
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    let order: [(&GpuModel, &PointModel); 6] = [
+        (&geometry, &sphere),
+        (&painted, &recoloured),
+        (&geometry, &sphere),
+        (&second, &other),
+        (&painted, &recoloured),
+        (&geometry, &sphere),
+    ];
+    for (i, (gm, model)) in order.into_iter().enumerate() {
+        s.render(ctx(), gm, &cam, &pose, Attributes::ALL, &mut t)
+            .unwrap();
+        let fresh = images(&s, model, &cam, &pose);
+        for (k, &a) in READ.iter().enumerate() {
+            let got = s.read(ctx(), &t, a).unwrap();
+            let differ = splat_common::differing(&got, &fresh[k]);
+            assert_eq!(differ, 0, "render {i}, {a:?}: {differ} values differ");
+        }
+    }
+}
+
+#[test]
 fn compute_passes_are_timed_like_the_render_pass() {
     let model = shapes::sphere(Vec3::ZERO, 0.5, 2000, 1.2);
     let gm = GpuModel::new(ctx(), &model).unwrap();

@@ -664,10 +664,12 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         "read back from the GPU", t.readback_bytes, t.readbacks
     );
     out += &format!(
-        "  {:<26} {:8.1} ms in those waits (the GPU's work and latency); the host's own work {:.1} ms{}\n",
+        "  {:<26} {:8.1} ms in those waits (the GPU's work and latency); the host's own work {:.1} ms, of which {:.1} finishing command buffers (wgpu encoding the passes) and {:.1} submitting{}\n",
         "waiting for the GPU",
         ms(t.gpu_wait),
         ms(t.total) - ms(t.gpu_wait),
+        ms(t.gpu_finish),
+        ms(t.gpu_submit),
         if cpu_adapter {
             " (a CPU adapter runs the GPU's work inside submissions too: the split says little there)"
         } else {

@@ -112,6 +112,11 @@ struct Health {
     /// and its latency as the host sees them; the rest of a frame is the
     /// host's own).
     waited_ns: std::sync::atomic::AtomicU64,
+    /// Nanoseconds the host spent finishing command encoders (where wgpu
+    /// encodes and validates the recorded passes) and in
+    /// `Queue::submit`.
+    finish_ns: std::sync::atomic::AtomicU64,
+    submit_ns: std::sync::atomic::AtomicU64,
     /// Submissions through [`GpuContext::submit`] and the readbacks (each
     /// a `Queue::submit` of one or more command buffers: the host's fixed
     /// cost of GPU work).
@@ -292,7 +297,7 @@ impl Drop for Encoder {
                 // Never with one encoder lent at a time; its work is
                 // kept, before the newer, all the same.
                 Some(newer) => {
-                    b.pending.push(enc.finish());
+                    b.pending.push(h.finish(enc));
                     b.open = Some(newer);
                 }
             }
@@ -326,10 +331,10 @@ impl Health {
     fn submit(&self, queue: &wgpu::Queue, last: Option<wgpu::CommandEncoder>) {
         let mut b = self.batch_state();
         if let Some(open) = b.open.take() {
-            b.pending.push(open.finish());
+            b.pending.push(self.finish(open));
         }
         if let Some(last) = last {
-            b.pending.push(last.finish());
+            b.pending.push(self.finish(last));
         }
         if b.pending.is_empty() {
             return;
@@ -338,7 +343,21 @@ impl Health {
         self.submissions.fetch_add(1, relaxed);
         self.command_buffers
             .fetch_add(b.pending.len() as u64, relaxed);
+        let t0 = std::time::Instant::now();
         queue.submit(b.pending.drain(..));
+        self.submit_ns
+            .fetch_add(t0.elapsed().as_nanos() as u64, relaxed);
+    }
+
+    /// Finishes `enc` (wgpu encodes its passes), timed.
+    fn finish(&self, enc: wgpu::CommandEncoder) -> wgpu::CommandBuffer {
+        let t0 = std::time::Instant::now();
+        let done = enc.finish();
+        self.finish_ns.fetch_add(
+            t0.elapsed().as_nanos() as u64,
+            std::sync::atomic::Ordering::Relaxed,
+        );
+        done
     }
 
     fn batch_state(&self) -> std::sync::MutexGuard<'_, BatchState> {
@@ -878,6 +897,16 @@ impl GpuContext {
             .load(std::sync::atomic::Ordering::Relaxed)
     }
 
+    /// The host's time so far finishing command encoders (where wgpu
+    /// encodes and validates the passes recorded) and in `Queue::submit`:
+    /// the fixed cost of GPU work on the host (all threads).
+    pub fn encoding(&self) -> (std::time::Duration, std::time::Duration) {
+        let get = |a: &std::sync::atomic::AtomicU64| {
+            std::time::Duration::from_nanos(a.load(std::sync::atomic::Ordering::Relaxed))
+        };
+        (get(&self.health.finish_ns), get(&self.health.submit_ns))
+    }
+
     /// The time the host has spent so far blocked in those readbacks'
     /// waits for the GPU (all threads): its work queued before them and
     /// the round trip.
@@ -1011,9 +1040,9 @@ impl GpuContext {
                     // so far.
                     let enc = enc.take();
                     if let Some(open) = b.open.take() {
-                        b.pending.push(open.finish());
+                        b.pending.push(self.health.finish(open));
                     }
-                    b.pending.push(enc.finish());
+                    b.pending.push(self.health.finish(enc));
                 }
                 return;
             }

@@ -40,7 +40,17 @@ pub(super) struct Scratch {
     /// The list of large splats (one u32 per splat of the largest model).
     big: GrowBuffer,
     finish_bind: Option<wgpu::BindGroup>,
+    /// The splat's bind groups by the buffers that vary (the model's
+    /// geometry and colours, the list of large splats), most recent
+    /// first: the frame loop's renders (a keyframe's colours, the bare
+    /// geometry) bind anew only when a model or the list changes.
+    binds: Vec<([wgpu::Buffer; 3], wgpu::BindGroup)>,
 }
+
+/// Bind groups a [`Scratch`] keeps: the frame loop's two models (each
+/// keeps its buffers alive, so no more: a keyframe's colours dropped
+/// from the cache are freed at the next change).
+const KEPT_BINDS: usize = 2;
 
 impl Scratch {
     fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, SplatError> {
@@ -64,6 +74,7 @@ impl Scratch {
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             ),
             finish_bind: None,
+            binds: Vec::new(),
         })
     }
 }
@@ -250,51 +261,8 @@ impl ComputeSplatter {
             .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
         ctx.queue
             .write_buffer(&scratch.params, 0, bytemuck::bytes_of(&params));
-        let mut entries = vec![
-            wgpu::BindGroupEntry {
-                binding: 0,
-                resource: targets.uniform.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 1,
-                resource: scratch.params.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 2,
-                resource: model.geometry.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 3,
-                resource: scratch.depth.as_entire_binding(),
-            },
-            wgpu::BindGroupEntry {
-                binding: 4,
-                resource: scratch.acc.as_entire_binding(),
-            },
-        ];
-        for (i, v) in targets.acc_views.iter().enumerate() {
-            entries.push(wgpu::BindGroupEntry {
-                binding: 5 + i as u32,
-                resource: wgpu::BindingResource::TextureView(v),
-            });
-        }
-        entries.push(wgpu::BindGroupEntry {
-            binding: 10,
-            resource: scratch.bounds.as_entire_binding(),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 11,
-            resource: scratch.big.get().as_entire_binding(),
-        });
-        entries.push(wgpu::BindGroupEntry {
-            binding: 12,
-            resource: model.colors.as_entire_binding(),
-        });
-        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("splat compute"),
-            layout: &self.layout,
-            entries: &entries,
-        });
+        let bind = self.cached_bind(ctx, targets, model);
+        let scratch = targets.compute.as_ref().expect("just made");
         // Splats per dispatch row: at most 65535 workgroups in x.
         let groups = workgroups(model.count, WORKGROUP_1D);
         let gx = groups.clamp(1, 65_535);
@@ -354,5 +322,89 @@ impl ComputeSplatter {
         }
         ctx.submit(enc);
         Ok(())
+    }
+
+    /// The bind group of a render of `model` into `targets` (whose
+    /// scratch is made): the one kept for these buffers, else a new one,
+    /// kept.
+    fn cached_bind(
+        &self,
+        ctx: &GpuContext,
+        targets: &mut SplatTargets,
+        model: &GpuModel,
+    ) -> wgpu::BindGroup {
+        let scratch = targets.compute.as_ref().expect("scratch made");
+        let key = [
+            model.geometry.clone(),
+            model.colors.clone(),
+            scratch.big.get().clone(),
+        ];
+        match scratch.binds.iter().position(|(k, _)| *k == key) {
+            Some(i) => targets.compute.as_mut().expect("scratch made").binds[..=i].rotate_right(1),
+            None => {
+                let bind = self.bind(ctx, targets, scratch, model);
+                let binds = &mut targets.compute.as_mut().expect("scratch made").binds;
+                binds.truncate(KEPT_BINDS - 1);
+                binds.insert(0, (key, bind));
+            }
+        }
+        targets.compute.as_ref().expect("scratch made").binds[0]
+            .1
+            .clone()
+    }
+
+    /// A new bind group of a render of `model` into `targets`.
+    fn bind(
+        &self,
+        ctx: &GpuContext,
+        targets: &SplatTargets,
+        scratch: &Scratch,
+        model: &GpuModel,
+    ) -> wgpu::BindGroup {
+        let mut entries = vec![
+            wgpu::BindGroupEntry {
+                binding: 0,
+                resource: targets.uniform.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 1,
+                resource: scratch.params.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 2,
+                resource: model.geometry.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 3,
+                resource: scratch.depth.as_entire_binding(),
+            },
+            wgpu::BindGroupEntry {
+                binding: 4,
+                resource: scratch.acc.as_entire_binding(),
+            },
+        ];
+        for (i, v) in targets.acc_views.iter().enumerate() {
+            entries.push(wgpu::BindGroupEntry {
+                binding: 5 + i as u32,
+                resource: wgpu::BindingResource::TextureView(v),
+            });
+        }
+        entries.push(wgpu::BindGroupEntry {
+            binding: 10,
+            resource: scratch.bounds.as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 11,
+            resource: scratch.big.get().as_entire_binding(),
+        });
+        entries.push(wgpu::BindGroupEntry {
+            binding: 12,
+            resource: model.colors.as_entire_binding(),
+        });
+        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("splat compute"),
+            layout: &self.layout,
+            entries: &entries,
+        })
     }
 }

@@ -122,6 +122,14 @@ pub struct StageTimes {
     /// That time by stage.
     #[serde(default)]
     pub waits: StageWaits,
+    /// The host's time finishing command encoders (wgpu's encoding and
+    /// validation of the passes; [`GpuContext::encoding`]): part of its
+    /// own work.
+    #[serde(default)]
+    pub gpu_finish: Duration,
+    /// The host's time in `Queue::submit` ([`GpuContext::encoding`]).
+    #[serde(default)]
+    pub gpu_submit: Duration,
     /// Submissions of GPU work during the call
     /// ([`GpuContext::submissions`]).
     #[serde(default)]
@@ -189,6 +197,8 @@ impl StageTimes {
             (&mut self.colour_learning, other.colour_learning),
             (&mut self.colour_wait, other.colour_wait),
             (&mut self.gpu_wait, other.gpu_wait),
+            (&mut self.gpu_finish, other.gpu_finish),
+            (&mut self.gpu_submit, other.gpu_submit),
             (&mut self.waits.features, other.waits.features),
             (&mut self.waits.it, other.waits.it),
             (&mut self.waits.kf, other.waits.kf),
@@ -727,6 +737,7 @@ impl Tracker {
             self.ctx.submissions(),
             self.ctx.command_buffers(),
             self.ctx.waited(),
+            self.ctx.encoding(),
         );
         self.resident.begin();
         self.pending_gpu.clear();
@@ -966,6 +977,9 @@ impl Tracker {
         times.submissions = (self.ctx.submissions() - read0.2) as f64;
         times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
         times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
+        let (finish, submit) = self.ctx.encoding();
+        times.gpu_finish = finish.saturating_sub(read0.5.0);
+        times.gpu_submit = submit.saturating_sub(read0.5.1);
         times.contour_rounds = self.contour_rounds as f64;
         times.contour_renders = self.contour_renders as f64;
         (times.colour_learning, times.colour_wait) = self.colours.take_times();
