@@ -751,6 +751,9 @@ fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
             );
             assert_eq!(a.times.readbacks as u64, r1 - r0, "{at}");
             assert!(b.times.gpu.is_empty(), "{at}");
+            // The passes on the GPU's clock: busy within the frame's span.
+            let g = a.times.gpu_timeline;
+            assert!(g.busy > 0.0 && g.span >= g.busy, "{at}: {g:?}");
             let mut want = vec!["features harris", "KF splat", "KF harris", "KF ncc"];
             want.extend(["check splat", "check score"]);
             if i > 0 {

@@ -694,6 +694,16 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         );
     }
     if !t.gpu.is_empty() {
+        let g = &t.gpu_timeline;
+        out += &format!(
+            "GPU timeline per frame (mean): {:.3} ms from the first pass to the last, {:.3} busy; idle {:.3} in {:.1} gaps of at most {} ms between passes, {:.3} in longer ones (the host's turns)\n",
+            g.span,
+            g.busy,
+            g.short_gaps,
+            g.short_gap_count,
+            splattrack::gpu::GpuTimeline::SHORT_GAP_MS,
+            g.long_gaps
+        );
         out += "GPU passes per frame (mean, timestamp queries):\n";
         for (name, v) in &t.gpu {
             out += &format!("  {name:<26} {v:8.3} ms\n");

@@ -16,7 +16,7 @@ pub mod selftest;
 mod timer;
 
 pub use pipeline::{GrowBuffer, buffer_entry, compute_entry, compute_pass, storage, texture_entry};
-pub use timer::{GpuTimer, TimerReport, Timings};
+pub use timer::{GpuTimeline, GpuTimer, TimerReport, Timings};
 
 use std::fmt;
 use std::str::FromStr;

@@ -7,6 +7,75 @@ use super::{GpuContext, GpuError, PendingRead};
 #[derive(Debug, Clone, Default)]
 pub struct TimerReport {
     pub passes: Vec<(String, f64)>,
+    /// Each pass's beginning and end on the GPU's clock, nanoseconds
+    /// (one clock for every timer of a device; where the passes were read
+    /// by [`Timings`]).
+    pub spans: Vec<(f64, f64)>,
+}
+
+/// When the GPU worked during a set of passes ([`GpuTimeline::of`]), in
+/// milliseconds.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct GpuTimeline {
+    /// From the first pass's beginning to the last one's end.
+    pub span: f64,
+    /// Within it, the time some pass ran.
+    pub busy: f64,
+    /// The idle gaps shorter than [`GpuTimeline::SHORT_GAP_MS`] (between
+    /// passes of one submission: barriers, launches).
+    pub short_gaps: f64,
+    /// Their count (a mean over frames is fractional).
+    pub short_gap_count: f64,
+    /// The longer gaps: the GPU waiting for the host (its turns between
+    /// readbacks and submissions).
+    pub long_gaps: f64,
+}
+
+impl GpuTimeline {
+    /// Gaps up to this long count as between passes.
+    pub const SHORT_GAP_MS: f64 = 0.05;
+
+    /// Adds `other` multiplied by `k` (for means over frames).
+    pub fn add_scaled(&mut self, other: &GpuTimeline, k: f64) {
+        self.span += other.span * k;
+        self.busy += other.busy * k;
+        self.short_gaps += other.short_gaps * k;
+        self.short_gap_count += other.short_gap_count * k;
+        self.long_gaps += other.long_gaps * k;
+    }
+
+    /// The timeline of passes given by their spans (nanoseconds, any
+    /// order; overlapping passes count once).
+    pub fn of(spans: &[(f64, f64)]) -> Self {
+        let mut v: Vec<(f64, f64)> = spans
+            .iter()
+            .copied()
+            .filter(|(b, e)| b.is_finite() && e.is_finite() && e >= b)
+            .collect();
+        v.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut t = GpuTimeline::default();
+        let Some(&(first, mut end)) = v.first() else {
+            return t;
+        };
+        let mut start = first;
+        for &(b, e) in &v[1..] {
+            if b > end {
+                t.busy += end - start;
+                let gap = (b - end) * 1e-6;
+                if gap <= Self::SHORT_GAP_MS {
+                    t.short_gaps += gap;
+                    t.short_gap_count += 1.0;
+                } else {
+                    t.long_gaps += gap;
+                }
+                start = b;
+            }
+            end = end.max(e);
+        }
+        t.busy = (t.busy + end - start) * 1e-6;
+        t.span = (end - first) * 1e-6;
+        t
+    }
 }
 
 impl TimerReport {
@@ -70,6 +139,11 @@ impl Timings {
                     let dt = ticks[2 * i + 1].wrapping_sub(ticks[2 * i]);
                     (l, dt as f64 * p.period_ns * 1e-6)
                 }));
+            report.spans.extend(
+                ticks
+                    .chunks_exact(2)
+                    .map(|t| (t[0] as f64 * p.period_ns, t[1] as f64 * p.period_ns)),
+            );
         }
         Ok(report)
     }
@@ -221,5 +295,36 @@ impl GpuTimer {
     /// their own) and clears the labels for the next submission.
     pub fn read(&mut self, ctx: &GpuContext) -> Result<TimerReport, GpuError> {
         self.read_later(ctx)?.try_wait(ctx)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::GpuTimeline;
+
+    #[test]
+    fn the_timeline_merges_overlaps_and_sorts_the_gaps() {
+        // Nanoseconds: [0, 10 us] and [5, 20 us] overlap (busy 20 us), a
+        // gap of 30 us (short), [50, 60 us], a gap of 1 ms (long), then
+        // [1060, 1070 us]; given out of order, with one reversed span
+        // ignored.
+        let us = 1e3;
+        let t = GpuTimeline::of(&[
+            (1060.0 * us, 1070.0 * us),
+            (5.0 * us, 20.0 * us),
+            (0.0, 10.0 * us),
+            (50.0 * us, 60.0 * us),
+            (9.0, 3.0),
+        ]);
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-9;
+        assert!(close(t.span, 1.07), "{t:?}");
+        assert!(close(t.busy, 0.04), "{t:?}");
+        assert!(
+            close(t.short_gaps, 0.03) && t.short_gap_count == 1.0,
+            "{t:?}"
+        );
+        assert!(close(t.long_gaps, 1.0), "{t:?}");
+        assert!(close(t.span, t.busy + t.short_gaps + t.long_gaps));
+        assert_eq!(GpuTimeline::of(&[]), GpuTimeline::default());
     }
 }

@@ -106,6 +106,10 @@ pub struct StageTimes {
     /// timestamp queries; empty unless [`Tracker::enable_gpu_timing`]).
     #[serde(default)]
     pub gpu: Vec<(String, f64)>,
+    /// When the GPU worked during the frame, from the same timestamps:
+    /// its passes' busy time and the gaps between them.
+    #[serde(default)]
+    pub gpu_timeline: crate::gpu::GpuTimeline,
     /// Bytes read back from the GPU during the call
     /// ([`GpuContext::bytes_read`]; a mean over frames is fractional).
     #[serde(default)]
@@ -219,6 +223,7 @@ impl StageTimes {
         for (label, ms) in &other.gpu {
             profile::add(&mut self.gpu, label, ms * k);
         }
+        self.gpu_timeline.add_scaled(&other.gpu_timeline, k);
     }
 }
 
@@ -972,6 +977,7 @@ impl Tracker {
         times.kf_harris = sub.kf_harris;
         times.kf_ncc = sub.kf_ncc;
         times.gpu = sub.gpu;
+        times.gpu_timeline = sub.gpu_timeline;
         times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.submissions = (self.ctx.submissions() - read0.2) as f64;

@@ -96,10 +96,13 @@ impl Tracker {
     /// timestamps came with the frame's readbacks (those noted after the
     /// last, if any, in one wait of their own).
     pub(super) fn collect_gpu_times(&mut self) {
+        let mut spans = Vec::new();
         for (label, t) in std::mem::take(&mut self.pending_gpu) {
             let r = t.wait(&self.ctx);
             note(&mut self.stages.gpu, &label, &r);
+            spans.extend(r.spans);
         }
+        self.stages.gpu_timeline = crate::gpu::GpuTimeline::of(&spans);
     }
 }
 
