@@ -175,7 +175,48 @@ fn bench(c: &mut Criterion) {
     let together = || black_box(ctx.read_buffer_after::<u32>(work(), &tiny, 4).unwrap());
     g.bench_function("work_then_readback_2_submissions", |bn| bn.iter(&apart));
     g.bench_function("work_with_readback_1_submission", |bn| bn.iter(&together));
+    // A pass's host cost: 40 dispatches of one small workgroup each, in
+    // 40 compute passes or in one, with their readback (the frame loop
+    // records about 40 passes a frame, `track --profile`).
+    let pipeline = ctx.compute_pipeline("selftest", "saxpy").unwrap();
+    let params = ctx.buffer_init(
+        "bench saxpy params",
+        &[splattrack::gpu::selftest::SelftestParams {
+            a: 1.0,
+            n: 64,
+            _pad0: 0,
+            _pad1: 0,
+        }],
+        wgpu::BufferUsages::UNIFORM,
+    );
+    let x = ctx.buffer_init("bench x", &[1.0f32; 64], splattrack::gpu::STORAGE_IN);
+    let y = ctx.buffer_init("bench y", &[0.0f32; 64], splattrack::gpu::STORAGE_OUT);
+    let bind = ctx
+        .bind_buffers(
+            "bench saxpy",
+            &pipeline.get_bind_group_layout(0),
+            &[&params, &x, &y],
+        )
+        .unwrap();
+    let dispatches = |passes: usize| {
+        let mut enc = ctx.encoder();
+        for _ in 0..passes {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(&pipeline);
+            pass.set_bind_group(0, &bind, &[]);
+            for _ in 0..40 / passes {
+                pass.dispatch_workgroups(1, 1, 1);
+            }
+        }
+        black_box(ctx.read_buffer_after::<u32>(enc, &tiny, 4).unwrap())
+    };
+    g.bench_function("dispatches_40_in_40_passes", |bn| {
+        bn.iter(|| dispatches(40))
+    });
+    g.bench_function("dispatches_40_in_1_pass", |bn| bn.iter(|| dispatches(1)));
     g.finish();
+    let passes40_us = 1e3 * median_ms(200, || drop(dispatches(40)));
+    let passes1_us = 1e3 * median_ms(200, || drop(dispatches(1)));
     let readback_us = 1e3
         * median_ms(200, || {
             black_box(ctx.read_buffer::<u32>(&tiny, 4).unwrap());
@@ -224,6 +265,11 @@ fn bench(c: &mut Criterion) {
     println!(
         "a clear and its readback (200 runs, medians): {apart_us:.1} us in two submissions, \
          {together_us:.1} us in one"
+    );
+    println!(
+        "40 small dispatches and a readback (200 runs, medians): {passes40_us:.1} us in 40 \
+         compute passes, {passes1_us:.1} us in one ({:.2} us a pass)",
+        (passes40_us - passes1_us) / 39.0
     );
     for (name, passes) in [
         ("Harris 640x480", &passes),
