@@ -87,17 +87,29 @@ fn store(ctx: &GpuContext, scene: &Scene, model: &PointModel) -> KeyframeStore {
     .unwrap()
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What every case of a scene and model shares.
+struct Cases<'a> {
+    ctx: &'a GpuContext,
+    scene: &'a Scene,
+    model: &'a PointModel,
+    store: &'a KeyframeStore,
+}
+
+/// One case: `config` tracked over the scene's frames as `id` (with the
+/// corner selection tiled or not where `tiled_selection` says).
 fn case(
     group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
-    ctx: &GpuContext,
-    scene: &Scene,
-    model: &PointModel,
-    store: &KeyframeStore,
+    on: &Cases,
     config: TrackerConfig,
     id: String,
     tiled_selection: Option<bool>,
 ) {
+    let Cases {
+        ctx,
+        scene,
+        model,
+        store,
+    } = *on;
     let new = || {
         let mut t = Tracker::new(
             ctx,
@@ -180,6 +192,12 @@ fn bench(c: &mut Criterion) {
         for n in model_sizes() {
             let model = sample_model(&object, n, seed).unwrap();
             let store = store(&ctx, &scene, &model);
+            let on = Cases {
+                ctx: &ctx,
+                scene: &scene,
+                model: &model,
+                store: &store,
+            };
             if (w, n) == (640, 100_000) {
                 for mode in [Mode::It, Mode::Kf] {
                     let config = TrackerConfig {
@@ -187,7 +205,7 @@ fn bench(c: &mut Criterion) {
                         ..Default::default()
                     };
                     let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
-                    case(&mut group, &ctx, &scene, &model, &store, config, id, None);
+                    case(&mut group, &on, config, id, None);
                 }
             }
             if n >= 100_000 {
@@ -200,7 +218,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it+contour/auto/{w}x{h}/{n}");
-                case(&mut group, &ctx, &scene, &model, &store, config, id, None);
+                case(&mut group, &on, config, id, None);
             }
             for backend in [Backend::RenderPass, Backend::Compute] {
                 let config = TrackerConfig {
@@ -209,7 +227,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it/{backend}/{w}x{h}/{n}");
-                case(&mut group, &ctx, &scene, &model, &store, config, id, None);
+                case(&mut group, &on, config, id, None);
             }
             // On GPUs the corner selection runs tiled; the same frames
             // with it one thread an item (what CPU adapters run), to
@@ -221,16 +239,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it/compute/direct-selection/{w}x{h}/{n}");
-                case(
-                    &mut group,
-                    &ctx,
-                    &scene,
-                    &model,
-                    &store,
-                    config,
-                    id,
-                    Some(false),
-                );
+                case(&mut group, &on, config, id, Some(false));
             }
         }
     }
