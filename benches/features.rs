@@ -129,6 +129,35 @@ fn bench(c: &mut Criterion) {
     };
     let passes = timed(&mut harris);
     let passes_direct = timed(&mut direct);
+    // A window the size of the frame loop's (a few hundred candidates):
+    // the selection split over workgroups, or in one workgroup a pass
+    // (the default there on GPUs: four dispatches a detection instead of
+    // fourteen). Both tiled, as on GPUs.
+    let window = patterns::smooth_noise(200, 160, 1.5, 200);
+    let mut split = Harris::new(&ctx, cfg.clone()).unwrap();
+    let mut small = Harris::new(&ctx, cfg.clone()).unwrap();
+    for (h, one) in [(&mut split, false), (&mut small, true)] {
+        h.set_tiled_selection(true);
+        h.set_small_selection(Some(one));
+    }
+    let window_corners = split.detect(&window, None).unwrap();
+    assert_eq!(window_corners, small.detect(&window, None).unwrap());
+    g.bench_function("harris_gpu_200x160_split_selection", |b| {
+        b.iter(|| black_box(split.detect(&window, None).unwrap()))
+    });
+    g.bench_function("harris_gpu_200x160_small_selection", |b| {
+        b.iter(|| black_box(small.detect(&window, None).unwrap()))
+    });
+    split.enable_timing();
+    small.enable_timing();
+    let timed_window = |h: &mut Harris| {
+        pass_medians(|| {
+            h.detect(&window, None).unwrap();
+            h.last_timings().passes.clone()
+        })
+    };
+    let passes_split = timed_window(&mut split);
+    let passes_small = timed_window(&mut small);
 
     let a = patterns::smooth_noise(640, 480, 2.0, 7);
     let warp = Warp {
@@ -274,6 +303,14 @@ fn bench(c: &mut Criterion) {
     for (name, passes) in [
         ("Harris 640x480", &passes),
         ("Harris 640x480, direct selection", &passes_direct),
+        (
+            &format!(
+                "Harris 200x160 ({} corners), selection split",
+                window_corners.len()
+            ),
+            &passes_split,
+        ),
+        ("Harris 200x160, selection in one workgroup", &passes_small),
         ("NCC 900 x 900", &ncc_passes),
     ] {
         if !passes.is_empty() {

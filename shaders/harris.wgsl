@@ -1062,6 +1062,24 @@ fn merge_links(
 // default on CPU adapters, where a workgroup barrier costs more than the
 // loads it saves (lavapipe: the tiled passes took 1.4-1.6x as long in the
 // real cube's GPU loop, GPU timestamps); `Harris::set_tiled_selection`.
+// Candidate i's rank within its grid cell (1: the cell's best; 0 for all
+// without a grid) into select_index[i], against every other of the n
+// read from global memory.
+fn rank_direct(i: u32, n: u32) {
+    var rank = 0u;
+    if (params.grid_cell > 0u) {
+        let c = candidates[i];
+        rank = 1u;
+        for (var j = 0u; j < n; j++) {
+            let o = candidates[j];
+            if (cell_of(o) == cell_of(c) && score_before(o, c)) {
+                rank++;
+            }
+        }
+    }
+    select_index[i] = rank;
+}
+
 @compute @workgroup_size(WORKGROUP_1D)
 fn select_rank_direct(
     @builtin(global_invocation_id) id: vec3<u32>,
@@ -1070,18 +1088,24 @@ fn select_rank_direct(
     let n = select_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var i = id.x; i < n; i += stride) {
-        var rank = 0u;
-        if (params.grid_cell > 0u) {
-            let c = candidates[i];
-            rank = 1u;
-            for (var j = 0u; j < n; j++) {
-                let o = candidates[j];
-                if (cell_of(o) == cell_of(c) && score_before(o, c)) {
-                    rank++;
-                }
-            }
+        rank_direct(i, n);
+    }
+}
+
+// Candidate i's place in the order by rank, then by score; the first
+// max_corners places name their candidate in select_index[SELECT_MAX + p].
+fn place_direct(i: u32, n: u32) {
+    let c = candidates[i];
+    let rank = select_index[i];
+    var place = 0u;
+    for (var j = 0u; j < n; j++) {
+        let r = select_index[j];
+        if (r < rank || (r == rank && score_before(candidates[j], c))) {
+            place++;
         }
-        select_index[i] = rank;
+    }
+    if (place < params.max_corners) {
+        select_index[SELECT_MAX + place] = i;
     }
 }
 
@@ -1093,19 +1117,20 @@ fn select_place_direct(
     let n = select_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var i = id.x; i < n; i += stride) {
-        let c = candidates[i];
-        let rank = select_index[i];
-        var place = 0u;
-        for (var j = 0u; j < n; j++) {
-            let r = select_index[j];
-            if (r < rank || (r == rank && score_before(candidates[j], c))) {
-                place++;
-            }
-        }
-        if (place < params.max_corners) {
-            select_index[SELECT_MAX + place] = i;
+        place_direct(i, n);
+    }
+}
+
+// Selected corner s into `ordered` at its place in the merge's order.
+fn order_direct(s: u32, n: u32) {
+    let c = corners[s];
+    var place = 0u;
+    for (var t = 0u; t < n; t++) {
+        if (merge_before(corners[t], t, c, s)) {
+            place++;
         }
     }
+    ordered[place] = c;
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -1116,15 +1141,26 @@ fn merge_order_direct(
     let n = slot_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var s = id.x; s < n; s += stride) {
-        let c = corners[s];
-        var place = 0u;
-        for (var t = 0u; t < n; t++) {
-            if (merge_before(corners[t], t, c, s)) {
-                place++;
-            }
-        }
-        ordered[place] = c;
+        order_direct(s, n);
     }
+}
+
+// Corner s's earlier close corners (in the merge's order): their count
+// in select_index[s], the first MERGE_LINKS of them after SELECT_MAX (as
+// merge_links); s undecided.
+fn links_direct(s: u32) {
+    let c = ordered[s];
+    var links = 0u;
+    for (var t = 0u; t < s; t++) {
+        if (too_close(ordered[t], c)) {
+            if (links < MERGE_LINKS) {
+                select_index[SELECT_MAX + s * MERGE_LINKS + links] = t;
+            }
+            links++;
+        }
+    }
+    select_index[s] = links;
+    atomicStore(&select_state[s], UNDECIDED);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -1135,18 +1171,7 @@ fn merge_links_direct(
     let n = slot_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var s = id.x; s < n; s += stride) {
-        let c = ordered[s];
-        var links = 0u;
-        for (var t = 0u; t < s; t++) {
-            if (too_close(ordered[t], c)) {
-                if (links < MERGE_LINKS) {
-                    select_index[SELECT_MAX + s * MERGE_LINKS + links] = t;
-                }
-                links++;
-            }
-        }
-        select_index[s] = links;
-        atomicStore(&select_state[s], UNDECIDED);
+        links_direct(s);
     }
 }
 
@@ -1197,13 +1222,20 @@ fn merge_round(
     let n = slot_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var s = id.x; s < n; s += stride) {
-        if (atomicLoad(&select_state[s]) == UNDECIDED) {
-            let state = decide(s);
-            if (state != UNDECIDED) {
-                atomicStore(&select_state[s], state);
-            }
-        }
+        decide_one(s);
     }
+}
+
+// Corner s decided where it can be; whether it is still undecided.
+fn decide_one(s: u32) -> bool {
+    if (atomicLoad(&select_state[s]) != UNDECIDED) {
+        return false;
+    }
+    let state = decide(s);
+    if (state != UNDECIDED) {
+        atomicStore(&select_state[s], state);
+    }
+    return state == UNDECIDED;
 }
 
 // The kept corners, in the merge's order, into `corners` (each at the
@@ -1219,21 +1251,98 @@ fn merge_compact(
     let n = slot_count();
     let stride = groups.x * WORKGROUP_1D;
     for (var s = id.x; s < n; s += stride) {
-        let state = atomicLoad(&select_state[s]);
-        if (state == UNDECIDED) {
-            atomicAdd(&counters.undecided, 1u);
+        compact_one(s);
+    }
+}
+
+// Corner s into `corners` at the count of kept corners before it where
+// kept, counted into counters.selected (or counters.undecided).
+fn compact_one(s: u32) {
+    let state = atomicLoad(&select_state[s]);
+    if (state == UNDECIDED) {
+        atomicAdd(&counters.undecided, 1u);
+    }
+    if (state != KEPT) {
+        return;
+    }
+    var before = 0u;
+    for (var t = 0u; t < s; t++) {
+        if (atomicLoad(&select_state[t]) == KEPT) {
+            before++;
         }
-        if (state != KEPT) {
-            continue;
+    }
+    corners[before] = ordered[s];
+    atomicAdd(&counters.selected, 1u);
+}
+
+// ---- The selection in one workgroup (GPUs, few candidates) ----
+// select_rank, select_place and (behind the refinement) the merge's
+// passes as one dispatch each of one workgroup, their phases parted by
+// barriers instead of dispatches: the frame loop's detections have a few
+// hundred candidates, where the split passes' fourteen dependent
+// dispatches a detection cost more in the GPU's gaps between them than
+// in work. Each phase is the one-thread-an-item passes' (`*_direct`,
+// the CPU adapters' kernels), so the corners are the same; the merge's
+// rounds run until every corner is decided (none is left to the host).
+// Correct for any count, slow for thousands (the host picks these from
+// the last detections' counts: `Harris::set_small_selection`).
+const SMALL_GROUP: u32 = 256u;
+var<workgroup> small_undecided: atomic<u32>;
+var<workgroup> small_more: u32;
+
+@compute @workgroup_size(SMALL_GROUP)
+fn select_small(@builtin(local_invocation_index) lid: u32) {
+    let n = select_count();
+    for (var i = lid; i < n; i += SMALL_GROUP) {
+        rank_direct(i, n);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    for (var i = lid; i < n; i += SMALL_GROUP) {
+        place_direct(i, n);
+    }
+}
+
+@compute @workgroup_size(SMALL_GROUP)
+fn merge_small(@builtin(local_invocation_index) lid: u32) {
+    let n = slot_count();
+    for (var s = lid; s < n; s += SMALL_GROUP) {
+        order_direct(s, n);
+    }
+    storageBarrier();
+    workgroupBarrier();
+    for (var s = lid; s < n; s += SMALL_GROUP) {
+        links_direct(s);
+    }
+    // Rounds until none is undecided: each decides at least the earliest
+    // undecided corner, so at most n.
+    loop {
+        if (lid == 0u) {
+            atomicStore(&small_undecided, 0u);
         }
-        var before = 0u;
-        for (var t = 0u; t < s; t++) {
-            if (atomicLoad(&select_state[t]) == KEPT) {
-                before++;
+        storageBarrier();
+        workgroupBarrier();
+        var mine = 0u;
+        for (var s = lid; s < n; s += SMALL_GROUP) {
+            if (decide_one(s)) {
+                mine++;
             }
         }
-        corners[before] = ordered[s];
-        atomicAdd(&counters.selected, 1u);
+        if (mine > 0u) {
+            atomicAdd(&small_undecided, mine);
+        }
+        workgroupBarrier();
+        if (lid == 0u) {
+            small_more = atomicLoad(&small_undecided);
+        }
+        if (workgroupUniformLoad(&small_more) == 0u) {
+            break;
+        }
+    }
+    storageBarrier();
+    workgroupBarrier();
+    for (var s = lid; s < n; s += SMALL_GROUP) {
+        compact_one(s);
     }
 }
 

@@ -451,6 +451,37 @@ fn the_gpus_kernels_give_the_cpu_adapters_poses() {
     });
 }
 
+/// The GPUs' corner selection in one workgroup a pass (the default for
+/// the loop's detections of a few hundred candidates) against the same
+/// selection split over workgroups, in the GPU frame loop on lavapipe:
+/// the same corners, so the same poses bit for bit, with the contour and
+/// without.
+#[test]
+fn the_selection_in_one_workgroup_gives_the_split_selections_poses() {
+    let f = fixture();
+    let ctx = shared_test_context();
+    for (contour, n) in [(false, 5), (true, 3)] {
+        let make = |small: bool| {
+            let mut t = gpu_loop_tracker(ctx, contour);
+            t.set_gpu_kernels(true);
+            t.set_harris_small_selection(Some(small));
+            t
+        };
+        let (mut one, mut split) = (make(true), make(false));
+        for (i, fr) in f.frames[..n].iter().enumerate() {
+            let (a, b) = (
+                one.track(&fr.image).unwrap(),
+                split.track(&fr.image).unwrap(),
+            );
+            let at = format!("contour {contour}, frame {i}");
+            assert_eq!(a.status, Status::Tracking, "{at}");
+            assert_eq!((a.status, a.inliers), (b.status, b.inliers), "{at}");
+            assert_eq!(a.pose.rotation, b.pose.rotation, "{at}");
+            assert_eq!(a.pose.translation, b.pose.translation, "{at}");
+        }
+    }
+}
+
 #[test]
 fn the_windowed_silhouette_is_the_whole_frame_one() {
     // Overlays and the live view splat only the window the model can cover.

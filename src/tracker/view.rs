@@ -503,6 +503,14 @@ impl Tracker {
         self.harris.set_tiled_selection(tiled);
     }
 
+    /// Where tiled, the corner selection in one workgroup a pass or split
+    /// over workgroups ([`crate::features::Harris::set_small_selection`]):
+    /// for the tests and benches comparing the two in the loop.
+    #[doc(hidden)]
+    pub fn set_harris_small_selection(&mut self, small: Option<bool>) {
+        self.harris.set_small_selection(small);
+    }
+
     /// Every kernel choice between a GPU's (workgroup tiles, splits and
     /// groups) and a CPU adapter's (one thread an item), whatever the
     /// adapter: Harris's selection, the three matchers and the check.

@@ -78,6 +78,13 @@ pub struct Harris {
     /// Whether the selection's O(n^2) passes share tiles of the items in
     /// workgroup memory ([`Harris::set_tiled_selection`]).
     tiled_select: bool,
+    /// The selection in one workgroup forced on or off
+    /// ([`Harris::set_small_selection`]); `None`: by the candidates of the
+    /// last detection of the kind (`recent_candidates`).
+    small_select: Option<bool>,
+    /// The candidates of the last detection (on the GPU) of frames (0)
+    /// and views (1); `usize::MAX` before any.
+    recent_candidates: [usize; 2],
     /// The export of a detection's corners to the next stages
     /// ([`Harris::export_corners`]): its layout, pipeline, parameters and
     /// last bind group (with the buffers it binds).
@@ -104,6 +111,8 @@ pub struct PendingCorners {
     height: usize,
     /// Frames (0) or views (1): whose recent detections size the readback.
     kind: usize,
+    /// The most candidates it selects on the GPU (the host selects beyond).
+    limit: usize,
 }
 
 impl PendingCorners {
@@ -181,11 +190,13 @@ enum Size {
     /// Workgroups of selected corners by chunks of others (indirect, at
     /// byte 64).
     SelectedSplit,
+    /// One workgroup (`select_small`, `merge_small`).
+    Group,
 }
 
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection")
 /// and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 17] = [
+const SELECT_ENTRIES: [(&str, Size); 19] = [
     ("select_sizes", Size::One),
     ("select_clear", Size::Candidates),
     ("select_rank", Size::CandidatesSplit),
@@ -204,31 +215,50 @@ const SELECT_ENTRIES: [(&str, Size); 17] = [
     ("select_place_direct", Size::Candidates),
     ("merge_order_direct", Size::Selected),
     ("merge_links_direct", Size::Selected),
+    // The selection in one workgroup (few candidates, GPUs).
+    ("select_small", Size::Group),
+    ("merge_small", Size::Group),
 ];
+
+/// The most candidates of the last detection of a kind for the next one
+/// to select in one workgroup ([`Harris::set_small_selection`]): the
+/// frame loop's detections have a few hundred.
+pub const SMALL_SELECT: usize = 512;
+
+/// The most candidates a selection in one workgroup takes: with more (a
+/// detection far busier than the last), the host selects, as beyond
+/// [`Harris::set_select_limit`] (its loops stay within lavapipe's 65535
+/// iterations an invocation, and on GPUs the split passes are faster).
+pub const SMALL_CAP: usize = 1024;
 
 /// The selection's timed passes (their labels) and the entries each runs,
 /// on GPUs (`tiled`): the O(n^2) counts tiled in workgroup memory and
-/// split over the others, the refinement a workgroup a corner (where its
-/// radius fits [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread
-/// an item ([`Harris::set_tiled_selection`]).
-fn select_passes(tiled: bool, refine_radius: u32) -> [(&'static str, &'static [usize]); 3] {
+/// split over the others, or (`small`) the selection and the merge one
+/// workgroup each; the refinement a workgroup a corner (where its radius
+/// fits [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread an item
+/// ([`Harris::set_tiled_selection`]).
+fn select_passes(
+    tiled: bool,
+    small: bool,
+    refine_radius: u32,
+) -> [(&'static str, &'static [usize]); 3] {
     let refine: &'static [usize] = if tiled && refine_radius <= REFINE_GROUP_RADIUS {
         &[7]
     } else {
         &[6]
     };
-    if tiled {
-        [
+    match (tiled, small) {
+        (true, true) => [("select", &[0, 17]), ("refine", refine), ("merge", &[18])],
+        (true, false) => [
             ("select", &[0, 1, 2, 3, 4, 5]),
             ("refine", refine),
             ("merge", &[8, 9, 10, 11, 12]),
-        ]
-    } else {
-        [
+        ],
+        (false, _) => [
             ("select", &[0, 13, 14]),
             ("refine", refine),
             ("merge", &[15, 16, 11, 12]),
-        ]
+        ],
     }
 }
 
@@ -325,6 +355,8 @@ impl Harris {
                 SELECT_MAX
             } as usize,
             tiled_select: !ctx.is_cpu(),
+            small_select: None,
+            recent_candidates: [usize::MAX; 2],
             export_layout,
             export,
             export_params: ctx.buffer(
@@ -373,6 +405,36 @@ impl Harris {
         self.tiled_select = tiled;
     }
 
+    /// Where the selection is tiled ([`Harris::set_tiled_selection`]):
+    /// runs it in one workgroup a pass (`Some(true)`: the selection's
+    /// ranks and places, then the merge, each one dispatch instead of
+    /// six; correct for any count, slow for thousands), split over
+    /// workgroups (`Some(false)`), or (`None`, the default) in one
+    /// workgroup when the last detection of the same kind (frame or
+    /// view) had at most [`SMALL_SELECT`] candidates. The same corners,
+    /// bit for bit.
+    pub fn set_small_selection(&mut self, small: Option<bool>) {
+        self.small_select = small;
+    }
+
+    /// The most candidates the next selection takes on the GPU: the
+    /// limit, at most [`SMALL_CAP`] in one workgroup.
+    fn select_limit_now(&self) -> usize {
+        if self.small_selection() {
+            self.select_limit.min(SMALL_CAP)
+        } else {
+            self.select_limit
+        }
+    }
+
+    /// Whether the next selection runs in one workgroup a pass.
+    fn small_selection(&self) -> bool {
+        self.tiled_select
+            && self
+                .small_select
+                .unwrap_or(self.recent_candidates[self.kind] <= SMALL_SELECT)
+    }
+
     /// Whether detection runs on the host ([`Harris::set_host`]).
     pub fn host(&self) -> bool {
         self.host
@@ -385,7 +447,7 @@ impl Harris {
         // after the host selected the refinement, and the export.
         self.timer = Some(GpuTimer::new(
             &self.ctx,
-            (PASSES.len() + select_passes(true, 0).len()) as u32 + 4,
+            (PASSES.len() + select_passes(true, false, 0).len()) as u32 + 4,
         ));
     }
 
@@ -433,7 +495,7 @@ impl Harris {
             grid_cell: c.grid_cell,
             merge_r2: c.merge_radius * c.merge_radius,
             refine: c.refine as u32,
-            select_limit: self.select_limit as u32,
+            select_limit: self.select_limit_now() as u32,
             _pad2: 0,
             weights,
         }
@@ -631,7 +693,11 @@ impl Harris {
         let bind = self.select_bind.as_ref().expect("prepared");
         let sizes = self.sizes_bind.as_ref().expect("prepared");
         let args = self.select_args.get();
-        for (label, entries) in select_passes(self.tiled_select, self.config.refine_radius) {
+        let small = self.small_selection();
+        if small {
+            log::trace!("harris: the selection in one workgroup a pass");
+        }
+        for (label, entries) in select_passes(self.tiled_select, small, self.config.refine_radius) {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             for &e in entries {
                 let size = SELECT_ENTRIES[e].1;
@@ -644,6 +710,7 @@ impl Harris {
                     Size::SelectedGroups => pass.dispatch_workgroups_indirect(args, 32),
                     Size::CandidatesSplit => pass.dispatch_workgroups_indirect(args, 48),
                     Size::SelectedSplit => pass.dispatch_workgroups_indirect(args, 64),
+                    Size::Group => pass.dispatch_workgroups(1, 1, 1),
                     Size::Rounds => {
                         for _ in 0..self.merge_rounds {
                             pass.dispatch_workgroups_indirect(args, 16);
@@ -921,6 +988,7 @@ impl Harris {
         // host selects, and the selected are refined on the GPU after it
         // (a third).
         self.kind = matches!(input, Input::Resolved { .. }) as usize;
+        let limit = self.select_limit_now();
         let rows = self.readback_rows(w, h);
         let mut enc = self.encode_maps(input, mask)?;
         self.encode_select(&mut enc);
@@ -933,7 +1001,7 @@ impl Harris {
         ];
         let parts = ctx.read_buffers_after(enc, &reads)?;
         let counters: Counters = bytemuck::pod_read_unaligned(&parts[0]);
-        let detected = self.finish_detection(w, h, &counters, &parts[1], rows)?;
+        let detected = self.finish_detection(w, h, &counters, &parts[1], rows, limit)?;
         self.finish_timing()?;
         Ok(detected.corners)
     }
@@ -968,11 +1036,13 @@ impl Harris {
         counters: &Counters,
         part: &[u8],
         rows: usize,
+        limit: usize,
     ) -> Result<Detected, FeatureError> {
         let room = capacity(w, h);
         let cap = self.config.max_corners.min(room);
         let count = (counters.count as usize).min(room);
-        if count <= self.select_limit {
+        self.recent_candidates[self.kind] = count;
+        if count <= limit {
             log::trace!(
                 "harris: {count} candidates, {} corners, {rows} read back",
                 counters.selected
@@ -1042,6 +1112,7 @@ impl Harris {
             )));
         }
         self.kind = kind;
+        let limit = self.select_limit_now();
         let rows = self.readback_rows(width, height);
         let mut enc = self.encode_maps(input, None)?;
         self.encode_select(&mut enc);
@@ -1059,6 +1130,7 @@ impl Harris {
             width,
             height,
             kind,
+            limit,
         })
     }
 
@@ -1159,6 +1231,7 @@ impl Harris {
             &counters,
             &part,
             pending.rows,
+            pending.limit,
         )?;
         self.finish_timing()?;
         Ok(detected)
@@ -1289,6 +1362,12 @@ mod tests {
             enc.clear_buffer(self.grad.get(), 0, None);
             self.encode_select(&mut enc);
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
+            // The merge in one workgroup runs its rounds to the end.
+            assert!(
+                !self.small_selection() || counters.undecided == 0,
+                "{} corners left undecided in one workgroup",
+                counters.undecided
+            );
             let slots = cands.len().min(self.config.max_corners);
             self.selected_corners(&counters, &[], slots)
                 .map(|d| d.corners)
@@ -1345,7 +1424,7 @@ mod tests {
         let ctx = crate::gpu::shared_test_context();
         let mut rng = Rng::new(7);
         let (w, h) = (200, 150);
-        let mut cases = 0;
+        let (mut cases, mut smalls) = (0, 0);
         // One detector (its pipelines built once), its configuration set
         // for each case.
         let mut harris = Harris::new(ctx, HarrisConfig::default()).unwrap();
@@ -1378,6 +1457,14 @@ mod tests {
                             };
                             harris.config = cfg.clone();
                             harris.set_select_limit(SELECT_MAX as usize);
+                            // The three selections in turn: one thread an
+                            // item, split over workgroups, one workgroup a
+                            // pass (up to SMALL_SELECT candidates: beyond,
+                            // its loops pass lavapipe's 65535 iterations).
+                            let mode = cases % 3;
+                            let small = mode == 2 && n <= SMALL_SELECT;
+                            harris.set_tiled_selection(mode > 0);
+                            harris.set_small_selection(Some(small));
                             // Every other case without the parallel rounds:
                             // the host finishes the whole merge.
                             harris.merge_rounds = if (case + cases) % 2 == 0 {
@@ -1393,17 +1480,20 @@ mod tests {
                             let first = got.iter().zip(&want).position(|(g, w)| g != w);
                             assert!(
                                 got == want,
-                                "{n} candidates (dense {dense}, ties {ties}), grid {grid}, max {max}, radius {radius}, {} rounds: {} corners against the host's {}, first difference at {first:?}",
+                                "{n} candidates (dense {dense}, ties {ties}), grid {grid}, max {max}, radius {radius}, {} rounds, tiled {}, small {small}: {} corners against the host's {}, first difference at {first:?}",
                                 harris.merge_rounds,
+                                mode > 0,
                                 got.len(),
                                 want.len()
                             );
                             cases += 1;
+                            smalls += small as usize;
                         }
                     }
                 }
             }
         }
         assert!(cases > 100, "{cases} cases");
+        assert!(smalls > 20, "{smalls} cases in one workgroup");
     }
 }
