@@ -411,7 +411,7 @@ impl Harris {
     /// six; correct for any count, slow for thousands), split over
     /// workgroups (`Some(false)`), or (`None`, the default) in one
     /// workgroup when the last detection of the same kind (frame or
-    /// view) had at most [`SMALL_SELECT`] candidates. The same corners,
+    /// view) had at most 512 candidates (`SMALL_SELECT`). The same corners,
     /// bit for bit.
     pub fn set_small_selection(&mut self, small: Option<bool>) {
         self.small_select = small;
