@@ -1284,8 +1284,11 @@ fn compact_one(s: u32) {
 // in work. Each phase is the one-thread-an-item passes' (`*_direct`,
 // the CPU adapters' kernels), so the corners are the same; the merge's
 // rounds run until every corner is decided (none is left to the host).
-// Correct for any count, slow for thousands (the host picks these from
-// the last detections' counts: `Harris::set_small_selection`).
+// The host picks these from the last detections' counts
+// (`Harris::set_small_selection`) and then caps params.select_limit at
+// SMALL_CAP (1024): a busier detection is selected on the host, as beyond
+// the limit (one workgroup's loops over thousands would be slow, and
+// would pass lavapipe's 65535 iterations an invocation).
 const SMALL_GROUP: u32 = 256u;
 var<workgroup> small_undecided: atomic<u32>;
 var<workgroup> small_more: u32;

@@ -408,7 +408,8 @@ impl Harris {
     /// Where the selection is tiled ([`Harris::set_tiled_selection`]):
     /// runs it in one workgroup a pass (`Some(true)`: the selection's
     /// ranks and places, then the merge, each one dispatch instead of
-    /// six; correct for any count, slow for thousands), split over
+    /// six; with more than 1024 candidates, `SMALL_CAP`, the host
+    /// selects, as beyond [`Harris::set_select_limit`]), split over
     /// workgroups (`Some(false)`), or (`None`, the default) in one
     /// workgroup when the last detection of the same kind (frame or
     /// view) had at most 512 candidates (`SMALL_SELECT`). The same corners,
