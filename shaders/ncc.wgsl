@@ -23,10 +23,10 @@
 //   B's features in a host-given spatial order and skips the dot products
 //   of pairs that get no score). Same sum in the same order either way.
 //   Pairs with an invalid window or beyond the search radius get NO_SCORE.
-// row_best / col_best: one workgroup per row / column reduces to the best
-//   score (ties: the lower index); with score_direct, row_best_direct /
-//   col_best_direct scan a row / column per thread. The host keeps mutual
-//   bests.
+// bests: one workgroup per row, then per column, reduces to the best
+//   score (ties: the lower index), rows and columns in one dispatch; with
+//   score_direct, bests_direct scans a row or column per thread. The host
+//   keeps mutual bests.
 // mutual_refine (the resident path, NccMatcher::match_resident): one
 //   workgroup per feature of A keeps its row's best when it is mutual and
 //   scores at least min_score, and (refine_on) moves B's point to the
@@ -543,25 +543,40 @@ fn best_of_line(lid: u32, first: u32, step: u32, n: u32, live: bool) {
     reduce(lid);
 }
 
+// Each row's best (feature i of A against every B, into best[i]) and
+// each column's (feature j of B against every A, into best[na + j]), a
+// workgroup a line: rows first, then columns, in one dispatch (the two
+// are independent: one dependent dispatch fewer a matching). The lines
+// run x first, then y, so that more than 65535 of them fit a dispatch.
 @compute @workgroup_size(WORKGROUP_1D)
-fn row_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    let i = wid.x;
-    best_of_line(lid.x, i * params.nb, 1u, params.nb, i < params.na);
-    if (lid.x == 0u && i < params.na) {
-        best[i] = Best(red_index[0], red_score[0]);
+fn bests(
+    @builtin(local_invocation_id) lid: vec3<u32>,
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let line = wid.y * groups.x + wid.x;
+    let na = params.na;
+    let nb = params.nb;
+    let row = line < na;
+    // Column j where not a row (wrapped, and unused, where a row). One
+    // call whatever the line: its barriers in uniform control flow.
+    let j = line - na;
+    best_of_line(
+        lid.x,
+        select(j, line * nb, row),
+        select(nb, 1u, row),
+        select(na, nb, row),
+        row || j < nb,
+    );
+    if (lid.x == 0u && row) {
+        best[line] = Best(red_index[0], red_score[0]);
+    }
+    if (lid.x == 0u && !row && j < nb) {
+        best[na + j] = Best(red_index[0], red_score[0]);
     }
 }
 
-@compute @workgroup_size(WORKGROUP_1D)
-fn col_best(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
-    let j = wid.x;
-    best_of_line(lid.x, j, params.nb, params.na, j < params.nb);
-    if (lid.x == 0u && j < params.nb) {
-        best[params.na + j] = Best(red_index[0], red_score[0]);
-    }
-}
-
-// The CPU adapters' twins of row_best / col_best (with score_direct): one
+// The CPU adapters' twin of bests (with score_direct): one
 // thread per row / column scans its scores in order, with no workgroup
 // barrier (slow on a CPU); the same bests, ties included (`better` orders
 // every pair).
@@ -579,18 +594,17 @@ fn scan_line(first: u32, step: u32, n: u32) -> Best {
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
-fn row_best_direct(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = id.x;
-    if (i < params.na) {
-        best[i] = scan_line(i * params.nb, 1u, params.nb);
-    }
-}
-
-@compute @workgroup_size(WORKGROUP_1D)
-fn col_best_direct(@builtin(global_invocation_id) id: vec3<u32>) {
-    let j = id.x;
-    if (j < params.nb) {
-        best[params.na + j] = scan_line(j, params.nb, params.na);
+fn bests_direct(
+    @builtin(global_invocation_id) id: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let line = id.y * groups.x * WORKGROUP_1D + id.x;
+    let na = params.na;
+    let nb = params.nb;
+    if (line < na) {
+        best[line] = scan_line(line * nb, 1u, nb);
+    } else if (line < na + nb) {
+        best[line] = scan_line(line - na, nb, na);
     }
 }
 

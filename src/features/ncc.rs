@@ -164,8 +164,7 @@ pub struct NccMatcher {
     passes: Vec<wgpu::ComputePipeline>,
     score_direct: wgpu::ComputePipeline,
     /// One thread per row / column (with `score_direct`).
-    row_best_direct: wgpu::ComputePipeline,
-    col_best_direct: wgpu::ComputePipeline,
+    bests_direct: wgpu::ComputePipeline,
     tiled: bool,
     params: wgpu::Buffer,
     pixels: GrowBuffer,
@@ -197,15 +196,13 @@ pub struct NccMatcher {
     host: bool,
 }
 
-const PASSES: [&str; 4] = ["vectorize", "score", "row_best", "col_best"];
-const ENTRIES: [&str; 10] = [
+const PASSES: [&str; 3] = ["vectorize", "score", "bests"];
+const ENTRIES: [&str; 8] = [
     "vectorize",
     "score_tiled",
-    "row_best",
-    "col_best",
+    "bests",
     "score_direct",
-    "row_best_direct",
-    "col_best_direct",
+    "bests_direct",
     "mutual_refine",
     "mutual_refine_wide",
     "vectorize_group",
@@ -221,12 +218,11 @@ impl NccMatcher {
         entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
         let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
-        let vectorize_group = passes.pop().expect("ten pipelines");
-        let mutual_refine_wide = passes.pop().expect("ten pipelines");
-        let mutual_refine = passes.pop().expect("ten pipelines");
-        let col_best_direct = passes.pop().expect("ten pipelines");
-        let row_best_direct = passes.pop().expect("ten pipelines");
-        let score_direct = passes.pop().expect("ten pipelines");
+        let vectorize_group = passes.pop().expect("eight pipelines");
+        let mutual_refine_wide = passes.pop().expect("eight pipelines");
+        let mutual_refine = passes.pop().expect("eight pipelines");
+        let bests_direct = passes.pop().expect("eight pipelines");
+        let score_direct = passes.pop().expect("eight pipelines");
         let gate_entries = [
             compute_entry(20, storage(true)),
             compute_entry(21, wgpu::BufferBindingType::Uniform),
@@ -243,8 +239,7 @@ impl NccMatcher {
             layout,
             passes,
             score_direct,
-            row_best_direct,
-            col_best_direct,
+            bests_direct,
             tiled: !ctx.is_cpu(),
             params: ctx.buffer(
                 "ncc params",
@@ -790,14 +785,16 @@ impl NccMatcher {
     /// Records the passes (vectorize, scores, bests; with `mutual`, the
     /// mutual check and refinement) into `enc`.
     fn encode(&mut self, enc: &mut wgpu::CommandEncoder, na: usize, nb: usize, mutual: bool) {
+        // The bests: a workgroup a line (rows, then columns), or on CPU
+        // adapters a thread a line, in rows of at most 65535 workgroups.
+        let lines = (na + nb) as u32;
         let groups = [
-            (workgroups((na + nb) as u32, WORKGROUP_1D), 1),
+            (workgroups(lines, WORKGROUP_1D), 1),
             (
                 workgroups(nb as u32, NCC_TILE),
                 workgroups(na as u32, NCC_TILE),
             ),
-            (na as u32, 1),
-            (nb as u32, 1),
+            split_groups(lines),
         ];
         let bind = self.bind.as_ref().expect("bind group built in prepare");
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
@@ -811,12 +808,10 @@ impl NccMatcher {
                 pass.set_pipeline(&self.score_direct);
                 // Four columns per thread.
                 pass.dispatch_workgroups(workgroups(nb as u32, 4 * NCC_TILE), gy, 1);
-            } else if label == "row_best" && !self.tiled {
-                pass.set_pipeline(&self.row_best_direct);
-                pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
-            } else if label == "col_best" && !self.tiled {
-                pass.set_pipeline(&self.col_best_direct);
-                pass.dispatch_workgroups(workgroups(nb as u32, WORKGROUP_1D), 1, 1);
+            } else if label == "bests" && !self.tiled {
+                pass.set_pipeline(&self.bests_direct);
+                let (x, y) = split_groups(workgroups(lines, WORKGROUP_1D));
+                pass.dispatch_workgroups(x, y, 1);
             } else {
                 pass.set_pipeline(pipeline);
                 pass.dispatch_workgroups(gx, gy, 1);
@@ -841,6 +836,13 @@ impl NccMatcher {
             }
         }
     }
+}
+
+/// `n` workgroups as a grid of rows of at most 65535 (a dispatch's most
+/// in x), x first; the last row's surplus does nothing.
+fn split_groups(n: u32) -> (u32, u32) {
+    let x = n.clamp(1, 65_535);
+    (x, n.div_ceil(x).max(1))
 }
 
 /// The two GPU-resident bands of a matching
@@ -906,7 +908,20 @@ fn resident_matches(out: &[MatchOut], y0: f64, refine: bool) -> Vec<ResidentMatc
 
 #[cfg(test)]
 mod tests {
-    use super::spatial_order;
+    use super::{spatial_order, split_groups};
+
+    #[test]
+    fn workgroups_beyond_a_dispatch_row_wrap_into_rows() {
+        for n in [0u32, 1, 64, 65_535, 65_536, 200_000] {
+            let (x, y) = split_groups(n);
+            assert!((1..=65_535).contains(&x) && y >= 1, "{n}: {x} x {y}");
+            assert!(x as u64 * y as u64 >= n as u64, "{n}: {x} x {y} too few");
+            assert!(
+                (x as u64 * (y as u64 - 1)) < n.max(1) as u64,
+                "{n}: {x} x {y}: a whole row too many"
+            );
+        }
+    }
 
     #[test]
     fn spatial_order_is_a_permutation_by_bands_then_x() {
