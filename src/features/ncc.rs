@@ -312,7 +312,9 @@ impl NccMatcher {
         self.timer = Some(GpuTimer::new(&self.ctx, 2 * ENTRIES.len() as u32 + 2));
     }
 
-    /// Per-pass GPU durations of the last match (empty unless enabled).
+    /// Per-pass GPU durations of the matchings since the timings were last
+    /// taken (empty unless enabled), waiting for their timestamps if no
+    /// readback has brought them yet.
     pub fn last_timings(&mut self) -> TimerReport {
         std::mem::take(&mut self.timings).wait(&self.ctx)
     }

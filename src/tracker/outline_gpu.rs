@@ -159,7 +159,8 @@ impl GpuOutline {
         self.timer = Some(GpuTimer::new(&self.ctx, 3));
     }
 
-    /// Per-pass GPU durations of the last [`GpuOutline::extract`].
+    /// Per-pass GPU durations of the extractions since the timings were
+    /// last taken (the last [`GpuOutline::extract`]'s, read after each).
     pub fn last_timings(&mut self) -> TimerReport {
         std::mem::take(&mut self.timings).wait(&self.ctx)
     }

@@ -133,7 +133,8 @@ impl GpuCheck {
         self.timer = Some(crate::gpu::GpuTimer::new(&self.ctx, 2));
     }
 
-    /// Per-pass GPU durations of the last [`GpuCheck::score`].
+    /// Per-pass GPU durations of the scorings since the timings were last
+    /// taken (the last [`GpuCheck::score`]'s, read after each).
     pub fn last_timings(&mut self) -> crate::gpu::TimerReport {
         std::mem::take(&mut self.timings).wait(&self.ctx)
     }

@@ -228,7 +228,8 @@ pub const SMALL_SELECT: usize = 512;
 /// The most candidates a selection in one workgroup takes: with more (a
 /// detection far busier than the last), the host selects, as beyond
 /// [`Harris::set_select_limit`] (its loops stay within lavapipe's 65535
-/// iterations an invocation, and on GPUs the split passes are faster).
+/// iterations an invocation; thousands are what the split passes are
+/// for).
 pub const SMALL_CAP: usize = 1024;
 
 /// The selection's timed passes (their labels) and the entries each runs,
@@ -452,8 +453,10 @@ impl Harris {
         ));
     }
 
-    /// Per-pass GPU durations of the last [`Harris::detect`] (empty unless
-    /// timing is enabled and supported).
+    /// Per-pass GPU durations of the detections since the timings were
+    /// last taken (the last [`Harris::detect`]'s, read after each; empty
+    /// unless timing is enabled and supported), waiting for their
+    /// timestamps if no readback has brought them yet.
     pub fn last_timings(&mut self) -> TimerReport {
         std::mem::take(&mut self.timings).wait(&self.ctx)
     }
