@@ -110,7 +110,7 @@ fi
 cat $R/info.txt; snap
 C=.dev/shared/data/visp_rbt_cube
 # The profile's summary lines (its GPU passes stay in the logs).
-summary() { grep -E "^tracked|frame source|^  (features|IT|KF|contour|pose check|total|read back|waiting|GPU work) |end to end|peak rss" $R/$1.log | sed 's/^/    /'; }
+summary() { [ -f $R/$1.log ] && grep -E "^tracked|frame source|^  (features \(frame Harris\)|IT|KF|contour|pose check|total|read back from the GPU|waiting for the GPU|GPU work) +[0-9]|^GPU timeline|end to end|peak rss" $R/$1.log | sed 's/^/    /'; }
 TAILN=0
 for k in 1 2 3; do
   # Without --profile (no timestamp queries), then with it.
@@ -144,9 +144,9 @@ TAILN=30
 item bench_features 130 $B/features --bench
 TAILN=3
 item bench_splat    130 $B/splat --bench 'color\+predictors|cpu'
-grep -E "gpu timestamps|gpu memory" $R/bench_splat.log | sed 's/^/    /'
+grep -sE "gpu timestamps|gpu memory" $R/bench_splat.log | sed 's/^/    /'
 item bench_tracker  200 $B/tracker --bench
-grep -E "stages|gpu memory n|gpu memory kf" $R/bench_tracker.log | sed 's/^/    /'
+grep -sE "stages|gpu memory n|gpu memory kf" $R/bench_tracker.log | sed 's/^/    /'
 TAILN=4
 for t in splat_compute features_resident features_ncc features_harris outline_gpu verify_gpu splat_window splat_depth splat_analytic splat_reference splat_memory gpu_context keyframes contour tracker; do
   item test_$t 60 $B/t_$t --test-threads=4
