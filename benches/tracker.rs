@@ -12,7 +12,10 @@
 //! - `track/kf+it+contour/auto/WxH/POINTS`: KF+IT with the contour modality
 //!   too (`--modalities texture,contour`), at 100k points (and 1M);
 //! - `track/kf+it/compute/direct-selection/640x480/100000` (GPUs only):
-//!   the corner selection one thread an item instead of tiled.
+//!   the corner selection one thread an item instead of tiled;
+//! - `track/kf+it/compute/split-selection/640x480/100000` (GPUs only):
+//!   tiled and split over workgroups even for the loop's few hundred
+//!   candidates, instead of in one workgroup a pass.
 //!
 //! The loop is the tracker's as it runs (windows, render reuse, the pose
 //! check, the default splatter where `auto`). Each case also prints the GPU
@@ -95,14 +98,24 @@ struct Cases<'a> {
     store: &'a KeyframeStore,
 }
 
-/// One case: `config` tracked over the scene's frames as `id` (with the
-/// corner selection tiled or not where `tiled_selection` says).
+/// The corner selection a case forces (else the adapter's default).
+#[derive(Clone, Copy)]
+enum Selection {
+    Default,
+    /// One thread an item (CPU adapters' default).
+    Direct,
+    /// Tiled and split over workgroups whatever the count.
+    Split,
+}
+
+/// One case: `config` tracked over the scene's frames as `id`, with the
+/// corner selection `selection`.
 fn case(
     group: &mut criterion::BenchmarkGroup<'_, criterion::measurement::WallTime>,
     on: &Cases,
     config: TrackerConfig,
     id: String,
-    tiled_selection: Option<bool>,
+    selection: Selection,
 ) {
     let Cases {
         ctx,
@@ -120,8 +133,13 @@ fn case(
             scene.frames[0].pose,
         )
         .unwrap();
-        if let Some(tiled) = tiled_selection {
-            t.set_harris_tiled_selection(tiled);
+        match selection {
+            Selection::Default => {}
+            Selection::Direct => t.set_harris_tiled_selection(false),
+            Selection::Split => {
+                t.set_harris_tiled_selection(true);
+                t.set_harris_small_selection(Some(false));
+            }
         }
         t
     };
@@ -205,7 +223,7 @@ fn bench(c: &mut Criterion) {
                         ..Default::default()
                     };
                     let id = format!("{}/auto/{w}x{h}/{n}", mode.name());
-                    case(&mut group, &on, config, id, None);
+                    case(&mut group, &on, config, id, Selection::Default);
                 }
             }
             if n >= 100_000 {
@@ -218,7 +236,7 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it+contour/auto/{w}x{h}/{n}");
-                case(&mut group, &on, config, id, None);
+                case(&mut group, &on, config, id, Selection::Default);
             }
             for backend in [Backend::RenderPass, Backend::Compute] {
                 let config = TrackerConfig {
@@ -227,19 +245,24 @@ fn bench(c: &mut Criterion) {
                     ..Default::default()
                 };
                 let id = format!("kf+it/{backend}/{w}x{h}/{n}");
-                case(&mut group, &on, config, id, None);
+                case(&mut group, &on, config, id, Selection::Default);
             }
-            // On GPUs the corner selection runs tiled; the same frames
-            // with it one thread an item (what CPU adapters run), to
-            // compare the two in the loop.
+            // On GPUs the corner selection runs tiled, the loop's few
+            // hundred candidates in one workgroup a pass; the same frames
+            // with it one thread an item (what CPU adapters run) and split
+            // over workgroups, to compare the three in the loop.
             if (w, n) == (640, 100_000) && !ctx.is_cpu() {
-                let config = TrackerConfig {
-                    mode: Mode::KfIt,
-                    splatter: Backend::Compute,
-                    ..Default::default()
-                };
-                let id = format!("kf+it/compute/direct-selection/{w}x{h}/{n}");
-                case(&mut group, &on, config, id, Some(false));
+                for (name, selection) in
+                    [("direct", Selection::Direct), ("split", Selection::Split)]
+                {
+                    let config = TrackerConfig {
+                        mode: Mode::KfIt,
+                        splatter: Backend::Compute,
+                        ..Default::default()
+                    };
+                    let id = format!("kf+it/compute/{name}-selection/{w}x{h}/{n}");
+                    case(&mut group, &on, config, id, selection);
+                }
             }
         }
     }
