@@ -1292,6 +1292,7 @@ fn compact_one(s: u32) {
 const SMALL_GROUP: u32 = 256u;
 var<workgroup> small_undecided: atomic<u32>;
 var<workgroup> small_more: u32;
+var<workgroup> small_scan: array<u32, SMALL_GROUP>;
 
 @compute @workgroup_size(SMALL_GROUP)
 fn select_small(@builtin(local_invocation_index) lid: u32) {
@@ -1344,8 +1345,45 @@ fn merge_small(@builtin(local_invocation_index) lid: u32) {
     }
     storageBarrier();
     workgroupBarrier();
-    for (var s = lid; s < n; s += SMALL_GROUP) {
-        compact_one(s);
+    // The compaction by a prefix sum instead of compact_one's count of
+    // every earlier slot (n atomic loads a kept corner): each thread
+    // takes a run of consecutive slots, counts its kept ones, and writes
+    // them after the kept ones of the runs before (an inclusive scan of
+    // the counts across the workgroup). The same places, so the same
+    // `corners`.
+    let per = (n + SMALL_GROUP - 1u) / SMALL_GROUP;
+    let s0 = min(lid * per, n);
+    let s1 = min(s0 + per, n);
+    var kept = 0u;
+    var undecided = 0u;
+    for (var s = s0; s < s1; s++) {
+        let state = atomicLoad(&select_state[s]);
+        kept += u32(state == KEPT);
+        undecided += u32(state == UNDECIDED);
+    }
+    small_scan[lid] = kept;
+    workgroupBarrier();
+    for (var off = 1u; off < SMALL_GROUP; off *= 2u) {
+        var v = small_scan[lid];
+        if (lid >= off) {
+            v += small_scan[lid - off];
+        }
+        workgroupBarrier();
+        small_scan[lid] = v;
+        workgroupBarrier();
+    }
+    var place = small_scan[lid] - kept;
+    for (var s = s0; s < s1; s++) {
+        if (atomicLoad(&select_state[s]) == KEPT) {
+            corners[place] = ordered[s];
+            place++;
+        }
+    }
+    if (lid == SMALL_GROUP - 1u) {
+        atomicAdd(&counters.selected, small_scan[lid]);
+    }
+    if (undecided > 0u) {
+        atomicAdd(&counters.undecided, undecided);
     }
 }
 
