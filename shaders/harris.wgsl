@@ -1345,12 +1345,19 @@ fn merge_small(@builtin(local_invocation_index) lid: u32) {
     }
     storageBarrier();
     workgroupBarrier();
-    // The compaction by a prefix sum instead of compact_one's count of
-    // every earlier slot (n atomic loads a kept corner): each thread
-    // takes a run of consecutive slots, counts its kept ones, and writes
-    // them after the kept ones of the runs before (an inclusive scan of
-    // the counts across the workgroup). The same places, so the same
-    // `corners`.
+    compact_scan(lid);
+}
+
+// The kept corners, in the merge's order, into `corners` and their count
+// into counters.selected (the undecided counted into counters.undecided),
+// by one workgroup: a prefix sum instead of merge_compact's count of every
+// earlier slot (n atomic loads a kept corner, one thread each). Each
+// thread takes a run of consecutive slots, counts its kept ones, and
+// writes them after the kept ones of the runs before (an inclusive scan
+// of the counts across the workgroup): the same places, so the same
+// `corners`. Every thread calls it, in uniform control flow.
+fn compact_scan(lid: u32) {
+    let n = slot_count();
     let per = (n + SMALL_GROUP - 1u) / SMALL_GROUP;
     let s0 = min(lid * per, n);
     let s1 = min(s0 + per, n);
@@ -1385,6 +1392,12 @@ fn merge_small(@builtin(local_invocation_index) lid: u32) {
     if (undecided > 0u) {
         atomicAdd(&counters.undecided, undecided);
     }
+}
+
+// compact_scan as a pass of its own (the split merge's, on GPUs).
+@compute @workgroup_size(SMALL_GROUP)
+fn merge_compact_scan(@builtin(local_invocation_index) lid: u32) {
+    compact_scan(lid);
 }
 
 // ---------------------------------------------------------------------------

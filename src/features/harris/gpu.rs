@@ -196,7 +196,7 @@ enum Size {
 
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection")
 /// and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 19] = [
+const SELECT_ENTRIES: [(&str, Size); 20] = [
     ("select_sizes", Size::One),
     ("select_clear", Size::Candidates),
     ("select_rank", Size::CandidatesSplit),
@@ -218,6 +218,8 @@ const SELECT_ENTRIES: [(&str, Size); 19] = [
     // The selection in one workgroup (few candidates, GPUs).
     ("select_small", Size::Group),
     ("merge_small", Size::Group),
+    // The compaction by a prefix sum in one workgroup (GPUs).
+    ("merge_compact_scan", Size::Group),
 ];
 
 /// The most candidates of the last detection of a kind for the next one
@@ -253,7 +255,7 @@ fn select_passes(
         (true, false) => [
             ("select", &[0, 1, 2, 3, 4, 5]),
             ("refine", refine),
-            ("merge", &[8, 9, 10, 11, 12]),
+            ("merge", &[8, 9, 10, 11, 19]),
         ],
         (false, _) => [
             ("select", &[0, 13, 14]),
