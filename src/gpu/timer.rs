@@ -118,6 +118,7 @@ impl Timings {
     /// pile up).
     pub fn append(&mut self, other: Timings) {
         self.ready.passes.extend(other.ready.passes);
+        self.ready.spans.extend(other.ready.spans);
         self.pending.extend(other.pending);
         let extra = self.pending.len().saturating_sub(Self::KEPT);
         self.pending.drain(..extra);
