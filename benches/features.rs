@@ -207,34 +207,13 @@ fn bench(c: &mut Criterion) {
     // A pass's host cost: 40 dispatches of one small workgroup each, in
     // 40 compute passes or in one, with their readback (the frame loop
     // records about 40 passes a frame, `track --profile`).
-    let pipeline = ctx.compute_pipeline("selftest", "saxpy").unwrap();
-    let params = ctx.buffer_init(
-        "bench saxpy params",
-        &[splattrack::gpu::selftest::SelftestParams {
-            a: 1.0,
-            n: 64,
-            _pad0: 0,
-            _pad1: 0,
-        }],
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let x = ctx.buffer_init("bench x", &[1.0f32; 64], splattrack::gpu::STORAGE_IN);
-    let y = ctx.buffer_init("bench y", &[0.0f32; 64], splattrack::gpu::STORAGE_OUT);
-    let bind = ctx
-        .bind_buffers(
-            "bench saxpy",
-            &pipeline.get_bind_group_layout(0),
-            &[&params, &x, &y],
-        )
-        .unwrap();
+    let saxpy = splattrack::gpu::selftest::Saxpy::new(&ctx, 1.0, &[1.0; 64], &[0.0; 64]).unwrap();
     let dispatches = |passes: usize| {
         let mut enc = ctx.encoder();
         for _ in 0..passes {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &bind, &[]);
             for _ in 0..40 / passes {
-                pass.dispatch_workgroups(1, 1, 1);
+                saxpy.dispatch(&mut pass);
             }
         }
         black_box(ctx.read_buffer_after::<u32>(enc, &tiny, 4).unwrap())

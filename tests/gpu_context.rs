@@ -355,41 +355,19 @@ fn device_has_the_limits_the_splatter_needs() {
 fn timer_reports_pass_durations() {
     let c = ctx();
     let mut timer = GpuTimer::new(c, 4);
-    let pipeline = c.compute_pipeline("selftest", "saxpy").unwrap();
     let n = 1 << 16;
-    let params = c.buffer_init(
-        "p",
-        &[gpu::selftest::SelftestParams {
-            a: 1.5,
-            n: n as u32,
-            _pad0: 0,
-            _pad1: 0,
-        }],
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let x = c.buffer_init("x", &vec![1.0f32; n], gpu::STORAGE_IN);
-    let y = c.buffer_init("y", &vec![2.0f32; n], gpu::STORAGE_OUT);
-    let bind = c
-        .bind_buffers(
-            "saxpy",
-            &pipeline.get_bind_group_layout(0),
-            &[&params, &x, &y],
-        )
-        .unwrap();
+    let saxpy = gpu::selftest::Saxpy::new(c, 1.5, &vec![1.0; n], &vec![2.0; n]).unwrap();
     let mut enc = c.encoder();
     for label in ["first", "second"] {
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+        saxpy.dispatch(&mut enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some(label),
             timestamp_writes: timer.compute_pass(label),
-        });
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(gpu::workgroups(n as u32, gpu::WORKGROUP_1D), 1, 1);
+        }));
     }
     timer.resolve(&mut enc);
     c.submit(enc);
     let report = timer.read(c).unwrap();
-    let y: Vec<f32> = c.read_buffer(&y, n).unwrap();
+    let y: Vec<f32> = c.read_buffer(saxpy.y(), n).unwrap();
     assert!(y.iter().all(|&v| v == 5.0), "two passes of y += 1.5 x");
     if timer.enabled() {
         assert_eq!(report.passes.len(), 2);
@@ -418,36 +396,15 @@ fn timings_come_with_the_next_readback() {
     if !timer.enabled() {
         panic!("{}: no timestamp queries", c.describe());
     }
-    let pipeline = c.compute_pipeline("selftest", "saxpy").unwrap();
     let n = 1 << 12;
-    let params = c.buffer_init(
-        "p",
-        &[gpu::selftest::SelftestParams {
-            a: 1.0,
-            n: n as u32,
-            _pad0: 0,
-            _pad1: 0,
-        }],
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let x = c.buffer_init("x", &vec![1.0f32; n], gpu::STORAGE_IN);
-    let y = c.buffer_init("y", &vec![0.0f32; n], gpu::STORAGE_OUT);
-    let bind = c
-        .bind_buffers(
-            "saxpy",
-            &pipeline.get_bind_group_layout(0),
-            &[&params, &x, &y],
-        )
-        .unwrap();
+    let saxpy = gpu::selftest::Saxpy::new(&c, 1.0, &vec![1.0; n], &vec![0.0; n]).unwrap();
+    let y = saxpy.y();
     let record = |enc: &mut wgpu::CommandEncoder, timer: &mut GpuTimer, labels: &[&str]| {
         for label in labels {
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            saxpy.dispatch(&mut enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(label),
                 timestamp_writes: timer.compute_pass(label),
-            });
-            pass.set_pipeline(&pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(gpu::workgroups(n as u32, gpu::WORKGROUP_1D), 1, 1);
+            }));
         }
     };
     let counts = || (c.readbacks(), c.submissions());
@@ -467,7 +424,7 @@ fn timings_come_with_the_next_readback() {
     let mut enc = c.encoder();
     record(&mut enc, &mut timer, &["a", "b"]);
     let t = timer.resolve_later(&c, &mut enc).unwrap();
-    let v: Vec<f32> = c.read_buffer_after(enc, &y, n).unwrap();
+    let v: Vec<f32> = c.read_buffer_after(enc, y, n).unwrap();
     assert!(v.iter().all(|&v| v == 2.0));
     assert_eq!(counts(), (r0 + 1, s0 + 1));
     check(&t.wait(&c), &["a", "b"]);
@@ -486,7 +443,7 @@ fn timings_come_with_the_next_readback() {
     c.submit(enc);
     let mut later = timer.read_later(&c).unwrap();
     // The readback's submission carries both resolves.
-    let v: Vec<f32> = c.read_buffer(&y, n).unwrap();
+    let v: Vec<f32> = c.read_buffer(y, n).unwrap();
     assert!(v.iter().all(|&v| v == 4.0));
     assert_eq!(counts(), (r0 + 2, s0 + 4));
     check(&t.wait(&c), &["c"]);

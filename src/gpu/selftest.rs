@@ -20,37 +20,67 @@ pub fn saxpy_cpu(a: f32, x: &[f32], y: &[f32]) -> Vec<f32> {
     x.iter().zip(y).map(|(x, y)| a.mul_add(*x, *y)).collect()
 }
 
+/// The `saxpy` kernel bound to device copies of `x` and `y`: the self-test's
+/// dispatch, and a small real one for tests and benches of the context
+/// (timers, submissions, a pass's cost).
+pub struct Saxpy {
+    pipeline: wgpu::ComputePipeline,
+    bind: wgpu::BindGroup,
+    y: wgpu::Buffer,
+    n: u32,
+}
+
+impl Saxpy {
+    /// `y = a x + y` over uploaded copies of `x` and `y` (equal lengths).
+    pub fn new(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Self, GpuError> {
+        assert_eq!(x.len(), y.len(), "saxpy: x and y differ in length");
+        let n = x.len() as u32;
+        let pipeline = ctx.compute_pipeline("selftest", "saxpy")?;
+        let params = ctx.buffer_init(
+            "saxpy params",
+            &[SelftestParams {
+                a,
+                n,
+                _pad0: 0,
+                _pad1: 0,
+            }],
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let xb = ctx.buffer_init("saxpy x", x, STORAGE_IN);
+        let yb = ctx.buffer_init("saxpy y", y, STORAGE_OUT);
+        let bind = ctx.bind_buffers(
+            "saxpy",
+            &pipeline.get_bind_group_layout(0),
+            &[&params, &xb, &yb],
+        )?;
+        Ok(Self {
+            pipeline,
+            bind,
+            y: yb,
+            n,
+        })
+    }
+
+    /// Records one `y += a x` over every element into `pass`.
+    pub fn dispatch(&self, pass: &mut wgpu::ComputePass<'_>) {
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &self.bind, &[]);
+        pass.dispatch_workgroups(workgroups(self.n, WORKGROUP_1D), 1, 1);
+    }
+
+    /// The device's `y`.
+    pub fn y(&self) -> &wgpu::Buffer {
+        &self.y
+    }
+}
+
 /// Runs the `saxpy` kernel on the GPU.
 pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f32>, GpuError> {
-    assert_eq!(x.len(), y.len(), "saxpy: x and y differ in length");
-    let n = x.len() as u32;
-    let pipeline = ctx.compute_pipeline("selftest", "saxpy")?;
-    let params = ctx.buffer_init(
-        "saxpy params",
-        &[SelftestParams {
-            a,
-            n,
-            _pad0: 0,
-            _pad1: 0,
-        }],
-        wgpu::BufferUsages::UNIFORM,
-    );
-    let xb = ctx.buffer_init("saxpy x", x, STORAGE_IN);
-    let yb = ctx.buffer_init("saxpy y", y, STORAGE_OUT);
-    let bind = ctx.bind_buffers(
-        "saxpy",
-        &pipeline.get_bind_group_layout(0),
-        &[&params, &xb, &yb],
-    )?;
+    let k = Saxpy::new(ctx, a, x, y)?;
     let mut enc = ctx.encoder();
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &bind, &[]);
-        pass.dispatch_workgroups(workgroups(n, WORKGROUP_1D), 1, 1);
-    }
+    k.dispatch(&mut enc.begin_compute_pass(&Default::default()));
     ctx.submit(enc);
-    ctx.read_buffer(&yb, x.len())
+    ctx.read_buffer(k.y(), x.len())
 }
 
 /// Runs the kernel on `n` pseudo-random values and returns the largest
