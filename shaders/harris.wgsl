@@ -69,9 +69,9 @@ struct Candidate {
 struct Counters {
     max_bits: atomic<u32>,
     count: atomic<u32>,
-    // The corners the selection on the GPU kept (merge_compact).
+    // The corners the selection on the GPU kept (merge_compact_scan).
     selected: atomic<u32>,
-    // The corners the merge's rounds left undecided (merge_compact).
+    // The corners the merge's rounds left undecided (merge_compact_scan).
     undecided: atomic<u32>,
 }
 
@@ -529,7 +529,7 @@ fn refine(@builtin(global_invocation_id) id: vec3<u32>) {
 // order) -> merge_order (their place by score, then position) ->
 // merge_links (each one's earlier corners closer than the merge radius)
 // -> merge_round (MERGE_ROUNDS times: the greedy merge, strongest first,
-// a corner too close to a kept one dropped) -> merge_compact (the kept
+// a corner too close to a kept one dropped) -> merge_compact_scan (the kept
 // ones into `corners`, their count into `counters.selected`). The passes
 // run one thread an item, dispatched indirectly (select_sizes). Every
 // comparison is exact (scores by their bits, positions in IEEE total
@@ -1238,43 +1238,6 @@ fn decide_one(s: u32) -> bool {
     return state == UNDECIDED;
 }
 
-// The kept corners, in the merge's order, into `corners` (each at the
-// count of kept corners before it) and their count into
-// counters.selected; the corners the rounds left undecided (a chain of
-// close corners longer than MERGE_ROUNDS) counted into
-// counters.undecided, for the host to finish the merge.
-@compute @workgroup_size(WORKGROUP_1D)
-fn merge_compact(
-    @builtin(global_invocation_id) id: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    let n = slot_count();
-    let stride = groups.x * WORKGROUP_1D;
-    for (var s = id.x; s < n; s += stride) {
-        compact_one(s);
-    }
-}
-
-// Corner s into `corners` at the count of kept corners before it where
-// kept, counted into counters.selected (or counters.undecided).
-fn compact_one(s: u32) {
-    let state = atomicLoad(&select_state[s]);
-    if (state == UNDECIDED) {
-        atomicAdd(&counters.undecided, 1u);
-    }
-    if (state != KEPT) {
-        return;
-    }
-    var before = 0u;
-    for (var t = 0u; t < s; t++) {
-        if (atomicLoad(&select_state[t]) == KEPT) {
-            before++;
-        }
-    }
-    corners[before] = ordered[s];
-    atomicAdd(&counters.selected, 1u);
-}
-
 // ---- The selection in one workgroup (GPUs, few candidates) ----
 // select_rank, select_place and (behind the refinement) the merge's
 // passes as one dispatch each of one workgroup, their phases parted by
@@ -1350,8 +1313,9 @@ fn merge_small(@builtin(local_invocation_index) lid: u32) {
 
 // The kept corners, in the merge's order, into `corners` and their count
 // into counters.selected (the undecided counted into counters.undecided),
-// by one workgroup: a prefix sum instead of merge_compact's count of every
-// earlier slot (n atomic loads a kept corner, one thread each). Each
+// by one workgroup: a prefix sum instead of each kept corner counting
+// every earlier slot (n atomic loads a kept corner, one thread each, the
+// compaction before stop 36). Each
 // thread takes a run of consecutive slots, counts its kept ones, and
 // writes them after the kept ones of the runs before (an inclusive scan
 // of the counts across the workgroup): the same places, so the same
@@ -1394,7 +1358,8 @@ fn compact_scan(lid: u32) {
     }
 }
 
-// compact_scan as a pass of its own (the split merge's, on GPUs).
+// compact_scan as a pass of its own (the split and the one-thread-an-item
+// merges'; on lavapipe no slower than the per-corner counts).
 @compute @workgroup_size(SMALL_GROUP)
 fn merge_compact_scan(@builtin(local_invocation_index) lid: u32) {
     compact_scan(lid);

@@ -196,7 +196,7 @@ enum Size {
 
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection")
 /// and their sizes.
-const SELECT_ENTRIES: [(&str, Size); 20] = [
+const SELECT_ENTRIES: [(&str, Size); 19] = [
     ("select_sizes", Size::One),
     ("select_clear", Size::Candidates),
     ("select_rank", Size::CandidatesSplit),
@@ -209,7 +209,8 @@ const SELECT_ENTRIES: [(&str, Size); 20] = [
     ("merge_order_finish", Size::Selected),
     ("merge_links", Size::Selected),
     ("merge_round", Size::Rounds),
-    ("merge_compact", Size::Selected),
+    // The compaction by a prefix sum in one workgroup.
+    ("merge_compact_scan", Size::Group),
     // One thread an item, without workgroup tiles or splits.
     ("select_rank_direct", Size::Candidates),
     ("select_place_direct", Size::Candidates),
@@ -218,8 +219,6 @@ const SELECT_ENTRIES: [(&str, Size); 20] = [
     // The selection in one workgroup (few candidates, GPUs).
     ("select_small", Size::Group),
     ("merge_small", Size::Group),
-    // The compaction by a prefix sum in one workgroup (GPUs).
-    ("merge_compact_scan", Size::Group),
 ];
 
 /// The most candidates of the last detection of a kind for the next one
@@ -255,7 +254,7 @@ fn select_passes(
         (true, false) => [
             ("select", &[0, 1, 2, 3, 4, 5]),
             ("refine", refine),
-            ("merge", &[8, 9, 10, 11, 19]),
+            ("merge", &[8, 9, 10, 11, 12]),
         ],
         (false, _) => [
             ("select", &[0, 13, 14]),
