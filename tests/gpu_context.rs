@@ -658,3 +658,94 @@ fn a_bind_cache_binds_again_only_for_other_buffers() {
     get([a.clone(), b.clone()]).unwrap();
     assert_eq!(binds, 3);
 }
+
+/// wgpu checks each indirect dispatch's arguments on the GPU only where
+/// asked (`WGPU_VALIDATION_INDIRECT_CALL`) or on DX12: the kernels that
+/// write them keep them within the limits, so corners and splats are the
+/// same bit for bit either way. The corners come from the split selection
+/// (its passes sized by indirect dispatches), the splats from the compute
+/// splatter with large splats (their list and `finish`'s bounding box
+/// dispatched indirectly).
+#[test]
+fn indirect_dispatches_give_the_same_results_without_wgpus_validation() {
+    use splattrack::features::{Harris, HarrisConfig, SELECT_MAX, patterns};
+    use splattrack::geometry::{Intrinsics, look_at};
+    use splattrack::model::shapes;
+    use splattrack::splat::{
+        Attribute, Attributes, Backend, GpuModel, SplatParams, SplatTargets, Splatter, cpu,
+    };
+
+    let asked = std::env::var_os(gpu::VALIDATE_INDIRECT_ENV).is_some();
+    let shared = ctx();
+    assert_eq!(
+        shared.validates_indirect,
+        asked || shared.info.backend == wgpu::Backend::Dx12
+    );
+    let choice = match AdapterChoice::from_env().unwrap() {
+        AdapterChoice::Auto => AdapterChoice::Cpu,
+        c => c,
+    };
+    let img = patterns::smooth_noise(203, 157, 1.1, 4);
+    let mut rng = Rng::new(99);
+    let mut model = shapes::random_cloud(&mut rng, glam::Vec3::ZERO, 1.0, 60, 0.2, 0.6);
+    let small = shapes::random_cloud(&mut rng, glam::Vec3::ZERO, 1.0, 2000, 0.005, 0.03);
+    model.positions.extend(&small.positions);
+    model.normals.extend(&small.normals);
+    model.radii.extend(&small.radii);
+    if let (Some(c), Some(d)) = (&mut model.colors, &small.colors) {
+        c.extend(d);
+    }
+    let cam = Intrinsics::new(160, 120, 150.0, 150.0, 80.0, 60.0);
+    let pose = look_at(
+        &nalgebra::Vector3::new(0.3, -0.2, 3.0),
+        &nalgebra::Vector3::zeros(),
+        &nalgebra::Vector3::new(0.0, 1.0, 0.0),
+    );
+    let big = (0..model.len())
+        .filter(|&i| model.radii[i] as f64 * cam.fx / 3.5 > 16.0)
+        .count();
+    assert!(big >= 5, "{big} large splats");
+    let run = |validate: bool| {
+        let c = GpuContext::with_indirect_validation(&choice, validate).unwrap();
+        assert_eq!(c.validates_indirect, validate);
+        let mut harris = Harris::new(&c, HarrisConfig::default()).unwrap();
+        harris.set_select_limit(SELECT_MAX as usize);
+        harris.set_tiled_selection(true);
+        let corners = harris.detect(&img, None).unwrap();
+        let splatter = Splatter::with_params(
+            &c,
+            SplatParams {
+                backend: Backend::Compute,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let gm = GpuModel::new(&c, &model).unwrap();
+        let mut t = SplatTargets::new(&c, cam.width, cam.height);
+        splatter
+            .render(&c, &gm, &cam, &pose, Attributes::ALL, &mut t)
+            .unwrap();
+        let images: Vec<Vec<u32>> = [Attribute::Color, Attribute::Depth, Attribute::Motion]
+            .iter()
+            .map(|&a| {
+                let im = splatter.read(&c, &t, a).unwrap();
+                im.data.iter().map(|v| v.to_bits()).collect()
+            })
+            .collect();
+        (corners, images)
+    };
+    let (with, with_images) = run(true);
+    let (without, without_images) = run(false);
+    assert!(with.len() > 100, "{} corners", with.len());
+    assert_eq!(with, without);
+    // The render is the CPU reference's where it covers (not a blank one).
+    let reference = cpu::splat(&model, &cam, &pose, &SplatParams::default()).unwrap();
+    let covered = reference
+        .resolve(Attribute::Depth)
+        .data
+        .iter()
+        .filter(|v| v.is_finite() && **v > 0.0)
+        .count();
+    assert!(covered > 1000, "{covered} covered pixels");
+    assert_eq!(with_images, without_images);
+}

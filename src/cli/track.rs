@@ -511,7 +511,10 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
             stats.source_ms
         );
-        print!("{}", profile_table(&stats.mean_stages, ctx.is_cpu()));
+        print!(
+            "{}",
+            profile_table(&stats.mean_stages, ctx.is_cpu(), ctx.validates_indirect)
+        );
         if let Some(m) = stats.gpu_memory {
             let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
             println!(
@@ -613,7 +616,13 @@ impl Input {
 /// the stages leave over (grey conversion, decisions, bookkeeping).
 /// `cpu_adapter`: the GPU passes ran on a CPU adapter, whose timestamps of
 /// the feature passes are not to be trusted (said under them).
-fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> String {
+/// `validated`: wgpu checks indirect dispatches on the GPU (said beside
+/// the submissions: a dispatch and two barriers more each).
+fn profile_table(
+    t: &splattrack::tracker::StageTimes,
+    cpu_adapter: bool,
+    validated: bool,
+) -> String {
     let ms = |d: std::time::Duration| d.as_secs_f64() * 1e3;
     let rest = |whole: std::time::Duration, parts: &[std::time::Duration]| {
         ms(whole) - parts.iter().map(|d| ms(*d)).sum::<f64>()
@@ -677,8 +686,15 @@ fn profile_table(t: &splattrack::tracker::StageTimes, cpu_adapter: bool) -> Stri
         }
     );
     out += &format!(
-        "  {:<26} {:8.1} submissions, {:.1} command buffers\n",
-        "GPU work", t.submissions, t.command_buffers
+        "  {:<26} {:8.1} submissions, {:.1} command buffers; indirect dispatches {}\n",
+        "GPU work",
+        t.submissions,
+        t.command_buffers,
+        if validated {
+            "checked by wgpu first (WGPU_VALIDATION_INDIRECT_CALL or DX12)"
+        } else {
+            "as they are"
+        }
     );
     if t.contour_rounds > 0.0 {
         out += &format!(

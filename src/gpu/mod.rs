@@ -452,7 +452,31 @@ pub struct GpuContext {
     pub info: wgpu::AdapterInfo,
     pub limits: wgpu::Limits,
     pub features: wgpu::Features,
+    /// Whether wgpu checks every indirect dispatch's arguments on the GPU
+    /// first (see [`VALIDATE_INDIRECT_ENV`]).
+    pub validates_indirect: bool,
     health: std::sync::Arc<Health>,
+}
+
+/// Set (to anything but 0: wgpu's own variable), wgpu validates each
+/// indirect dispatch's arguments against the device's limits before it
+/// runs: one more dispatch of its own, two barriers and the pass's
+/// bindings set again, so one more dependent step on the GPU each time.
+/// Unset, it does not, except on DX12 (whose shaders get
+/// `num_workgroups` from that step): every kernel here that writes a
+/// dispatch's arguments keeps them within the limits itself (65535
+/// workgroups a dimension: `select_sizes` in shaders/harris.wgsl,
+/// `finish_dispatch` in shaders/splat_compute.wgsl, checked in their
+/// tests).
+pub const VALIDATE_INDIRECT_ENV: &str = "WGPU_VALIDATION_INDIRECT_CALL";
+
+/// An instance with wgpu's flags and the environment's `WGPU_*` settings,
+/// validating indirect dispatches when `validate` only.
+fn new_instance(validate: bool) -> wgpu::Instance {
+    let mut desc = wgpu::InstanceDescriptor::new_without_display_handle().with_env();
+    desc.flags
+        .set(wgpu::InstanceFlags::VALIDATION_INDIRECT_CALL, validate);
+    wgpu::Instance::new(desc)
 }
 
 impl fmt::Debug for GpuContext {
@@ -487,8 +511,50 @@ impl GpuContext {
     }
 
     pub async fn new_async(choice: &AdapterChoice) -> Result<Self, GpuError> {
-        let instance =
-            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        // wgpu's own reading of its variable: anything but "0" sets it.
+        let asked = std::env::var(VALIDATE_INDIRECT_ENV).ok().map(|v| v != "0");
+        Self::create(choice, asked).await
+    }
+
+    /// [`GpuContext::new`] with wgpu's validation of indirect dispatches
+    /// on or off whatever the back end and the environment (on DX12, off
+    /// leaves `num_workgroups` at zero in indirect dispatches, which the
+    /// kernels here read; [`VALIDATE_INDIRECT_ENV`] says more).
+    pub fn with_indirect_validation(
+        choice: &AdapterChoice,
+        validate: bool,
+    ) -> Result<Self, GpuError> {
+        pollster::block_on(Self::create(choice, Some(validate)))
+    }
+
+    async fn create(choice: &AdapterChoice, asked: Option<bool>) -> Result<Self, GpuError> {
+        let instance = new_instance(asked.unwrap_or(false));
+        let adapter = Self::pick(&instance, choice).await?;
+        if asked.is_some() || adapter.get_info().backend != wgpu::Backend::Dx12 {
+            return Self::from_adapter(&instance, &adapter, asked.unwrap_or(false)).await;
+        }
+        // DX12 has no native `num_workgroups`: wgpu's validation of
+        // indirect dispatches supplies it, so that back end keeps it (the
+        // same adapter from an instance that validates).
+        let info = adapter.get_info();
+        let instance = new_instance(true);
+        let same = instance
+            .enumerate_adapters(wgpu::Backends::DX12)
+            .await
+            .into_iter()
+            .find(|a| a.get_info() == info)
+            .ok_or_else(|| GpuError::AdapterNotFound {
+                wanted: describe_info(&info),
+                available: Vec::new(),
+            })?;
+        Self::from_adapter(&instance, &same, true).await
+    }
+
+    /// The adapter `choice` selects among `instance`'s usable ones.
+    async fn pick(
+        instance: &wgpu::Instance,
+        choice: &AdapterChoice,
+    ) -> Result<wgpu::Adapter, GpuError> {
         let adapters = instance.enumerate_adapters(wgpu::Backends::all()).await;
         let mut usable = Vec::new();
         let mut rejected = Vec::new();
@@ -527,21 +593,22 @@ impl GpuContext {
                     .find(|a| a.get_info().name.to_ascii_lowercase().contains(&n))
             }
         };
-        let Some(adapter) = pick else {
-            return Err(GpuError::AdapterNotFound {
+        match pick {
+            Some(a) => Ok(a.clone()),
+            None => Err(GpuError::AdapterNotFound {
                 wanted: choice.to_string(),
                 available: usable
                     .iter()
                     .map(|a| describe_info(&a.get_info()))
                     .collect(),
-            });
-        };
-        Self::from_adapter(&instance, adapter).await
+            }),
+        }
     }
 
     async fn from_adapter(
         instance: &wgpu::Instance,
         adapter: &wgpu::Adapter,
+        validates_indirect: bool,
     ) -> Result<Self, GpuError> {
         let info = adapter.get_info();
         let optional = wgpu::Features::TIMESTAMP_QUERY
@@ -588,6 +655,7 @@ impl GpuContext {
             info,
             limits,
             features,
+            validates_indirect,
             health,
         })
     }

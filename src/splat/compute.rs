@@ -18,7 +18,9 @@
 //! `ComputeParams`, pixel indices relative to the origin) and dispatching
 //! `finish` over the rectangle only is all it takes.
 
-use super::gpu_data::{ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams};
+use super::gpu_data::{
+    ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
+};
 use super::targets::{TARGETS, cleared_attachments};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
@@ -127,6 +129,22 @@ impl ComputeSplatter {
             return Err(SplatError::Unsupported(format!(
                 "the compute splatter writes {TARGETS} storage textures, the adapter allows {}",
                 ctx.limits.max_storage_textures_per_shader_stage
+            )));
+        }
+        // `finish_dispatch` writes `finish`'s workgroups over the splats'
+        // bounding box, wgpu no longer checking them
+        // (crate::gpu::VALIDATE_INDIRECT_ENV): within the limit for any
+        // target the adapter can make (the large splats' count is capped
+        // in the shader).
+        let widest = ctx
+            .limits
+            .max_texture_dimension_2d
+            .div_ceil(RESOLVE_WORKGROUP);
+        if widest > ctx.limits.max_compute_workgroups_per_dimension {
+            return Err(SplatError::Unsupported(format!(
+                "targets of {} pixels a side need {widest} workgroups a dimension, the adapter allows {}",
+                ctx.limits.max_texture_dimension_2d,
+                ctx.limits.max_compute_workgroups_per_dimension
             )));
         }
         let texture = |binding| wgpu::BindGroupLayoutEntry {
