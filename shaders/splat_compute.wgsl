@@ -28,9 +28,10 @@
 //    (eq. 5); their weighted sum is rebuilt exactly from sum(w / z) and
 //    sum(w) (9 atomics per fragment instead of 16; 5 without the geometry,
 //    what the tracker renders).
-// 3. `finish`: one thread per pixel of the splats' bounding box (found in
-//    pass 1, dispatched indirectly) converts the sums into the render
-//    pass's RGBA32F accumulation targets (cleared beforehand) (layout in src/splat/mod.rs), so
+// 3. `finish`: one thread per pixel of the target converts the sums within
+//    the splats' bounding box (found in pass 1) into the render pass's
+//    RGBA32F accumulation targets and writes zeros outside it, what the
+//    render pass's clear leaves there (layout in src/splat/mod.rs), so
 //    the normalisation and gather kernels (splat_resolve.wgsl) serve both
 //    back ends unchanged.
 //
@@ -71,8 +72,8 @@ struct ComputeParams {
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
 // models textured by different keyframes share the geometry).
 @group(0) @binding(12) var<storage, read> colors: array<u32>;
-// The indirect dispatches of `finish` ([0..3]) and of the large splats ([4..7]).
-@group(1) @binding(0) var<storage, read_write> finish_args: array<u32, 8>;
+// The indirect dispatch of the large splats' passes.
+@group(1) @binding(0) var<storage, read_write> big_args: array<u32, 4>;
 
 var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
@@ -327,27 +328,14 @@ fn visibility(
     }
 }
 
-// The workgroups of `finish` (the bounding box of the splats' pixels) and
-// of the large splats.
+// The workgroups of the large splats' passes (at most 65535: the
+// workgroups stride over the rest).
 @compute @workgroup_size(1)
-fn finish_dispatch() {
-    let x1 = atomicLoad(&bounds[2]);
-    let y1 = atomicLoad(&bounds[3]);
-    if x1 == 0u || y1 == 0u {
-        for (var k = 0u; k < 8u; k++) {
-            finish_args[k] = 0u;
-        }
-        return;
-    }
-    let x0 = 0xffffffffu - atomicLoad(&bounds[0]);
-    let y0 = 0xffffffffu - atomicLoad(&bounds[1]);
-    finish_args[0] = (x1 - x0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
-    finish_args[1] = (y1 - y0 + RESOLVE_WORKGROUP - 1u) / RESOLVE_WORKGROUP;
-    finish_args[2] = 1u;
+fn big_dispatch() {
     let nbig = atomicLoad(&bounds[4]);
-    finish_args[4] = min(nbig, 65535u);
-    finish_args[5] = select(0u, 1u, nbig > 0u);
-    finish_args[6] = select(0u, 1u, nbig > 0u);
+    big_args[0] = min(nbig, 65535u);
+    big_args[1] = select(0u, 1u, nbig > 0u);
+    big_args[2] = select(0u, 1u, nbig > 0u);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)
@@ -387,15 +375,42 @@ fn sum(base: u32, k: u32) -> f32 {
     return f32(atomicLoad(&acc[base + k])) / FIXED_SCALE;
 }
 
+// Whether pixel `id` lies in the splats' bounding box (pass 1): outside
+// it no splat touched the depth keys or the sums.
+fn in_bounds(id: vec2<u32>) -> bool {
+    let lo = vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
+    let hi = vec2<u32>(atomicLoad(&bounds[2]), atomicLoad(&bounds[3]));
+    return all(id >= lo) && all(id < hi);
+}
+
+// Zeros in the targets a render writes (T0 always; T1 with the geometry,
+// T2..T4 with the predictors), as the render pass's clear leaves them.
+fn store_zeros(p: vec2<i32>, geometry: bool, motion: bool) {
+    let zero = vec4<f32>(0.0, 0.0, 0.0, 0.0);
+    textureStore(t0, p, zero);
+    if geometry {
+        textureStore(t1, p, zero);
+    }
+    if motion {
+        textureStore(t2, p, zero);
+        textureStore(t3, p, zero);
+        textureStore(t4, p, zero);
+    }
+}
+
 @compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
-    // Dispatched over the splats' bounding box only (`finish_dispatch`);
-    // the targets were cleared to zero elsewhere, as the render pass does.
-    let id = gid.xy + vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
-    if id.x >= min(params.width, atomicLoad(&bounds[2])) || id.y >= min(params.height, atomicLoad(&bounds[3])) {
+    // Dispatched over the whole target: no clear beforehand, no
+    // indirect dispatch sized by pass 1.
+    let id = gid.xy;
+    if id.x >= params.width || id.y >= params.height {
         return;
     }
     let p = vec2<i32>(id.xy);
+    if !in_bounds(id) {
+        store_zeros(p, (params.flags & COMPUTE_GEOMETRY) != 0u, (params.flags & COMPUTE_MOTION) != 0u);
+        return;
+    }
     let pixel = id.y * params.width + id.x;
     let base = pixel * ACC_STRIDE;
     let w = sum(base, 0u);
@@ -431,23 +446,27 @@ fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 
 // The last kernel of a depth-only render (`Splatter::render_depth`), in
-// place of `accumulate` and `finish`: over the splats' bounding box, a
-// weight of 1 in T0 and the visibility depth (camera-space z, pushed back
-// as pass 1 wrote it) in T1 where a splat covers the pixel, what the
-// normalisation reads as the depth; the depth keys are cleared for the
+// place of `accumulate` and `finish`: over the whole target, a weight of 1
+// in T0 and the visibility depth (camera-space z, pushed back as pass 1
+// wrote it) in T1 where a splat covers the pixel, what the normalisation
+// reads as the depth, zeros elsewhere; the depth keys are cleared for the
 // next render (the sums were never touched).
 @compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn finish_depth(@builtin(global_invocation_id) gid: vec3<u32>) {
-    let id = gid.xy + vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
-    if id.x >= min(params.width, atomicLoad(&bounds[2])) || id.y >= min(params.height, atomicLoad(&bounds[3])) {
-        return;
-    }
-    let pixel = id.y * params.width + id.x;
-    let key = atomicLoad(&depth_key[pixel]);
-    if key == 0u {
+    let id = gid.xy;
+    if id.x >= params.width || id.y >= params.height {
         return;
     }
     let p = vec2<i32>(id.xy);
+    let pixel = id.y * params.width + id.x;
+    var key = 0u;
+    if in_bounds(id) {
+        key = atomicLoad(&depth_key[pixel]);
+    }
+    if key == 0u {
+        store_zeros(p, true, false);
+        return;
+    }
     textureStore(t0, p, vec4<f32>(0.0, 0.0, 0.0, 1.0));
     textureStore(t1, p, vec4<f32>(visible_z(DEPTH_ONE - key), 0.0, 0.0, 0.0));
     atomicStore(&depth_key[pixel], 0u);

@@ -464,6 +464,24 @@ fn reused_targets_keep_nothing_of_the_previous_render() {
         covered < (cam.width * cam.height / 2) as usize,
         "the far view is small"
     );
+    // A depth-only render after the large view, likewise: the depth (and
+    // weight) of the far view alone, nothing of the near one around it.
+    let depth_only = |t: &mut SplatTargets| {
+        s.render_depth(ctx(), &gm, &cam, &far, t, None).unwrap();
+        [Attribute::Depth, Attribute::Weight].map(|a| s.read(ctx(), t, a).unwrap())
+    };
+    s.render(ctx(), &gm, &cam, &near, Attributes::ALL, &mut t)
+        .unwrap();
+    let reused = depth_only(&mut t);
+    let fresh = depth_only(&mut SplatTargets::new(ctx(), cam.width, cam.height));
+    for (a, b) in reused.iter().zip(&fresh) {
+        assert_eq!(splat_common::differing(a, b), 0);
+    }
+    let seen = fresh[1].data.iter().filter(|&&w| w > 0.0).count();
+    assert!(
+        seen > 50 && seen < (cam.width * cam.height / 2) as usize,
+        "{seen}"
+    );
 }
 
 #[test]

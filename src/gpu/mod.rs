@@ -466,7 +466,7 @@ pub struct GpuContext {
 /// `num_workgroups` from that step): every kernel here that writes a
 /// dispatch's arguments keeps them within the limits itself (65535
 /// workgroups a dimension: `select_sizes` in shaders/harris.wgsl,
-/// `finish_dispatch` in shaders/splat_compute.wgsl, checked in their
+/// `big_dispatch` in shaders/splat_compute.wgsl, checked in their
 /// tests).
 pub const VALIDATE_INDIRECT_ENV: &str = "WGPU_VALIDATION_INDIRECT_CALL";
 

@@ -12,16 +12,15 @@
 //! kernel halves a tracked frame with a 100k-point model, though the render
 //! pass stays faster for sparse models of large splats (BENCHMARKS.md).
 //!
-//! A crop (splatting only the object's region) needs no change to the
-//! kernels' maths: the pixel range of each splat is clipped to the image
-//! in `setup`; clipping it to a rectangle instead (an origin and size in
-//! `ComputeParams`, pixel indices relative to the origin) and dispatching
-//! `finish` over the rectangle only is all it takes.
+//! A render is three compute passes and no clear: `finish` runs over the
+//! whole target, converting the sums inside the splats' bounding box and
+//! writing zeros outside it (what the render pass's clear leaves), so
+//! only the large splats' passes are sized on the GPU (indirectly).
 
 use super::gpu_data::{
     ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
 };
-use super::targets::{TARGETS, cleared_attachments};
+use super::targets::TARGETS;
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
     GpuContext, GpuTimer, GrowBuffer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass,
@@ -36,12 +35,12 @@ pub(super) struct Scratch {
     params: wgpu::Buffer,
     /// The splats' pixel bounding box (4 u32).
     bounds: wgpu::Buffer,
-    /// The indirect dispatches of `finish` and of the large splats (bound
-    /// alone in group 1).
-    finish_args: wgpu::Buffer,
+    /// The indirect dispatch of the large splats' passes (bound alone in
+    /// group 1).
+    big_args: wgpu::Buffer,
     /// The list of large splats (one u32 per splat of the largest model).
     big: GrowBuffer,
-    finish_bind: Option<wgpu::BindGroup>,
+    big_args_bind: Option<wgpu::BindGroup>,
     /// The splat's bind groups by the buffers that vary (the model's
     /// geometry and colours, the list of large splats), most recent
     /// first: the frame loop's renders (a keyframe's colours, the bare
@@ -70,12 +69,12 @@ impl Scratch {
             ),
             bounds: ctx.buffer("compute splat bounds", 32, usage),
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
-            finish_args: ctx.buffer(
-                "compute splat finish dispatch",
-                32,
+            big_args: ctx.buffer(
+                "compute splat large splats dispatch",
+                16,
                 wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
             ),
-            finish_bind: None,
+            big_args_bind: None,
             binds: Vec::new(),
         })
     }
@@ -91,7 +90,7 @@ impl Scratch {
             &self.acc,
             &self.params,
             &self.bounds,
-            &self.finish_args,
+            &self.big_args,
         ]
         .iter()
         .map(|b| b.size())
@@ -117,7 +116,7 @@ pub(super) struct ComputeSplatter {
     accumulate: wgpu::ComputePipeline,
     visibility_big: wgpu::ComputePipeline,
     accumulate_big: wgpu::ComputePipeline,
-    finish_dispatch: wgpu::ComputePipeline,
+    big_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     /// The last kernel of a depth-only render.
     finish_depth: wgpu::ComputePipeline,
@@ -131,11 +130,10 @@ impl ComputeSplatter {
                 ctx.limits.max_storage_textures_per_shader_stage
             )));
         }
-        // `finish_dispatch` writes `finish`'s workgroups over the splats'
-        // bounding box, wgpu no longer checking them
-        // (crate::gpu::VALIDATE_INDIRECT_ENV): within the limit for any
-        // target the adapter can make (the large splats' count is capped
-        // in the shader).
+        // `finish` runs a thread a pixel of the target: within the limit
+        // for any target the adapter can make. (`big_dispatch` caps the
+        // large splats' workgroups itself, wgpu no longer checking them:
+        // crate::gpu::VALIDATE_INDIRECT_ENV.)
         let widest = ctx
             .limits
             .max_texture_dimension_2d
@@ -177,7 +175,7 @@ impl ComputeSplatter {
             ],
         );
         let args_layout = ctx.bind_group_layout(
-            "splat compute finish dispatch",
+            "splat compute large splats dispatch",
             &[compute_entry(0, storage(false))],
         );
         let module = ctx.shader("splat_compute")?;
@@ -209,7 +207,7 @@ impl ComputeSplatter {
             accumulate_big: pipeline("accumulate_big", &one)?,
             finish: pipeline("finish", &one)?,
             finish_depth: pipeline("finish_depth", &one)?,
-            finish_dispatch: pipeline("finish_dispatch", &[Some(&layout), Some(&args_layout)])?,
+            big_dispatch: pipeline("big_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
             args_layout,
         })
@@ -249,16 +247,16 @@ impl ComputeSplatter {
         )?;
         scratch.big.ensure(ctx, model.count as u64 * 4);
         let args_layout = &self.args_layout;
-        let finish_args = &scratch.finish_args;
-        let finish_bind = scratch
-            .finish_bind
+        let big_args = &scratch.big_args;
+        let big_args_bind = scratch
+            .big_args_bind
             .get_or_insert_with(|| {
                 ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("splat compute finish dispatch"),
+                    label: Some("splat compute large splats dispatch"),
                     layout: args_layout,
                     entries: &[wgpu::BindGroupEntry {
                         binding: 0,
-                        resource: finish_args.as_entire_binding(),
+                        resource: big_args.as_entire_binding(),
                     }],
                 })
             })
@@ -285,30 +283,24 @@ impl ComputeSplatter {
         let groups = workgroups(model.count, WORKGROUP_1D);
         let gx = groups.clamp(1, 65_535);
         let gy = groups.div_ceil(gx);
+        // `finish` runs a thread a pixel of the whole target.
+        let (fx, fy) = (
+            workgroups(targets.width, RESOLVE_WORKGROUP),
+            workgroups(targets.height, RESOLVE_WORKGROUP),
+        );
         let mut enc = ctx.encoder();
         // The depth keys and sums are zero: made so (wgpu zeroes new
-        // buffers), and `finish` clears every pixel it reads.
+        // buffers), and `finish` clears every pixel it reads. The targets
+        // need no clear: `finish` writes zeros where no splat reached, as
+        // the render pass's clear leaves them.
         enc.clear_buffer(&scratch.bounds, 0, None);
-        {
-            // The targets start at zero, as the render pass's clear does;
-            // `finish` writes only the splats' bounding box.
-            let colors = cleared_attachments(targets, attrs);
-            enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("splat compute clear"),
-                color_attachments: &colors,
-                depth_stencil_attachment: None,
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-        }
         {
             let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
             pass.set_pipeline(&self.visibility);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.finish_dispatch);
-            pass.set_bind_group(1, &finish_bind, &[]);
+            pass.set_pipeline(&self.big_dispatch);
+            pass.set_bind_group(1, &big_args_bind, &[]);
             pass.dispatch_workgroups(1, 1, 1);
         }
         if depth_only {
@@ -317,23 +309,23 @@ impl ComputeSplatter {
             let mut pass = compute_pass(&mut enc, "depth", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
             pass.set_pipeline(&self.visibility_big);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
             pass.set_pipeline(&self.finish_depth);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
+            pass.dispatch_workgroups(fx, fy, 1);
         } else {
             // The large splats' visibility opens this pass: their dispatch
-            // reads arguments that `finish_dispatch` wrote through group 1,
+            // reads arguments that `big_dispatch` wrote through group 1,
             // which is not bound here.
             let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
             pass.set_pipeline(&self.visibility_big);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
             pass.set_pipeline(&self.accumulate_big);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 16);
+            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
             pass.set_pipeline(&self.finish);
-            pass.dispatch_workgroups_indirect(&scratch.finish_args, 0);
+            pass.dispatch_workgroups(fx, fy, 1);
         }
         if let Some(t) = timer {
             t.resolve(&mut enc);
