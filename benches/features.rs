@@ -119,8 +119,21 @@ fn bench(c: &mut Criterion) {
     g.bench_function("harris_gpu_direct_selection_640x480", |b| {
         b.iter(|| black_box(direct.detect(&img, None).unwrap()))
     });
+    // The whole image's merge split over workgroups too (the default on
+    // GPUs merges its at most max_corners slots in one workgroup).
+    let mut split_merge = Harris::new(&ctx, cfg.clone()).unwrap();
+    split_merge.set_tiled_selection(true);
+    split_merge.set_small_selection(Some(false));
+    assert_eq!(
+        split_merge.detect(&img, None).unwrap(),
+        harris.detect(&img, None).unwrap()
+    );
+    g.bench_function("harris_gpu_640x480_split_merge", |b| {
+        b.iter(|| black_box(split_merge.detect(&img, None).unwrap()))
+    });
     harris.enable_timing();
     direct.enable_timing();
+    split_merge.enable_timing();
     let timed = |h: &mut Harris| {
         pass_medians(|| {
             h.detect(&img, None).unwrap();
@@ -129,6 +142,7 @@ fn bench(c: &mut Criterion) {
     };
     let passes = timed(&mut harris);
     let passes_direct = timed(&mut direct);
+    let passes_split_merge = timed(&mut split_merge);
     // A window the size of the frame loop's (a few hundred candidates):
     // the selection split over workgroups, or in one workgroup a pass
     // (the default there on GPUs: four dispatches a detection instead of
@@ -282,6 +296,7 @@ fn bench(c: &mut Criterion) {
     for (name, passes) in [
         ("Harris 640x480", &passes),
         ("Harris 640x480, direct selection", &passes_direct),
+        ("Harris 640x480, merge split too", &passes_split_merge),
         (
             &format!(
                 "Harris 200x160 ({} corners), selection split",

@@ -240,13 +240,16 @@ pub const SMALL_CAP: usize = 1024;
 
 /// The selection's timed passes (their labels) and the entries each runs,
 /// on GPUs (`tiled`): the O(n^2) counts tiled in workgroup memory and
-/// split over the others, or (`small`) the selection and the merge one
-/// workgroup each; the refinement a workgroup a corner (where its radius
-/// fits [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread an item
+/// split over the others, or (`small`) the selection one workgroup, and
+/// the merge likewise, or (`small_merge`) the merge alone (its slots, at
+/// most max_corners, fit one workgroup where the candidates do not); the
+/// refinement a workgroup a corner (where its radius fits
+/// [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread an item
 /// ([`Harris::set_tiled_selection`]).
 fn select_passes(
     tiled: bool,
     small: bool,
+    small_merge: bool,
     refine_radius: u32,
 ) -> [(&'static str, &'static [usize]); 3] {
     let refine: &'static [usize] = if tiled && refine_radius <= REFINE_GROUP_RADIUS {
@@ -254,14 +257,19 @@ fn select_passes(
     } else {
         &[6]
     };
-    match (tiled, small) {
-        (true, true) => [("select", &[0, 17]), ("refine", refine), ("merge", &[18])],
-        (true, false) => [
+    match (tiled, small, small_merge) {
+        (true, true, _) => [("select", &[0, 17]), ("refine", refine), ("merge", &[18])],
+        (true, false, true) => [
+            ("select", &[0, 1, 2, 3, 4, 5]),
+            ("refine", refine),
+            ("merge", &[18]),
+        ],
+        (true, false, false) => [
             ("select", &[0, 1, 2, 3, 4, 5]),
             ("refine", refine),
             ("merge", &[8, 9, 10, 11, 12]),
         ],
-        (false, _) => [
+        (false, ..) => [
             ("select", &[0, 13, 14]),
             ("refine", refine),
             ("merge", &[15, 16, 11, 12]),
@@ -419,8 +427,12 @@ impl Harris {
     /// selects, as beyond [`Harris::set_select_limit`]), split over
     /// workgroups (`Some(false)`), or (`None`, the default) in one
     /// workgroup when the last detection of the same kind (frame or
-    /// view) had at most 512 candidates (`SMALL_SELECT`). The same corners,
-    /// bit for bit.
+    /// view) had at most 512 candidates (`SMALL_SELECT`), and else the
+    /// merge alone in one workgroup where `max_corners` is at most
+    /// `SMALL_CAP` (its slots are at most `max_corners`: a whole image's
+    /// thousands of candidates selected by the split passes, its 900
+    /// corners merged by one dispatch instead of five and the rounds').
+    /// The same corners, bit for bit.
     pub fn set_small_selection(&mut self, small: Option<bool>) {
         self.small_select = small;
     }
@@ -443,6 +455,15 @@ impl Harris {
                 .unwrap_or(self.recent_candidates[self.kind] <= SMALL_SELECT)
     }
 
+    /// Whether the next selection's merge runs in one workgroup (with
+    /// the selection, or alone: [`Harris::set_small_selection`]).
+    fn small_merge(&self) -> bool {
+        self.small_selection()
+            || (self.tiled_select
+                && self.small_select.is_none()
+                && self.config.max_corners <= SMALL_CAP)
+    }
+
     /// Whether detection runs on the host ([`Harris::set_host`]).
     pub fn host(&self) -> bool {
         self.host
@@ -455,7 +476,7 @@ impl Harris {
         // after the host selected the refinement, and the export.
         self.timer = Some(GpuTimer::new(
             &self.ctx,
-            (PASSES.len() + select_passes(true, false, 0).len()) as u32 + 4,
+            (PASSES.len() + select_passes(true, false, false, 0).len()) as u32 + 4,
         ));
     }
 
@@ -703,11 +724,17 @@ impl Harris {
         let bind = self.select_bind.as_ref().expect("prepared");
         let sizes = self.sizes_bind.as_ref().expect("prepared");
         let args = self.select_args.get();
-        let small = self.small_selection();
+        let (small, small_merge) = (self.small_selection(), self.small_merge());
         if small {
             log::trace!("harris: the selection in one workgroup a pass");
         }
-        for (label, entries) in select_passes(self.tiled_select, small, self.config.refine_radius) {
+        let passes = select_passes(
+            self.tiled_select,
+            small,
+            small_merge,
+            self.config.refine_radius,
+        );
+        for (label, entries) in passes {
             let mut pass = compute_pass(enc, label, self.timer.as_mut());
             for &e in entries {
                 let size = SELECT_ENTRIES[e].1;
@@ -1374,7 +1401,7 @@ mod tests {
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
             // The merge in one workgroup runs its rounds to the end.
             assert!(
-                !self.small_selection() || counters.undecided == 0,
+                !self.small_merge() || counters.undecided == 0,
                 "{} corners left undecided in one workgroup",
                 counters.undecided
             );
@@ -1434,7 +1461,7 @@ mod tests {
         let ctx = crate::gpu::shared_test_context();
         let mut rng = Rng::new(7);
         let (w, h) = (200, 150);
-        let (mut cases, mut smalls) = (0, 0);
+        let (mut cases, mut smalls, mut small_merges) = (0, 0, 0);
         // One detector (its pipelines built once), its configuration set
         // for each case.
         let mut harris = Harris::new(ctx, HarrisConfig::default()).unwrap();
@@ -1467,14 +1494,24 @@ mod tests {
                             };
                             harris.config = cfg.clone();
                             harris.set_select_limit(SELECT_MAX as usize);
-                            // The three selections in turn: one thread an
+                            // The four selections in turn: one thread an
                             // item, split over workgroups, one workgroup a
                             // pass (up to SMALL_SELECT candidates: beyond,
-                            // its loops pass lavapipe's 65535 iterations).
-                            let mode = cases % 3;
+                            // its loops pass lavapipe's 65535 iterations),
+                            // split with the merge in one workgroup (the
+                            // default after a busy detection, where
+                            // max_corners <= SMALL_CAP).
+                            let mode = cases % 4;
                             let small = mode == 2 && n <= SMALL_SELECT;
                             harris.set_tiled_selection(mode > 0);
                             harris.set_small_selection(Some(small));
+                            if mode == 3 {
+                                harris.set_small_selection(None);
+                                harris.recent_candidates[harris.kind] = usize::MAX;
+                                assert!(!harris.small_selection());
+                                assert_eq!(harris.small_merge(), max <= SMALL_CAP);
+                                small_merges += harris.small_merge() as usize;
+                            }
                             // Every other case without the parallel rounds:
                             // the host finishes the whole merge.
                             harris.merge_rounds = if (case + cases) % 2 == 0 {
@@ -1490,9 +1527,8 @@ mod tests {
                             let first = got.iter().zip(&want).position(|(g, w)| g != w);
                             assert!(
                                 got == want,
-                                "{n} candidates (dense {dense}, ties {ties}), grid {grid}, max {max}, radius {radius}, {} rounds, tiled {}, small {small}: {} corners against the host's {}, first difference at {first:?}",
+                                "{n} candidates (dense {dense}, ties {ties}), grid {grid}, max {max}, radius {radius}, {} rounds, mode {mode}, small {small}: {} corners against the host's {}, first difference at {first:?}",
                                 harris.merge_rounds,
-                                mode > 0,
                                 got.len(),
                                 want.len()
                             );
@@ -1505,5 +1541,9 @@ mod tests {
         }
         assert!(cases > 100, "{cases} cases");
         assert!(smalls > 20, "{smalls} cases in one workgroup");
+        assert!(
+            small_merges > 20,
+            "{small_merges} merges alone in one workgroup"
+        );
     }
 }
