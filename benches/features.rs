@@ -119,6 +119,15 @@ fn bench(c: &mut Criterion) {
     g.bench_function("harris_gpu_direct_selection_640x480", |b| {
         b.iter(|| black_box(direct.detect(&img, None).unwrap()))
     });
+    // The four filter passes, and the one pass of tiles (the default on
+    // GPUs; CPU adapters run the four).
+    for (name, fuse) in [("four_passes", false), ("fused_passes", true)] {
+        let mut h = Harris::new(&ctx, cfg.clone()).unwrap();
+        h.set_fused_maps(Some(fuse));
+        g.bench_function(format!("harris_gpu_640x480_{name}"), |b| {
+            b.iter(|| black_box(h.detect(&img, None).unwrap()))
+        });
+    }
     // The whole image's merge split over workgroups too (the default on
     // GPUs merges its at most max_corners slots in one workgroup).
     let mut split_merge = Harris::new(&ctx, cfg.clone()).unwrap();

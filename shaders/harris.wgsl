@@ -399,6 +399,230 @@ fn integrate_v(@builtin(global_invocation_id) id: vec3<u32>) {
     integrate(id, false);
 }
 
+// ---- The four filter passes in one (GPUs, radii that fit the tile) ----
+// deriv_h, deriv_v, integrate_h and integrate_v for a WORKGROUP_2D-square
+// tile of outputs, their intermediate lines in workgroup memory instead
+// of `tmp`: one dispatch where the four passes were four dependent ones.
+// Each stage computes every value the next reads (the tile and its halo,
+// rd + ri rows above and below, ri columns either side), each value with
+// the taps, weights and order of the pass it replaces (`derive`,
+// `integrate`), so the gradients (into `grad`, for the refinement) and
+// the responses are those of the four passes. Needs rd + ri <= FUSED_HALO
+// and 6 * FUSED_LINES^2 * 4 bytes of workgroup memory (the host checks
+// both and otherwise runs the four passes).
+const FUSED_LINES: u32 = WORKGROUP_2D + 2u * FUSED_HALO;
+// deriv_h's (a, c, ok) a pixel, FUSED_LINES to a row; then integrate_h's
+// (Sxx, Syy | Sxy, wsum) in halves, WORKGROUP_2D to a row.
+var<workgroup> fused_a: array<f32, FUSED_LINES * FUSED_LINES>;
+var<workgroup> fused_c: array<f32, FUSED_LINES * FUSED_LINES>;
+var<workgroup> fused_ok: array<f32, FUSED_LINES * FUSED_LINES>;
+// deriv_v's (Ix, Iy, valid) a pixel, FUSED_LINES to a row.
+var<workgroup> fused_gx: array<f32, FUSED_LINES * FUSED_LINES>;
+var<workgroup> fused_gy: array<f32, FUSED_LINES * FUSED_LINES>;
+var<workgroup> fused_gv: array<f32, FUSED_LINES * FUSED_LINES>;
+var<workgroup> fused_max: atomic<u32>;
+
+// Whether (x, y) lies in the image.
+fn in_image(x: i32, y: i32) -> bool {
+    return x >= 0 && y >= 0 && x < i32(params.width) && y < i32(params.height);
+}
+
+@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
+fn maps_fused(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let w = i32(params.width);
+    let h = i32(params.height);
+    let rd = i32(params.rd);
+    let ri = i32(params.ri);
+    let nd = 2u * params.rd + 1u;
+    let base = 2u * nd;
+    let tile = i32(WORKGROUP_2D);
+    let threads = WORKGROUP_2D * WORKGROUP_2D;
+    let x0 = i32(wid.x) * tile;
+    let y0 = i32(wid.y) * tile;
+    let halo = rd + ri;
+    // Columns of the first two stages (x0 - ri ..), rows of the first
+    // (y0 - rd - ri ..) and of the next two (y0 - ri ..).
+    let cols = u32(tile + 2 * ri);
+    let rows1 = u32(tile + 2 * halo);
+    let rows2 = cols;
+    let line = i32(FUSED_LINES);
+
+    // deriv_h (derive(.., true)), the pixel's row.
+    for (var k = lid; k < rows1 * cols; k += threads) {
+        let r = i32(k / cols);
+        let c = i32(k % cols);
+        let x = x0 - ri + c;
+        let y = y0 - halo + r;
+        if (!in_image(x, y)) {
+            continue;
+        }
+        var a = 0.0;
+        var cc = 0.0;
+        var ok = 1.0;
+        for (var t = -rd; t <= rd; t++) {
+            let p = x + t;
+            if (p >= 0 && p < w) {
+                let px = pixels[u32(y * w + p)];
+                var v = -1.0;
+                if (pixel_valid(px)) {
+                    v = 1.0;
+                } else if (pixel_hole(px)) {
+                    v = 0.0;
+                }
+                ok = min(ok, v);
+                let kt = u32(t + rd);
+                a = a + px.value * weight(nd + kt);
+                cc = cc + px.value * weight(kt);
+            } else {
+                ok = -1.0;
+            }
+        }
+        let i = r * line + c;
+        fused_a[i] = a;
+        fused_c[i] = cc;
+        fused_ok[i] = ok;
+    }
+    workgroupBarrier();
+
+    // deriv_v (derive(.., false)): the gradients, into `grad` in the tile.
+    for (var k = lid; k < rows2 * cols; k += threads) {
+        let r = i32(k / cols);
+        let c = i32(k % cols);
+        let x = x0 - ri + c;
+        let y = y0 - ri + r;
+        if (!in_image(x, y)) {
+            continue;
+        }
+        var a = 0.0;
+        var cc = 0.0;
+        var ok = 1.0;
+        for (var t = -rd; t <= rd; t++) {
+            let q = y + t;
+            if (q >= 0 && q < h) {
+                // deriv_h's row of q: q - (y0 - rd - ri).
+                let j = (r + rd + t) * line + c;
+                ok = min(ok, fused_ok[j]);
+                let kt = u32(t + rd);
+                a = a + fused_a[j] * weight(kt);
+                cc = cc + fused_c[j] * weight(nd + kt);
+            } else {
+                ok = -1.0;
+            }
+        }
+        let i = r * line + c;
+        fused_gx[i] = a;
+        fused_gy[i] = cc;
+        fused_gv[i] = ok;
+        if (r >= ri && r < ri + tile && c >= ri && c < ri + tile) {
+            grad[u32(y * w + x)] = vec4<f32>(a, cc, ok, 0.0);
+        }
+    }
+    workgroupBarrier();
+
+    // integrate_h (integrate(.., true)), the tile's columns only; into
+    // the first stage's memory (no longer read).
+    let half = FUSED_LINES * FUSED_LINES / 2u;
+    for (var k = lid; k < rows2 * WORKGROUP_2D; k += threads) {
+        let r = i32(k / WORKGROUP_2D);
+        let c = i32(k % WORKGROUP_2D);
+        let x = x0 + c;
+        let y = y0 - ri + r;
+        if (!in_image(x, y)) {
+            continue;
+        }
+        var sxx = 0.0;
+        var syy = 0.0;
+        var sxy = 0.0;
+        var wsum = 0.0;
+        var outside_image = false;
+        for (var t = -ri; t <= ri; t++) {
+            let p = x + t;
+            if (p >= 0 && p < w) {
+                // deriv_v's column of p: p - (x0 - ri).
+                let j = r * line + c + ri + t;
+                let gx = fused_gx[j];
+                let gy = fused_gy[j];
+                let gz = fused_gv[j];
+                let v = select(0.0, 1.0, gz > 0.5);
+                outside_image = outside_image || gz < -0.5;
+                let s = vec4<f32>(gx * gx * v, gy * gy * v, gx * gy * v, v);
+                let cw = weight(base + u32(t + ri));
+                sxx = sxx + s.x * cw;
+                syy = syy + s.y * cw;
+                sxy = sxy + s.z * cw;
+                wsum = wsum + s.w * cw;
+            } else {
+                outside_image = true;
+            }
+        }
+        let i = u32(r) * WORKGROUP_2D + u32(c);
+        fused_a[i] = sxx;
+        fused_a[half + i] = syy;
+        fused_c[i] = sxy;
+        fused_c[half + i] = select(wsum, -1.0, outside_image);
+    }
+    workgroupBarrier();
+
+    // integrate_v (integrate(.., false)) and the response: a pixel a
+    // thread; the tile's largest response allowed a corner, then one
+    // global atomic a tile.
+    if (lid == 0u) {
+        atomicStore(&fused_max, 0u);
+    }
+    workgroupBarrier();
+    let best = fused_response(x0, y0, i32(lid % WORKGROUP_2D), i32(lid / WORKGROUP_2D));
+    if (best > 0.0) {
+        atomicMax(&fused_max, bitcast<u32>(best));
+    }
+    workgroupBarrier();
+    if (lid == 0u) {
+        let m = atomicLoad(&fused_max);
+        if (m != 0u) {
+            atomicMax(&counters.max_bits, m);
+        }
+    }
+}
+
+// The response at the tile's pixel (c, r) from integrate_h's lines in
+// workgroup memory (`respond`'s return: 0 where no corner may be).
+fn fused_response(x0: i32, y0: i32, c: i32, r: i32) -> f32 {
+    let h = i32(params.height);
+    let ri = i32(params.ri);
+    let base = 2u * (2u * params.rd + 1u);
+    let half = FUSED_LINES * FUSED_LINES / 2u;
+    let x = x0 + c;
+    let y = y0 + r;
+    if (!in_image(x, y)) {
+        return 0.0;
+    }
+    var sxx = 0.0;
+    var syy = 0.0;
+    var sxy = 0.0;
+    var wsum = 0.0;
+    var outside_image = false;
+    for (var t = -ri; t <= ri; t++) {
+        let q = y + t;
+        if (q >= 0 && q < h) {
+            // integrate_h's row of q: q - (y0 - ri).
+            let i = u32(r + ri + t) * WORKGROUP_2D + u32(c);
+            let s = vec4<f32>(fused_a[i], fused_a[half + i], fused_c[i], fused_c[half + i]);
+            outside_image = outside_image || s.w < 0.0;
+            let cw = weight(base + u32(t + ri));
+            sxx = sxx + s.x * cw;
+            syy = syy + s.y * cw;
+            sxy = sxy + s.z * cw;
+            wsum = wsum + s.w * cw;
+        } else {
+            outside_image = true;
+        }
+    }
+    let st = vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
+    return respond(u32(y * i32(params.width) + x), st);
+}
+
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn nms(@builtin(global_invocation_id) id: vec3<u32>) {
     if (outside(id)) {

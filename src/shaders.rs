@@ -87,6 +87,7 @@ pub const CONSTANTS: &[(&str, WgslValue)] = {
             U32(f::MAX_INTEGRATION_RADIUS as u32),
         ),
         ("HARRIS_BLOCK", U32(f::HARRIS_BLOCK)),
+        ("FUSED_HALO", U32(f::FUSED_HALO)),
         ("SELECT_MAX", U32(f::SELECT_MAX)),
         ("MERGE_LINKS", U32(f::MERGE_LINKS)),
         ("NO_SCORE", F32(f::NO_SCORE)),

@@ -534,13 +534,13 @@ fn pass_timings_are_reported_when_enabled() {
         let t = harris.last_timings();
         if ctx().has_timestamps() {
             let labels: Vec<&str> = t.passes.iter().map(|(l, _)| l.as_str()).collect();
-            assert!(labels.starts_with(&[
-                "deriv_h",
-                "deriv_v",
-                "integrate_h",
-                "integrate_v",
-                "nms"
-            ]));
+            // GPUs run the filter passes as one (`Harris::set_fused_maps`).
+            let maps: &[&str] = if ctx().is_cpu() {
+                &["deriv_h", "deriv_v", "integrate_h", "integrate_v", "nms"]
+            } else {
+                &["maps", "nms"]
+            };
+            assert!(labels.starts_with(maps), "{labels:?}");
             assert_eq!(labels.contains(&"refine"), !corners.is_empty());
             assert!(t.passes.iter().all(|(_, ms)| ms.is_finite() && *ms >= 0.0));
         } else {
@@ -808,4 +808,74 @@ fn harris_in_host_mode_gives_the_references_corners() {
         let (a, b) = (f32::from_bits(a[0]), f32::from_bits(b[0]));
         assert!((a - b).abs() <= 1e-6, "pixel {i}: {a} vs {b}");
     }
+}
+
+/// The four filter passes as one dispatch of tiles (`maps_fused`: their
+/// lines in workgroup memory, GPUs' default) against the four passes:
+/// the same responses bit for bit and the same corners (their
+/// refinements read the gradients the fused pass writes), on sizes below,
+/// at and across the 16-pixel tiles, with holes, hard invalid pixels and
+/// a mask; radii too wide for the tile's halo run the four passes
+/// whatever is asked.
+#[test]
+fn fused_filter_passes_give_the_four_passes_responses_and_corners() {
+    let wide = HarrisConfig::default().with_sigmas(1.0, 2.0);
+    let mut checked = 0;
+    for (ci, cfg) in [HarrisConfig::default(), wide].into_iter().enumerate() {
+        let mut four = Harris::new(ctx(), cfg.clone()).unwrap();
+        four.set_fused_maps(Some(false));
+        let mut one = Harris::new(ctx(), cfg.clone()).unwrap();
+        one.set_fused_maps(Some(true));
+        one.enable_timing();
+        for (i, (w, h)) in [(7, 5), (16, 16), (17, 8), (31, 33), (75, 61), (203, 157)]
+            .into_iter()
+            .enumerate()
+        {
+            let mut img = if i % 2 == 0 {
+                patterns::smooth_noise(w, h, 1.2, 40 + i as u64)
+            } else {
+                patterns::polygons(w, h, 8, 40 + i as u64)
+            };
+            // A hole and a hard invalid pair, near tile borders.
+            for (x, y) in [(15, 2), (w / 2, h / 2), (w / 2 + 1, h / 2), (16, 16)] {
+                if x < w && y < h {
+                    img.data[y * w + x] = f32::NAN;
+                }
+            }
+            let name = format!("config {ci}, {w}x{h}");
+            let a = four.response(&img).unwrap();
+            let b = one.response(&img).unwrap();
+            let passes: Vec<String> = one
+                .last_timings()
+                .passes
+                .iter()
+                .map(|(l, _)| l.clone())
+                .collect();
+            if ctx().has_timestamps() {
+                assert_eq!(
+                    passes.contains(&"maps".to_string()),
+                    ci == 0,
+                    "{name}: {passes:?}"
+                );
+            }
+            let differ = a
+                .iter()
+                .zip(&b)
+                .filter(|(p, q)| p.to_bits() != q.to_bits())
+                .count();
+            assert_eq!(differ, 0, "{name}: {differ} responses differ");
+            let mask: Vec<bool> = (0..w * h).map(|k| (k % w) * 3 < w * 2).collect();
+            for m in [None, Some(mask.as_slice())] {
+                let want = four.detect(&img, m).unwrap();
+                assert_eq!(
+                    one.detect(&img, m).unwrap(),
+                    want,
+                    "{name}, mask {}",
+                    m.is_some()
+                );
+                checked += want.len();
+            }
+        }
+    }
+    assert!(checked > 200, "{checked} corners compared");
 }

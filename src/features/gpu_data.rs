@@ -21,6 +21,13 @@ pub const MAX_INTEGRATION_RADIUS: usize = 14;
 /// filter passes of a 640x480 image from 205 to 89 ms (each pass timed
 /// alone) and a whole detection from 221 to 115 ms (BENCHMARKS.md).
 pub const HARRIS_BLOCK: u32 = 8;
+/// The most rows (rd + ri) above and below a tile of the fused filter
+/// pass (`maps_fused` in shaders/harris.wgsl) reads: the default sigmas
+/// (1.0, 1.5) need 3 + 5. Larger radii run the four passes.
+pub const FUSED_HALO: u32 = 8;
+/// Workgroup memory of the fused filter pass: six lines of
+/// (`WORKGROUP_2D` + 2 [`FUSED_HALO`])^2 f32 and an atomic.
+pub const FUSED_BYTES: u32 = 6 * (crate::gpu::WORKGROUP_2D + 2 * FUSED_HALO).pow(2) * 4 + 4;
 /// The most candidates Harris selects among on the GPU
 /// (`shaders/harris.wgsl`, "The selection"): its passes compare every
 /// pair (at most 2^26 comparisons a pass). A detection with more (a

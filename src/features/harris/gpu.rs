@@ -5,9 +5,9 @@ use super::host::{Scratch, detect_packed};
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, selected_starts};
 use crate::features::FeatureError;
 use crate::features::gpu_data::{
-    Candidate, Counters, ExportParams, HARRIS_BLOCK, HarrisParams, MAX_TAPS, MERGE_LINKS,
-    MERGE_ROUNDS, REFINE_GROUP_RADIUS, RefineCorner, SELECT_MAX, SELECT_MAX_CPU,
-    pack_with_holes_into,
+    Candidate, Counters, ExportParams, FUSED_BYTES, FUSED_HALO, HARRIS_BLOCK, HarrisParams,
+    MAX_TAPS, MERGE_LINKS, MERGE_ROUNDS, REFINE_GROUP_RADIUS, RefineCorner, SELECT_MAX,
+    SELECT_MAX_CPU, pack_with_holes_into,
 };
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
@@ -24,6 +24,12 @@ pub struct Harris {
     config: HarrisConfig,
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
+    /// The four filter passes in one (`maps_fused`), where the adapter
+    /// has its workgroup memory ([`Harris::set_fused_maps`]).
+    fused: Option<wgpu::ComputePipeline>,
+    /// The fused filter pass forced on or off; `None`: on GPUs, where the
+    /// radii fit.
+    fuse: Option<bool>,
     refine: wgpu::ComputePipeline,
     /// The selection's pipelines ([`SELECT_ENTRIES`]), on a layout of
     /// their own (the map passes' holds eight storage buffers already).
@@ -321,11 +327,19 @@ impl Harris {
             .compute_pipelines("harris", &export_layout, &["export_corners"])?
             .pop()
             .expect("one pipeline");
+        let fused = if ctx.limits.max_compute_workgroup_storage_size >= FUSED_BYTES {
+            ctx.compute_pipelines("harris", &layout, &["maps_fused"])?
+                .pop()
+        } else {
+            None
+        };
         Ok(Self {
             ctx: ctx.clone(),
             config,
             layout,
             passes: all,
+            fused,
+            fuse: None,
             refine,
             select_layout,
             select,
@@ -435,6 +449,26 @@ impl Harris {
     /// The same corners, bit for bit.
     pub fn set_small_selection(&mut self, small: Option<bool>) {
         self.small_select = small;
+    }
+
+    /// The four filter passes (deriv_h, deriv_v, integrate_h,
+    /// integrate_v) as one dispatch of tiles with their halos in workgroup
+    /// memory (`Some(true)`; the default, `None`, on GPUs), or four
+    /// (`Some(false)`; the default on CPU adapters). Only where
+    /// radius(sigma_d) + radius(sigma_i) is at most 8 (the default sigmas'
+    /// 3 + 5) and the adapter gives a workgroup 24 KB; else four passes
+    /// whatever is asked. The same taps in the same order: the same
+    /// responses and gradients.
+    pub fn set_fused_maps(&mut self, fuse: Option<bool>) {
+        self.fuse = fuse;
+    }
+
+    /// Whether the next detection's filter passes run as one.
+    fn maps_fused(&self) -> bool {
+        let halo = radius(self.config.sigma_d) + radius(self.config.sigma_i);
+        self.fused.is_some()
+            && halo <= FUSED_HALO as usize
+            && self.fuse.unwrap_or(!self.ctx.is_cpu())
     }
 
     /// The most candidates the next selection takes on the GPU: the
@@ -706,7 +740,16 @@ impl Harris {
             workgroups((h as u32).div_ceil(HARRIS_BLOCK), WORKGROUP_2D),
         );
         let groups = [(bw, gy), (gx, bh), (bw, gy), (gx, bh), (gx, gy)];
-        for ((pipeline, label), (x, y)) in self.passes.iter().zip(PASSES).zip(groups) {
+        let fused = self.maps_fused().then_some(self.fused.as_ref()).flatten();
+        if let Some(pipeline) = fused {
+            // A tile of WORKGROUP_2D^2 outputs a workgroup.
+            let mut pass = compute_pass(&mut enc, "maps", self.timer.as_mut());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
+        }
+        let skip = if fused.is_some() { 4 } else { 0 };
+        for ((pipeline, label), (x, y)) in self.passes.iter().zip(PASSES).zip(groups).skip(skip) {
             let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
