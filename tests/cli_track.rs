@@ -358,6 +358,17 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             buffers >= submissions && buffers <= submissions + 1.0,
             "{buffers} command buffers in {submissions} submissions a frame: {stdout}"
         );
+        // Uploads are counted, and parameters unchanged since the frame
+        // before are not uploaded again (`gpu::Uniform`).
+        let uploads = field("GPU work", 7);
+        let line = stdout.lines().find(|l| l.contains("GPU work")).unwrap();
+        let skipped: f64 = line.split_whitespace().nth(9).unwrap()[1..]
+            .parse()
+            .unwrap();
+        assert!(
+            uploads >= 1.0 && skipped > 0.0,
+            "{uploads} uploads, {skipped} skipped: {line}"
+        );
         field("read back from the GPU", 5)
     };
     let (on, off) = (bytes_read("on"), bytes_read("off"));

@@ -749,3 +749,42 @@ fn indirect_dispatches_give_the_same_results_without_wgpus_validation() {
     assert!(covered > 1000, "{covered} covered pixels");
     assert_eq!(with_images, without_images);
 }
+
+/// A `Uniform` uploads only bytes that differ from its last upload, and
+/// the context counts both; what the GPU reads is always the last written,
+/// batched or not.
+#[test]
+fn a_uniform_uploads_only_what_changed() {
+    let c = own_ctx();
+    let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_SRC;
+    let mut u = gpu::Uniform::with_usage(&c, "test uniform", 16, usage);
+    let (up0, skip0) = c.uploads();
+    let read = |c: &GpuContext, u: &gpu::Uniform| -> Vec<u32> {
+        let out = c.buffer(
+            "uniform copy",
+            16,
+            wgpu::BufferUsages::STORAGE
+                | wgpu::BufferUsages::COPY_DST
+                | wgpu::BufferUsages::COPY_SRC,
+        );
+        let mut enc = c.encoder();
+        enc.copy_buffer_to_buffer(u.buffer(), 0, &out, 0, 16);
+        c.read_buffer_after::<u32>(enc, &out, 4).unwrap()
+    };
+    assert!(u.write(&c, bytemuck::bytes_of(&[1u32, 2, 3, 4])));
+    assert!(!u.write(&c, bytemuck::bytes_of(&[1u32, 2, 3, 4])));
+    assert_eq!(read(&c, &u), [1, 2, 3, 4]);
+    {
+        // In a batch: A, then B, then A again (written: it differs from
+        // B), then A once more (skipped): the GPU reads A.
+        let _batch = c.batch();
+        assert!(u.write(&c, bytemuck::bytes_of(&[5u32, 6, 7, 8])));
+        assert!(u.write(&c, bytemuck::bytes_of(&[1u32, 2, 3, 4])));
+        assert!(!u.write(&c, bytemuck::bytes_of(&[1u32, 2, 3, 4])));
+    }
+    assert_eq!(read(&c, &u), [1, 2, 3, 4]);
+    assert!(u.write(&c, bytemuck::bytes_of(&[0u32, 0, 0, 9])));
+    assert_eq!(read(&c, &u), [0, 0, 0, 9]);
+    let (up, skip) = c.uploads();
+    assert_eq!((up - up0, skip - skip0), (4, 2));
+}

@@ -686,10 +686,12 @@ fn profile_table(
         }
     );
     out += &format!(
-        "  {:<26} {:8.1} submissions, {:.1} command buffers; indirect dispatches {}\n",
+        "  {:<26} {:8.1} submissions, {:.1} command buffers, {:.1} uploads ({:.1} unchanged parameters skipped); indirect dispatches {}\n",
         "GPU work",
         t.submissions,
         t.command_buffers,
+        t.uploads,
+        t.uploads_skipped,
         if validated {
             "checked by wgpu first (WGPU_VALIDATION_INDIRECT_CALL or DX12)"
         } else {

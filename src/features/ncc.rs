@@ -11,7 +11,7 @@ use super::image::{GreyImage, check_mask};
 use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use crate::gpu::{
     BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, Timings,
-    WORKGROUP_1D, compute_entry, compute_pass, storage, workgroups,
+    Uniform, WORKGROUP_1D, compute_entry, compute_pass, storage, workgroups,
 };
 
 /// A mutual best match: feature `a` of the first image and feature `b` of
@@ -166,7 +166,7 @@ pub struct NccMatcher {
     /// One thread per row / column (with `score_direct`).
     bests_direct: wgpu::ComputePipeline,
     tiled: bool,
-    params: wgpu::Buffer,
+    params: Uniform,
     pixels: GrowBuffer,
     positions: GrowBuffer,
     desc: GrowBuffer,
@@ -241,10 +241,11 @@ impl NccMatcher {
             score_direct,
             bests_direct,
             tiled: !ctx.is_cpu(),
-            params: ctx.buffer(
+            params: Uniform::with_usage(
+                ctx,
                 "ncc params",
                 std::mem::size_of::<NccParams>() as u64,
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                wgpu::BufferUsages::STORAGE,
             ),
             pixels: GrowBuffer::new("ncc pixels", STORAGE_IN),
             positions: GrowBuffer::new("ncc positions", STORAGE_IN),
@@ -352,8 +353,7 @@ impl NccMatcher {
         let ctx = &self.ctx.clone();
         let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
         pixels.extend(pack_with_holes(img_b, None, false));
-        ctx.queue
-            .write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
+        ctx.write_buffer(self.pixels.get(), 0, bytemuck::cast_slice(&pixels));
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
         self.write_positions(&pos, na, 0);
         let mut enc = ctx.encoder();
@@ -599,7 +599,7 @@ impl NccMatcher {
             }
             // B's positions are the export's, in no spatial order.
             (Side::Host(a), Side::Exported(_)) => {
-                let q = &ctx.queue;
+                let q = ctx;
                 let pos = in_band(a, a_rows.start);
                 q.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
                 let order: Vec<u32> = (0..nb as u32).collect();
@@ -650,7 +650,7 @@ impl NccMatcher {
         samples: &wgpu::Buffer,
         na: usize,
     ) -> Result<(), FeatureError> {
-        self.ctx.queue.write_buffer(
+        self.ctx.write_buffer(
             &self.gate_count,
             0,
             bytemuck::cast_slice(&[na as u32, 0, 0, 0]),
@@ -674,7 +674,7 @@ impl NccMatcher {
     /// `skip` on (the slots before are A's, written on the GPU) and B's
     /// [`spatial_order`] after the window flags in `ok`.
     fn write_positions(&self, pos: &[[f32; 2]], na: usize, skip: usize) {
-        let q = &self.ctx.queue;
+        let q = &self.ctx;
         q.write_buffer(
             self.positions.get(),
             (skip * 8) as u64,
@@ -739,7 +739,7 @@ impl NccMatcher {
             .ensure(ctx, (na * std::mem::size_of::<MatchOut>()) as u64);
         if changed || self.bind.is_none() {
             let bufs = [
-                &self.params,
+                self.params.buffer(),
                 self.pixels.get(),
                 self.positions.get(),
                 self.desc.get(),
@@ -779,8 +779,7 @@ impl NccMatcher {
             shift_by: shift_b[1] as f32,
             _pad2: 0,
         };
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.params.write(ctx, bytemuck::bytes_of(&params));
         Ok(())
     }
 

@@ -8,7 +8,7 @@ use super::FeatureError;
 use super::gpu_data::{Pixel, pack_with_holes_into};
 use super::image::GreyImage;
 use crate::gpu::{
-    GpuContext, GrowBuffer, STORAGE_IN, WORKGROUP_2D, compute_entry, storage, workgroups,
+    GpuContext, GrowBuffer, STORAGE_IN, Uniform, WORKGROUP_2D, compute_entry, storage, workgroups,
 };
 use bytemuck::{Pod, Zeroable};
 
@@ -82,8 +82,7 @@ impl GpuGrey {
         let px = std::mem::size_of::<Pixel>();
         self.buf.ensure(ctx, (img.data.len().max(1) * px) as u64);
         pack_with_holes_into(img, None, false, &mut self.packed);
-        ctx.queue
-            .write_buffer(self.buf.get(), 0, bytemuck::cast_slice(&self.packed));
+        ctx.write_buffer(self.buf.get(), 0, bytemuck::cast_slice(&self.packed));
         (self.width, self.height) = (img.width, img.height);
     }
 
@@ -141,9 +140,9 @@ pub struct FrameIntake {
     grey: Kernel,
     window: Kernel,
     values: Kernel,
-    params: wgpu::Buffer,
-    window_params: wgpu::Buffer,
-    values_params: wgpu::Buffer,
+    params: Uniform,
+    window_params: Uniform,
+    values_params: Uniform,
     terms: wgpu::Buffer,
     rgb: GrowBuffer,
 }
@@ -219,13 +218,7 @@ impl FrameIntake {
     /// buffer is made on first use.
     pub fn new(ctx: &GpuContext) -> Result<Self, FeatureError> {
         let uniform = wgpu::BufferBindingType::Uniform;
-        let uniform_buffer = |label, size: usize| {
-            ctx.buffer(
-                label,
-                size as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            )
-        };
+        let uniform_buffer = |label, size: usize| Uniform::new(ctx, label, size as u64);
         let window_size = std::mem::size_of::<WindowParams>();
         let terms: Vec<f32> = super::image::LUMA_TERMS.iter().flatten().copied().collect();
         Ok(Self {
@@ -276,11 +269,11 @@ impl FrameIntake {
         // Whole words, then the last one to three bytes padded to a word
         // (a write's size must be a multiple of 4).
         let whole = bytes.len() / 4 * 4;
-        ctx.queue.write_buffer(self.rgb.get(), 0, &bytes[..whole]);
+        ctx.write_buffer(self.rgb.get(), 0, &bytes[..whole]);
         if whole < bytes.len() {
             let mut tail = [0u8; 4];
             tail[..bytes.len() - whole].copy_from_slice(&bytes[whole..]);
-            ctx.queue.write_buffer(self.rgb.get(), whole as u64, &tail);
+            ctx.write_buffer(self.rgb.get(), whole as u64, &tail);
         }
         into.buf
             .ensure(ctx, (w * h * std::mem::size_of::<Pixel>()) as u64);
@@ -290,10 +283,9 @@ impl FrameIntake {
             pad0: 0,
             pad1: 0,
         };
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.params.write(ctx, bytemuck::bytes_of(&params));
         let buffers = [
-            (0, &self.params),
+            (0, self.params.buffer()),
             (1, &self.terms),
             (2, self.rgb.get()),
             (3, into.buf.get()),
@@ -330,9 +322,12 @@ impl FrameIntake {
         window_fits(frame, w, h, std::mem::size_of::<Pixel>(), out)?;
         let params = window_params(frame, at, allowed);
         let ctx = &self.ctx;
-        ctx.queue
-            .write_buffer(&self.window_params, 0, bytemuck::bytes_of(&params));
-        let buffers = [(3, frame.pixels), (4, out), (5, &self.window_params)];
+        self.window_params.write(ctx, bytemuck::bytes_of(&params));
+        let buffers = [
+            (3, frame.pixels),
+            (4, out),
+            (5, self.window_params.buffer()),
+        ];
         self.window.run(ctx, &buffers, at[2], at[3])
     }
 
@@ -355,9 +350,12 @@ impl FrameIntake {
         window_fits(frame, w, h, 4, out)?;
         let params = window_params(frame, at, [0; 4]);
         let ctx = &self.ctx;
-        ctx.queue
-            .write_buffer(&self.values_params, 0, bytemuck::bytes_of(&params));
-        let buffers = [(3, frame.pixels), (5, &self.values_params), (6, out)];
+        self.values_params.write(ctx, bytemuck::bytes_of(&params));
+        let buffers = [
+            (3, frame.pixels),
+            (5, self.values_params.buffer()),
+            (6, out),
+        ];
         self.values.run(ctx, &buffers, at[2], at[3])
     }
 }

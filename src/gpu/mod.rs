@@ -125,6 +125,12 @@ struct Health {
     /// done, freed: a batch records its work into one,
     /// [`GpuContext::encoder`]).
     command_buffers: std::sync::atomic::AtomicU64,
+    /// Uploads through [`GpuContext::write_buffer`] (each a staging
+    /// buffer of wgpu's own: made, mapped, copied, freed once its
+    /// submission is done), and those a [`Uniform`] found unchanged and
+    /// skipped.
+    uploads: std::sync::atomic::AtomicU64,
+    uploads_skipped: std::sync::atomic::AtomicU64,
     /// The staging buffer of readbacks, grow-only; taken while in use (a
     /// concurrent readback makes its own).
     staging: std::sync::Mutex<Option<wgpu::Buffer>>,
@@ -456,6 +462,54 @@ pub struct GpuContext {
     /// first (see [`VALIDATE_INDIRECT_ENV`]).
     pub validates_indirect: bool,
     health: std::sync::Arc<Health>,
+}
+
+/// A uniform buffer uploaded only when its bytes change: each
+/// `Queue::write_buffer` costs a staging buffer of wgpu's own (made,
+/// mapped, copied, freed with its submission), and most of the frame
+/// loop's parameters are those of the frame before. Skipping is safe
+/// whatever the batching: a write takes effect before the next
+/// submission, so the buffer then holds the last bytes written. Only for
+/// buffers the GPU never writes, written only through here.
+#[derive(Debug)]
+pub struct Uniform {
+    buffer: wgpu::Buffer,
+    last: Vec<u8>,
+}
+
+impl Uniform {
+    /// A uniform buffer of `size` bytes (also a copy destination).
+    pub fn new(ctx: &GpuContext, label: &str, size: u64) -> Self {
+        Self::with_usage(ctx, label, size, wgpu::BufferUsages::UNIFORM)
+    }
+
+    /// The same with other usages (a read-only storage buffer of
+    /// parameters); always a copy destination.
+    pub fn with_usage(ctx: &GpuContext, label: &str, size: u64, usage: wgpu::BufferUsages) -> Self {
+        Self {
+            buffer: ctx.buffer(label, size, usage | wgpu::BufferUsages::COPY_DST),
+            last: Vec::new(),
+        }
+    }
+
+    /// Uploads `bytes` at offset 0 unless they are the last written;
+    /// whether it did.
+    pub fn write(&mut self, ctx: &GpuContext, bytes: &[u8]) -> bool {
+        if !self.last.is_empty() && self.last == bytes {
+            ctx.health
+                .uploads_skipped
+                .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            return false;
+        }
+        ctx.write_buffer(&self.buffer, 0, bytes);
+        self.last.clear();
+        self.last.extend_from_slice(bytes);
+        true
+    }
+
+    pub fn buffer(&self) -> &wgpu::Buffer {
+        &self.buffer
+    }
 }
 
 /// Set (to anything but 0: wgpu's own variable), wgpu validates each
@@ -983,6 +1037,26 @@ impl GpuContext {
             self.health
                 .waited_ns
                 .load(std::sync::atomic::Ordering::Relaxed),
+        )
+    }
+
+    /// `Queue::write_buffer`, counted ([`GpuContext::uploads`]): every
+    /// upload of the crate goes through here.
+    pub fn write_buffer(&self, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) {
+        self.health
+            .uploads
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.queue.write_buffer(buffer, offset, data);
+    }
+
+    /// Uploads so far ([`GpuContext::write_buffer`]) and those skipped
+    /// as unchanged ([`Uniform::write`]), all clones of this context
+    /// together.
+    pub fn uploads(&self) -> (u64, u64) {
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        (
+            self.health.uploads.load(relaxed),
+            self.health.uploads_skipped.load(relaxed),
         )
     }
 

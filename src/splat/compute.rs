@@ -23,8 +23,8 @@ use super::gpu_data::{
 use super::targets::TARGETS;
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, WORKGROUP_1D, buffer_entry, compute_entry, compute_pass,
-    storage, workgroups,
+    GpuContext, GpuTimer, GrowBuffer, Uniform, WORKGROUP_1D, buffer_entry, compute_entry,
+    compute_pass, storage, workgroups,
 };
 
 /// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
@@ -32,7 +32,7 @@ use crate::gpu::{
 pub(super) struct Scratch {
     depth: wgpu::Buffer,
     acc: wgpu::Buffer,
-    params: wgpu::Buffer,
+    params: Uniform,
     /// The splats' pixel bounding box (4 u32).
     bounds: wgpu::Buffer,
     /// The indirect dispatch of the large splats' passes (bound alone in
@@ -62,10 +62,10 @@ impl Scratch {
         Ok(Self {
             depth: ctx.buffer("compute splat depth", pixels * 4, usage),
             acc: ctx.buffer("compute splat sums", acc_bytes, usage),
-            params: ctx.buffer(
+            params: Uniform::new(
+                ctx,
                 "compute splat params",
                 std::mem::size_of::<ComputeParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             bounds: ctx.buffer("compute splat bounds", 32, usage),
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
@@ -88,7 +88,7 @@ impl Scratch {
         [
             &self.depth,
             &self.acc,
-            &self.params,
+            self.params.buffer(),
             &self.bounds,
             &self.big_args,
         ]
@@ -261,7 +261,6 @@ impl ComputeSplatter {
                 })
             })
             .clone();
-        let scratch = targets.compute.as_ref().expect("just made");
         let params = ComputeParams {
             width: targets.width,
             height: targets.height,
@@ -273,10 +272,8 @@ impl ComputeSplatter {
                     | (if attrs.motion { COMPUTE_MOTION } else { 0 })
             },
         };
-        ctx.queue
-            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
-        ctx.queue
-            .write_buffer(&scratch.params, 0, bytemuck::bytes_of(&params));
+        ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        scratch.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self.cached_bind(ctx, targets, model);
         let scratch = targets.compute.as_ref().expect("just made");
         // Splats per dispatch row: at most 65535 workgroups in x.
@@ -378,7 +375,7 @@ impl ComputeSplatter {
             },
             wgpu::BindGroupEntry {
                 binding: 1,
-                resource: scratch.params.as_entire_binding(),
+                resource: scratch.params.buffer().as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 2,

@@ -13,7 +13,7 @@ use super::{
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, WORKGROUP_1D, buffer_entry,
+    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, WORKGROUP_1D, buffer_entry,
     compute_entry, storage, texture_entry, workgroups,
 };
 
@@ -56,8 +56,8 @@ const KEPT_BINDS: usize = 4;
 /// (grow-only) and the bind groups made on them.
 struct Reuse {
     /// The uniform of each resolve kind (indexed by kind).
-    params: [Option<wgpu::Buffer>; 6],
-    gather_params: Option<wgpu::Buffer>,
+    params: [Option<Uniform>; 6],
+    gather_params: Option<Uniform>,
     /// Indexed by [`Grown`].
     buffers: [GrowBuffer; 3],
     binds: Vec<(BindKey, wgpu::BindGroup)>,
@@ -74,11 +74,11 @@ enum Grown {
     Points = 2,
 }
 
-fn resolve_params(ctx: &GpuContext) -> wgpu::Buffer {
-    ctx.buffer(
+fn resolve_params(ctx: &GpuContext) -> Uniform {
+    Uniform::new(
+        ctx,
         "splat resolve params",
         std::mem::size_of::<ResolveParams>() as u64,
-        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
     )
 }
 
@@ -472,8 +472,7 @@ impl Splatter {
         targets: &SplatTargets,
         uniform: &CameraUniform,
     ) -> wgpu::BindGroup {
-        ctx.queue
-            .write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
         ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat"),
             layout: &self.render_layout,
@@ -547,20 +546,15 @@ impl Splatter {
     ) -> wgpu::BindGroup {
         let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
         let slot = params.kind as usize % reuse.params.len();
-        let gather = points.is_some();
-        let pbuf = reuse.params[slot]
-            .get_or_insert_with(|| resolve_params(ctx))
-            .clone();
-        let pbuf = if gather {
+        let uniform = if points.is_some() {
             reuse
                 .gather_params
                 .get_or_insert_with(|| resolve_params(ctx))
-                .clone()
         } else {
-            pbuf
+            reuse.params[slot].get_or_insert_with(|| resolve_params(ctx))
         };
-        ctx.queue
-            .write_buffer(&pbuf, 0, bytemuck::bytes_of(&params));
+        uniform.write(ctx, bytemuck::bytes_of(&params));
+        let pbuf = uniform.buffer().clone();
         let key = BindKey {
             view: targets.acc_views[0].clone(),
             params: pbuf.clone(),
@@ -792,7 +786,7 @@ impl Splatter {
         let pbuf = match points {
             Points::Host(p) => {
                 let pbuf = self.grown(ctx, Grown::Points, size);
-                ctx.queue.write_buffer(&pbuf, 0, bytemuck::cast_slice(p));
+                ctx.write_buffer(&pbuf, 0, bytemuck::cast_slice(p));
                 pbuf
             }
             Points::Written(_) => {

@@ -142,6 +142,14 @@ pub struct StageTimes {
     /// ([`GpuContext::command_buffers`]).
     #[serde(default)]
     pub command_buffers: f64,
+    /// Uploads during the call ([`GpuContext::write_buffer`]: each a
+    /// staging buffer of wgpu's), and parameter uploads skipped as
+    /// unchanged ([`crate::gpu::Uniform`]).
+    #[serde(default)]
+    pub uploads: f64,
+    /// Parameter uploads skipped as unchanged during the call.
+    #[serde(default)]
+    pub uploads_skipped: f64,
     /// Rounds (searches and solves) of the contour step during the call
     /// (a mean over frames is fractional).
     #[serde(default)]
@@ -217,6 +225,8 @@ impl StageTimes {
         self.readback_bytes += other.readback_bytes * k;
         self.readbacks += other.readbacks * k;
         self.submissions += other.submissions * k;
+        self.uploads += other.uploads * k;
+        self.uploads_skipped += other.uploads_skipped * k;
         self.command_buffers += other.command_buffers * k;
         self.contour_rounds += other.contour_rounds * k;
         self.contour_renders += other.contour_renders * k;
@@ -750,6 +760,7 @@ impl Tracker {
             self.ctx.command_buffers(),
             self.ctx.waited(),
             self.ctx.encoding(),
+            self.ctx.uploads(),
         );
         self.resident.begin();
         self.pending_gpu.clear();
@@ -989,6 +1000,9 @@ impl Tracker {
         times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
         times.submissions = (self.ctx.submissions() - read0.2) as f64;
         times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
+        let uploads = self.ctx.uploads();
+        times.uploads = (uploads.0 - read0.6.0) as f64;
+        times.uploads_skipped = (uploads.1 - read0.6.1) as f64;
         times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
         let (finish, submit) = self.ctx.encoding();
         times.gpu_finish = finish.saturating_sub(read0.5.0);

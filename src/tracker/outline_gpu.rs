@@ -254,8 +254,7 @@ impl GpuOutline {
             words,
             _pad: 0,
         };
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        ctx.write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
         let bind = self
             .bind
             .as_ref()
@@ -355,7 +354,6 @@ impl GpuOutline {
         }
         let target = self.depth_target(width, height);
         self.ctx
-            .queue
             .write_buffer(&target, 0, bytemuck::cast_slice(depth));
         self.extract(width, height, spacing)
     }

@@ -9,7 +9,8 @@
 use super::verify::{VerifyConfig, VerifyScores, laplacian_rms, zncc_of_sums};
 use crate::features::GreyImage;
 use crate::gpu::{
-    GpuContext, GpuError, GrowBuffer, STORAGE_IN, STORAGE_OUT, compute_entry, compute_pass, storage,
+    GpuContext, GpuError, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, compute_entry,
+    compute_pass, storage,
 };
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
@@ -48,7 +49,7 @@ pub struct GpuCheck {
     sum_rows_tiled: wgpu::ComputePipeline,
     /// A workgroup a row and a sum ([`GpuCheck::set_tiled`]).
     tiled: bool,
-    params: wgpu::Buffer,
+    params: Uniform,
     weight: GrowBuffer,
     colour: GrowBuffer,
     frame: GrowBuffer,
@@ -84,10 +85,10 @@ impl GpuCheck {
             rows_tiled,
             sum_rows_tiled,
             tiled: !ctx.is_cpu(),
-            params: ctx.buffer(
+            params: Uniform::new(
+                ctx,
                 "verify params",
                 std::mem::size_of::<CheckParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             weight: GrowBuffer::new("verify weight", STORAGE_OUT),
             colour: GrowBuffer::new("verify colour", STORAGE_OUT),
@@ -172,7 +173,7 @@ impl GpuCheck {
         changed |= self.total.ensure(ctx, CHECK_SUMS as u64 * 4);
         if changed || self.bind.is_none() {
             let bufs = [
-                &self.params,
+                self.params.buffer(),
                 self.weight.get(),
                 self.colour.get(),
                 self.frame.get(),
@@ -206,7 +207,6 @@ impl GpuCheck {
         }
         self.prepare(w, h);
         self.ctx
-            .queue
             .write_buffer(self.frame.get(), 0, bytemuck::cast_slice(&frame.data));
         self.score_prepared(w, h, textured, visible, texture_step, cfg)
     }
@@ -248,8 +248,7 @@ impl GpuCheck {
             _pad1: 0,
             _pad2: 0,
         };
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params));
+        self.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self
             .bind
             .as_ref()
@@ -323,11 +322,9 @@ impl GpuCheck {
         }
         let (wb, cb) = self.targets(w, h);
         let (wb, cb) = (wb.clone(), cb.clone());
-        self.ctx
-            .queue
-            .write_buffer(&wb, 0, bytemuck::cast_slice(weight));
+        self.ctx.write_buffer(&wb, 0, bytemuck::cast_slice(weight));
         if let Some(c) = colour {
-            self.ctx.queue.write_buffer(&cb, 0, bytemuck::cast_slice(c));
+            self.ctx.write_buffer(&cb, 0, bytemuck::cast_slice(c));
         }
         self.score(frame, colour.is_some(), visible, texture_step, cfg)
     }

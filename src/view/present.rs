@@ -207,8 +207,7 @@ impl Presenter {
             },
             texture.size(),
         );
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&params((w, h), dst)));
+        ctx.write_buffer(&self.params, 0, bytemuck::bytes_of(&params((w, h), dst)));
         let view = texture.create_view(&Default::default());
         let bind = ctx.catch("present bind group", || {
             ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -13,7 +13,7 @@ use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
     BindCache, GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
-    Timings, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    Timings, Uniform, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
 };
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
@@ -45,7 +45,7 @@ pub struct Harris {
     rgba: GrowBuffer,
     /// The grey levels of a resolved view, kept for the host.
     grey_out: GrowBuffer,
-    params: wgpu::Buffer,
+    params: Uniform,
     pixels: GrowBuffer,
     tmp: GrowBuffer,
     grad: GrowBuffer,
@@ -96,7 +96,7 @@ pub struct Harris {
     /// last bind group (with the buffers it binds).
     export_layout: wgpu::BindGroupLayout,
     export: wgpu::ComputePipeline,
-    export_params: wgpu::Buffer,
+    export_params: Uniform,
     export_bind: BindCache<4>,
     /// The points of an export that needs none.
     export_scratch: GrowBuffer,
@@ -349,10 +349,10 @@ impl Harris {
             pack_f32,
             rgba: GrowBuffer::new("harris rgba", STORAGE_IN),
             grey_out: GrowBuffer::new("harris grey", STORAGE_OUT),
-            params: ctx.buffer(
+            params: Uniform::new(
+                ctx,
                 "harris params",
                 std::mem::size_of::<HarrisParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             pixels: GrowBuffer::new("harris pixels", STORAGE_IN),
             tmp: GrowBuffer::new("harris tmp", STORAGE_OUT),
@@ -388,10 +388,10 @@ impl Harris {
             recent_candidates: [usize::MAX; 2],
             export_layout,
             export,
-            export_params: ctx.buffer(
+            export_params: Uniform::new(
+                ctx,
                 "harris export params",
                 std::mem::size_of::<ExportParams>() as u64,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             ),
             export_bind: BindCache::default(),
             export_scratch: GrowBuffer::new("harris export points", STORAGE_OUT),
@@ -618,7 +618,7 @@ impl Harris {
         select_changed |= self.select_args.ensure(ctx, 80);
         if select_changed || self.select_bind.is_none() {
             let bufs = [
-                (0, &self.params),
+                (0, self.params.buffer()),
                 (3, self.grad.get()),
                 (5, self.counters.get()),
                 (6, self.candidates.get()),
@@ -630,7 +630,7 @@ impl Harris {
             self.select_bind =
                 Some(ctx.bind_buffers_at("harris select", &self.select_layout, &bufs)?);
             let bufs = [
-                (0, &self.params),
+                (0, self.params.buffer()),
                 (5, self.counters.get()),
                 (12, self.select_args.get()),
             ];
@@ -639,7 +639,7 @@ impl Harris {
         }
         if changed || self.bind.is_none() {
             let bufs = [
-                &self.params,
+                self.params.buffer(),
                 self.pixels.get(),
                 self.tmp.get(),
                 self.grad.get(),
@@ -666,10 +666,10 @@ impl Harris {
         let (w, h) = input.size();
         self.prepare(w, h)?;
         let ctx = &self.ctx.clone();
-        ctx.queue
-            .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
+        let p = self.params(w, h, 0);
+        self.params.write(ctx, bytemuck::bytes_of(&p));
         match input {
-            Input::Grey(img) => ctx.queue.write_buffer(
+            Input::Grey(img) => ctx.write_buffer(
                 self.pixels.get(),
                 0,
                 bytemuck::cast_slice(&pack_pixels(img, mask)),
@@ -685,29 +685,26 @@ impl Harris {
                         u32::from_le_bytes([p[0], p[1], p[2], alpha])
                     })
                     .collect();
-                ctx.queue
-                    .write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
+                ctx.write_buffer(self.rgba.get(), 0, bytemuck::cast_slice(&packed));
             }
             // Already on the GPU (Harris::colour_target,
             // Harris::input_target).
             Input::Resolved { .. } | Input::Packed { .. } => {}
         }
-        ctx.queue.write_buffer(
-            self.counters.get(),
-            0,
-            bytemuck::bytes_of(&Counters {
-                max_bits: 0,
-                count: 0,
-                selected: 0,
-                undecided: 0,
-            }),
-        );
         let bind = self.bind.as_ref().expect("prepared");
         let (gx, gy) = (
             workgroups(w as u32, WORKGROUP_2D),
             workgroups(h as u32, WORKGROUP_2D),
         );
         let mut enc = ctx.encoder();
+        // The counters start at zero: cleared in the command stream (no
+        // upload of its own, and in order with any earlier work of a
+        // batch that still reads them).
+        enc.clear_buffer(
+            self.counters.get(),
+            0,
+            Some(std::mem::size_of::<Counters>() as u64),
+        );
         if let Input::Rgb(_) = input {
             let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
             pass.set_pipeline(&self.grey);
@@ -980,7 +977,7 @@ impl Harris {
             // it (the packing the shaders would have left there).
             let grey = self.resolved_grey(width, height)?;
             pack_with_holes_into(&grey, None, true, &mut self.scratch.pixels);
-            self.ctx.queue.write_buffer(
+            self.ctx.write_buffer(
                 self.pixels.get(),
                 0,
                 bytemuck::cast_slice(&self.scratch.pixels),
@@ -1266,9 +1263,8 @@ impl Harris {
             clip_x1: clip[2],
             clip_y1: clip[3],
         };
-        self.ctx
-            .queue
-            .write_buffer(&self.export_params, 0, bytemuck::bytes_of(&params));
+        self.export_params
+            .write(&self.ctx, bytemuck::bytes_of(&params));
         let bufs = [
             self.counters.get().clone(),
             self.corners.get().clone(),
@@ -1276,7 +1272,7 @@ impl Harris {
             points,
         ];
         let (ctx, layout) = (&self.ctx, &self.export_layout);
-        let (params, export_params) = (&self.params, &self.export_params);
+        let (params, export_params) = (self.params.buffer(), self.export_params.buffer());
         let bind = self.export_bind.get(bufs, |b| {
             let at = [
                 (0, params),
@@ -1335,11 +1331,8 @@ impl Harris {
     ) -> Result<Vec<Corner>, FeatureError> {
         let ctx = &self.ctx.clone();
         let n = corners.len();
-        ctx.queue.write_buffer(
-            &self.params,
-            0,
-            bytemuck::bytes_of(&self.params(w, h, n as u32)),
-        );
+        let p = self.params(w, h, n as u32);
+        self.params.write(ctx, bytemuck::bytes_of(&p));
         let input: Vec<RefineCorner> = corners
             .iter()
             .map(|c| RefineCorner {
@@ -1349,8 +1342,7 @@ impl Harris {
                 status: 0.0,
             })
             .collect();
-        ctx.queue
-            .write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
+        ctx.write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
         let mut enc = ctx.encoder();
         {
             let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
@@ -1424,19 +1416,17 @@ mod tests {
         ) -> Result<Vec<Corner>, FeatureError> {
             self.prepare(w, h)?;
             let ctx = &self.ctx.clone();
-            ctx.queue
-                .write_buffer(&self.params, 0, bytemuck::bytes_of(&self.params(w, h, 0)));
+            let p = self.params(w, h, 0);
+            self.params.write(ctx, bytemuck::bytes_of(&p));
             let counters = Counters {
                 max_bits: 0,
                 count: cands.len() as u32,
                 selected: 0,
                 undecided: 0,
             };
-            ctx.queue
-                .write_buffer(self.counters.get(), 0, bytemuck::bytes_of(&counters));
+            ctx.write_buffer(self.counters.get(), 0, bytemuck::bytes_of(&counters));
             if !cands.is_empty() {
-                ctx.queue
-                    .write_buffer(self.candidates.get(), 0, bytemuck::cast_slice(cands));
+                ctx.write_buffer(self.candidates.get(), 0, bytemuck::cast_slice(cands));
             }
             let mut enc = ctx.encoder();
             enc.clear_buffer(self.grad.get(), 0, None);
