@@ -116,6 +116,10 @@ for k in 1 2 3; do
   # Without --profile (no timestamp queries), then with it.
   item cube_plain$k 40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_plain$k.csv
   summary cube_plain$k
+  # The same with wgpu's validation of indirect dispatches (the default
+  # before stop 37): its cost, alternated.
+  item cube_valid$k 40 env WGPU_VALIDATION_INDIRECT_CALL=1 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_valid$k.csv
+  summary cube_valid$k
   item cube_tex$k   40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_tex$k.csv --profile
   summary cube_tex$k
   item cube_fused$k 40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_fused$k.csv --modalities texture,contour --profile
