@@ -164,43 +164,42 @@ fn grey(@builtin(global_invocation_id) id: vec3<u32>) {
     pixels[i] = Pixel(luma, flags);
 }
 
-// A splatted view's colour resolved on the GPU (3 floats a pixel, NaN
-// where empty; bound as `rgba`, read as f32 bits) to grey, written to
-// `response` (free until the integration passes): Rec. 601 luma, NaN where
-// any channel is NaN, as GreyImage::from_rgb_f32. NaN is tested on the
+// A splatted view's colour is resolved on the GPU (3 floats a pixel, NaN
+// where empty; bound as `rgba`, read as f32 bits). NaN is tested on the
 // bits: WGSL need not keep NaN through arithmetic.
 fn is_nan_bits(v: f32) -> bool {
     let b = bitcast<u32>(v);
     return (b & 0x7f800000u) == 0x7f800000u && (b & 0x007fffffu) != 0u;
 }
 
-@compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn grey_f32(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (outside(id)) {
-        return;
-    }
-    let i = index(id);
+// The grey level of resolved pixel j: Rec. 601 luma, NaN where any
+// channel is NaN (as GreyImage::from_rgb_f32).
+fn grey_at(j: u32) -> f32 {
     let c = vec3<f32>(
-        bitcast<f32>(rgba[3u * i]),
-        bitcast<f32>(rgba[3u * i + 1u]),
-        bitcast<f32>(rgba[3u * i + 2u]),
+        bitcast<f32>(rgba[3u * j]),
+        bitcast<f32>(rgba[3u * j + 1u]),
+        bitcast<f32>(rgba[3u * j + 2u]),
     );
     let empty = is_nan_bits(c.x) || is_nan_bits(c.y) || is_nan_bits(c.z);
     let luma = LUMA_R * c.x + LUMA_G * c.y + LUMA_B * c.z;
-    response[i] = select(luma, bitcast<f32>(0x7fc00000u), empty);
+    return select(luma, bitcast<f32>(0x7fc00000u), empty);
 }
 
-// The grey levels in `response` packed as the host packs a GreyImage
-// (pack_with_holes without a mask): NaN pixels invalid, and pinholes (an
-// invalid pixel off the border with at least PINHOLE_NEIGHBOURS valid
-// 8-neighbours) flagged PIXEL_HOLE.
+// The view's grey levels (into `response`, free until the integration
+// passes, for Harris::detect_resolved's copy) packed as the host packs a
+// GreyImage (pack_with_holes without a mask): NaN pixels invalid, and
+// pinholes (an invalid pixel off the border with at least
+// PINHOLE_NEIGHBOURS valid 8-neighbours) flagged PIXEL_HOLE, the
+// neighbours' grey levels computed again from their colours (one pass
+// where a grey pass, then a packing pass, were two dependent ones).
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
-fn pack_f32(@builtin(global_invocation_id) id: vec3<u32>) {
+fn grey_pack_f32(@builtin(global_invocation_id) id: vec3<u32>) {
     if (outside(id)) {
         return;
     }
     let i = index(id);
-    let v = response[i];
+    let v = grey_at(i);
+    response[i] = v;
     if (!is_nan_bits(v)) {
         pixels[i] = Pixel(v, PIXEL_VALID | PIXEL_ALLOWED);
         return;
@@ -213,7 +212,7 @@ fn pack_f32(@builtin(global_invocation_id) id: vec3<u32>) {
         for (var dy = 0u; dy < 3u; dy++) {
             for (var dx = 0u; dx < 3u; dx++) {
                 let j = (id.y + dy - 1u) * w + id.x + dx - 1u;
-                if ((dx != 1u || dy != 1u) && !is_nan_bits(response[j])) {
+                if ((dx != 1u || dy != 1u) && !is_nan_bits(grey_at(j))) {
                     n += 1u;
                 }
             }

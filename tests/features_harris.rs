@@ -602,7 +602,22 @@ fn gpu_grey_and_packing_of_a_resolved_view_match_cpu() {
     let ch: Vec<GreyImage> = (0..3)
         .map(|s| patterns::polygons(w, h, 12, 90 + s))
         .collect();
-    let pinholes = [(60, 40), (70, 55), (45, 50), (80, 35)];
+    // Isolated pinholes (8 valid neighbours), a run of three (its middle
+    // has 6, PINHOLE_NEIGHBOURS: still a pinhole) and a 2x2 block (5 each:
+    // hard invalid).
+    let pinholes = [
+        (60, 40),
+        (70, 55),
+        (45, 50),
+        (80, 35),
+        (50, 62),
+        (51, 62),
+        (52, 62),
+        (75, 44),
+        (76, 44),
+        (75, 45),
+        (76, 45),
+    ];
     let empty = |x: usize, y: usize| {
         let (dx, dy) = (x as f32 - 65.0, y as f32 - 48.0);
         dx * dx + dy * dy > 44.0 * 44.0 || pinholes.contains(&(x, y))

@@ -39,8 +39,8 @@ pub struct Harris {
     /// indirect dispatches, so no bind group of theirs may hold them.
     sizes_layout: wgpu::BindGroupLayout,
     grey: wgpu::ComputePipeline,
-    grey_f32: wgpu::ComputePipeline,
-    pack_f32: wgpu::ComputePipeline,
+    /// A resolved view's grey levels, packed (`grey_pack_f32`).
+    grey_pack_f32: wgpu::ComputePipeline,
     /// RGBA8 frames, or a view's resolved colour (3 f32 a pixel).
     rgba: GrowBuffer,
     /// The grey levels of a resolved view, kept for the host.
@@ -294,14 +294,19 @@ impl Harris {
             "harris",
             &layout,
             &[
-                PASSES[0], PASSES[1], PASSES[2], PASSES[3], PASSES[4], "refine", "grey",
-                "grey_f32", "pack_f32",
+                PASSES[0],
+                PASSES[1],
+                PASSES[2],
+                PASSES[3],
+                PASSES[4],
+                "refine",
+                "grey",
+                "grey_pack_f32",
             ],
         )?;
-        let pack_f32 = all.pop().expect("nine pipelines");
-        let grey_f32 = all.pop().expect("nine pipelines");
-        let grey = all.pop().expect("nine pipelines");
-        let refine = all.pop().expect("nine pipelines");
+        let grey_pack_f32 = all.pop().expect("eight pipelines");
+        let grey = all.pop().expect("eight pipelines");
+        let refine = all.pop().expect("eight pipelines");
         let mut select_entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
         select_entries.extend([3, 5, 6, 7, 9, 10, 11].map(|b| compute_entry(b, storage(false))));
         let select_layout = ctx.bind_group_layout("harris select", &select_entries);
@@ -345,8 +350,7 @@ impl Harris {
             select,
             sizes_layout,
             grey,
-            grey_f32,
-            pack_f32,
+            grey_pack_f32,
             rgba: GrowBuffer::new("harris rgba", STORAGE_IN),
             grey_out: GrowBuffer::new("harris grey", STORAGE_OUT),
             params: Uniform::new(
@@ -712,9 +716,9 @@ impl Harris {
             pass.dispatch_workgroups(gx, gy, 1);
         }
         if let Input::Resolved { keep_grey, .. } = input {
-            for (pipeline, label) in [(&self.grey_f32, "grey"), (&self.pack_f32, "pack")] {
-                let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
-                pass.set_pipeline(pipeline);
+            {
+                let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
+                pass.set_pipeline(&self.grey_pack_f32);
                 pass.set_bind_group(0, bind, &[]);
                 pass.dispatch_workgroups(gx, gy, 1);
             }
@@ -998,7 +1002,7 @@ impl Harris {
     }
 
     /// The grey levels of the view resolved into [`Harris::colour_target`]
-    /// (`width x height`), converted on the host as the `grey_f32` pass
+    /// (`width x height`), converted on the host as the `grey_pack_f32` pass
     /// converts them ([`GreyImage::from_rgb_f32`]).
     fn resolved_grey(&mut self, width: usize, height: usize) -> Result<GreyImage, FeatureError> {
         self.prepare(width, height)?;
