@@ -72,8 +72,6 @@ struct ComputeParams {
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
 // models textured by different keyframes share the geometry).
 @group(0) @binding(12) var<storage, read> colors: array<u32>;
-// The indirect dispatch of the large splats' passes.
-@group(1) @binding(0) var<storage, read_write> big_args: array<u32, 4>;
 
 var<workgroup> wg_bounds: array<atomic<u32>, 4>;
 
@@ -266,7 +264,9 @@ fn walk_thread(s: Setup, stage: u32) {
 
 // The splats of `big`, one workgroup per splat at a time, its
 // lanes laid out as 8x8 blocks over the footprint (no integer division: it
-// is scalarised on CPU adapters).
+// is scalarised on CPU adapters). Dispatched directly, a fixed number of
+// workgroups striding over however many pass 1 listed (none leaves them
+// idle at once): no pass sizing them on the GPU first.
 fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
     let n = atomicLoad(&bounds[4]);
     let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
@@ -326,16 +326,6 @@ fn visibility(
             atomicMax(&bounds[li], b);
         }
     }
-}
-
-// The workgroups of the large splats' passes (at most 65535: the
-// workgroups stride over the rest).
-@compute @workgroup_size(1)
-fn big_dispatch() {
-    let nbig = atomicLoad(&bounds[4]);
-    big_args[0] = min(nbig, 65535u);
-    big_args[1] = select(0u, 1u, nbig > 0u);
-    big_args[2] = select(0u, 1u, nbig > 0u);
 }
 
 @compute @workgroup_size(WORKGROUP_1D)

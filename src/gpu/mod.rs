@@ -520,8 +520,7 @@ impl Uniform {
 /// `num_workgroups` from that step): every kernel here that writes a
 /// dispatch's arguments keeps them within the limits itself (65535
 /// workgroups a dimension: `select_sizes` in shaders/harris.wgsl,
-/// `big_dispatch` in shaders/splat_compute.wgsl, checked in their
-/// tests).
+/// asserted beside its dispatches; the splatter dispatches directly).
 pub const VALIDATE_INDIRECT_ENV: &str = "WGPU_VALIDATION_INDIRECT_CALL";
 
 /// An instance with wgpu's flags and the environment's `WGPU_*` settings,

@@ -12,10 +12,11 @@
 //! kernel halves a tracked frame with a 100k-point model, though the render
 //! pass stays faster for sparse models of large splats (BENCHMARKS.md).
 //!
-//! A render is three compute passes and no clear: `finish` runs over the
-//! whole target, converting the sums inside the splats' bounding box and
-//! writing zeros outside it (what the render pass's clear leaves), so
-//! only the large splats' passes are sized on the GPU (indirectly).
+//! A render is three compute passes, no clear and no indirect dispatch:
+//! `finish` runs over the whole target, converting the sums inside the
+//! splats' bounding box and writing zeros outside it (what the render
+//! pass's clear leaves), and the large splats' passes run a fixed number
+//! of workgroups striding over those pass 1 listed.
 
 use super::gpu_data::{
     ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
@@ -35,12 +36,8 @@ pub(super) struct Scratch {
     params: Uniform,
     /// The splats' pixel bounding box (4 u32).
     bounds: wgpu::Buffer,
-    /// The indirect dispatch of the large splats' passes (bound alone in
-    /// group 1).
-    big_args: wgpu::Buffer,
     /// The list of large splats (one u32 per splat of the largest model).
     big: GrowBuffer,
-    big_args_bind: Option<wgpu::BindGroup>,
     /// The splat's bind groups by the buffers that vary (the model's
     /// geometry and colours, the list of large splats), most recent
     /// first: the frame loop's renders (a keyframe's colours, the bare
@@ -69,12 +66,6 @@ impl Scratch {
             ),
             bounds: ctx.buffer("compute splat bounds", 32, usage),
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
-            big_args: ctx.buffer(
-                "compute splat large splats dispatch",
-                16,
-                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::INDIRECT,
-            ),
-            big_args_bind: None,
             binds: Vec::new(),
         })
     }
@@ -85,19 +76,22 @@ impl Scratch {
     /// (4 * ACC_STRIDE a pixel), the list of large splats (4 a splat of the
     /// largest model rendered) and the small buffers.
     pub(super) fn gpu_bytes(&self) -> u64 {
-        [
-            &self.depth,
-            &self.acc,
-            self.params.buffer(),
-            &self.bounds,
-            &self.big_args,
-        ]
-        .iter()
-        .map(|b| b.size())
-        .sum::<u64>()
+        [&self.depth, &self.acc, self.params.buffer(), &self.bounds]
+            .iter()
+            .map(|b| b.size())
+            .sum::<u64>()
             + self.big.size()
     }
 }
+
+/// Workgroups of the large splats' passes on GPUs: each walks a listed
+/// splat at a time, striding over the rest; those beyond the list's
+/// length exit at once (the passes run whether or not a splat is large,
+/// dispatched directly: no pass sizes them on the GPU first, one
+/// dependent dispatch fewer a render).
+const BIG_GROUPS_GPU: u32 = 512;
+/// The same on CPU adapters, whose cores take a workgroup at a time.
+const BIG_GROUPS_CPU: u32 = 16;
 
 // `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
 const _: () = assert!(WORKGROUP_1D == 64);
@@ -111,15 +105,16 @@ pub(super) fn supported(ctx: &GpuContext) -> bool {
 /// The pipelines of the compute back end.
 pub(super) struct ComputeSplatter {
     layout: wgpu::BindGroupLayout,
-    args_layout: wgpu::BindGroupLayout,
     visibility: wgpu::ComputePipeline,
     accumulate: wgpu::ComputePipeline,
     visibility_big: wgpu::ComputePipeline,
     accumulate_big: wgpu::ComputePipeline,
-    big_dispatch: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     /// The last kernel of a depth-only render.
     finish_depth: wgpu::ComputePipeline,
+    /// Workgroups of the large splats' passes ([`BIG_GROUPS_GPU`],
+    /// [`BIG_GROUPS_CPU`]).
+    big_groups: u32,
 }
 
 impl ComputeSplatter {
@@ -131,9 +126,7 @@ impl ComputeSplatter {
             )));
         }
         // `finish` runs a thread a pixel of the target: within the limit
-        // for any target the adapter can make. (`big_dispatch` caps the
-        // large splats' workgroups itself, wgpu no longer checking them:
-        // crate::gpu::VALIDATE_INDIRECT_ENV.)
+        // for any target the adapter can make.
         let widest = ctx
             .limits
             .max_texture_dimension_2d
@@ -174,10 +167,6 @@ impl ComputeSplatter {
                 compute_entry(12, storage(true)),
             ],
         );
-        let args_layout = ctx.bind_group_layout(
-            "splat compute large splats dispatch",
-            &[compute_entry(0, storage(false))],
-        );
         let module = ctx.shader("splat_compute")?;
         let pipeline = |entry: &str, layouts: &[Option<&wgpu::BindGroupLayout>]| {
             ctx.catch(&format!("splat_compute::{entry}"), || {
@@ -207,9 +196,12 @@ impl ComputeSplatter {
             accumulate_big: pipeline("accumulate_big", &one)?,
             finish: pipeline("finish", &one)?,
             finish_depth: pipeline("finish_depth", &one)?,
-            big_dispatch: pipeline("big_dispatch", &[Some(&layout), Some(&args_layout)])?,
             layout,
-            args_layout,
+            big_groups: if ctx.is_cpu() {
+                BIG_GROUPS_CPU
+            } else {
+                BIG_GROUPS_GPU
+            },
         })
     }
 
@@ -246,21 +238,6 @@ impl ComputeSplatter {
             wgpu::BufferUsages::STORAGE,
         )?;
         scratch.big.ensure(ctx, model.count as u64 * 4);
-        let args_layout = &self.args_layout;
-        let big_args = &scratch.big_args;
-        let big_args_bind = scratch
-            .big_args_bind
-            .get_or_insert_with(|| {
-                ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some("splat compute large splats dispatch"),
-                    layout: args_layout,
-                    entries: &[wgpu::BindGroupEntry {
-                        binding: 0,
-                        resource: big_args.as_entire_binding(),
-                    }],
-                })
-            })
-            .clone();
         let params = ComputeParams {
             width: targets.width,
             height: targets.height,
@@ -292,35 +269,28 @@ impl ComputeSplatter {
         // the render pass's clear leaves them.
         enc.clear_buffer(&scratch.bounds, 0, None);
         {
+            // Pass 1, the large splats' visibility after the others' (a
+            // fixed number of workgroups striding over those listed).
             let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
             pass.set_pipeline(&self.visibility);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.big_dispatch);
-            pass.set_bind_group(1, &big_args_bind, &[]);
-            pass.dispatch_workgroups(1, 1, 1);
+            pass.set_pipeline(&self.visibility_big);
+            pass.dispatch_workgroups(self.big_groups, 1, 1);
         }
         if depth_only {
-            // The large splats' visibility, then the depth into the
-            // targets (a pass of its own for the reason below).
+            // The depth into the targets.
             let mut pass = compute_pass(&mut enc, "depth", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
-            pass.set_pipeline(&self.visibility_big);
-            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
             pass.set_pipeline(&self.finish_depth);
             pass.dispatch_workgroups(fx, fy, 1);
         } else {
-            // The large splats' visibility opens this pass: their dispatch
-            // reads arguments that `big_dispatch` wrote through group 1,
-            // which is not bound here.
             let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
-            pass.set_pipeline(&self.visibility_big);
-            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
             pass.set_pipeline(&self.accumulate_big);
-            pass.dispatch_workgroups_indirect(&scratch.big_args, 0);
+            pass.dispatch_workgroups(self.big_groups, 1, 1);
             pass.set_pipeline(&self.finish);
             pass.dispatch_workgroups(fx, fy, 1);
         }
