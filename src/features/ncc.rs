@@ -599,11 +599,10 @@ impl NccMatcher {
             }
             // B's positions are the export's, in no spatial order.
             (Side::Host(a), Side::Exported(_)) => {
-                let q = ctx;
                 let pos = in_band(a, a_rows.start);
-                q.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
+                ctx.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
                 let order: Vec<u32> = (0..nb as u32).collect();
-                q.write_buffer(
+                ctx.write_buffer(
                     self.ok.get(),
                     ((na + nb) * 4) as u64,
                     bytemuck::cast_slice(&order),
@@ -674,14 +673,14 @@ impl NccMatcher {
     /// `skip` on (the slots before are A's, written on the GPU) and B's
     /// [`spatial_order`] after the window flags in `ok`.
     fn write_positions(&self, pos: &[[f32; 2]], na: usize, skip: usize) {
-        let q = &self.ctx;
-        q.write_buffer(
+        let ctx = &self.ctx;
+        ctx.write_buffer(
             self.positions.get(),
             (skip * 8) as u64,
             bytemuck::cast_slice(pos),
         );
         let order = spatial_order(&pos[na..], self.config.search_radius);
-        q.write_buffer(
+        ctx.write_buffer(
             self.ok.get(),
             ((skip + pos.len()) * 4) as u64,
             bytemuck::cast_slice(&order),

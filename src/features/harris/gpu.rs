@@ -200,13 +200,13 @@ enum Size {
     Group,
 }
 
-/// The selection's entry points (`shaders/harris.wgsl`, "The selection")
-/// and their sizes.
 // `select_sizes` writes the indirect dispatches' workgroups, wgpu no
 // longer checking them (gpu::VALIDATE_INDIRECT_ENV): a thread a candidate
 // or a workgroup a selected corner stays within a dimension's 65535.
 const _: () = assert!(SELECT_MAX.div_ceil(WORKGROUP_1D) <= 65_535 && SELECT_MAX <= 65_535);
 
+/// The selection's entry points (`shaders/harris.wgsl`, "The selection")
+/// and their sizes.
 const SELECT_ENTRIES: [(&str, Size); 19] = [
     ("select_sizes", Size::One),
     ("select_clear", Size::Candidates),
