@@ -50,6 +50,12 @@ struct ComputeParams {
     count: u32,
     // COMPUTE_GEOMETRY | COMPUTE_MOTION: which groups to accumulate.
     flags: u32,
+    // The half of `bounds` this render uses (0 or 1): its last pass zeroes
+    // the other half, which the next render uses (no clear of its own).
+    slot: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 // @group(0) @binding(0): `cam`, in splat_common.wgsl.
@@ -66,7 +72,7 @@ struct ComputeParams {
 // 0xffffffff - x, the maxima as x + 1, so that zeros mean "none" and atomic
 // max serves both), then the indirect dispatch of `finish` over them.
 // [4]: the number of large splats listed in `big`.
-@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 8>;
+@group(0) @binding(10) var<storage, read_write> bounds: array<atomic<u32>, 16>;
 // Splats whose footprint exceeds `BIG_SPLAT_PIXELS`: a workgroup shares each.
 @group(0) @binding(11) var<storage, read_write> big: array<u32>;
 // One RGBA8 colour per splat (`pack_color`; a buffer of its own so that
@@ -268,7 +274,7 @@ fn walk_thread(s: Setup, stage: u32) {
 // workgroups striding over however many pass 1 listed (none leaves them
 // idle at once): no pass sizing them on the GPU first.
 fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
-    let n = atomicLoad(&bounds[4]);
+    let n = atomicLoad(&bounds[bound(4u)]);
     let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
     for (var j = wg; j < n; j += groups) {
         let s = setup(big[j]);
@@ -313,7 +319,7 @@ fn visibility(
         }
         if footprint(s) > BIG_SPLAT_PIXELS {
             // Too long a walk for one thread: a workgroup shares it.
-            big[atomicAdd(&bounds[4], 1u)] = i;
+            big[atomicAdd(&bounds[bound(4u)], 1u)] = i;
         } else {
             walk_thread(s, PASS_VISIBILITY);
         }
@@ -323,7 +329,7 @@ fn visibility(
     if li < 4u {
         let b = atomicLoad(&wg_bounds[li]);
         if b != 0u {
-            atomicMax(&bounds[li], b);
+            atomicMax(&bounds[bound(li)], b);
         }
     }
 }
@@ -368,9 +374,26 @@ fn sum(base: u32, k: u32) -> f32 {
 // Whether pixel `id` lies in the splats' bounding box (pass 1): outside
 // it no splat touched the depth keys or the sums.
 fn in_bounds(id: vec2<u32>) -> bool {
-    let lo = vec2<u32>(0xffffffffu - atomicLoad(&bounds[0]), 0xffffffffu - atomicLoad(&bounds[1]));
-    let hi = vec2<u32>(atomicLoad(&bounds[2]), atomicLoad(&bounds[3]));
+    let lo = vec2<u32>(0xffffffffu - atomicLoad(&bounds[bound(0u)]), 0xffffffffu - atomicLoad(&bounds[bound(1u)]));
+    let hi = vec2<u32>(atomicLoad(&bounds[bound(2u)]), atomicLoad(&bounds[bound(3u)]));
     return all(id >= lo) && all(id < hi);
+}
+
+// Index of entry k (the box's four bounds, then the count of large
+// splats) in this render's half of `bounds`.
+fn bound(k: u32) -> u32 {
+    return params.slot * 8u + k;
+}
+
+// The other half, zeroed for the next render by one thread of the last
+// pass (every pass of the previous render that read it came before).
+fn clear_next_bounds(gid: vec3<u32>) {
+    if gid.x == 0u && gid.y == 0u {
+        let other = (1u - params.slot) * 8u;
+        for (var k = 0u; k < 5u; k++) {
+            atomicStore(&bounds[other + k], 0u);
+        }
+    }
 }
 
 // Zeros in the targets a render writes (T0 always; T1 with the geometry,
@@ -392,6 +415,7 @@ fn store_zeros(p: vec2<i32>, geometry: bool, motion: bool) {
 fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
     // Dispatched over the whole target: no clear beforehand, no
     // indirect dispatch sized by pass 1.
+    clear_next_bounds(gid);
     let id = gid.xy;
     if id.x >= params.width || id.y >= params.height {
         return;
@@ -443,6 +467,7 @@ fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
 // next render (the sums were never touched).
 @compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn finish_depth(@builtin(global_invocation_id) gid: vec3<u32>) {
+    clear_next_bounds(gid);
     let id = gid.xy;
     if id.x >= params.width || id.y >= params.height {
         return;

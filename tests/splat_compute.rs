@@ -208,6 +208,49 @@ fn large_footprints_shared_by_a_workgroup_agree() {
     check(&model, &cam, &pose, "large and small splats");
 }
 
+#[test]
+fn consecutive_renders_into_the_same_targets_match_fresh_ones() {
+    // A render uses one half of the splats' bounds (box and list of large
+    // splats) and zeroes the other for the next: five renders in a row
+    // into the same targets (one depth-only), with large splats, each
+    // the same bit for bit as a render into fresh targets.
+    let mut rng = Rng::new(123);
+    let model = large_and_small(&mut rng);
+    let gm = GpuModel::new(ctx(), &model).unwrap();
+    let s = splatter(Backend::Compute);
+    let cam = Intrinsics::new(160, 120, 150.0, 150.0, 80.0, 60.0);
+    let mut t = SplatTargets::new(ctx(), cam.width, cam.height);
+    for k in 0..5 {
+        let eye = rng.unit_vector() * rng.uniform(2.5, 3.5);
+        let pose = look_at(&eye, &Vector3::zeros(), &rng.unit_vector());
+        let render = |t: &mut SplatTargets| -> Vec<SplatImage> {
+            if k == 2 {
+                s.render_depth(ctx(), &gm, &cam, &pose, t, None).unwrap();
+                vec![s.read(ctx(), t, Attribute::Depth).unwrap()]
+            } else {
+                s.render(ctx(), &gm, &cam, &pose, Attributes::ALL, t)
+                    .unwrap();
+                READ.iter().map(|&a| s.read(ctx(), t, a).unwrap()).collect()
+            }
+        };
+        let reused = render(&mut t);
+        let fresh = render(&mut SplatTargets::new(ctx(), cam.width, cam.height));
+        for (a, b) in reused.iter().zip(&fresh) {
+            assert_eq!(splat_common::differing(a, b), 0, "render {k}");
+        }
+        let large = (0..model.len())
+            .filter(|&i| {
+                let p = model.positions[i];
+                let z = pose
+                    .transform_point(&Vector3::new(p.x as f64, p.y as f64, p.z as f64))
+                    .z;
+                z > 0.0 && cam.fx * model.radii[i] as f64 / z > 16.0
+            })
+            .count();
+        assert!(large >= 5, "render {k}: {large} large splats");
+    }
+}
+
 /// 60 splats of footprints from about 20 x 20 to 100 x 100 pixels at
 /// 150 px focal length and distance 3 (many over BIG_SPLAT_PIXELS, 32 x 32:
 /// walked by a workgroup; the rest by one thread each), among 2000 small

@@ -62,10 +62,10 @@ fn models_and_targets_account_for_their_buffers() {
         .render(ctx(), &gm, &cam, &pose, Attributes::ALL, &mut t)
         .unwrap();
     // The list of large splats is a grow-only buffer rounded up to a
-    // power of two (`GrowBuffer`); then the parameters (16) and the
-    // bounds (32).
+    // power of two (`GrowBuffer`); then the parameters (32) and the
+    // bounds' two halves (64).
     let scratch = |splats: u64| {
-        pixels * (4 + 9 * 4) + (splats * 4).next_multiple_of(16).next_power_of_two() + 16 + 32
+        pixels * (4 + 9 * 4) + (splats * 4).next_multiple_of(16).next_power_of_two() + 32 + 64
     };
     assert_eq!(t.gpu_bytes(), plain + scratch(n));
     // A larger model grows the list of large splats, a smaller one does not

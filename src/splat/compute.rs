@@ -34,8 +34,12 @@ pub(super) struct Scratch {
     depth: wgpu::Buffer,
     acc: wgpu::Buffer,
     params: Uniform,
-    /// The splats' pixel bounding box (4 u32).
+    /// The splats' pixel bounding box and the count of large splats, in
+    /// two halves of 8 u32: a render uses one and its last pass zeroes
+    /// the other for the next (no clear between renders).
     bounds: wgpu::Buffer,
+    /// The half the next render uses.
+    slot: u32,
     /// The list of large splats (one u32 per splat of the largest model).
     big: GrowBuffer,
     /// The splat's bind groups by the buffers that vary (the model's
@@ -64,7 +68,8 @@ impl Scratch {
                 "compute splat params",
                 std::mem::size_of::<ComputeParams>() as u64,
             ),
-            bounds: ctx.buffer("compute splat bounds", 32, usage),
+            bounds: ctx.buffer("compute splat bounds", 64, usage),
+            slot: 0,
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
             binds: Vec::new(),
         })
@@ -248,11 +253,15 @@ impl ComputeSplatter {
                 (if attrs.geometry { COMPUTE_GEOMETRY } else { 0 })
                     | (if attrs.motion { COMPUTE_MOTION } else { 0 })
             },
+            slot: scratch.slot,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         };
+        scratch.slot ^= 1;
         ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
         scratch.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self.cached_bind(ctx, targets, model);
-        let scratch = targets.compute.as_ref().expect("just made");
         // Splats per dispatch row: at most 65535 workgroups in x.
         let groups = workgroups(model.count, WORKGROUP_1D);
         let gx = groups.clamp(1, 65_535);
@@ -263,11 +272,11 @@ impl ComputeSplatter {
             workgroups(targets.height, RESOLVE_WORKGROUP),
         );
         let mut enc = ctx.encoder();
-        // The depth keys and sums are zero: made so (wgpu zeroes new
-        // buffers), and `finish` clears every pixel it reads. The targets
-        // need no clear: `finish` writes zeros where no splat reached, as
-        // the render pass's clear leaves them.
-        enc.clear_buffer(&scratch.bounds, 0, None);
+        // The depth keys, sums and this render's half of the bounds are
+        // zero: made so (wgpu zeroes new buffers), and `finish` clears
+        // every pixel it reads and the other half of the bounds. The
+        // targets need no clear: `finish` writes zeros where no splat
+        // reached, as the render pass's clear leaves them.
         {
             // Pass 1, the large splats' visibility after the others' (a
             // fixed number of workgroups striding over those listed).

@@ -126,6 +126,12 @@ wgsl_struct! {
         pub count: u32,
         /// [`COMPUTE_GEOMETRY`] | [`COMPUTE_MOTION`].
         pub flags: u32,
+        /// The half of the bounds buffer this render uses (0 or 1): its
+        /// last pass zeroes the other half for the next render.
+        pub slot: u32,
+        pub pad0: u32,
+        pub pad1: u32,
+        pub pad2: u32,
     }
 }
 
