@@ -242,37 +242,28 @@ fn derive(id: vec3<u32>, horizontal: bool) {
         if (on_line(b, p)) {
             let j = along(b, u32(p), horizontal);
             if (horizontal) {
-                let px = pixels[j];
-                // 1 valid, 0 a pinhole (tolerated), -1 hard invalid (as if
-                // outside the image).
-                var v = -1.0;
-                if (pixel_valid(px)) {
-                    v = 1.0;
-                } else if (pixel_hole(px)) {
-                    v = 0.0;
-                }
-                win[m] = vec3<f32>(px.value, px.value, v);
+                win[m] = pixel_sample(pixels[j]);
             } else {
                 win[m] = tmp[j].xyz;
             }
         }
     }
     for (var k = 0; k < i32(HARRIS_BLOCK); k++) {
-        var a = 0.0;
-        var c = 0.0;
-        var ok = 1.0;
+        var acc = vec3<f32>(0.0, 0.0, 1.0);
         for (var t = -rd; t <= rd; t++) {
             if (on_line(b, i32(b.first) + k + t)) {
-                let s = win[k + t + rd];
-                ok = min(ok, s.z);
                 // g' then g along x; g then g' along y.
                 let kt = u32(t + rd);
-                a = a + s.x * weight(select(kt, nd + kt, horizontal));
-                c = c + s.y * weight(select(nd + kt, kt, horizontal));
+                let wa = weight(select(kt, nd + kt, horizontal));
+                let wc = weight(select(nd + kt, kt, horizontal));
+                deriv_tap(&acc, win[k + t + rd], wa, wc);
             } else {
-                ok = -1.0;
+                acc.z = -1.0;
             }
         }
+        let a = acc.x;
+        let c = acc.y;
+        let ok = acc.z;
         if (u32(k) < b.count) {
             let j = along(b, b.first + u32(k), horizontal);
             if (horizontal) {
@@ -310,10 +301,7 @@ fn integrate(id: vec3<u32>, horizontal: bool) {
         }
     }
     for (var k = 0; k < i32(HARRIS_BLOCK); k++) {
-        var sxx = 0.0;
-        var syy = 0.0;
-        var sxy = 0.0;
-        var wsum = 0.0;
+        var sum = vec4<f32>(0.0, 0.0, 0.0, 0.0);
         var outside_image = false;
         for (var t = -ri; t <= ri; t++) {
             if (on_line(b, i32(b.first) + k + t)) {
@@ -327,17 +315,13 @@ fn integrate(id: vec3<u32>, horizontal: bool) {
                     s = g;
                     outside_image = outside_image || s.w < 0.0;
                 }
-                let c = weight(base + u32(t + ri));
-                sxx = sxx + s.x * c;
-                syy = syy + s.y * c;
-                sxy = sxy + s.z * c;
-                wsum = wsum + s.w * c;
+                tensor_tap(&sum, s, weight(base + u32(t + ri)));
             } else {
                 outside_image = true;
             }
         }
         if (u32(k) < b.count) {
-            let st = vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
+            let st = vec4<f32>(sum.x, sum.y, sum.z, select(sum.w, -1.0, outside_image));
             let j = along(b, b.first + u32(k), horizontal);
             if (horizontal) {
                 tmp[j] = st;
@@ -426,6 +410,43 @@ fn in_image(x: i32, y: i32) -> bool {
     return x >= 0 && y >= 0 && x < i32(params.width) && y < i32(params.height);
 }
 
+// Item k of a stage of `cols` columns whose first pixel is `first`: its
+// row and column in the stage, and its pixel (x, y).
+fn stage_item(k: u32, cols: u32, first: vec2<i32>) -> vec4<i32> {
+    let r = i32(k / cols);
+    let c = i32(k % cols);
+    return vec4<i32>(r, c, first.x + c, first.y + r);
+}
+
+// One tap of the tensor's smoothing (`integrate`'s sums, in its order):
+// (Sxx, Syy, Sxy, weight) += s * cw.
+fn tensor_tap(sum: ptr<function, vec4<f32>>, s: vec4<f32>, cw: f32) {
+    (*sum).x = (*sum).x + s.x * cw;
+    (*sum).y = (*sum).y + s.y * cw;
+    (*sum).z = (*sum).z + s.z * cw;
+    (*sum).w = (*sum).w + s.w * cw;
+}
+
+// One tap of the derivative passes (`derive`'s sums, in its order) on a
+// sample (value for a, value for c, validity): (a, c, ok) in `acc`.
+fn deriv_tap(acc: ptr<function, vec3<f32>>, s: vec3<f32>, wa: f32, wc: f32) {
+    (*acc).z = min((*acc).z, s.z);
+    (*acc).x = (*acc).x + s.x * wa;
+    (*acc).y = (*acc).y + s.y * wc;
+}
+
+// A pixel as deriv_h samples it: its value twice and its validity (1
+// valid, 0 a pinhole, tolerated, -1 hard invalid, as if outside).
+fn pixel_sample(px: Pixel) -> vec3<f32> {
+    var v = -1.0;
+    if (pixel_valid(px)) {
+        v = 1.0;
+    } else if (pixel_hole(px)) {
+        v = 0.0;
+    }
+    return vec3<f32>(px.value, px.value, v);
+}
+
 @compute @workgroup_size(WORKGROUP_2D, WORKGROUP_2D)
 fn maps_fused(
     @builtin(workgroup_id) wid: vec3<u32>,
@@ -451,66 +472,56 @@ fn maps_fused(
 
     // deriv_h (derive(.., true)), the pixel's row.
     for (var k = lid; k < rows1 * cols; k += threads) {
-        let r = i32(k / cols);
-        let c = i32(k % cols);
-        let x = x0 - ri + c;
-        let y = y0 - halo + r;
+        let at = stage_item(k, cols, vec2<i32>(x0 - ri, y0 - halo));
+        let x = at.z;
+        let y = at.w;
         if (!in_image(x, y)) {
             continue;
         }
-        var a = 0.0;
-        var cc = 0.0;
-        var ok = 1.0;
+        var acc = vec3<f32>(0.0, 0.0, 1.0);
         for (var t = -rd; t <= rd; t++) {
             let p = x + t;
             if (p >= 0 && p < w) {
-                let px = pixels[u32(y * w + p)];
-                var v = -1.0;
-                if (pixel_valid(px)) {
-                    v = 1.0;
-                } else if (pixel_hole(px)) {
-                    v = 0.0;
-                }
-                ok = min(ok, v);
                 let kt = u32(t + rd);
-                a = a + px.value * weight(nd + kt);
-                cc = cc + px.value * weight(kt);
+                let s = pixel_sample(pixels[u32(y * w + p)]);
+                deriv_tap(&acc, s, weight(nd + kt), weight(kt));
             } else {
-                ok = -1.0;
+                acc.z = -1.0;
             }
         }
-        let i = r * line + c;
-        fused_a[i] = a;
-        fused_c[i] = cc;
-        fused_ok[i] = ok;
+        let i = at.x * line + at.y;
+        fused_a[i] = acc.x;
+        fused_c[i] = acc.y;
+        fused_ok[i] = acc.z;
     }
     workgroupBarrier();
 
     // deriv_v (derive(.., false)): the gradients, into `grad` in the tile.
     for (var k = lid; k < rows2 * cols; k += threads) {
-        let r = i32(k / cols);
-        let c = i32(k % cols);
-        let x = x0 - ri + c;
-        let y = y0 - ri + r;
+        let at = stage_item(k, cols, vec2<i32>(x0 - ri, y0 - ri));
+        let r = at.x;
+        let c = at.y;
+        let x = at.z;
+        let y = at.w;
         if (!in_image(x, y)) {
             continue;
         }
-        var a = 0.0;
-        var cc = 0.0;
-        var ok = 1.0;
+        var acc = vec3<f32>(0.0, 0.0, 1.0);
         for (var t = -rd; t <= rd; t++) {
             let q = y + t;
             if (q >= 0 && q < h) {
                 // deriv_h's row of q: q - (y0 - rd - ri).
                 let j = (r + rd + t) * line + c;
-                ok = min(ok, fused_ok[j]);
                 let kt = u32(t + rd);
-                a = a + fused_a[j] * weight(kt);
-                cc = cc + fused_c[j] * weight(nd + kt);
+                let s = vec3<f32>(fused_a[j], fused_c[j], fused_ok[j]);
+                deriv_tap(&acc, s, weight(kt), weight(nd + kt));
             } else {
-                ok = -1.0;
+                acc.z = -1.0;
             }
         }
+        let a = acc.x;
+        let cc = acc.y;
+        let ok = acc.z;
         let i = r * line + c;
         fused_gx[i] = a;
         fused_gy[i] = cc;
@@ -525,17 +536,14 @@ fn maps_fused(
     // the first stage's memory (no longer read).
     let half = FUSED_LINES * FUSED_LINES / 2u;
     for (var k = lid; k < rows2 * WORKGROUP_2D; k += threads) {
-        let r = i32(k / WORKGROUP_2D);
-        let c = i32(k % WORKGROUP_2D);
-        let x = x0 + c;
-        let y = y0 - ri + r;
-        if (!in_image(x, y)) {
+        let at = stage_item(k, WORKGROUP_2D, vec2<i32>(x0, y0 - ri));
+        let r = at.x;
+        let c = at.y;
+        let x = at.z;
+        if (!in_image(x, at.w)) {
             continue;
         }
-        var sxx = 0.0;
-        var syy = 0.0;
-        var sxy = 0.0;
-        var wsum = 0.0;
+        var sum = vec4<f32>(0.0, 0.0, 0.0, 0.0);
         var outside_image = false;
         for (var t = -ri; t <= ri; t++) {
             let p = x + t;
@@ -548,20 +556,16 @@ fn maps_fused(
                 let v = select(0.0, 1.0, gz > 0.5);
                 outside_image = outside_image || gz < -0.5;
                 let s = vec4<f32>(gx * gx * v, gy * gy * v, gx * gy * v, v);
-                let cw = weight(base + u32(t + ri));
-                sxx = sxx + s.x * cw;
-                syy = syy + s.y * cw;
-                sxy = sxy + s.z * cw;
-                wsum = wsum + s.w * cw;
+                tensor_tap(&sum, s, weight(base + u32(t + ri)));
             } else {
                 outside_image = true;
             }
         }
         let i = u32(r) * WORKGROUP_2D + u32(c);
-        fused_a[i] = sxx;
-        fused_a[half + i] = syy;
-        fused_c[i] = sxy;
-        fused_c[half + i] = select(wsum, -1.0, outside_image);
+        fused_a[i] = sum.x;
+        fused_a[half + i] = sum.y;
+        fused_c[i] = sum.z;
+        fused_c[half + i] = select(sum.w, -1.0, outside_image);
     }
     workgroupBarrier();
 
@@ -597,10 +601,7 @@ fn fused_response(x0: i32, y0: i32, c: i32, r: i32) -> f32 {
     if (!in_image(x, y)) {
         return 0.0;
     }
-    var sxx = 0.0;
-    var syy = 0.0;
-    var sxy = 0.0;
-    var wsum = 0.0;
+    var sum = vec4<f32>(0.0, 0.0, 0.0, 0.0);
     var outside_image = false;
     for (var t = -ri; t <= ri; t++) {
         let q = y + t;
@@ -609,16 +610,12 @@ fn fused_response(x0: i32, y0: i32, c: i32, r: i32) -> f32 {
             let i = u32(r + ri + t) * WORKGROUP_2D + u32(c);
             let s = vec4<f32>(fused_a[i], fused_a[half + i], fused_c[i], fused_c[half + i]);
             outside_image = outside_image || s.w < 0.0;
-            let cw = weight(base + u32(t + ri));
-            sxx = sxx + s.x * cw;
-            syy = syy + s.y * cw;
-            sxy = sxy + s.z * cw;
-            wsum = wsum + s.w * cw;
+            tensor_tap(&sum, s, weight(base + u32(t + ri)));
         } else {
             outside_image = true;
         }
     }
-    let st = vec4<f32>(sxx, syy, sxy, select(wsum, -1.0, outside_image));
+    let st = vec4<f32>(sum.x, sum.y, sum.z, select(sum.w, -1.0, outside_image));
     return respond(u32(y * i32(params.width) + x), st);
 }
 
