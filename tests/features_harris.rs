@@ -879,6 +879,17 @@ fn fused_filter_passes_give_the_four_passes_responses_and_corners() {
                 .filter(|(p, q)| p.to_bits() != q.to_bits())
                 .count();
             assert_eq!(differ, 0, "{name}: {differ} responses differ");
+            // And the CPU reference's, to the tolerance of the tests above.
+            let cpu = harris_response_cpu(&img, &cfg).unwrap();
+            let max = cpu.iter().fold(0f32, |m, v| m.max(v.abs().min(1e30)));
+            for (j, (g, c)) in b.iter().zip(&cpu).enumerate() {
+                let invalid = *c <= -1e38;
+                assert_eq!(*g <= -1e38, invalid, "{name}: validity differs at {j}");
+                assert!(
+                    invalid || (g - c).abs() <= 1e-5 * max,
+                    "{name}: {g} vs the CPU's {c} at {j}"
+                );
+            }
             let mask: Vec<bool> = (0..w * h).map(|k| (k % w) * 3 < w * 2).collect();
             for m in [None, Some(mask.as_slice())] {
                 let want = four.detect(&img, m).unwrap();
