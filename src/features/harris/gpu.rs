@@ -602,7 +602,11 @@ impl Harris {
         changed |= self.pixels.ensure(ctx, (w * h * 8) as u64);
         changed |= self.rgba.ensure(ctx, (w * h * 12) as u64);
         self.grey_out.ensure(ctx, (w * h * 4) as u64);
-        changed |= self.tmp.ensure(ctx, big);
+        // The fused filter pass keeps its lines in workgroup memory: no
+        // `tmp` (its binding takes the smallest buffer).
+        changed |= self
+            .tmp
+            .ensure(ctx, if self.maps_fused() { 16 } else { big });
         changed |= self.grad.ensure(ctx, big);
         changed |= self.response.ensure(ctx, (w * h * 4) as u64);
         changed |= self.counters.ensure(ctx, 16);
