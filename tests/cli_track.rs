@@ -345,10 +345,11 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
         };
         // Each readback is a submission, shared with the work before it
         // (the chains of passes go with the readbacks that end them:
-        // `GpuContext::batch`); little other work is submitted alone.
+        // `GpuContext::batch`); no other work is submitted alone (a gather
+        // flushes the one before only while that one is still put off).
         let (readbacks, submissions) = (field("read back from the GPU", 8), field("GPU work", 2));
         assert!(
-            readbacks >= 1.0 && submissions >= readbacks && submissions <= readbacks + 1.0,
+            readbacks >= 1.0 && submissions >= readbacks && submissions <= readbacks + 0.1,
             "{readbacks} readbacks, {submissions} submissions a frame: {stdout}"
         );
         // A batch's passes are recorded into one encoder

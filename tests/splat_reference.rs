@@ -257,6 +257,89 @@ fn gather_matches_cpu_sampling_of_full_images() {
 }
 
 #[test]
+fn put_off_gathers_give_the_immediate_ones_samples_and_flush_only_when_needed() {
+    // Gathers share their points' buffer and parameters, both uploaded by
+    // `Queue::write_buffer`, which takes effect before the submission it
+    // precedes: a gather recorded while the last is still put off in a
+    // batch submits that one first (else it would read the new points).
+    // A gather whose predecessor a readback has submitted since needs no
+    // such submission (the tracker's KF gather after IT's chain). A
+    // context of its own, so that other tests' submissions are not
+    // counted. Exact: the same pass on the same inputs.
+    use splattrack::gpu::own_test_context;
+    let c = own_test_context();
+    let mut rng = Rng::new(23);
+    let model = shapes::sphere(Vec3::ZERO, 1.0, 4000, 1.2);
+    let (cam, pose) = random_view(&mut rng, Vector3::zeros(), 3.0);
+    let splatter = Splatter::new(&c).unwrap();
+    let gm = GpuModel::new(&c, &model).unwrap();
+    let mut t = SplatTargets::new(&c, cam.width, cam.height);
+    splatter
+        .render(&c, &gm, &cam, &pose, Attributes::MOTION, &mut t)
+        .unwrap();
+    let sets: Vec<Vec<[f32; 2]>> = [40usize, 7, 90]
+        .iter()
+        .map(|&n| {
+            (0..n)
+                .map(|_| {
+                    [
+                        rng.uniform(0.0, cam.width as f64) as f32,
+                        rng.uniform(0.0, cam.height as f64) as f32,
+                    ]
+                })
+                .collect()
+        })
+        .collect();
+    let mode = GatherMode::Bilinear;
+    let want: Vec<_> = sets
+        .iter()
+        .map(|p| splatter.gather(&c, &t, p, mode).unwrap())
+        .collect();
+    let same = |a: &[splattrack::splat::GatherSample], b: &[splattrack::splat::GatherSample]| {
+        a.len() == b.len()
+            && a.iter().zip(b).all(|(a, b)| {
+                a.valid == b.valid
+                    && a.depth.to_bits() == b.depth.to_bits()
+                    && a.motion
+                        .iter()
+                        .zip(&b.motion)
+                        .all(|(x, y)| x.to_bits() == y.to_bits())
+            })
+    };
+    // Three gathers put off in a row: each after the first submits the
+    // one before (two submissions), the readback the last (one more).
+    {
+        let _batch = c.batch();
+        let subs = c.submissions();
+        let pending: Vec<_> = sets
+            .iter()
+            .map(|p| splatter.gather_later(&c, &t, p, mode).unwrap())
+            .collect();
+        assert_eq!(c.submissions() - subs, 2, "put-off gathers flushed");
+        for (i, (p, w)) in pending.into_iter().zip(&want).enumerate() {
+            assert!(same(&p.wait(&c).unwrap(), w), "put-off gather {i}");
+        }
+        assert_eq!(c.submissions() - subs, 3, "one readback for all");
+    }
+    // A gather waited for, then a render put off, then the next gather:
+    // the readback submitted the first, so the render goes with the
+    // second's readback (one submission), not alone before it.
+    {
+        let _batch = c.batch();
+        let first = splatter.gather_later(&c, &t, &sets[0], mode).unwrap();
+        assert!(same(&first.wait(&c).unwrap(), &want[0]));
+        let subs = c.submissions();
+        splatter
+            .render(&c, &gm, &cam, &pose, Attributes::MOTION, &mut t)
+            .unwrap();
+        let second = splatter.gather_later(&c, &t, &sets[2], mode).unwrap();
+        assert_eq!(c.submissions(), subs, "nothing submitted before the wait");
+        assert!(same(&second.wait(&c).unwrap(), &want[2]));
+        assert_eq!(c.submissions() - subs, 1, "the render with the readback");
+    }
+}
+
+#[test]
 fn depth_of_a_render_without_geometry_comes_from_its_predictors() {
     // A render of the predictors alone (what the tracker's KF step makes)
     // reads as depth the harmonic mean the translation predictor gives:

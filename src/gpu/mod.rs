@@ -248,7 +248,15 @@ struct BatchState {
     /// submission ([`GpuContext::encoder_for_next`]): a batch's end leaves
     /// it open instead of submitting it alone.
     open_deferred: bool,
+    /// Submissions that left none of the work given back to the context
+    /// unsubmitted (no encoder lent): work given back before one of them
+    /// is on the GPU's queue ([`GpuContext::submitted_since`]).
+    drains: u64,
 }
+
+/// A point in a context's submissions ([`GpuContext::submission_mark`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SubmissionMark(u64);
 
 /// A command encoder from [`GpuContext::encoder`], which dereferences to
 /// [`wgpu::CommandEncoder`]. Within a batch of the calling thread it is
@@ -341,6 +349,9 @@ impl Health {
         }
         if let Some(last) = last {
             b.pending.push(self.finish(last));
+        }
+        if !b.lent {
+            b.drains += 1;
         }
         if b.pending.is_empty() {
             return;
@@ -1065,6 +1076,20 @@ impl GpuContext {
         self.health
             .submissions
             .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// A mark of the work given back to the context so far (submitted, or
+    /// put off by a batch): [`GpuContext::submitted_since`] says when all
+    /// of it is on the GPU's queue.
+    pub fn submission_mark(&self) -> SubmissionMark {
+        SubmissionMark(self.batch_state().drains)
+    }
+
+    /// Whether all the work given back before `mark` was taken has been
+    /// submitted since (a batch's put-off work included): a
+    /// `Queue::write_buffer` now no longer reaches it.
+    pub fn submitted_since(&self, mark: SubmissionMark) -> bool {
+        self.batch_state().drains > mark.0
     }
 
     /// Command buffers submitted so far (all clones of this context

@@ -61,10 +61,10 @@ struct Reuse {
     /// Indexed by [`Grown`].
     buffers: [GrowBuffer; 3],
     binds: Vec<(BindKey, wgpu::BindGroup)>,
-    /// A gather went to a batch (put off) since the last flush: its points
-    /// and parameters, written by `Queue::write_buffer`, must not be
-    /// overwritten before it is submitted.
-    gather_put_off: bool,
+    /// The last gather, given back to the context at this mark: its
+    /// points and parameters, written by `Queue::write_buffer`, must not
+    /// be overwritten before it is submitted.
+    last_gather: Option<crate::gpu::SubmissionMark>,
 }
 
 #[derive(Clone, Copy)]
@@ -262,7 +262,7 @@ impl Splatter {
                     GrowBuffer::new("gather points", STORAGE_IN),
                 ],
                 binds: Vec::new(),
-                gather_put_off: false,
+                last_gather: None,
             }),
             busy: std::sync::Mutex::new(()),
         })
@@ -773,14 +773,16 @@ impl Splatter {
         let size = (count * 8) as u64;
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
         ctx.check_buffer_size("gather points", size, STORAGE_IN)?;
-        let put_off = std::mem::take(
-            &mut self
-                .reuse
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .gather_put_off,
-        );
-        if put_off {
+        let last = self
+            .reuse
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .last_gather
+            .take();
+        // Only where the last gather is still put off: a readback since
+        // submitted it (as IT's chain does before KF's gather) leaves
+        // nothing to flush, and no submission of its own.
+        if last.is_some_and(|m| !ctx.submitted_since(m)) {
             ctx.flush();
         }
         let pbuf = match points {
@@ -830,7 +832,7 @@ impl Splatter {
         self.reuse
             .lock()
             .unwrap_or_else(|p| p.into_inner())
-            .gather_put_off = true;
+            .last_gather = Some(ctx.submission_mark());
         Ok(PendingGather {
             read: Some(read),
             n: count,
