@@ -628,7 +628,9 @@ fn memory_report_counts_live_buffers() {
 }
 
 /// A `BindCache` binds anew only when one of its buffers is another one
-/// (by identity; a clone of the same buffer is the same).
+/// (by identity; a clone of the same buffer is the same) than those of
+/// the last two sets it bound (a pass fed in turn by two stages binds
+/// nothing anew); a third set takes the least recently used one's place.
 #[test]
 fn a_bind_cache_binds_again_only_for_other_buffers() {
     let c = ctx();
@@ -642,21 +644,30 @@ fn a_bind_cache_binds_again_only_for_other_buffers() {
     let make = |label| c.buffer(label, 64, gpu::STORAGE_OUT);
     let (a, b, other) = (make("a"), make("b"), make("other"));
     let mut cache = gpu::BindCache::<2>::default();
-    let mut binds = 0;
-    let mut get = |bufs: [wgpu::Buffer; 2]| {
+    let binds = std::cell::Cell::new(0);
+    // Gets the bind group of `bufs`; the binds made so far.
+    let mut get = |bufs: [&wgpu::Buffer; 2]| {
         cache
-            .get(bufs, |bs| {
-                binds += 1;
+            .get([bufs[0].clone(), bufs[1].clone()], |bs| {
+                binds.set(binds.get() + 1);
                 c.bind_buffers("bind cache test", &layout, &[&bs[0], &bs[1]])
             })
-            .map(|_| ())
+            .unwrap();
+        binds.get()
     };
-    get([a.clone(), b.clone()]).unwrap();
-    get([a.clone(), b.clone()]).unwrap();
-    get([a.clone(), other.clone()]).unwrap();
-    get([a.clone(), other.clone()]).unwrap();
-    get([a.clone(), b.clone()]).unwrap();
-    assert_eq!(binds, 3);
+    assert_eq!(get([&a, &b]), 1);
+    assert_eq!(get([&a, &b]), 1);
+    assert_eq!(get([&a, &other]), 2);
+    assert_eq!(get([&a, &other]), 2);
+    // Two sets in turn: both held.
+    for _ in 0..3 {
+        assert_eq!(get([&a, &b]), 2);
+        assert_eq!(get([&a, &other]), 2);
+    }
+    // A third set evicts the least recently used ([a, b]), not [a, other].
+    assert_eq!(get([&b, &a]), 3);
+    assert_eq!(get([&a, &other]), 3);
+    assert_eq!(get([&a, &b]), 4);
 }
 
 /// wgpu checks each indirect dispatch's arguments on the GPU only where

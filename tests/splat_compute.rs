@@ -790,3 +790,48 @@ fn compute_splatted_sphere_and_torus_match_their_meshes() {
         "torus",
     );
 }
+
+#[test]
+fn repeated_renders_and_reads_bind_nothing_anew_on_either_back_end() {
+    // Bind groups are kept across renders (by targets and model) and
+    // across reads and gathers (by targets and output): once two sets of
+    // targets have been rendered into, read and gathered from, doing it
+    // again makes no bind group. A context of its own, so that other
+    // tests' bind groups are not counted.
+    let c = splattrack::gpu::own_test_context();
+    let model = shapes::sphere(Vec3::ZERO, 0.5, 3000, 1.2);
+    let gm = GpuModel::new(&c, &model).unwrap();
+    let cam = Intrinsics::new(96, 72, 90.0, 90.0, 47.5, 35.5);
+    let pose = look_at(
+        &Vector3::new(0.2, 0.1, -1.6),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let points = [[40.0f32, 30.0], [50.0, 40.0]];
+    for backend in [Backend::Compute, Backend::RenderPass] {
+        let s = Splatter::with_params(
+            &c,
+            SplatParams {
+                backend,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(s.backend(), backend);
+        let mut a = SplatTargets::new(&c, cam.width, cam.height);
+        let mut b = SplatTargets::new(&c, cam.width, cam.height);
+        let round = |t: &mut SplatTargets| {
+            s.render(&c, &gm, &cam, &pose, Attributes::ALL, t).unwrap();
+            s.read(&c, t, Attribute::Color).unwrap();
+            s.gather(&c, t, &points, GatherMode::Bilinear).unwrap();
+        };
+        round(&mut a);
+        round(&mut b);
+        let made = c.bind_groups_created();
+        for _ in 0..3 {
+            round(&mut a);
+            round(&mut b);
+        }
+        assert_eq!(c.bind_groups_created(), made, "{backend:?}");
+    }
+}

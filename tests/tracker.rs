@@ -535,11 +535,13 @@ fn the_steady_loop_allocates_no_gpu_buffers_with_everything_resident() {
 fn steady_loop_allocates_nothing(resident: bool) {
     // Issue 13: read/gather outputs, staging buffers, Harris and NCC
     // buffers and render targets (one set per window size) are kept and
-    // reused across frames. Resident: a GPU's defaults (corners and
-    // matches in the shaders too); else a CPU adapter's (on the host). Frames 0..8 and back: going back, every
-    // window size has been seen (and is still kept: three spare sets) and
-    // every buffer has grown, so no frame allocates. A context of its own, so that other tests' buffers are
-    // not counted.
+    // reused across frames, and the bind groups made on them too.
+    // Resident: a GPU's defaults (corners and matches in the shaders
+    // too); else a CPU adapter's (on the host). Frames 0..8 and back:
+    // going back, every window size has been seen (and is still kept:
+    // three spare sets) and every buffer has grown, so no frame
+    // allocates or binds anew. A context of its own, so that other
+    // tests' buffers are not counted.
     use splattrack::gpu::own_test_context;
     let f = fixture();
     let ctx = own_test_context();
@@ -562,20 +564,24 @@ fn steady_loop_allocates_nothing(resident: bool) {
     )
     .expect("tracker");
     let order: Vec<usize> = (0..8).chain((0..7).rev()).collect();
-    let made: Vec<u64> = order
+    let made: Vec<(u64, u64)> = order
         .iter()
         .map(|&i| {
-            let before = ctx.buffers_created();
+            let before = (ctx.buffers_created(), ctx.bind_groups_created());
             let r = t.track(&f.frames[i].image).expect("track");
             assert_eq!(r.status, Status::Tracking, "frame {i}");
-            ctx.buffers_created() - before
+            (
+                ctx.buffers_created() - before.0,
+                ctx.bind_groups_created() - before.1,
+            )
         })
         .collect();
-    eprintln!("GPU buffers made per frame, 0..8 and back: {made:?}");
-    assert!(made[0] > 0, "the first frame makes the buffers: {made:?}");
+    eprintln!("GPU buffers and bind groups made per frame, 0..8 and back: {made:?}");
+    assert!(made[0].0 > 0, "the first frame makes the buffers: {made:?}");
+    assert!(made[0].1 > 0, "and binds them: {made:?}");
     assert!(
-        made[8..].iter().all(|&n| n == 0),
-        "frames seen before allocate: {made:?}"
+        made[8..].iter().all(|&n| n == (0, 0)),
+        "frames seen before allocate or bind: {made:?}"
     );
 }
 

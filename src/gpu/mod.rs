@@ -103,6 +103,8 @@ struct Health {
     /// [`GpuContext::buffer_init`] (issue 13: the steady frame loop makes
     /// none).
     buffers_created: std::sync::atomic::AtomicU64,
+    /// Bind groups made through [`GpuContext::bind_group`].
+    bind_groups_created: std::sync::atomic::AtomicU64,
     /// Bytes read back to the host and the readbacks (each a wait for the
     /// GPU) that did it, through [`GpuContext::read_buffer`] and
     /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
@@ -934,12 +936,30 @@ impl GpuContext {
             })
             .collect();
         self.catch(&format!("{label} bind group"), || {
-            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            self.bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(label),
                 layout,
                 entries: &entries,
             })
         })
+    }
+
+    /// Makes a bind group, counted by [`GpuContext::bind_groups_created`]
+    /// (every bind group of the crate is made here).
+    pub fn bind_group(&self, desc: &wgpu::BindGroupDescriptor) -> wgpu::BindGroup {
+        self.health
+            .bind_groups_created
+            .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        self.device.create_bind_group(desc)
+    }
+
+    /// How many bind groups [`GpuContext::bind_group`] has made on this
+    /// device so far (all clones of this context together): a frame loop
+    /// that keeps its bind groups makes none once its buffers have grown.
+    pub fn bind_groups_created(&self) -> u64 {
+        self.health
+            .bind_groups_created
+            .load(std::sync::atomic::Ordering::Relaxed)
     }
 
     /// A buffer initialised with `data`.
@@ -1678,33 +1698,53 @@ pub fn workgroups(n: u32, size: u32) -> u32 {
     n.div_ceil(size)
 }
 
-/// A bind group kept for as long as the buffers it binds are the same ones
-/// (wgpu buffers compare by identity): a pass whose inputs are grow-only
-/// buffers, or buffers lent by another stage, binds anew only when one of
-/// them was replaced.
+/// Bind groups kept for as long as the buffers they bind are the same
+/// ones (wgpu buffers compare by identity): a pass whose inputs are
+/// grow-only buffers, or buffers lent by another stage, binds anew only
+/// when one of them was replaced. The last two sets are kept, so that a
+/// pass fed in turn by two stages (Harris's export, into IT's matching
+/// and then KF's, each frame) binds nothing anew either.
 pub struct BindCache<const N: usize> {
-    held: Option<([wgpu::Buffer; N], wgpu::BindGroup)>,
+    /// The most recently used first.
+    held: Vec<([wgpu::Buffer; N], wgpu::BindGroup)>,
+    /// How many sets are kept.
+    keep: usize,
 }
 
 impl<const N: usize> Default for BindCache<N> {
     fn default() -> Self {
-        Self { held: None }
+        Self::keeping(2)
     }
 }
 
 impl<const N: usize> BindCache<N> {
-    /// The bind group of `buffers`: the one held when it binds these,
-    /// else `bind(&buffers)`'s, held from now on.
+    /// A cache of the bind groups of the last `keep` sets of buffers (at
+    /// least one).
+    pub fn keeping(keep: usize) -> Self {
+        let keep = keep.max(1);
+        Self {
+            held: Vec::with_capacity(keep),
+            keep,
+        }
+    }
+
+    /// The bind group of `buffers`: a held one when it binds these, else
+    /// `bind(&buffers)`'s, held from now on (in place of the least
+    /// recently used).
     pub fn get<E>(
         &mut self,
         buffers: [wgpu::Buffer; N],
         bind: impl FnOnce(&[wgpu::Buffer; N]) -> Result<wgpu::BindGroup, E>,
     ) -> Result<&wgpu::BindGroup, E> {
-        if !matches!(&self.held, Some((held, _)) if *held == buffers) {
-            let group = bind(&buffers)?;
-            self.held = Some((buffers, group));
+        match self.held.iter().position(|(held, _)| *held == buffers) {
+            Some(i) => self.held[..=i].rotate_right(1),
+            None => {
+                let group = bind(&buffers)?;
+                self.held.truncate(self.keep - 1);
+                self.held.insert(0, (buffers, group));
+            }
         }
-        Ok(&self.held.as_ref().expect("just bound").1)
+        Ok(&self.held[0].1)
     }
 }
 

@@ -387,7 +387,7 @@ impl ComputeSplatter {
             binding: 12,
             resource: model.colors.as_entire_binding(),
         });
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        ctx.bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat compute"),
             layout: &self.layout,
             entries: &entries,

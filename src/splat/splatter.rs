@@ -13,8 +13,8 @@ use super::{
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, WORKGROUP_1D, buffer_entry,
-    compute_entry, storage, texture_entry, workgroups,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, WORKGROUP_1D,
+    buffer_entry, compute_entry, storage, texture_entry, workgroups,
 };
 
 /// The GPU splatter: pipelines for the three passes and the gather kernel.
@@ -61,6 +61,9 @@ struct Reuse {
     /// Indexed by [`Grown`].
     buffers: [GrowBuffer; 3],
     binds: Vec<(BindKey, wgpu::BindGroup)>,
+    /// The render pass back end's, by targets' uniform, geometry and
+    /// colours.
+    render_binds: BindCache<3>,
     /// The last gather, given back to the context at this mark: its
     /// points and parameters, written by `Queue::write_buffer`, must not
     /// be overwritten before it is submitted.
@@ -262,6 +265,7 @@ impl Splatter {
                     GrowBuffer::new("gather points", STORAGE_IN),
                 ],
                 binds: Vec::new(),
+                render_binds: BindCache::keeping(KEPT_BINDS),
                 last_gather: None,
             }),
             busy: std::sync::Mutex::new(()),
@@ -464,7 +468,8 @@ impl Splatter {
     }
 
     /// The render pass back end's bind group, with `uniform` written to
-    /// the targets' uniform buffer.
+    /// the targets' uniform buffer; kept for the targets and model of the
+    /// last few renders.
     fn render_bind(
         &self,
         ctx: &GpuContext,
@@ -473,24 +478,34 @@ impl Splatter {
         uniform: &CameraUniform,
     ) -> wgpu::BindGroup {
         ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
-        ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("splat"),
-            layout: &self.render_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 0,
-                    resource: targets.uniform.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 1,
-                    resource: model.geometry.as_entire_binding(),
-                },
-                wgpu::BindGroupEntry {
-                    binding: 2,
-                    resource: model.colors.as_entire_binding(),
-                },
-            ],
-        })
+        let bufs = [
+            targets.uniform.clone(),
+            model.geometry.clone(),
+            model.colors.clone(),
+        ];
+        let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
+        let made = reuse.render_binds.get(bufs, |b| {
+            Ok(ctx.bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("splat"),
+                layout: &self.render_layout,
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: b[0].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: b[1].as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: b[2].as_entire_binding(),
+                    },
+                ],
+            }))
+        });
+        let Ok::<_, std::convert::Infallible>(bind) = made;
+        bind.clone()
     }
 
     /// The render pass back end's visibility pass into a cleared depth
@@ -585,7 +600,7 @@ impl Splatter {
             binding: 7,
             resource: points.unwrap_or(&self.dummy_points).as_entire_binding(),
         });
-        let bind = ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+        let bind = ctx.bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat resolve"),
             layout: &self.resolve_layout,
             entries: &entries,

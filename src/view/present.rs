@@ -210,7 +210,7 @@ impl Presenter {
         ctx.write_buffer(&self.params, 0, bytemuck::bytes_of(&params((w, h), dst)));
         let view = texture.create_view(&Default::default());
         let bind = ctx.catch("present bind group", || {
-            ctx.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            ctx.bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("present"),
                 layout: &self.layout,
                 entries: &[
