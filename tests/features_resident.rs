@@ -9,6 +9,7 @@ use splattrack::features::patterns::{self, Warp};
 use splattrack::features::{
     Corner, GpuGrey, GreyImage, NccConfig, NccMatcher, Refinement, ResidentImage, refine_match,
 };
+use splattrack::gpu::PassChain;
 use splattrack::rng::Rng;
 
 mod features_common;
@@ -619,9 +620,9 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
         let band_y0 = a_rows.start as f32;
         let pm = {
             let ch = &mut chained;
-            let mut export = |enc: &mut wgpu::CommandEncoder, pos: &wgpu::Buffer| {
+            let mut export = |passes: &mut PassChain, pos: &wgpu::Buffer| {
                 ch.export_corners(
-                    enc,
+                    passes,
                     &pending,
                     ExportPlace::band(band_y0),
                     pos,
@@ -688,7 +689,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     let mut enc = c.device.create_command_encoder(&Default::default());
     assert!(
         cold.export_corners(
-            &mut enc,
+            &mut PassChain::new(&mut enc),
             &pending,
             ExportPlace::default(),
             &small,
@@ -849,8 +850,8 @@ fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
         };
         let pm = {
             let ch = &mut chained;
-            let mut export = |enc: &mut wgpu::CommandEncoder, pos: &wgpu::Buffer| {
-                ch.export_corners(enc, &pending, place, pos, None)
+            let mut export = |passes: &mut PassChain, pos: &wgpu::Buffer| {
+                ch.export_corners(passes, &pending, place, pos, None)
             };
             m.match_resident_exported_b(
                 before.image().unwrap(),
@@ -903,7 +904,7 @@ fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
     // A gate smaller than A's samples is refused.
     let small = c.buffer("small", 16, STORAGE_IN);
     let pending = chained.detect_packed_later(50, 40).unwrap();
-    let mut export = |_: &mut wgpu::CommandEncoder, _: &wgpu::Buffer| Ok(());
+    let mut export = |_: &mut PassChain, _: &wgpu::Buffer| Ok(());
     let a = [Corner {
         x: 10.0,
         y: 10.0,

@@ -383,6 +383,50 @@ fn timer_reports_pass_durations() {
     }
 }
 
+/// A `PassChain` records its stages in one compute pass where they are
+/// untimed (a new one only after the encoder was asked for) and in one a
+/// stage where a timer times them, with the timer's labels; each dispatch
+/// sees what the one before wrote in either case (wgpu's barriers between
+/// dispatches of one pass). Exact: sums of small integers.
+#[test]
+fn a_pass_chain_records_one_pass_untimed_and_one_a_stage_timed() {
+    let c = own_ctx();
+    let n = 1 << 14;
+    let saxpy = gpu::selftest::Saxpy::new(&c, 1.0, &vec![1.0; n], &vec![0.0; n]).unwrap();
+    let mut enc = c.encoder();
+    let mut chain = gpu::PassChain::new(&mut enc);
+    for label in ["a", "b", "c"] {
+        saxpy.dispatch(chain.stage(label, None));
+    }
+    assert_eq!(chain.passes(), 1, "untimed stages share a pass");
+    chain.encoder().clear_buffer(saxpy.y(), 0, Some(4));
+    for label in ["d", "e"] {
+        saxpy.dispatch(chain.stage(label, None));
+    }
+    assert_eq!(chain.passes(), 2, "a new pass after the encoder's work");
+    drop(chain);
+    let v: Vec<f32> = c.read_buffer_after(enc, saxpy.y(), n).unwrap();
+    assert_eq!(v[0], 2.0, "cleared after three, then two more");
+    assert!(v[1..].iter().all(|&v| v == 5.0), "{:?}", &v[..8]);
+
+    let mut timer = GpuTimer::new(&c, 4);
+    if !timer.enabled() {
+        panic!("{}: no timestamp queries", c.describe());
+    }
+    let mut enc = c.encoder();
+    let mut chain = gpu::PassChain::new(&mut enc);
+    for label in ["f", "g", "h"] {
+        saxpy.dispatch(chain.stage(label, Some(&mut timer)));
+    }
+    assert_eq!(chain.passes(), 3, "timed stages each a pass");
+    drop(chain);
+    let t = timer.resolve_later(&c, &mut enc).unwrap();
+    let v: Vec<f32> = c.read_buffer_after(enc, saxpy.y(), n).unwrap();
+    assert!(v[1..].iter().all(|&v| v == 8.0), "{:?}", &v[..8]);
+    let labels: Vec<String> = t.wait(&c).passes.into_iter().map(|(l, _)| l).collect();
+    assert_eq!(labels, ["f", "g", "h"]);
+}
+
 /// Timings read later come with the next readback: timing passes adds no
 /// wait for the GPU and no submission of its own (`track --profile`
 /// counts the loop's own), whether the resolve goes into the timed work's

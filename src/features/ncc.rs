@@ -10,8 +10,8 @@ use super::harris::Corner;
 use super::image::{GreyImage, check_mask};
 use super::resident::{Refinement, ResidentImage, ResidentMatch};
 use crate::gpu::{
-    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, Timings,
-    Uniform, WORKGROUP_1D, compute_entry, compute_pass, storage, workgroups,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, TimerReport,
+    Timings, Uniform, WORKGROUP_1D, compute_entry, storage, workgroups,
 };
 
 /// A mutual best match: feature `a` of the first image and feature `b` of
@@ -357,7 +357,7 @@ impl NccMatcher {
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
         self.write_positions(&pos, na, 0);
         let mut enc = ctx.encoder();
-        self.encode(&mut enc, na, nb, false);
+        self.encode(&mut PassChain::new(&mut enc), na, nb, false);
         let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
         Ok(mutual(&best[..na], &best[na..], self.config.min_score))
     }
@@ -631,13 +631,17 @@ impl NccMatcher {
             (len_a * px) as u64,
             (len_b * px) as u64,
         );
+        // The export, the gate and the matching's passes: one compute
+        // pass where untimed.
+        let mut passes = PassChain::new(&mut enc);
         if let Some(export) = export {
-            export(&mut enc, self.positions.get())?;
+            export(&mut passes, self.positions.get())?;
         }
         if let Some(g) = gate {
-            self.record_gate(&mut enc, g, na)?;
+            self.record_gate(&mut passes, g, na)?;
         }
-        self.encode(&mut enc, na, nb, true);
+        self.encode(&mut passes, na, nb, true);
+        drop(passes);
         Ok(enc)
     }
 
@@ -645,7 +649,7 @@ impl NccMatcher {
     /// `samples` (`shaders/ncc.wgsl`, "The gate").
     fn record_gate(
         &mut self,
-        enc: &mut wgpu::CommandEncoder,
+        passes: &mut PassChain,
         samples: &wgpu::Buffer,
         na: usize,
     ) -> Result<(), FeatureError> {
@@ -659,10 +663,8 @@ impl NccMatcher {
         let bind = self.gate_bind.get(bufs, |b| {
             ctx.bind_buffers_at("ncc gate", layout, &[(20, &b[0]), (21, count), (22, &b[1])])
         })?;
-        let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("ncc gate"),
-            timestamp_writes: None,
-        });
+        // Untimed: timed stages around it keep their own passes.
+        let pass = passes.stage("ncc gate", None);
         pass.set_pipeline(&self.gate);
         pass.set_bind_group(0, bind, &[]);
         pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
@@ -782,9 +784,9 @@ impl NccMatcher {
         Ok(())
     }
 
-    /// Records the passes (vectorize, scores, bests; with `mutual`, the
-    /// mutual check and refinement) into `enc`.
-    fn encode(&mut self, enc: &mut wgpu::CommandEncoder, na: usize, nb: usize, mutual: bool) {
+    /// Records the stages (vectorize, scores, bests; with `mutual`, the
+    /// mutual check and refinement) into `passes`.
+    fn encode(&mut self, passes: &mut PassChain, na: usize, nb: usize, mutual: bool) {
         // The bests: a workgroup a line (rows, then columns), or on CPU
         // adapters a thread a line, in rows of at most 65535 workgroups.
         let lines = (na + nb) as u32;
@@ -798,7 +800,7 @@ impl NccMatcher {
         ];
         let bind = self.bind.as_ref().expect("bind group built in prepare");
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
-            let mut pass = compute_pass(enc, label, self.timer.as_mut());
+            let pass = passes.stage(label, self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
             if label == "vectorize" && self.tiled && self.config.window <= VECTORIZE_GROUP_WINDOW {
                 pass.set_pipeline(&self.vectorize_group);
@@ -818,7 +820,7 @@ impl NccMatcher {
             }
         }
         if mutual {
-            let mut pass = compute_pass(enc, "mutual_refine", self.timer.as_mut());
+            let pass = passes.stage("mutual_refine", self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
             pass.set_pipeline(if self.refine_wide || !self.tiled {
                 &self.mutual_refine_wide
@@ -830,7 +832,7 @@ impl NccMatcher {
         }
         if let Some(t) = self.timer.as_mut() {
             // The timestamps come with this matching's readback.
-            match t.resolve_later(&self.ctx, enc) {
+            match t.resolve_later(&self.ctx, passes.encoder()) {
                 Ok(read) => self.timings.append(read),
                 Err(e) => log::warn!("GPU timer: {e}"),
             }
@@ -855,11 +857,10 @@ struct Bands<'i> {
     offset_b: [i32; 2],
 }
 
-/// Work recorded into a matching's encoder before its passes that writes
+/// Work recorded into a matching's passes before its own that writes
 /// the exported side's positions into the buffer it is given
 /// ([`NccMatcher::match_resident_exported`]).
-pub type ExportFn<'a> =
-    dyn FnMut(&mut wgpu::CommandEncoder, &wgpu::Buffer) -> Result<(), FeatureError> + 'a;
+pub type ExportFn<'a> = dyn FnMut(&mut PassChain, &wgpu::Buffer) -> Result<(), FeatureError> + 'a;
 
 /// Where one side's features come from.
 enum Side<'a> {

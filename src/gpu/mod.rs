@@ -15,7 +15,9 @@ mod pipeline;
 pub mod selftest;
 mod timer;
 
-pub use pipeline::{GrowBuffer, buffer_entry, compute_entry, compute_pass, storage, texture_entry};
+pub use pipeline::{
+    GrowBuffer, PassChain, buffer_entry, compute_entry, compute_pass, storage, texture_entry,
+};
 pub use timer::{GpuTimeline, GpuTimer, TimerReport, Timings};
 
 use std::fmt;

@@ -24,8 +24,8 @@ use super::gpu_data::{
 use super::targets::TARGETS;
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, Uniform, WORKGROUP_1D, buffer_entry, compute_entry,
-    compute_pass, storage, workgroups,
+    GpuContext, GpuTimer, GrowBuffer, PassChain, Uniform, WORKGROUP_1D, buffer_entry,
+    compute_entry, storage, workgroups,
 };
 
 /// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
@@ -276,25 +276,25 @@ impl ComputeSplatter {
         // zero: made so (wgpu zeroes new buffers), and `finish` clears
         // every pixel it reads and the other half of the bounds. The
         // targets need no clear: `finish` writes zeros where no splat
-        // reached, as the render pass's clear leaves them.
-        {
-            // Pass 1, the large splats' visibility after the others' (a
-            // fixed number of workgroups striding over those listed).
-            let mut pass = compute_pass(&mut enc, "visibility", timer.as_deref_mut());
-            pass.set_pipeline(&self.visibility);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.visibility_big);
-            pass.dispatch_workgroups(self.big_groups, 1, 1);
-        }
+        // reached, as the render pass's clear leaves them. One compute
+        // pass, two where timed.
+        let mut passes = PassChain::new(&mut enc);
+        // Pass 1, the large splats' visibility after the others' (a fixed
+        // number of workgroups striding over those listed).
+        let pass = passes.stage("visibility", timer.as_deref_mut());
+        pass.set_pipeline(&self.visibility);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(gx, gy, 1);
+        pass.set_pipeline(&self.visibility_big);
+        pass.dispatch_workgroups(self.big_groups, 1, 1);
         if depth_only {
             // The depth into the targets.
-            let mut pass = compute_pass(&mut enc, "depth", timer.as_deref_mut());
+            let pass = passes.stage("depth", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
             pass.set_pipeline(&self.finish_depth);
             pass.dispatch_workgroups(fx, fy, 1);
         } else {
-            let mut pass = compute_pass(&mut enc, "attributes", timer.as_deref_mut());
+            let pass = passes.stage("attributes", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
             pass.set_pipeline(&self.accumulate);
             pass.dispatch_workgroups(gx, gy, 1);
@@ -303,6 +303,7 @@ impl ComputeSplatter {
             pass.set_pipeline(&self.finish);
             pass.dispatch_workgroups(fx, fy, 1);
         }
+        drop(passes);
         if let Some(t) = timer {
             t.resolve(&mut enc);
         }

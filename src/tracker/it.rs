@@ -8,6 +8,7 @@ use super::view::{AFeatures, Placed, crop_window, match_near, match_near_residen
 use super::{Frame, Mode, StepError, StepOutcome, TrackError, Tracker, estimate};
 use crate::features::{Corner, ExportPlace, FeatureError, ResidentImage};
 use crate::geometry::Pose;
+use crate::gpu::PassChain;
 use crate::pose::{Anchor, Correspondence, Refined};
 use crate::splat::{Attributes, GatherSample, PendingGather, Window};
 use nalgebra::Vector2;
@@ -201,8 +202,8 @@ impl Tracker {
         };
         let harris = &mut self.harris;
         let matching = {
-            let mut export = |enc: &mut wgpu::CommandEncoder, positions: &wgpu::Buffer| {
-                harris.export_corners(enc, &pending, place, positions, None)
+            let mut export = |passes: &mut PassChain, positions: &wgpu::Buffer| {
+                harris.export_corners(passes, &pending, place, positions, None)
             };
             self.it_matcher.match_resident_exported_b(
                 ResidentImage {

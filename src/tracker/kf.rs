@@ -12,6 +12,7 @@ use crate::features::{
     Corner, ExportPlace, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,
 };
 use crate::geometry::Pose;
+use crate::gpu::PassChain;
 use crate::pose::{Anchor, Correspondence, Refined};
 use crate::splat::{Attribute, Attributes, GatherMode, GatherSample, Window};
 use nalgebra::Vector2;
@@ -285,9 +286,9 @@ impl Tracker {
             Search::Refine => &mut self.kf_matcher,
         };
         let matching = {
-            let mut export = |enc: &mut wgpu::CommandEncoder, positions: &wgpu::Buffer| {
+            let mut export = |passes: &mut PassChain, positions: &wgpu::Buffer| {
                 harris.export_corners(
-                    enc,
+                    passes,
                     &pending,
                     ExportPlace::band(band_y0),
                     positions,

@@ -10,8 +10,8 @@
 
 use super::contour::{ContourPoint, contour_point};
 use crate::gpu::{
-    GpuContext, GpuError, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, TimerReport, Timings,
-    WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    GpuContext, GpuError, GpuTimer, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, TimerReport,
+    Timings, WORKGROUP_1D, WORKGROUP_2D, compute_entry, storage, workgroups,
 };
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
@@ -282,12 +282,15 @@ impl GpuOutline {
                 (workgroups(words, WORKGROUP_1D), 1),
             ),
         ];
+        // One compute pass, one a stage where timed.
+        let mut chain = PassChain::new(&mut enc);
         for (pipeline, label, (x, y)) in passes {
-            let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
+            let pass = chain.stage(label, self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
+        drop(chain);
         if let Some(t) = self.timer.as_mut() {
             // The timestamps come with the outline.
             self.timings.append(t.resolve_later(ctx, &mut enc)?);

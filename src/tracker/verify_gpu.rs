@@ -9,8 +9,8 @@
 use super::verify::{VerifyConfig, VerifyScores, laplacian_rms, zncc_of_sums};
 use crate::features::GreyImage;
 use crate::gpu::{
-    GpuContext, GpuError, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, compute_entry,
-    compute_pass, storage,
+    GpuContext, GpuError, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, Uniform, compute_entry,
+    storage,
 };
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
@@ -254,28 +254,27 @@ impl GpuCheck {
             .as_ref()
             .ok_or_else(|| GpuError::Readback("the check's bind group failed".into()))?;
         let mut enc = ctx.encoder();
-        {
-            let mut pass = compute_pass(&mut enc, "rows", self.timer.as_mut());
-            pass.set_bind_group(0, bind, &[]);
-            if self.tiled {
-                pass.set_pipeline(&self.rows_tiled);
-                pass.dispatch_workgroups(h, 1, 1);
-            } else {
-                pass.set_pipeline(&self.rows);
-                pass.dispatch_workgroups(h.div_ceil(CHECK_WORKGROUP), 1, 1);
-            }
+        // One compute pass, two where timed.
+        let mut passes = PassChain::new(&mut enc);
+        let pass = passes.stage("rows", self.timer.as_mut());
+        pass.set_bind_group(0, bind, &[]);
+        if self.tiled {
+            pass.set_pipeline(&self.rows_tiled);
+            pass.dispatch_workgroups(h, 1, 1);
+        } else {
+            pass.set_pipeline(&self.rows);
+            pass.dispatch_workgroups(h.div_ceil(CHECK_WORKGROUP), 1, 1);
         }
-        {
-            let mut pass = compute_pass(&mut enc, "sum", self.timer.as_mut());
-            pass.set_bind_group(0, bind, &[]);
-            if self.tiled {
-                pass.set_pipeline(&self.sum_rows_tiled);
-                pass.dispatch_workgroups(CHECK_SUMS, 1, 1);
-            } else {
-                pass.set_pipeline(&self.sum_rows);
-                pass.dispatch_workgroups(1, 1, 1);
-            }
+        let pass = passes.stage("sum", self.timer.as_mut());
+        pass.set_bind_group(0, bind, &[]);
+        if self.tiled {
+            pass.set_pipeline(&self.sum_rows_tiled);
+            pass.dispatch_workgroups(CHECK_SUMS, 1, 1);
+        } else {
+            pass.set_pipeline(&self.sum_rows);
+            pass.dispatch_workgroups(1, 1, 1);
         }
+        drop(passes);
         if let Some(t) = self.timer.as_mut() {
             // The timestamps come with the sums.
             self.timings.append(t.resolve_later(ctx, &mut enc)?);

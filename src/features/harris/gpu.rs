@@ -12,8 +12,9 @@ use crate::features::gpu_data::{
 use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
-    BindCache, GpuContext, GpuTimer, GrowBuffer, PendingRead, STORAGE_IN, STORAGE_OUT, TimerReport,
-    Timings, Uniform, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass, storage, workgroups,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, PassChain, PendingRead, STORAGE_IN, STORAGE_OUT,
+    TimerReport, Timings, Uniform, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass,
+    storage, workgroups,
 };
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
@@ -663,13 +664,15 @@ impl Harris {
     }
 
     /// Records the map passes and NMS over `input`, its uploads queued,
-    /// for the caller to submit (the selection may follow,
-    /// [`Harris::encode_select`]): with a readback behind them, one
+    /// and with `select` the selection behind them
+    /// ([`Harris::encode_select`]), in one compute pass where untimed,
+    /// for the caller to submit: with a readback behind them, one
     /// submission.
     fn encode_maps(
         &mut self,
         input: Input,
         mask: Option<&[bool]>,
+        select: bool,
     ) -> Result<crate::gpu::Encoder, FeatureError> {
         let (w, h) = input.size();
         self.prepare(w, h)?;
@@ -713,23 +716,22 @@ impl Harris {
             0,
             Some(std::mem::size_of::<Counters>() as u64),
         );
+        let mut passes = PassChain::new(&mut enc);
         if let Input::Rgb(_) = input {
-            let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
+            let pass = passes.stage("grey", self.timer.as_mut());
             pass.set_pipeline(&self.grey);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
         if let Input::Resolved { keep_grey, .. } = input {
-            {
-                let mut pass = compute_pass(&mut enc, "grey", self.timer.as_mut());
-                pass.set_pipeline(&self.grey_pack_f32);
-                pass.set_bind_group(0, bind, &[]);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
+            let pass = passes.stage("grey", self.timer.as_mut());
+            pass.set_pipeline(&self.grey_pack_f32);
+            pass.set_bind_group(0, bind, &[]);
+            pass.dispatch_workgroups(gx, gy, 1);
             // The grey levels, before the integration passes reuse
             // `response`.
             if keep_grey {
-                enc.copy_buffer_to_buffer(
+                passes.encoder().copy_buffer_to_buffer(
                     self.response.get(),
                     0,
                     self.grey_out.get(),
@@ -748,18 +750,22 @@ impl Harris {
         let fused = self.maps_fused().then_some(self.fused.as_ref()).flatten();
         if let Some(pipeline) = fused {
             // A tile of WORKGROUP_2D^2 outputs a workgroup.
-            let mut pass = compute_pass(&mut enc, "maps", self.timer.as_mut());
+            let pass = passes.stage("maps", self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(gx, gy, 1);
         }
         let skip = if fused.is_some() { 4 } else { 0 };
         for ((pipeline, label), (x, y)) in self.passes.iter().zip(PASSES).zip(groups).skip(skip) {
-            let mut pass = compute_pass(&mut enc, label, self.timer.as_mut());
+            let pass = passes.stage(label, self.timer.as_mut());
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bind, &[]);
             pass.dispatch_workgroups(x, y, 1);
         }
+        if select {
+            self.encode_select(&mut passes);
+        }
+        drop(passes);
         Ok(enc)
     }
 
@@ -768,7 +774,7 @@ impl Harris {
     /// refinement, merge), several dispatches each, one thread an item
     /// (the O(n^2) ones tiled or not: [`Harris::set_tiled_selection`]),
     /// sized on the GPU (`select_sizes`, then indirect dispatches).
-    fn encode_select(&mut self, enc: &mut wgpu::CommandEncoder) {
+    fn encode_select(&mut self, chain: &mut PassChain) {
         let bind = self.select_bind.as_ref().expect("prepared");
         let sizes = self.sizes_bind.as_ref().expect("prepared");
         let args = self.select_args.get();
@@ -776,14 +782,14 @@ impl Harris {
         if small {
             log::trace!("harris: the selection in one workgroup a pass");
         }
-        let passes = select_passes(
+        let stages = select_passes(
             self.tiled_select,
             small,
             small_merge,
             self.config.refine_radius,
         );
-        for (label, entries) in passes {
-            let mut pass = compute_pass(enc, label, self.timer.as_mut());
+        for (label, entries) in stages {
+            let pass = chain.stage(label, self.timer.as_mut());
             for &e in entries {
                 let size = SELECT_ENTRIES[e].1;
                 pass.set_pipeline(&self.select[e]);
@@ -865,7 +871,7 @@ impl Harris {
         if self.host {
             return super::harris_response_host(img, &self.config);
         }
-        let enc = self.encode_maps(Input::Grey(img), None)?;
+        let enc = self.encode_maps(Input::Grey(img), None, false)?;
         let response = self
             .ctx
             .read_buffer_after(enc, self.response.get(), img.data.len())?;
@@ -1075,8 +1081,7 @@ impl Harris {
         self.kind = matches!(input, Input::Resolved { .. }) as usize;
         let limit = self.select_limit_now();
         let rows = self.readback_rows(w, h);
-        let mut enc = self.encode_maps(input, mask)?;
-        self.encode_select(&mut enc);
+        let enc = self.encode_maps(input, mask, true)?;
         let ctx = &self.ctx.clone();
         let size = std::mem::size_of::<RefineCorner>();
         let counters_size = std::mem::size_of::<Counters>() as u64;
@@ -1199,8 +1204,7 @@ impl Harris {
         self.kind = kind;
         let limit = self.select_limit_now();
         let rows = self.readback_rows(width, height);
-        let mut enc = self.encode_maps(input, None)?;
-        self.encode_select(&mut enc);
+        let enc = self.encode_maps(input, None, true)?;
         let ctx = &self.ctx.clone();
         let size = std::mem::size_of::<RefineCorner>();
         let counters_size = std::mem::size_of::<Counters>() as u64;
@@ -1230,7 +1234,7 @@ impl Harris {
     /// `shaders/harris.wgsl`, "The export".
     pub fn export_corners(
         &mut self,
-        enc: &mut wgpu::CommandEncoder,
+        passes: &mut PassChain,
         pending: &PendingCorners,
         place: ExportPlace,
         positions: &wgpu::Buffer,
@@ -1292,7 +1296,7 @@ impl Harris {
             ];
             ctx.bind_buffers_at("harris export", layout, &at)
         })?;
-        let mut pass = compute_pass(enc, "export", self.timer.as_mut());
+        let pass = passes.stage("export", self.timer.as_mut());
         pass.set_pipeline(&self.export);
         pass.set_bind_group(0, bind, &[]);
         pass.dispatch_workgroups(workgroups(n as u32, WORKGROUP_1D), 1, 1);
@@ -1438,7 +1442,7 @@ mod tests {
             }
             let mut enc = ctx.encoder();
             enc.clear_buffer(self.grad.get(), 0, None);
-            self.encode_select(&mut enc);
+            self.encode_select(&mut PassChain::new(&mut enc));
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
             // The merge in one workgroup runs its rounds to the end.
             assert!(
