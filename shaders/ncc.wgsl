@@ -56,7 +56,9 @@ struct NccParams {
     refine_min: f32,
     shift_bx: f32,
     shift_by: f32,
-    pad2: u32,
+    // 1: B's features are in their own order (exported, no spatial order
+    // uploaded after the window flags).
+    b_in_order: u32,
 }
 
 // A raw sample that touches an invalid pixel (grey values are in 0..1).
@@ -407,9 +409,14 @@ fn pair_live(i: u32, j: u32) -> bool {
 }
 
 // B's feature at place q of the host's spatial order (after the na + nb
-// window flags in `ok`: B's features by bands of rows, then by x).
+// window flags in `ok`: B's features by bands of rows, then by x), or of
+// their own order (`b_in_order`).
 fn b_at(q: u32) -> u32 {
-    return ok[params.na + params.nb + min(q, params.nb - 1u)];
+    let k = min(q, params.nb - 1u);
+    if (params.b_in_order != 0u) {
+        return k;
+    }
+    return ok[params.na + params.nb + k];
 }
 
 // One thread per row of A and four B features, consecutive in the host's
@@ -1156,7 +1163,6 @@ fn mutual_refine(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgrou
 // image before the matching, so that they match nothing, as where the
 // host leaves them out. One thread a feature of A.
 @group(0) @binding(20) var<storage, read> gate_samples: array<f32>;
-@group(0) @binding(21) var<uniform> gate_count: vec4<u32>;
 @group(0) @binding(22) var<storage, read_write> gate_positions: array<vec2<f32>>;
 
 // NccMatcher's sanitize: a position far outside any image.
@@ -1165,7 +1171,7 @@ const GATE_FAR: f32 = -1.0e9;
 @compute @workgroup_size(WORKGROUP_1D)
 fn gate(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = id.x;
-    if (i >= gate_count.x) {
+    if (i >= params.na) {
         return;
     }
     if (!(gate_samples[i * GATHER_STRIDE + GATHER_STRIDE - 1u] > 0.5)) {

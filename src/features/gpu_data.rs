@@ -299,7 +299,8 @@ wgsl_struct! {
         /// for the search radius.
         pub shift_bx: f32,
         pub shift_by: f32,
-        pub _pad2: u32,
+        /// 1: B's features are in their own order (no spatial order uploaded).
+        pub b_in_order: u32,
     }
 }
 

@@ -185,10 +185,9 @@ pub struct NccMatcher {
     vectorize_group: wgpu::ComputePipeline,
     bind: Option<wgpu::BindGroup>,
     /// The gate ([`NccMatcher::match_resident_exported_b`]): its layout,
-    /// pipeline, count and last bind group (with the buffers it binds).
+    /// pipeline and last bind groups (with the buffers they bind).
     gate_layout: wgpu::BindGroupLayout,
     gate: wgpu::ComputePipeline,
-    gate_count: wgpu::Buffer,
     gate_bind: BindCache<2>,
     timer: Option<GpuTimer>,
     timings: Timings,
@@ -223,9 +222,10 @@ impl NccMatcher {
         let mutual_refine = passes.pop().expect("eight pipelines");
         let bests_direct = passes.pop().expect("eight pipelines");
         let score_direct = passes.pop().expect("eight pipelines");
+        // The gate reads A's count from the matching's parameters.
         let gate_entries = [
+            compute_entry(0, storage(true)),
             compute_entry(20, storage(true)),
-            compute_entry(21, wgpu::BufferBindingType::Uniform),
             compute_entry(22, storage(false)),
         ];
         let gate_layout = ctx.bind_group_layout("ncc gate", &gate_entries);
@@ -261,11 +261,6 @@ impl NccMatcher {
             bind: None,
             gate_layout,
             gate,
-            gate_count: ctx.buffer(
-                "ncc gate count",
-                16,
-                wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            ),
             gate_bind: BindCache::default(),
             timer: None,
             timings: Default::default(),
@@ -349,7 +344,7 @@ impl NccMatcher {
             return Ok(Vec::new());
         }
         let sizes = [(img_a.width, img_a.height), (img_b.width, img_b.height)];
-        self.prepare(na, nb, sizes, [0, 0], None)?;
+        self.prepare(na, nb, sizes, [0, 0], None, false)?;
         let ctx = &self.ctx.clone();
         let mut pixels: Vec<Pixel> = pack_with_holes(img_a, None, false);
         pixels.extend(pack_with_holes(img_b, None, false));
@@ -576,7 +571,9 @@ impl NccMatcher {
             offset_b[0],
             offset_b[1] + b_rows.start as i32 - a_rows.start as i32,
         ];
-        self.prepare(na, nb, sizes, shift, refine)?;
+        // B exported: its features in their own order (no spatial order).
+        let b_in_order = matches!(b, Side::Exported(_));
+        self.prepare(na, nb, sizes, shift, refine, b_in_order)?;
         let ctx = &self.ctx.clone();
         // Positions in the bands: y less the first row (exact in f32 for
         // image coordinates).
@@ -597,16 +594,11 @@ impl NccMatcher {
             (Side::Exported(_), Side::Host(b)) => {
                 self.write_positions(&in_band(b, b_rows.start), 0, na);
             }
-            // B's positions are the export's, in no spatial order.
+            // B's positions are the export's, in no spatial order
+            // (`b_in_order`: nothing to upload for it).
             (Side::Host(a), Side::Exported(_)) => {
                 let pos = in_band(a, a_rows.start);
                 ctx.write_buffer(self.positions.get(), 0, bytemuck::cast_slice(&pos));
-                let order: Vec<u32> = (0..nb as u32).collect();
-                ctx.write_buffer(
-                    self.ok.get(),
-                    ((na + nb) * 4) as u64,
-                    bytemuck::cast_slice(&order),
-                );
             }
             (Side::Exported(_), Side::Exported(_)) => {
                 return Err(FeatureError::Config(
@@ -645,7 +637,8 @@ impl NccMatcher {
         Ok(enc)
     }
 
-    /// Records the gate of A's `na` positions by the gather's samples
+    /// Records the gate of A's `na` positions (the parameters' `na`,
+    /// written by [`NccMatcher::prepare`]) by the gather's samples
     /// `samples` (`shaders/ncc.wgsl`, "The gate").
     fn record_gate(
         &mut self,
@@ -653,18 +646,12 @@ impl NccMatcher {
         samples: &wgpu::Buffer,
         na: usize,
     ) -> Result<(), FeatureError> {
-        self.ctx.write_buffer(
-            &self.gate_count,
-            0,
-            bytemuck::cast_slice(&[na as u32, 0, 0, 0]),
-        );
         let bufs = [samples.clone(), self.positions.get().clone()];
-        let (ctx, layout, count) = (&self.ctx, &self.gate_layout, &self.gate_count);
+        let (ctx, layout, params) = (&self.ctx, &self.gate_layout, self.params.buffer());
         let bind = self.gate_bind.get(bufs, |b| {
-            ctx.bind_buffers_at("ncc gate", layout, &[(20, &b[0]), (21, count), (22, &b[1])])
+            ctx.bind_buffers_at("ncc gate", layout, &[(0, params), (20, &b[0]), (22, &b[1])])
         })?;
-        // Untimed: timed stages around it keep their own passes.
-        let pass = passes.stage("ncc gate", None);
+        let pass = passes.stage("gate", self.timer.as_mut());
         pass.set_pipeline(&self.gate);
         pass.set_bind_group(0, bind, &[]);
         pass.dispatch_workgroups(workgroups(na as u32, WORKGROUP_1D), 1, 1);
@@ -699,6 +686,7 @@ impl NccMatcher {
         sizes: [(usize, usize); 2],
         shift_b: [i32; 2],
         refine: Option<Refinement>,
+        b_in_order: bool,
     ) -> Result<(), FeatureError> {
         let ctx = &self.ctx.clone();
         let lim = &ctx.limits;
@@ -778,7 +766,7 @@ impl NccMatcher {
             refine_min: r.min_score,
             shift_bx: shift_b[0] as f32,
             shift_by: shift_b[1] as f32,
-            _pad2: 0,
+            b_in_order: b_in_order as u32,
         };
         self.params.write(ctx, bytemuck::bytes_of(&params));
         Ok(())
