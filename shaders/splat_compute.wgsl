@@ -5,7 +5,8 @@
 // Botsch et al. 2005). One thread per splat walks the pixels of its
 // screen-space bounding box (the quad the render pass would rasterise);
 // footprints of more than `BIG_SPLAT_PIXELS` are listed instead and walked
-// by a whole workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`),
+// by a whole workgroup in 8x8 blocks (`visibility_big`, and the workgroups
+// of `accumulate` beyond the splats'),
 // so a large or near-plane splat does not serialise on one thread. Both
 // walks call the same per-pixel functions (`splat_pixel`: `visibility_key`,
 // `fragment`). (Binning large splats into 8x8 tiles, a workgroup per tile
@@ -334,26 +335,31 @@ fn visibility(
     }
 }
 
+// The splats a thread each (the first ceil(count / WORKGROUP_1D)
+// workgroups, in dispatch order), and the listed large splats by the
+// workgroups after them, striding: one dispatch, since the two add into the
+// same sums independently (integer atomics: in any order the same sums).
 @compute @workgroup_size(WORKGROUP_1D)
-fn accumulate(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgroups) groups: vec3<u32>) {
-    let i = splat_index(id, groups);
+fn accumulate(
+    @builtin(local_invocation_index) li: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let g = wg.y * groups.x + wg.x;
+    let splat_groups = (params.count + WORKGROUP_1D - 1u) / WORKGROUP_1D;
+    if g >= splat_groups {
+        walk_big(li, g - splat_groups, groups.x * groups.y - splat_groups, PASS_ACCUMULATE);
+        return;
+    }
+    let i = g * WORKGROUP_1D + li;
     if i >= params.count {
         return;
     }
     let s = setup(i);
     if footprint(s) > BIG_SPLAT_PIXELS {
-        return; // accumulate_big
+        return; // a workgroup beyond the splats' walks it
     }
     walk_thread(s, PASS_ACCUMULATE);
-}
-
-@compute @workgroup_size(WORKGROUP_1D)
-fn accumulate_big(
-    @builtin(local_invocation_index) li: u32,
-    @builtin(workgroup_id) wg: vec3<u32>,
-    @builtin(num_workgroups) groups: vec3<u32>,
-) {
-    walk_big(li, wg.x, groups.x, PASS_ACCUMULATE);
 }
 
 // Camera-space z of a visibility depth (bits of the [0, 1] depth): the

@@ -98,7 +98,8 @@ const BIG_GROUPS_GPU: u32 = 512;
 /// The same on CPU adapters, whose cores take a workgroup at a time.
 const BIG_GROUPS_CPU: u32 = 16;
 
-// `visibility_big` and `accumulate_big` lay a workgroup out as 8x8 lanes.
+// `visibility_big` and the large splats' workgroups of `accumulate` lay a
+// workgroup out as 8x8 lanes.
 const _: () = assert!(WORKGROUP_1D == 64);
 
 /// Whether the adapter can run the compute back end (it writes the five
@@ -113,7 +114,6 @@ pub(super) struct ComputeSplatter {
     visibility: wgpu::ComputePipeline,
     accumulate: wgpu::ComputePipeline,
     visibility_big: wgpu::ComputePipeline,
-    accumulate_big: wgpu::ComputePipeline,
     finish: wgpu::ComputePipeline,
     /// The last kernel of a depth-only render.
     finish_depth: wgpu::ComputePipeline,
@@ -198,7 +198,6 @@ impl ComputeSplatter {
             visibility: pipeline("visibility", &one)?,
             accumulate: pipeline("accumulate", &one)?,
             visibility_big: pipeline("visibility_big", &one)?,
-            accumulate_big: pipeline("accumulate_big", &one)?,
             finish: pipeline("finish", &one)?,
             finish_depth: pipeline("finish_depth", &one)?,
             layout,
@@ -296,10 +295,12 @@ impl ComputeSplatter {
         } else {
             let pass = passes.stage("attributes", timer.as_deref_mut());
             pass.set_bind_group(0, &bind, &[]);
+            // The splats' workgroups, then the large splats' (one
+            // dependent dispatch fewer than two passes: both only add).
+            let all = groups + self.big_groups;
+            let ax = all.min(65_535);
             pass.set_pipeline(&self.accumulate);
-            pass.dispatch_workgroups(gx, gy, 1);
-            pass.set_pipeline(&self.accumulate_big);
-            pass.dispatch_workgroups(self.big_groups, 1, 1);
+            pass.dispatch_workgroups(ax, all.div_ceil(ax), 1);
             pass.set_pipeline(&self.finish);
             pass.dispatch_workgroups(fx, fy, 1);
         }

@@ -147,7 +147,7 @@ pub const ACC_STRIDE: u32 = 9;
 pub const FIXED_SCALE: f32 = 1_048_576.0;
 
 /// Footprints above this many pixels (32 x 32) are walked by a whole
-/// workgroup in 8x8 blocks (`visibility_big`, `accumulate_big`), not by one
+/// workgroup in 8x8 blocks (`visibility_big`, `accumulate`'s last groups), not by one
 /// thread: splats of a dense model stay one per thread, a huge or
 /// near-plane splat no longer serialises on one. Measured on lavapipe
 /// (BENCHMARKS.md): thresholds of 64 and 256 pixels, and binning large
