@@ -113,12 +113,13 @@ pub fn compute_pass<'e>(
 /// The compute passes of a chain of stages recorded into one encoder:
 /// one pass for all of them, or one a stage where stages are timed (a
 /// pass's timestamps are written at its beginning and end). Each pass
-/// costs the host more than its dispatches (wgpu records it apart, in a
-/// command buffer of its own: 13.9 us a pass on lavapipe, the `features`
-/// bench's `dispatches_40_in_40_passes` against `_in_1_pass`), and the
-/// GPU nothing: wgpu places the same barriers between dispatches of one
-/// pass as between passes. The open pass ends when the chain is dropped
-/// or [`PassChain::encoder`] is asked for.
+/// costs the host more than its dispatches (wgpu-core records it into a
+/// driver command buffer of its own, with another before it for its
+/// barriers: 16.1 us a pass on lavapipe, the `features` bench's
+/// `dispatches_40_in_40_passes` against `_in_1_pass`), and the GPU
+/// nothing: wgpu places the same barriers between dispatches of one pass
+/// as between passes. The open pass ends when the chain is dropped or
+/// [`PassChain::encoder`] is asked for.
 pub struct PassChain<'e> {
     enc: &'e mut wgpu::CommandEncoder,
     pass: Option<wgpu::ComputePass<'static>>,

@@ -665,8 +665,9 @@ impl Harris {
 
     /// Records the map passes and NMS over `input`, its uploads queued,
     /// and with `select` the selection behind them
-    /// ([`Harris::encode_select`]), in one compute pass where untimed,
-    /// for the caller to submit: with a readback behind them, one
+    /// ([`Harris::encode_select`]), in one compute pass where untimed (two
+    /// where a resolved view's grey levels are kept: a copy between), for
+    /// the caller to submit: with a readback behind them, one
     /// submission.
     fn encode_maps(
         &mut self,
@@ -770,8 +771,8 @@ impl Harris {
     }
 
     /// Records the selection of the corners behind the map passes
-    /// (`shaders/harris.wgsl`, "The selection"): three passes (selection,
-    /// refinement, merge), several dispatches each, one thread an item
+    /// (`shaders/harris.wgsl`, "The selection") into `chain`: three
+    /// stages (selection, refinement, merge), several dispatches each, one thread an item
     /// (the O(n^2) ones tiled or not: [`Harris::set_tiled_selection`]),
     /// sized on the GPU (`select_sizes`, then indirect dispatches).
     fn encode_select(&mut self, chain: &mut PassChain) {
