@@ -96,7 +96,7 @@ fn run(
         (None, None) => None,
     };
     let inputs = TrackInputs {
-        model,
+        model: std::sync::Arc::new(model),
         camera: sequence.camera,
         camera_path: sequence.camera_path.clone(),
         sequence: Some(sequence),

@@ -215,8 +215,9 @@ pub fn load_or_build_keyframes(
 
 /// Everything a tracking run needs, loaded and checked.
 pub struct TrackInputs {
-    /// The object's point model.
-    pub model: PointModel,
+    /// The object's point model (shared with each run's tracker, not
+    /// copied, where the tracker keeps its radii: [`Tracker::new_shared`]).
+    pub model: Arc<PointModel>,
     /// The sequence, its camera and frames, when the frames come from a
     /// sequence directory (`None`: from a video or a camera, given to the
     /// run by [`TrackRun::source`]).
@@ -266,7 +267,7 @@ impl TrackInputs {
             None => None,
         };
         Ok(Self {
-            model,
+            model: Arc::new(model),
             camera: sequence.camera,
             camera_path: sequence.camera_path.clone(),
             sequence: Some(sequence),
@@ -299,7 +300,7 @@ impl TrackInputs {
             None => None,
         };
         Ok(Self {
-            model,
+            model: Arc::new(model),
             sequence: None,
             camera: cam,
             camera_path: camera.to_owned(),

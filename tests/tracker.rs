@@ -872,3 +872,89 @@ fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
         );
     }
 }
+
+#[test]
+fn the_tracker_shares_the_callers_model_unless_it_changes_the_radii() {
+    // A caller's model (an `Arc`) is the tracker's own where the radii
+    // need no change (no floor above them, no gap to close): no copy of
+    // 40 bytes a point. Where the tracker raises or grows them it splats
+    // a copy, and the caller's model keeps its radii.
+    let f = fixture();
+    let given = Arc::new(f.scene.model.clone());
+    let make = |config: TrackerConfig| {
+        Tracker::new_shared(
+            shared_test_context(),
+            given.clone(),
+            f.scene.cam,
+            Some(Arc::new(f.store.clone())),
+            config,
+            f.frames[0].pose,
+        )
+        .expect("tracker")
+    };
+    let kept = make(TrackerConfig {
+        min_splat_radius_px: 0.0,
+        close_gaps: false,
+        ..Default::default()
+    });
+    assert!(Arc::ptr_eq(kept.model(), &given), "copied without a change");
+    // A floor of 50 pixels raises every radius.
+    let raised = make(TrackerConfig {
+        min_splat_radius_px: 50.0,
+        close_gaps: false,
+        ..Default::default()
+    });
+    assert!(!Arc::ptr_eq(raised.model(), &given));
+    assert_eq!(
+        given.radii, f.scene.model.radii,
+        "the caller's radii changed"
+    );
+    assert!(
+        raised
+            .model()
+            .radii
+            .iter()
+            .zip(&given.radii)
+            .all(|(r, g)| r > g),
+        "not raised"
+    );
+    assert_eq!(raised.model().positions, given.positions);
+    // Radii shrunk to a third leave gaps, which the tracker closes on
+    // its copy.
+    let mut gapped = f.scene.model.clone();
+    gapped.radii.iter_mut().for_each(|r| *r /= 3.0);
+    let gapped = Arc::new(gapped);
+    let closed = Tracker::new_shared(
+        shared_test_context(),
+        gapped.clone(),
+        f.scene.cam,
+        Some(Arc::new(f.store.clone())),
+        TrackerConfig {
+            min_splat_radius_px: 0.0,
+            ..Default::default()
+        },
+        f.frames[0].pose,
+    )
+    .expect("tracker");
+    assert!(!Arc::ptr_eq(closed.model(), &gapped));
+    let grown = closed
+        .model()
+        .radii
+        .iter()
+        .zip(&gapped.radii)
+        .filter(|(r, g)| r > g)
+        .count();
+    assert!(
+        grown * 2 > gapped.len(),
+        "{grown} of {} grown",
+        gapped.len()
+    );
+    assert!(
+        gapped
+            .radii
+            .iter()
+            .zip(&f.scene.model.radii)
+            .all(|(g, r)| *g == *r / 3.0),
+        "the caller's gapped radii changed"
+    );
+}

@@ -499,11 +499,27 @@ impl PointModel {
     /// surface comes out unchanged. The method is in the `estimate` module.
     /// Models of fewer than 3 points are left as they are.
     pub fn close_gaps(&mut self) -> Result<GapClosure, ModelError> {
+        let mut radii = std::mem::take(&mut self.radii);
+        let closed = self.close_gaps_of(&mut radii);
+        self.radii = radii;
+        closed
+    }
+
+    /// [`PointModel::close_gaps`] applied to `radii` (one a point, in
+    /// place of the model's own) instead of the model's radii, which stay
+    /// as they are: for a model shared read-only.
+    pub fn close_gaps_of(&self, radii: &mut [f32]) -> Result<GapClosure, ModelError> {
         let path = self.provenance.path.clone().unwrap_or_else(memory_path);
+        if radii.len() != self.positions.len() {
+            return Err(ModelError::Invalid {
+                path,
+                reason: format!("{} radii for {} points", radii.len(), self.positions.len()),
+            });
+        }
         estimate::close_gaps(
             &self.positions,
             &self.normals,
-            &mut self.radii,
+            radii,
             GAP_NEIGHBOURS,
             &path,
             &Stage::silent(),

@@ -414,7 +414,9 @@ impl Frame {
 pub struct Tracker {
     cam: Intrinsics,
     config: TrackerConfig,
-    model: PointModel,
+    /// The model as splatted (its radii raised and grown); the caller's
+    /// own, shared, where they needed no change.
+    model: Arc<PointModel>,
     store: Option<Arc<KeyframeStore>>,
     splatter: Splatter,
     geometry: GpuModel,
@@ -489,7 +491,7 @@ impl Tracker {
     /// [`TrackerConfig::validate`].
     pub fn new(
         ctx: &GpuContext,
-        model: PointModel,
+        model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
         keyframes: Option<KeyframeStore>,
         config: TrackerConfig,
@@ -502,10 +504,13 @@ impl Tracker {
     /// instead of moved in: a store holds 12 bytes of colour per point and
     /// keyframe (144 MB for a 1M-point model and 12 keyframes), which a
     /// caller that keeps its own (an application tracking several runs
-    /// from one set of inputs) need not copy.
+    /// from one set of inputs) need not copy. The model may be shared
+    /// likewise (an `Arc<PointModel>`): the tracker copies it only where
+    /// it changes its radii (`min_splat_radius_px`, `close_gaps`;
+    /// [`Tracker::model`]).
     pub fn new_shared(
         ctx: &GpuContext,
-        model: PointModel,
+        model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
         config: TrackerConfig,
@@ -514,32 +519,37 @@ impl Tracker {
         config.validate()?;
         cam.validate().map_err(CameraInvalid)?;
         initial.validate()?;
+        let mut model: Arc<PointModel> = model.into();
         let store =
             keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial).map(Arc::new));
         if store.is_none() && config.mode != Mode::It {
             return Err(TrackError::NeedsKeyframes(config.mode.name()));
         }
-        let mut model = model;
         // The bounding sphere: box centre, farthest point.
         let crate::splat::ModelBounds { center, radius, .. } =
             crate::splat::ModelBounds::of(&model);
         let z0 = initial.transform_point(&center).z;
         let floor = (config.min_splat_radius_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
-        if floor > 0.0 && floor.is_finite() {
-            model.radii.iter_mut().for_each(|r| *r = r.max(floor));
+        // The radii splatted: the model's, raised to the floor and grown
+        // where they leave gaps. Only where they change is the model
+        // copied (`Arc::make_mut`); else the caller's is shared as it is
+        // (40 bytes a point: 40 MB at 1M points).
+        let mut radii: Option<Vec<f32>> = None;
+        if floor > 0.0 && floor.is_finite() && model.radii.iter().any(|&r| r.max(floor) != r) {
+            radii = Some(model.radii.iter().map(|&r| r.max(floor)).collect());
         }
         if config.close_gaps {
-            // A failure (points that all coincide) keeps the radii as given;
-            // only they change, so only they are kept aside (not a copy of
-            // the model: 40 bytes a point, 40 MB at 1M points).
-            let given = model.radii.clone();
-            match model.close_gaps() {
+            // A failure (points that all coincide) keeps the radii as they
+            // were before.
+            let mut grown = radii.clone().unwrap_or_else(|| model.radii.clone());
+            match model.close_gaps_of(&mut grown) {
                 Ok(c) if c.grown as f64 >= crate::model::GAP_MODEL_FRACTION * c.points as f64 => {
                     log::debug!(
                         "{} of {} splat radii grown to close gaps",
                         c.grown,
                         c.points
                     );
+                    radii = Some(grown);
                 }
                 Ok(c) => {
                     log::debug!(
@@ -547,13 +557,14 @@ impl Tracker {
                         c.grown,
                         c.points
                     );
-                    model.radii = given;
                 }
                 Err(e) => {
                     log::warn!("splat radii kept as given: {e}");
-                    model.radii = given;
                 }
             }
+        }
+        if let Some(r) = radii {
+            Arc::make_mut(&mut model).radii = r;
         }
         let gpu = ctx;
         let splatter = Splatter::with_params(
@@ -650,7 +661,7 @@ impl Tracker {
     /// (keyframes or model colours) for the search.
     pub fn new_searching(
         ctx: &GpuContext,
-        model: PointModel,
+        model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
         keyframes: Option<KeyframeStore>,
         config: TrackerConfig,
@@ -662,11 +673,12 @@ impl Tracker {
     /// [`Tracker::new_shared`]).
     pub fn new_searching_shared(
         ctx: &GpuContext,
-        model: PointModel,
+        model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
         config: TrackerConfig,
     ) -> Result<Self, TrackError> {
+        let model: Arc<PointModel> = model.into();
         // A placeholder pose: the object's centre on the axis, a third of
         // the image across; the store's own viewpoint when there is one.
         let bounds = crate::splat::ModelBounds::of(&model);
@@ -686,6 +698,13 @@ impl Tracker {
         }
         t.searching = true;
         Ok(t)
+    }
+
+    /// The model as the tracker splats it: the one it was given (the
+    /// same `Arc`) where its radii needed no change, else a copy with the
+    /// radii raised to `min_splat_radius_px` and grown to close gaps.
+    pub fn model(&self) -> &Arc<PointModel> {
+        &self.model
     }
 
     /// Whether no pose has been found yet ([`Tracker::new_searching`]).
