@@ -359,6 +359,29 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             buffers >= submissions && buffers <= submissions + 1.0,
             "{buffers} command buffers in {submissions} submissions a frame: {stdout}"
         );
+        // Passes are counted: an untimed frame records its chains of
+        // stages in one pass each (`gpu::PassChain`), the profile's timer
+        // one a stage; the GPU loop's chains have several stages.
+        let line = stdout.lines().find(|l| l.contains("GPU work")).unwrap();
+        let word = |k: usize| -> f64 {
+            line.split_whitespace()
+                .nth(k)
+                .unwrap()
+                .trim_start_matches('(')
+                .parse()
+                .unwrap()
+        };
+        let (untimed, timed) = (word(13), word(15));
+        assert!(
+            untimed >= 1.0 && untimed <= timed,
+            "{untimed} passes, {timed} timed apart: {line}"
+        );
+        if resident == "on" {
+            assert!(
+                untimed * 2.0 < timed,
+                "{untimed} passes, {timed} timed apart: {line}"
+            );
+        }
         // Uploads are counted, and parameters unchanged since the frame
         // before are not uploaded again (`gpu::Uniform`).
         let uploads = field("GPU work", 7);

@@ -689,7 +689,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     let mut enc = c.device.create_command_encoder(&Default::default());
     assert!(
         cold.export_corners(
-            &mut PassChain::new(&mut enc),
+            &mut PassChain::new(&c, &mut enc),
             &pending,
             ExportPlace::default(),
             &small,

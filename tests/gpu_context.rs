@@ -394,7 +394,7 @@ fn a_pass_chain_records_one_pass_untimed_and_one_a_stage_timed() {
     let n = 1 << 14;
     let saxpy = gpu::selftest::Saxpy::new(&c, 1.0, &vec![1.0; n], &vec![0.0; n]).unwrap();
     let mut enc = c.encoder();
-    let mut chain = gpu::PassChain::new(&mut enc);
+    let mut chain = gpu::PassChain::new(&c, &mut enc);
     for label in ["a", "b", "c"] {
         saxpy.dispatch(chain.stage(label, None));
     }
@@ -414,7 +414,7 @@ fn a_pass_chain_records_one_pass_untimed_and_one_a_stage_timed() {
         panic!("{}: no timestamp queries", c.describe());
     }
     let mut enc = c.encoder();
-    let mut chain = gpu::PassChain::new(&mut enc);
+    let mut chain = gpu::PassChain::new(&c, &mut enc);
     for label in ["f", "g", "h"] {
         saxpy.dispatch(chain.stage(label, Some(&mut timer)));
     }

@@ -686,12 +686,14 @@ fn profile_table(
         }
     );
     out += &format!(
-        "  {:<26} {:8.1} submissions, {:.1} command buffers, {:.1} uploads ({:.1} unchanged parameters skipped); indirect dispatches {}\n",
+        "  {:<26} {:8.1} submissions, {:.1} command buffers, {:.1} uploads ({:.1} unchanged parameters skipped), {:.1} passes ({:.1} timed apart); indirect dispatches {}\n",
         "GPU work",
         t.submissions,
         t.command_buffers,
         t.uploads,
         t.uploads_skipped,
+        t.passes_untimed,
+        t.passes,
         if validated {
             "checked by wgpu first (WGPU_VALIDATION_INDIRECT_CALL or DX12)"
         } else {

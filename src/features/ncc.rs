@@ -352,7 +352,7 @@ impl NccMatcher {
         let pos: Vec<[f32; 2]> = a.iter().chain(b).map(sanitize).collect();
         self.write_positions(&pos, na, 0);
         let mut enc = ctx.encoder();
-        self.encode(&mut PassChain::new(&mut enc), na, nb, false);
+        self.encode(&mut PassChain::new(ctx, &mut enc), na, nb, false);
         let best: Vec<Best> = ctx.read_buffer_after(enc, self.best.get(), na + nb)?;
         Ok(mutual(&best[..na], &best[na..], self.config.min_score))
     }
@@ -625,7 +625,7 @@ impl NccMatcher {
         );
         // The export, the gate and the matching's passes: one compute
         // pass where untimed.
-        let mut passes = PassChain::new(&mut enc);
+        let mut passes = PassChain::new(ctx, &mut enc);
         if let Some(export) = export {
             export(&mut passes, self.positions.get())?;
         }

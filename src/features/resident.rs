@@ -199,7 +199,8 @@ impl Kernel {
         };
         let mut enc = ctx.encoder();
         {
-            let mut pass = enc.begin_compute_pass(&Default::default());
+            let mut passes = crate::gpu::PassChain::new(ctx, &mut enc);
+            let pass = passes.stage("frame", None);
             pass.set_pipeline(&self.pipeline);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(

@@ -15,9 +15,7 @@ mod pipeline;
 pub mod selftest;
 mod timer;
 
-pub use pipeline::{
-    GrowBuffer, PassChain, buffer_entry, compute_entry, compute_pass, storage, texture_entry,
-};
+pub use pipeline::{GrowBuffer, PassChain, buffer_entry, compute_entry, storage, texture_entry};
 pub use timer::{GpuTimeline, GpuTimer, TimerReport, Timings};
 
 use std::fmt;
@@ -107,6 +105,10 @@ struct Health {
     buffers_created: std::sync::atomic::AtomicU64,
     /// Bind groups made through [`GpuContext::bind_group`].
     bind_groups_created: std::sync::atomic::AtomicU64,
+    /// Passes begun ([`GpuContext::passes`]): as recorded, and as an
+    /// untimed run records them.
+    passes: std::sync::atomic::AtomicU64,
+    passes_untimed: std::sync::atomic::AtomicU64,
     /// Bytes read back to the host and the readbacks (each a wait for the
     /// GPU) that did it, through [`GpuContext::read_buffer`] and
     /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
@@ -1098,6 +1100,28 @@ impl GpuContext {
         self.health
             .submissions
             .load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    /// Passes recorded so far (all clones of this context together):
+    /// those begun, and those an untimed run would begin (a
+    /// [`PassChain`] records its stages in one pass where untimed, in one
+    /// a stage where timed). Every compute pass of the crate is begun by
+    /// a [`PassChain`]; the render pass splatter counts its render passes
+    /// too.
+    pub fn passes(&self) -> (u64, u64) {
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        (
+            self.health.passes.load(relaxed),
+            self.health.passes_untimed.load(relaxed),
+        )
+    }
+
+    /// Counts `n` passes begun outside a [`PassChain`] (render passes),
+    /// the same timed or not.
+    pub(crate) fn count_passes(&self, n: u64) {
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        self.health.passes.fetch_add(n, relaxed);
+        self.health.passes_untimed.fetch_add(n, relaxed);
     }
 
     /// A mark of the work given back to the context so far (submitted, or

@@ -97,19 +97,6 @@ impl GpuContext {
     }
 }
 
-/// Begins a compute pass named `label`, timed by `timer` when there is one
-/// (and the adapter has timestamps).
-pub fn compute_pass<'e>(
-    enc: &'e mut wgpu::CommandEncoder,
-    label: &str,
-    timer: Option<&mut GpuTimer>,
-) -> wgpu::ComputePass<'e> {
-    enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
-        label: Some(label),
-        timestamp_writes: timer.and_then(|t| t.compute_pass(label)),
-    })
-}
-
 /// The compute passes of a chain of stages recorded into one encoder:
 /// one pass for all of them, or one a stage where stages are timed (a
 /// pass's timestamps are written at its beginning and end). Each pass
@@ -125,14 +112,22 @@ pub struct PassChain<'e> {
     pass: Option<wgpu::ComputePass<'static>>,
     /// Passes begun.
     begun: usize,
+    /// Whether an untimed run would have a pass open here.
+    untimed_open: bool,
+    /// Counted by [`GpuContext::passes`].
+    health: std::sync::Arc<super::Health>,
 }
 
 impl<'e> PassChain<'e> {
-    pub fn new(enc: &'e mut wgpu::CommandEncoder) -> Self {
+    /// A chain recording into `enc`, its passes counted by `ctx`
+    /// ([`GpuContext::passes`]).
+    pub fn new(ctx: &GpuContext, enc: &'e mut wgpu::CommandEncoder) -> Self {
         Self {
             enc,
             pass: None,
             begun: 0,
+            untimed_open: false,
+            health: ctx.health.clone(),
         }
     }
 
@@ -143,6 +138,11 @@ impl<'e> PassChain<'e> {
         label: &str,
         timer: Option<&mut GpuTimer>,
     ) -> &mut wgpu::ComputePass<'static> {
+        let relaxed = std::sync::atomic::Ordering::Relaxed;
+        if !self.untimed_open {
+            self.untimed_open = true;
+            self.health.passes_untimed.fetch_add(1, relaxed);
+        }
         let timestamps = timer.and_then(|t| t.compute_pass(label));
         if timestamps.is_some() || self.pass.is_none() {
             // The open pass ends before the encoder begins the next.
@@ -152,6 +152,7 @@ impl<'e> PassChain<'e> {
                 timestamp_writes: timestamps,
             });
             self.begun += 1;
+            self.health.passes.fetch_add(1, relaxed);
             self.pass = Some(pass.forget_lifetime());
         }
         self.pass.as_mut().expect("just begun")
@@ -161,6 +162,7 @@ impl<'e> PassChain<'e> {
     /// resolves between or after the stages).
     pub fn encoder(&mut self) -> &mut wgpu::CommandEncoder {
         self.pass = None;
+        self.untimed_open = false;
         self.enc
     }
 

@@ -78,7 +78,7 @@ impl Saxpy {
 pub fn saxpy_gpu(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Vec<f32>, GpuError> {
     let k = Saxpy::new(ctx, a, x, y)?;
     let mut enc = ctx.encoder();
-    k.dispatch(&mut enc.begin_compute_pass(&Default::default()));
+    k.dispatch(super::PassChain::new(ctx, &mut enc).stage("saxpy", None));
     ctx.submit(enc);
     ctx.read_buffer(k.y(), x.len())
 }

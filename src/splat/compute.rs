@@ -277,7 +277,7 @@ impl ComputeSplatter {
         // targets need no clear: `finish` writes zeros where no splat
         // reached, as the render pass's clear leaves them. One compute
         // pass, two where timed.
-        let mut passes = PassChain::new(&mut enc);
+        let mut passes = PassChain::new(ctx, &mut enc);
         // Pass 1, the large splats' visibility after the others' (a fixed
         // number of workgroups striding over those listed).
         let pass = passes.stage("visibility", timer.as_deref_mut());

@@ -13,8 +13,8 @@ use super::{
 };
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{
-    BindCache, GpuContext, GpuTimer, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uniform, WORKGROUP_1D,
-    buffer_entry, compute_entry, storage, texture_entry, workgroups,
+    BindCache, GpuContext, GpuTimer, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, Uniform,
+    WORKGROUP_1D, buffer_entry, compute_entry, storage, texture_entry, workgroups,
 };
 
 /// The GPU splatter: pipelines for the three passes and the gather kernel.
@@ -343,6 +343,8 @@ impl Splatter {
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
         let mut enc = ctx.encoder();
+        // Two render passes: the visibility, the attributes.
+        ctx.count_passes(2);
         self.visibility_pass(
             &mut enc,
             (&self.visibility, "splat visibility", &[]),
@@ -428,6 +430,7 @@ impl Splatter {
         }
         let bind = self.render_bind(ctx, model, targets, &uniform);
         let mut enc = ctx.encoder();
+        ctx.count_passes(1);
         let colors = cleared_attachments(targets, Attributes::GEOMETRY);
         self.visibility_pass(
             &mut enc,
@@ -664,7 +667,8 @@ impl Splatter {
         );
         let mut enc = ctx.encoder();
         {
-            let mut pass = enc.begin_compute_pass(&Default::default());
+            let mut passes = PassChain::new(ctx, &mut enc);
+            let pass = passes.stage("resolve", None);
             pass.set_pipeline(&self.resolve);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(
@@ -838,7 +842,8 @@ impl Splatter {
         );
         let mut enc = ctx.encoder();
         {
-            let mut pass = enc.begin_compute_pass(&Default::default());
+            let mut passes = PassChain::new(ctx, &mut enc);
+            let pass = passes.stage("gather", None);
             pass.set_pipeline(&self.gather);
             pass.set_bind_group(0, &bind, &[]);
             pass.dispatch_workgroups(workgroups(count as u32, WORKGROUP_1D), 1, 1);

@@ -150,6 +150,13 @@ pub struct StageTimes {
     /// Parameter uploads skipped as unchanged during the call.
     #[serde(default)]
     pub uploads_skipped: f64,
+    /// Passes recorded during the call ([`GpuContext::passes`]): one a
+    /// stage where `--profile`'s timer times them.
+    #[serde(default)]
+    pub passes: f64,
+    /// The passes an untimed call records (a chain of stages in one).
+    #[serde(default)]
+    pub passes_untimed: f64,
     /// Rounds (searches and solves) of the contour step during the call
     /// (a mean over frames is fractional).
     #[serde(default)]
@@ -227,6 +234,8 @@ impl StageTimes {
         self.submissions += other.submissions * k;
         self.uploads += other.uploads * k;
         self.uploads_skipped += other.uploads_skipped * k;
+        self.passes += other.passes * k;
+        self.passes_untimed += other.passes_untimed * k;
         self.command_buffers += other.command_buffers * k;
         self.contour_rounds += other.contour_rounds * k;
         self.contour_renders += other.contour_renders * k;
@@ -780,6 +789,7 @@ impl Tracker {
             self.ctx.waited(),
             self.ctx.encoding(),
             self.ctx.uploads(),
+            self.ctx.passes(),
         );
         self.resident.begin();
         self.pending_gpu.clear();
@@ -1022,6 +1032,9 @@ impl Tracker {
         let uploads = self.ctx.uploads();
         times.uploads = (uploads.0 - read0.6.0) as f64;
         times.uploads_skipped = (uploads.1 - read0.6.1) as f64;
+        let passes = self.ctx.passes();
+        times.passes = (passes.0 - read0.7.0) as f64;
+        times.passes_untimed = (passes.1 - read0.7.1) as f64;
         times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
         let (finish, submit) = self.ctx.encoding();
         times.gpu_finish = finish.saturating_sub(read0.5.0);

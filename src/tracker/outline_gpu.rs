@@ -283,7 +283,7 @@ impl GpuOutline {
             ),
         ];
         // One compute pass, one a stage where timed.
-        let mut chain = PassChain::new(&mut enc);
+        let mut chain = PassChain::new(ctx, &mut enc);
         for (pipeline, label, (x, y)) in passes {
             let pass = chain.stage(label, self.timer.as_mut());
             pass.set_pipeline(pipeline);

@@ -255,7 +255,7 @@ impl GpuCheck {
             .ok_or_else(|| GpuError::Readback("the check's bind group failed".into()))?;
         let mut enc = ctx.encoder();
         // One compute pass, two where timed.
-        let mut passes = PassChain::new(&mut enc);
+        let mut passes = PassChain::new(ctx, &mut enc);
         let pass = passes.stage("rows", self.timer.as_mut());
         pass.set_bind_group(0, bind, &[]);
         if self.tiled {

@@ -225,6 +225,7 @@ impl Presenter {
                 ],
             })
         })?;
+        ctx.count_passes(1);
         let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
             label: Some("present"),
             color_attachments: &[Some(wgpu::RenderPassColorAttachment {

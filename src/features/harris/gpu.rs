@@ -13,8 +13,7 @@ use crate::features::image::{GreyImage, check_mask};
 use crate::features::resident::ResidentImage;
 use crate::gpu::{
     BindCache, GpuContext, GpuTimer, GrowBuffer, PassChain, PendingRead, STORAGE_IN, STORAGE_OUT,
-    TimerReport, Timings, Uniform, WORKGROUP_1D, WORKGROUP_2D, compute_entry, compute_pass,
-    storage, workgroups,
+    TimerReport, Timings, Uniform, WORKGROUP_1D, WORKGROUP_2D, compute_entry, storage, workgroups,
 };
 
 /// Harris corners on the GPU. Pipelines are built once; buffers grow to the
@@ -717,7 +716,7 @@ impl Harris {
             0,
             Some(std::mem::size_of::<Counters>() as u64),
         );
-        let mut passes = PassChain::new(&mut enc);
+        let mut passes = PassChain::new(ctx, &mut enc);
         if let Input::Rgb(_) = input {
             let pass = passes.stage("grey", self.timer.as_mut());
             pass.set_pipeline(&self.grey);
@@ -1358,7 +1357,8 @@ impl Harris {
         ctx.write_buffer(self.corners.get(), 0, bytemuck::cast_slice(&input));
         let mut enc = ctx.encoder();
         {
-            let mut pass = compute_pass(&mut enc, "refine", self.timer.as_mut());
+            let mut passes = PassChain::new(ctx, &mut enc);
+            let pass = passes.stage("refine", self.timer.as_mut());
             pass.set_pipeline(&self.refine);
             pass.set_bind_group(0, self.bind.as_ref().expect("prepared"), &[]);
             pass.dispatch_workgroups(workgroups(n as u32, WORKGROUP_1D), 1, 1);
@@ -1443,7 +1443,7 @@ mod tests {
             }
             let mut enc = ctx.encoder();
             enc.clear_buffer(self.grad.get(), 0, None);
-            self.encode_select(&mut PassChain::new(&mut enc));
+            self.encode_select(&mut PassChain::new(ctx, &mut enc));
             let counters: Counters = ctx.read_buffer_after(enc, self.counters.get(), 1)?[0];
             // The merge in one workgroup runs its rounds to the end.
             assert!(
