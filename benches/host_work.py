@@ -13,8 +13,10 @@ frame loop's host side"). Record with call graphs first, e.g.
         --feature-backend gpu --resident on --out /tmp/p.csv
     python3 benches/host_work.py perf.data 999 FRAMES
 
-(FRAMES: the frames tracked). Prints ms a frame per category, and the
-GPU API calls behind the submission category. The contour's colour
+(FRAMES: the frames tracked). Prints ms a frame per category, the
+GPU API calls behind the submission category, and wgpu's API calls
+wherever they are made (the frame's intake records and submits GPU work
+too). The contour's colour
 learning runs on a thread of its own while the next frame's texture steps
 run (src/tracker/learner.rs); its time is printed apart, not in the host's
 total. Needs perf; standard library only.
@@ -70,6 +72,9 @@ def main():
     path, hz, frames = sys.argv[1], float(sys.argv[2]), int(sys.argv[3])
     per_frame = 1e3 / hz / frames
     total, api, other = collections.Counter(), collections.Counter(), collections.Counter()
+    # wgpu's API calls wherever they are made (a category above takes a
+    # sample whole: the frame's intake records and submits GPU work too).
+    anywhere = collections.Counter()
     lib = collections.Counter()
     aside = 0
     threads = []
@@ -81,6 +86,9 @@ def main():
         if not any("Tracker::track" in s for s in syms):
             continue
         joined = " | ".join(syms)
+        outer = [s for s in syms if re.match(r"<?wgpu::api", s)]
+        if outer:
+            anywhere[re.sub(r"<.*?>", "", outer[-1])] += 1
         for name, pattern in CATEGORIES:
             if re.search(pattern, joined):
                 total[name] += 1
@@ -106,6 +114,9 @@ def main():
     print("the submission by library (lavapipe's and the kernel's share")
     print("is what a GPU's driver would replace with its own):")
     for name, n in lib.most_common(6):
+        print(f"  {n * per_frame:7.2f}  {name}")
+    print(f"wgpu's API calls, whatever the category: {sum(anywhere.values()) * per_frame:.2f}")
+    for name, n in anywhere.most_common(6):
         print(f"  {n * per_frame:7.2f}  {name}")
     print("other host work, by function:")
     for name, n in other.most_common(6):
