@@ -376,7 +376,8 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
             untimed >= 1.0 && untimed <= timed,
             "{untimed} passes, {timed} timed apart: {line}"
         );
-        if resident == "on" {
+        // (Where the adapter has timestamps: else nothing is timed apart.)
+        if resident == "on" && stdout.contains("GPU passes per frame") {
             assert!(
                 untimed * 2.0 < timed,
                 "{untimed} passes, {timed} timed apart: {line}"
