@@ -617,6 +617,51 @@ fn the_resident_check_gives_the_host_checks_poses() {
 }
 
 #[test]
+fn the_check_on_the_resident_frame_gives_the_host_checks_scores() {
+    // The GPU loop (frames resident): the check resolves the view, cuts
+    // the frame's window on the GPU and scores it in one chain of stages
+    // (`GpuCheck::score_prepared_after`); against the same loop checked
+    // on the host, the same scores to f32 rounding and the same statuses
+    // (fails when the frame's window is not cut: stale values).
+    let f = fixture();
+    let make = |resident_check: bool| {
+        let mut t = Tracker::new(
+            shared_test_context(),
+            f.scene.model.clone(),
+            f.scene.cam,
+            Some(f.store.clone()),
+            TrackerConfig {
+                mode: Mode::KfIt,
+                feature_backend: FeatureBackend::Gpu,
+                resident: Some(true),
+                ..Default::default()
+            },
+            f.frames[0].pose,
+        )
+        .expect("tracker");
+        t.set_resident_check(resident_check);
+        t
+    };
+    let (mut gpu, mut host) = (make(true), make(false));
+    for (i, fr) in f.frames[..6].iter().enumerate() {
+        let (a, b) = (
+            gpu.track(&fr.image).unwrap(),
+            host.track(&fr.image).unwrap(),
+        );
+        assert_eq!(a.status, b.status, "frame {i}");
+        let (sa, sb) = (a.verify.expect("checked"), b.verify.expect("checked"));
+        assert_eq!(sa.covered_px, sb.covered_px, "frame {i}");
+        let d = |x: Option<f64>, y: Option<f64>| (x.unwrap() - y.unwrap()).abs();
+        assert!(d(sa.zncc, sb.zncc) < 1e-4, "frame {i}: {sa:?} vs {sb:?}");
+        assert!(
+            d(sa.edge_support, sb.edge_support) < 0.01,
+            "frame {i}: {sa:?} vs {sb:?}"
+        );
+        assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
+    }
+}
+
+#[test]
 fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
     // NCC on the GPU-resident frame and novel view, the mutual check and
     // the KF refinement on the GPU (the default on GPUs), against host

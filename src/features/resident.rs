@@ -8,7 +8,8 @@ use super::FeatureError;
 use super::gpu_data::{Pixel, pack_with_holes_into};
 use super::image::GreyImage;
 use crate::gpu::{
-    GpuContext, GrowBuffer, STORAGE_IN, Uniform, WORKGROUP_2D, compute_entry, storage, workgroups,
+    GpuContext, GrowBuffer, PassChain, STORAGE_IN, Uniform, WORKGROUP_2D, compute_entry, storage,
+    workgroups,
 };
 use bytemuck::{Pod, Zeroable};
 
@@ -187,6 +188,27 @@ impl Kernel {
         width: u32,
         height: u32,
     ) -> Result<(), FeatureError> {
+        let mut enc = ctx.encoder();
+        self.record(
+            ctx,
+            &mut PassChain::new(ctx, &mut enc),
+            buffers,
+            width,
+            height,
+        )?;
+        ctx.submit(enc);
+        Ok(())
+    }
+
+    /// [`Kernel::run`] recorded as a stage of `passes`.
+    fn record(
+        &mut self,
+        ctx: &GpuContext,
+        passes: &mut PassChain,
+        buffers: &[(u32, &wgpu::Buffer)],
+        width: u32,
+        height: u32,
+    ) -> Result<(), FeatureError> {
         let key: Vec<wgpu::Buffer> = buffers.iter().map(|(_, b)| (*b).clone()).collect();
         let bind = match self.binds.iter().position(|(k, _)| *k == key) {
             Some(i) => self.binds[i].1.clone(),
@@ -197,19 +219,14 @@ impl Kernel {
                 bind
             }
         };
-        let mut enc = ctx.encoder();
-        {
-            let mut passes = crate::gpu::PassChain::new(ctx, &mut enc);
-            let pass = passes.stage("frame", None);
-            pass.set_pipeline(&self.pipeline);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(
-                workgroups(width, WORKGROUP_2D),
-                workgroups(height, WORKGROUP_2D),
-                1,
-            );
-        }
-        ctx.submit(enc);
+        let pass = passes.stage("frame", None);
+        pass.set_pipeline(&self.pipeline);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(
+            workgroups(width, WORKGROUP_2D),
+            workgroups(height, WORKGROUP_2D),
+            1,
+        );
         Ok(())
     }
 }
@@ -344,6 +361,25 @@ impl FrameIntake {
         at: [u32; 4],
         out: &wgpu::Buffer,
     ) -> Result<(), FeatureError> {
+        if at[2] == 0 || at[3] == 0 {
+            return Ok(());
+        }
+        let ctx = &self.ctx.clone();
+        let mut enc = ctx.encoder();
+        self.record_window_values(&mut PassChain::new(ctx, &mut enc), frame, at, out)?;
+        ctx.submit(enc);
+        Ok(())
+    }
+
+    /// [`FrameIntake::window_values`] recorded as a stage of `passes`,
+    /// for the caller to submit with the stages around it.
+    pub fn record_window_values(
+        &mut self,
+        passes: &mut PassChain,
+        frame: ResidentImage,
+        at: [u32; 4],
+        out: &wgpu::Buffer,
+    ) -> Result<(), FeatureError> {
         let [w, h] = [at[2], at[3]].map(|v| v as usize);
         if w == 0 || h == 0 {
             return Ok(());
@@ -357,7 +393,7 @@ impl FrameIntake {
             (5, self.values_params.buffer()),
             (6, out),
         ];
-        self.values.run(ctx, &buffers, at[2], at[3])
+        self.values.record(ctx, passes, &buffers, at[2], at[3])
     }
 }
 

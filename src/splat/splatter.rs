@@ -637,6 +637,30 @@ impl Splatter {
         attribute: Attribute,
         out: &wgpu::Buffer,
     ) -> Result<crate::gpu::Encoder, SplatError> {
+        let mut enc = ctx.encoder();
+        self.record_resolve(
+            ctx,
+            &mut PassChain::new(ctx, &mut enc),
+            targets,
+            attribute,
+            out,
+        )?;
+        Ok(enc)
+    }
+
+    /// [`Splatter::resolve_into`] recorded as a stage of `passes` (its
+    /// parameters queued), for the caller to submit with the stages
+    /// around it: in one compute pass with them where untimed. Resolves
+    /// of different attributes may share a submission (each kind has
+    /// its parameters).
+    pub fn record_resolve(
+        &self,
+        ctx: &GpuContext,
+        passes: &mut PassChain,
+        targets: &SplatTargets,
+        attribute: Attribute,
+        out: &wgpu::Buffer,
+    ) -> Result<(), SplatError> {
         targets.check(attribute.needs(), attribute)?;
         let (w, h) = (targets.width, targets.height);
         let n = w as u64 * h as u64 * attribute.channels() as u64;
@@ -665,19 +689,15 @@ impl Splatter {
             out,
             None,
         );
-        let mut enc = ctx.encoder();
-        {
-            let mut passes = PassChain::new(ctx, &mut enc);
-            let pass = passes.stage("resolve", None);
-            pass.set_pipeline(&self.resolve);
-            pass.set_bind_group(0, &bind, &[]);
-            pass.dispatch_workgroups(
-                workgroups(w, RESOLVE_WORKGROUP),
-                workgroups(h, RESOLVE_WORKGROUP),
-                1,
-            );
-        }
-        Ok(enc)
+        let pass = passes.stage("resolve", None);
+        pass.set_pipeline(&self.resolve);
+        pass.set_bind_group(0, &bind, &[]);
+        pass.dispatch_workgroups(
+            workgroups(w, RESOLVE_WORKGROUP),
+            workgroups(h, RESOLVE_WORKGROUP),
+            1,
+        );
+        Ok(())
     }
 
     /// Normalises one attribute of the last render on the GPU and reads the

@@ -344,6 +344,14 @@ pub enum TrackError {
     Search(String),
 }
 
+/// A device error outside the splatter and the features (the pose
+/// check's scores): reported as the splatter's, as before.
+impl From<crate::gpu::GpuError> for TrackError {
+    fn from(e: crate::gpu::GpuError) -> Self {
+        TrackError::Splat(crate::splat::SplatError::from(e))
+    }
+}
+
 /// An impossible camera.
 #[derive(Debug, thiserror::Error)]
 #[error("impossible camera: {0}")]

@@ -454,29 +454,48 @@ impl super::Tracker {
             // scored there; CHECK_SUMS floats come back.
             let (wb, cb) = self.check.targets(window.width, window.height);
             let (wb, cb) = (wb.clone(), cb.clone());
-            self.splatter
-                .resolve_into(&self.ctx, &self.targets, Attribute::Weight, &wb)?;
-            if textured {
-                self.splatter
-                    .resolve_into(&self.ctx, &self.targets, Attribute::Color, &cb)?;
-            }
-            self.keep_render(*pose);
             // The frame's window: cut from the resident frame on the GPU
             // where there is one (the same values), else uploaded.
             let (w, h) = (window.width, window.height);
             let on_gpu = self.resident.frames().0.is_some();
             let s = if on_gpu {
+                // The view's resolves, the frame's window and the scores:
+                // one compute pass where untimed.
                 let target = self.check.frame_target(w, h);
-                self.resident
-                    .window_values([window.x0, window.y0, w, h], &target)?;
-                self.check
-                    .score_prepared(w, h, textured, visible, step, &self.config.verify)
+                let (ctx, splatter, targets) = (&self.ctx, &self.splatter, &self.targets);
+                let resident = &mut self.resident;
+                let at = [window.x0, window.y0, w, h];
+                self.check.score_prepared_after(
+                    w,
+                    h,
+                    textured,
+                    visible,
+                    step,
+                    &self.config.verify,
+                    |passes| {
+                        splatter.record_resolve(ctx, passes, targets, Attribute::Weight, &wb)?;
+                        if textured {
+                            splatter.record_resolve(ctx, passes, targets, Attribute::Color, &cb)?;
+                        }
+                        resident.record_window_values(passes, at, &target)?;
+                        Ok::<_, super::TrackError>(())
+                    },
+                )?
             } else {
+                self.splatter
+                    .resolve_into(&self.ctx, &self.targets, Attribute::Weight, &wb)?;
+                if textured {
+                    self.splatter
+                        .resolve_into(&self.ctx, &self.targets, Attribute::Color, &cb)?;
+                }
                 let frame = super::view::Placed::full(frame.grey()).crop(&window);
                 self.check
                     .score(&frame, textured, visible, step, &self.config.verify)
-            }
-            .map_err(crate::splat::SplatError::from)?;
+                    .map_err(crate::splat::SplatError::from)?
+            };
+            // The render serves the next frame's IT step (after its
+            // resolves were recorded).
+            self.keep_render(*pose);
             let t = self.check.take_timings();
             self.note_timings("check score", t);
             return Ok(s);

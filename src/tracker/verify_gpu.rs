@@ -231,10 +231,28 @@ impl GpuCheck {
         texture_step: usize,
         cfg: &VerifyConfig,
     ) -> Result<VerifyScores, GpuError> {
+        self.score_prepared_after(w, h, textured, visible, texture_step, cfg, |_| Ok(()))
+    }
+
+    /// [`GpuCheck::score_prepared`] with the stages `before` records
+    /// first (the view's resolves into [`GpuCheck::targets`], the frame's
+    /// window into [`GpuCheck::frame_target`]): all in one compute pass
+    /// where untimed, and one submission with the readback.
+    #[allow(clippy::too_many_arguments)]
+    pub fn score_prepared_after<E: From<GpuError>>(
+        &mut self,
+        w: u32,
+        h: u32,
+        textured: bool,
+        visible: f64,
+        texture_step: usize,
+        cfg: &VerifyConfig,
+        before: impl FnOnce(&mut PassChain) -> Result<(), E>,
+    ) -> Result<VerifyScores, E> {
         if !self.fits(w, h) {
-            return Err(GpuError::Readback(format!(
-                "a {w}x{h} window is beyond the GPU check"
-            )));
+            return Err(
+                GpuError::Readback(format!("a {w}x{h} window is beyond the GPU check")).into(),
+            );
         }
         self.prepare(w, h);
         let ctx = &self.ctx.clone();
@@ -254,8 +272,10 @@ impl GpuCheck {
             .as_ref()
             .ok_or_else(|| GpuError::Readback("the check's bind group failed".into()))?;
         let mut enc = ctx.encoder();
-        // One compute pass, two where timed.
+        // One compute pass with `before`'s stages, one a stage where
+        // timed.
         let mut passes = PassChain::new(ctx, &mut enc);
+        before(&mut passes)?;
         let pass = passes.stage("rows", self.timer.as_mut());
         pass.set_bind_group(0, bind, &[]);
         if self.tiled {

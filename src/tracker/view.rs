@@ -122,15 +122,17 @@ impl Resident {
         intake.pack_window(frame, at, allowed, out)
     }
 
-    /// Writes the window `at` of the frame being tracked into `out`, one
-    /// f32 a pixel ([`FrameIntake::window_values`]).
-    pub(super) fn window_values(
+    /// Records the writing of the window `at` of the frame being tracked
+    /// into `out`, one f32 a pixel, as a stage of `passes`
+    /// ([`FrameIntake::record_window_values`]).
+    pub(super) fn record_window_values(
         &mut self,
+        passes: &mut crate::gpu::PassChain,
         at: [u32; 4],
         out: &wgpu::Buffer,
     ) -> Result<(), FeatureError> {
         let (intake, frame) = self.taken_in()?;
-        intake.window_values(frame, at, out)
+        intake.record_window_values(passes, frame, at, out)
     }
 
     /// The intake and the frame being tracked, which it took in.
