@@ -585,19 +585,11 @@ fn steady_loop_allocates_nothing(resident: bool) {
     );
 }
 
-#[test]
-fn the_resident_check_gives_the_host_checks_poses() {
-    // The pose check scored on the GPU (shaders/verify.wgsl) or on the
-    // host from a readback (the default on CPU adapters): the same
-    // statuses and poses (the scores agree to f32 rounding:
-    // tests/verify_gpu.rs).
+/// Tracks the fixture's first 6 frames with `gpu` and `host` (checked on
+/// the GPU and on the host): the same statuses and covered pixels, the
+/// scores to f32 rounding (tests/verify_gpu.rs), the same poses.
+fn same_checks(mut gpu: Tracker, mut host: Tracker) {
     let f = fixture();
-    let make = |resident: bool| {
-        let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
-        t.set_resident_check(resident);
-        t
-    };
-    let (mut gpu, mut host) = (make(true), make(false));
     for (i, fr) in f.frames[..6].iter().enumerate() {
         let (a, b) = (
             gpu.track(&fr.image).unwrap(),
@@ -614,6 +606,21 @@ fn the_resident_check_gives_the_host_checks_poses() {
         );
         assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
     }
+}
+
+#[test]
+fn the_resident_check_gives_the_host_checks_poses() {
+    // The pose check scored on the GPU (shaders/verify.wgsl) or on the
+    // host from a readback (the default on CPU adapters): the same
+    // statuses and poses (the scores agree to f32 rounding:
+    // tests/verify_gpu.rs).
+    let f = fixture();
+    let make = |resident: bool| {
+        let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
+        t.set_resident_check(resident);
+        t
+    };
+    same_checks(make(true), make(false));
 }
 
 #[test]
@@ -642,23 +649,7 @@ fn the_check_on_the_resident_frame_gives_the_host_checks_scores() {
         t.set_resident_check(resident_check);
         t
     };
-    let (mut gpu, mut host) = (make(true), make(false));
-    for (i, fr) in f.frames[..6].iter().enumerate() {
-        let (a, b) = (
-            gpu.track(&fr.image).unwrap(),
-            host.track(&fr.image).unwrap(),
-        );
-        assert_eq!(a.status, b.status, "frame {i}");
-        let (sa, sb) = (a.verify.expect("checked"), b.verify.expect("checked"));
-        assert_eq!(sa.covered_px, sb.covered_px, "frame {i}");
-        let d = |x: Option<f64>, y: Option<f64>| (x.unwrap() - y.unwrap()).abs();
-        assert!(d(sa.zncc, sb.zncc) < 1e-4, "frame {i}: {sa:?} vs {sb:?}");
-        assert!(
-            d(sa.edge_support, sb.edge_support) < 0.01,
-            "frame {i}: {sa:?} vs {sb:?}"
-        );
-        assert!(a.pose.rotation_error_deg(&b.pose) < 1e-4, "frame {i}");
-    }
+    same_checks(make(true), make(false));
 }
 
 #[test]
