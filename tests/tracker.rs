@@ -627,7 +627,7 @@ fn the_resident_check_gives_the_host_checks_poses() {
 fn the_check_on_the_resident_frame_gives_the_host_checks_scores() {
     // The GPU loop (frames resident): the check resolves the view, cuts
     // the frame's window on the GPU and scores it in one chain of stages
-    // (`GpuCheck::score_prepared_after`); against the same loop checked
+    // (`GpuCheck::score_prepared`); against the same loop checked
     // on the host, the same scores to f32 rounding and the same statuses
     // (fails when the frame's window is not cut: stale values).
     let f = fixture();

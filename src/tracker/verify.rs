@@ -465,7 +465,7 @@ impl super::Tracker {
                 let (ctx, splatter, targets) = (&self.ctx, &self.splatter, &self.targets);
                 let resident = &mut self.resident;
                 let at = [window.x0, window.y0, w, h];
-                self.check.score_prepared_after(
+                self.check.score_prepared(
                     w,
                     h,
                     textured,

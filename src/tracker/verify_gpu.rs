@@ -208,7 +208,9 @@ impl GpuCheck {
         self.prepare(w, h);
         self.ctx
             .write_buffer(self.frame.get(), 0, bytemuck::cast_slice(&frame.data));
-        self.score_prepared(w, h, textured, visible, texture_step, cfg)
+        self.score_prepared(w, h, textured, visible, texture_step, cfg, |_| {
+            Ok::<(), GpuError>(())
+        })
     }
 
     /// The buffer a `width x height` window of the frame's grey levels
@@ -221,25 +223,13 @@ impl GpuCheck {
     }
 
     /// [`GpuCheck::score`] against the frame's window already in
-    /// [`GpuCheck::frame_target`] (`width x height`): no upload.
-    pub fn score_prepared(
-        &mut self,
-        w: u32,
-        h: u32,
-        textured: bool,
-        visible: f64,
-        texture_step: usize,
-        cfg: &VerifyConfig,
-    ) -> Result<VerifyScores, GpuError> {
-        self.score_prepared_after(w, h, textured, visible, texture_step, cfg, |_| Ok(()))
-    }
-
-    /// [`GpuCheck::score_prepared`] with the stages `before` records
-    /// first (the view's resolves into [`GpuCheck::targets`], the frame's
-    /// window into [`GpuCheck::frame_target`]): all in one compute pass
-    /// where untimed, and one submission with the readback.
+    /// [`GpuCheck::frame_target`] (`width x height`, or written there by
+    /// `before`): no upload. The stages `before` records come first (the
+    /// view's resolves into [`GpuCheck::targets`], the frame's window):
+    /// all in one compute pass where untimed, and one submission with the
+    /// readback.
     #[allow(clippy::too_many_arguments)]
-    pub fn score_prepared_after<E: From<GpuError>>(
+    pub fn score_prepared<E: From<GpuError>>(
         &mut self,
         w: u32,
         h: u32,
