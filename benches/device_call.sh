@@ -94,8 +94,8 @@ B=/tmp/dev/bin
 echo "setup $(( $(date +%s) - START )) s; repo $PWD"
 nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,memory.used,temperature.gpu,utilization.gpu --format=csv 2>&1 | head -3
 lscpu | grep -E "Model name|^CPU\(s\)"
-# The SM clock and load through the run (an idle GPU clocks down: stop 34's
-# one-off pass timings after CPU benches were suspect), in results.tgz.
+# The SM clock and load through the run (an idle GPU clocks down: one-off
+# pass timings right after CPU benches are suspect), in results.tgz.
 (nvidia-smi --query-gpu=timestamp,clocks.sm,utilization.gpu,power.draw --format=csv -lms 500 \
     >$R/smi.csv 2>/dev/null &)
 if ! $B/splattrack info > $R/info.txt 2>&1; then
@@ -116,8 +116,8 @@ for k in 1 2 3; do
   # Without --profile (no timestamp queries), then with it.
   item cube_plain$k 40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_plain$k.csv
   summary cube_plain$k
-  # The same with wgpu's validation of indirect dispatches (the default
-  # before stop 37): its cost, alternated.
+  # The same with wgpu's validation of indirect dispatches (wgpu's
+  # default): its cost, alternated.
   item cube_valid$k 40 env WGPU_VALIDATION_INDIRECT_CALL=1 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_valid$k.csv
   summary cube_valid$k
   item cube_tex$k   40 python3 /tmp/rss.py $B/splattrack track --model $C/model.ply --sequence $C --out $R/cube_tex$k.csv --profile

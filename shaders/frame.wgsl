@@ -1,4 +1,4 @@
-// A camera frame's way in (issue 13): its 8-bit RGB bytes, uploaded as the
+// A camera frame's way in: its 8-bit RGB bytes, uploaded as the
 // camera gave them (packed into u32 words, little-endian), become the
 // packed grey pixels NCC reads from the resident frame. The grey is the
 // host's (GreyImage::from_rgb8) bit for bit: each channel's term is read

@@ -1278,7 +1278,7 @@ fn merge_links(
 }
 
 // The same four passes one thread an item, every thread reading every
-// other item from global memory (the selection before stop 34): the
+// other item from global memory (the first selection): the
 // default on CPU adapters, where a workgroup barrier costs more than the
 // loads it saves (lavapipe: the tiled passes took 1.4-1.6x as long in the
 // real cube's GPU loop, GPU timestamps); `Harris::set_tiled_selection`.
@@ -1534,8 +1534,8 @@ fn merge_small(@builtin(local_invocation_index) lid: u32) {
 // The kept corners, in the merge's order, into `corners` and their count
 // into counters.selected (the undecided counted into counters.undecided),
 // by one workgroup: a prefix sum instead of each kept corner counting
-// every earlier slot (n atomic loads a kept corner, one thread each, the
-// compaction before stop 36). Each
+// every earlier slot (n atomic loads a kept corner, one thread each).
+// Each
 // thread takes a run of consecutive slots, counts its kept ones, and
 // writes them after the kept ones of the runs before (an inclusive scan
 // of the counts across the workgroup): the same places, so the same

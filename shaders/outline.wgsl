@@ -1,4 +1,4 @@
-// The contour's silhouette points on the GPU (issue 13: no image readback
+// The contour's silhouette points on the GPU (no image readback
 // in the loop): from the splatted depth of the contour's window (NaN where
 // empty, as the splatter resolves it), the points `extract_contour` in
 // src/tracker/contour.rs finds, its CPU reference. A few integers a point

@@ -1,5 +1,5 @@
-// The pose check's scores on the GPU (issue 12's check, issue 13's
-// resident loop): the splatted view's weight and colour (resolved by the
+// The pose check's scores on the GPU (the check of
+// the resident loop): the splatted view's weight and colour (resolved by the
 // splatter into buffers that never leave the GPU) against the frame's grey
 // levels over the same window, reduced to CHECK_SUMS floats. CPU
 // reference: `verify::score` in src/tracker/verify.rs (the same rules:

@@ -1,4 +1,4 @@
-//! Bad and odd input through the binary (issue 12): every case ends with
+//! Bad and odd input through the binary: every case ends with
 //! one line on stderr naming the file or flag and the problem and a
 //! non-zero exit, within a deadline (no hang, no huge allocation), never a
 //! panic; odd but valid input (16-bit, grey, RGBA and palette frames,

@@ -1,7 +1,9 @@
 //! `splattrack render` end to end: bad inputs exit non-zero with one line;
 //! .npy depth and motion images have FORMATS.md's layout and agree with the
 //! host geometry (analytic sphere depth; `Intrinsics::motion_predictors` at
-//! the rendered depth); real models of ../shared/data.
+//! the rendered depth); the real models (`SPLATTRACK_DATA`).
+
+mod data_common;
 
 use nalgebra::{Vector2, Vector3};
 use splattrack::geometry::{Intrinsics, Pose};
@@ -316,10 +318,6 @@ fn npy_depth_and_motion_match_the_host_geometry() {
     assert!(!out.exists());
 }
 
-/// The sequences of ../shared/data (relative to the crate root).
-fn shared_data() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data")
-}
 
 fn pose_string(p: &Pose) -> String {
     let r = p.rotation;
@@ -337,7 +335,9 @@ fn real_models_render_depth_and_motion_consistent_with_the_host() {
     // extent at the pose, predictors equal to the host's at the rendered
     // depth (0.5%), a plausible number of covered pixels.
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
-        let seq = shared_data().join(name);
+        let Some(seq) = data_common::real_data(name) else {
+            return;
+        };
         let dir = tmpdir(name);
         let cam = Intrinsics::load(&seq.join("camera.json")).unwrap();
         let pose = splattrack::io::read_poses(&seq.join("init.csv")).unwrap()[0].pose;

@@ -4,6 +4,8 @@
 //! exit non-zero with one line on stderr naming the file or flag and the
 //! problem, never a panic.
 
+mod data_common;
+
 use splattrack::geometry::Pose;
 use splattrack::io::{PoseRow, read_poses};
 use std::path::{Path, PathBuf};
@@ -766,7 +768,9 @@ fn ply_vertex_count(path: &Path) -> usize {
 
 #[test]
 fn info_describes_shared_and_synthetic_models() {
-    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    let Some(data) = data_common::real_data("") else {
+        return;
+    };
     let mut seen = 0;
     for entry in std::fs::read_dir(&data).unwrap() {
         let model = entry.unwrap().path().join("model.ply");

@@ -1,4 +1,4 @@
-//! Harris and NCC with the odd invalid pixel (issue 11, deliver 3): a
+//! Harris and NCC with the odd invalid pixel: a
 //! splatted view may leave scattered empty (NaN) pixels on the object.
 //! Harris takes the structure tensor as the weighted mean of the valid
 //! gradients of its window (`HarrisConfig::min_valid_weight`), NCC scores a

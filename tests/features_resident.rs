@@ -1,4 +1,4 @@
-//! NCC on GPU-resident images (issue 13): `NccMatcher::match_resident`,
+//! NCC on GPU-resident images: `NccMatcher::match_resident`,
 //! its mutual check and its sub-pixel refinement on the GPU, against the
 //! host path it replaces (`match_features` on the same rows as host images,
 //! then `refine_match` on the host, the CPU reference) on random images,
@@ -499,7 +499,7 @@ fn a_window_of_the_resident_frame_is_the_host_crop_bit_for_bit() {
 
 #[test]
 fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
-    // The chained KF step (issue 13): Harris on a resolved view leaves its
+    // The chained KF step: Harris on a resolved view leaves its
     // corners on the GPU (`detect_resolved_resident_later`), exports them
     // as NCC's A side and a gather's points (`export_corners`), and one
     // readback brings the corners and the matches. Against the detection
@@ -704,7 +704,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
 
 #[test]
 fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
-    // The chained IT step (issue 13): Harris on a packed window of the
+    // The chained IT step: Harris on a packed window of the
     // resident frame leaves its corners on the GPU (`detect_packed_later`)
     // and exports them as NCC's B side (`export_corners` with an origin, a
     // clip rectangle and a first slot), A's features (the previous

@@ -1,4 +1,4 @@
-//! Automatic initialisation and re-detection (issue 12, Deliver 2): the
+//! Automatic initialisation and re-detection: the
 //! object found anywhere in a frame without a prior pose. Frames rendered
 //! by the synth CPU triangle rasteriser (never the splatter under test).
 //!
@@ -54,8 +54,8 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
     assert_eq!(r.status, Status::Tracking, "{:?}", r.reason);
     assert!(ok, "{rot:.2} deg, {tr:.4}");
     // The search's own KF-like steps are counted as "search", not as the
-    // KF stage's parts (which exceeded the stage before stop 34:
-    // `--profile` printed a negative "solve").
+    // KF stage's parts (else they could exceed the stage and
+    // `--profile` would print a negative "solve").
     let tm = r.times;
     assert!(tm.search > std::time::Duration::ZERO);
     assert!(tm.kf_render + tm.kf_harris + tm.kf_ncc <= tm.kf, "{tm:?}");
@@ -260,7 +260,7 @@ fn every_tenth_frame_of_the_real_sequences_with_the_contour() {
 }
 
 /// A fresh search with `config` on every tenth frame of the real sequence
-/// `name` (../shared/data).
+/// `name` (`SPLATTRACK_DATA`).
 fn every_tenth_real(name: &str, config: TrackerConfig) -> Vec<(bool, f64)> {
     let RealSequence {
         model,

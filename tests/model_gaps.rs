@@ -1,4 +1,4 @@
-//! `PointModel::close_gaps` (issue 11, deliver 3): radii grow only where
+//! `PointModel::close_gaps`: radii grow only where
 //! the discs leave gaps, by what the gap needs. Known answers on grids
 //! (the covering radius of a square grid of spacing s is s / sqrt 2) and a
 //! brute-force coverage count on random samplings, independent of the

@@ -1,5 +1,6 @@
 //! Mesh loading (OBJ, PLY with faces) and sampling into point models.
 
+mod data_common;
 mod model_common;
 
 use glam::Vec3;
@@ -10,13 +11,16 @@ use splattrack::model::{
     load_obj,
 };
 
-const CUBE_OBJ: &str = "../shared/data/visp_rbt_cube/mesh.obj";
-const DRAGON_OBJ: &str = "../shared/data/visp_rbt_dragon/mesh.obj";
+const CUBE_OBJ: &str = "visp_rbt_cube/mesh.obj";
+const DRAGON_OBJ: &str = "visp_rbt_dragon/mesh.obj";
 const HALF: f32 = 0.0425;
 
 #[test]
 fn cube_samples_lie_on_the_faces_with_outward_normals() {
-    let mesh = load_obj(CUBE_OBJ).expect("cube obj");
+    let Some(path) = data_common::real_data(CUBE_OBJ) else {
+        return;
+    };
+    let mesh = load_obj(path).expect("cube obj");
     assert_eq!(mesh.vertices.len(), 8);
     assert_eq!(mesh.triangles.len(), 12, "six quads, fan-triangulated");
     assert!((mesh.area() - 6.0 * 0.085f64 * 0.085).abs() < 1e-6);
@@ -50,7 +54,10 @@ fn cube_samples_lie_on_the_faces_with_outward_normals() {
 
 #[test]
 fn sampled_discs_cover_every_face() {
-    let mesh = load_obj(CUBE_OBJ).expect("cube obj");
+    let Some(path) = data_common::real_data(CUBE_OBJ) else {
+        return;
+    };
+    let mesh = load_obj(path).expect("cube obj");
     for (n, seed) in [(12_000, 5), (40_000, 6)] {
         let m = mesh.sample(n, seed).expect("sample");
         let r = m.radii[0];
@@ -90,7 +97,10 @@ fn sampled_discs_cover_every_face() {
 
 #[test]
 fn sampling_is_reproducible_and_seeded() {
-    let mesh = load_obj(CUBE_OBJ).expect("cube obj");
+    let Some(path) = data_common::real_data(CUBE_OBJ) else {
+        return;
+    };
+    let mesh = load_obj(path).expect("cube obj");
     let a = mesh.sample(1000, 42).expect("a");
     let b = mesh.sample(1000, 42).expect("b");
     let c = mesh.sample(1000, 43).expect("c");
@@ -100,14 +110,20 @@ fn sampling_is_reproducible_and_seeded() {
 
 #[test]
 fn dragon_samples_agree_with_the_shared_point_model() {
-    let mesh = load_obj(DRAGON_OBJ).expect("dragon obj");
+    let Some(path) = data_common::real_data(DRAGON_OBJ) else {
+        return;
+    };
+    let mesh = load_obj(path).expect("dragon obj");
     assert!(mesh.triangles.len() > 10_000);
     let m = mesh.sample(20_000, 3).expect("sample");
     m.validate().expect("valid");
     // The shared model was sampled from the same mesh: every sample has a
     // model point nearby, whose normal points the same way.
+    let Some(ply) = data_common::real_data("visp_rbt_dragon/model.ply") else {
+        return;
+    };
     let model = PointModel::load_with(
-        "../shared/data/visp_rbt_dragon/model.ply",
+        ply,
         &LoadOptions {
             progress: None,
             ..Default::default()

@@ -2,6 +2,7 @@
 //! format spec of FORMATS.md allows, the shared data sets, and the writer
 //! checked against an independent parser (ply-rs-bw).
 
+mod data_common;
 mod model_common;
 
 use glam::Vec3;
@@ -204,7 +205,9 @@ fn shared_models_load() {
         ("visp_rbt_cube", Some(0.0425f32)),
         ("visp_rbt_dragon", None),
     ] {
-        let path = format!("../shared/data/{name}/model.ply");
+        let Some(path) = data_common::real_data(&format!("{name}/model.ply")) else {
+            return;
+        };
         let m = PointModel::load_with(&path, &quiet()).expect("shared model loads");
         assert_eq!(m.len(), 100_000, "{name}");
         m.validate().expect("valid");
@@ -235,7 +238,10 @@ fn shared_models_load() {
 
 #[test]
 fn save_ply_round_trips_and_ply_rs_agrees() {
-    let m = PointModel::load_with("../shared/data/visp_rbt_cube/model.ply", &quiet())
+    let Some(path) = data_common::real_data("visp_rbt_cube/model.ply") else {
+        return;
+    };
+    let m = PointModel::load_with(path, &quiet())
         .expect("load shared cube");
     let out = TempFile::new("save", "ply");
     m.save_ply(out.path()).expect("save");
@@ -305,10 +311,16 @@ fn save_without_colours_and_refuse_invalid_models() {
 
 #[test]
 fn load_auto_dispatches_on_type_and_faces() {
-    let cube = PointModel::load_auto("../shared/data/visp_rbt_cube/model.ply", 0).expect("ply");
+    let (Some(ply), Some(mesh)) = (
+        data_common::real_data("visp_rbt_cube/model.ply"),
+        data_common::real_data("visp_rbt_cube/mesh.obj"),
+    ) else {
+        return;
+    };
+    let cube = PointModel::load_auto(ply, 0).expect("ply");
     assert_eq!(cube.len(), 100_000);
     assert_eq!(cube.provenance.normals, AttributeSource::Loaded);
-    let obj = PointModel::load_auto("../shared/data/visp_rbt_cube/mesh.obj", 5_000).expect("obj");
+    let obj = PointModel::load_auto(mesh, 5_000).expect("obj");
     assert_eq!(obj.len(), 5_000);
     assert_eq!(obj.provenance.normals, AttributeSource::FromMesh);
 

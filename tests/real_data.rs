@@ -1,10 +1,9 @@
 //! The tracker on real data: the first frames of the ViSP picture-cube
-//! sequence in `../shared/data/visp_rbt_cube` (see its README.txt), KF+IT
+//! sequence (`visp_rbt_cube` in the folder `SPLATTRACK_DATA` names), KF+IT
 //! with the default settings, against the refined ground truth.
 //!
-//! The data stays outside the repository. Without it this test fails with a
-//! message that says where it looked; set `SPLATTRACK_SKIP_REAL_DATA=1` to
-//! skip it instead.
+//! The data stays outside the repository. Without `SPLATTRACK_DATA` these
+//! tests say in one line that they did not run.
 
 mod tracking_common;
 

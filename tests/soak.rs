@@ -1,4 +1,4 @@
-//! Soak (issue 12): 10,000 frames through one tracker (KF+IT), host and
+//! Soak: 10,000 frames through one tracker (KF+IT), host and
 //! GPU memory sampled every tenth of the run; both must stay flat. Ignored in
 //! CI (minutes); run it with
 //!

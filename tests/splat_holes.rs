@@ -1,4 +1,4 @@
-//! Holes in splatted views (issue 11, deliver 3): pixels inside the object
+//! Holes in splatted views: pixels inside the object
 //! that no splat covers. The object's extent comes from synth's CPU triangle
 //! rasteriser of the mesh the points were sampled from (never from the
 //! splatter under test): a pixel is *interior* when the mesh covers its whole
@@ -17,6 +17,7 @@
 //!   floor, and closed (`cargo test --release --test splat_holes --
 //!   --ignored --nocapture`).
 
+mod data_common;
 mod tracking_common;
 
 use glam::DVec3;
@@ -159,9 +160,11 @@ fn stratified_samplings_with_default_radii_come_out_nearly_unchanged() {
 
 /// The shared real models at their ground-truth poses (frames 0, 43, 98).
 #[test]
-#[ignore = "reads ../shared/data; prints the figures of the README"]
+#[ignore = "reads the real data (SPLATTRACK_DATA); prints the figures of the docs"]
 fn shared_models_at_ground_truth() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+    let Some(root) = data_common::real_data("") else {
+        return;
+    };
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
         let dir = root.join(name);
         let cam = Intrinsics::load(&dir.join("camera.json")).unwrap();

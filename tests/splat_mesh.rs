@@ -1,5 +1,5 @@
 //! Splatted point models against an independent triangle rasterisation of
-//! the mesh they were sampled from (issue 4's "done when"): area-weighted
+//! the mesh they were sampled from: area-weighted
 //! samples of a sphere, a box and a torus (self-occluding), several poses
 //! each, against the z-buffer of synth's CPU rasteriser (the one that
 //! renders the synthetic sequences' ground truth, at exact OpenCV pixel

@@ -1,7 +1,7 @@
 //! A render into a window of the image (the camera shifted by the
 //! window's origin, `splat::Window::camera`) against the full render and
 //! against the CPU reference: the tracker renders only the object's
-//! window (issue 13) and must see what the full render shows.
+//! window and must see what the full render shows.
 //!
 //! Tolerances: the window camera computes `u - (cx - x0)` where the full
 //! one computes `(u + x0) - cx`, which differ by f32 rounding; as in

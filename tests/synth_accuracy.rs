@@ -3,7 +3,7 @@
 //! rendered by the CPU triangle rasteriser, never the splatter) tracked in
 //! the three modes.
 //!
-//! Asserted (issue 7): KF+IT tracks every frame with mean rotation error
+//! Asserted: KF+IT tracks every frame with mean rotation error
 //! below 1 degree and mean translation error below 1% of the diameter, and
 //! beats both IT alone and KF alone on mean error; IT alone drifts (its error
 //! grows along the sequence).

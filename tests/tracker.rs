@@ -285,9 +285,9 @@ fn kf_mode_needs_keyframes_or_model_colours() {
     assert_eq!(t.keyframes().map(|s| s.keyframes.len()), Some(1));
 }
 
-/// Issue 13 (host memory): a store given by `Arc` is the tracker's own,
+/// Host memory: a store given by `Arc` is the tracker's own,
 /// not a copy (a 1M-point model's 12 keyframes hold 156 MB of colours and
-/// visibility; `splattrack track` held two until stop 34), and the frames
+/// visibility; two would double it), and the frames
 /// track as with a store moved in.
 #[test]
 fn a_shared_store_is_used_in_place_and_tracks_the_same() {
@@ -326,7 +326,7 @@ fn a_shared_store_is_used_in_place_and_tracks_the_same() {
     assert!(std::ptr::eq(s.keyframes().unwrap(), &*shared));
 }
 
-/// Issue 13: the tracker confined to the object's window (renders, reads,
+/// The tracker confined to the object's window (renders, reads,
 /// Harris, NCC, contour) against the same tracker over the whole image, on
 /// the first 8 frames in KF+IT (4 with texture and contour). The windows
 /// give the full image's pixels up to f32 rounding
@@ -533,7 +533,7 @@ fn the_steady_loop_allocates_no_gpu_buffers_with_everything_resident() {
 }
 
 fn steady_loop_allocates_nothing(resident: bool) {
-    // Issue 13: read/gather outputs, staging buffers, Harris and NCC
+    // Read/gather outputs, staging buffers, Harris and NCC
     // buffers and render targets (one set per window size) are kept and
     // reused across frames, and the bind groups made on them too.
     // Resident: a GPU's defaults (corners and matches in the shaders
@@ -741,7 +741,7 @@ fn features_on_the_host_give_the_shaders_poses() {
 
 #[test]
 fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
-    // Issue 13: the KF step's detection on the novel view, its matching
+    // The KF step's detection on the novel view, its matching
     // and the gather at its corners chained on the GPU (the corners go
     // from Harris to NCC and the gather there; one wait) against the
     // detection read back first, then the matching and the gather (two):
@@ -856,7 +856,7 @@ fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
 #[test]
 fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
     // IT's matching chained behind the frame's Harris on the GPU
-    // (`set_chained_it`, issue 13): the same poses, inliers and residuals
+    // (`set_chained_it`): the same poses, inliers and residuals
     // bit for bit as detecting, then matching, and one readback fewer on
     // every frame IT runs (from the second on), with the contour or
     // without. Features in the shaders, as on a GPU. A context of its

@@ -1,4 +1,4 @@
-//! Issue 11, deliver 3: a model whose radii leave gaps between splats tracks
+//! A model whose radii leave gaps between splats tracks
 //! as well as the same points with hole-free radii.
 //!
 //! The synthetic `box` (printed faces), rendered by synth's CPU triangle

@@ -1,4 +1,4 @@
-//! Verified poses (issue 12, Deliver 1): plausible-but-wrong input must
+//! Verified poses: plausible-but-wrong input must
 //! never give a `tracking` frame more than 10 degrees from the truth. The
 //! frames are rendered by the synth CPU triangle rasteriser (never by the
 //! splatter under test), 320x240; the real ViSP cube for the wrong initial

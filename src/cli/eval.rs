@@ -27,7 +27,7 @@ pub struct Args {
     /// Model units per metre, for the 5 cm threshold (1 for metres, 1000 for mm).
     #[arg(long, default_value_t = 1.0)]
     pub units_per_metre: f64,
-    /// A CSV with `frame` and `gt_ok` columns (as in ../shared/data):
+    /// A CSV with `frame` and `gt_ok` columns (as the real data sets have):
     /// frames with gt_ok = 0 are left out of the statistics.
     #[arg(long)]
     pub gt_quality: Option<PathBuf>,

@@ -211,7 +211,7 @@ pub struct Tuning {
     /// render) when they moved little (for comparison).
     #[arg(long)]
     pub contour_no_seed: bool,
-    /// The frame loop as it was before issue 13, for comparison: render,
+    /// The frame loop before windows and reuse, for comparison: render,
     /// detect and match over the whole image every time instead of the
     /// object's projected region, and render the IT step's view anew
     /// instead of taking the previous check's (the same poses up to f32
@@ -389,7 +389,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let ctx = super::gpu(adapter)?;
     // Before anything is loaded or written: no display, no run.
     let mut window = match args.view {
-        true => Some(splattrack::view::WindowSink::open(
+        true => Some(WindowSink::open(
             &ctx,
             &format!("splattrack track {}", input.describe()),
         )?),
@@ -813,6 +813,44 @@ mod tests {
         ];
         for t in bad {
             assert!(t.apply(TrackerConfig::default()).is_err(), "{t:?}");
+        }
+    }
+}
+
+#[cfg(feature = "view")]
+use splattrack::view::WindowSink;
+#[cfg(not(feature = "view"))]
+use no_view::WindowSink;
+
+/// Stands in for the live view in a build without it (the `view` feature
+/// off): `--view` is refused before anything runs.
+#[cfg(not(feature = "view"))]
+mod no_view {
+    use splattrack::GpuContext;
+    use splattrack::view::{Flow, FrameSink, ViewError, ViewFrame};
+
+    /// What the live view did; never anything here.
+    pub struct Stats {
+        pub shown: usize,
+        pub skipped: usize,
+        pub busy: std::time::Duration,
+    }
+
+    /// Never made: [`WindowSink::open`] always fails.
+    pub enum WindowSink {}
+
+    impl WindowSink {
+        pub fn open(_: &GpuContext, _: &str) -> anyhow::Result<Self> {
+            anyhow::bail!("--view: this splattrack was built without the live view (cargo feature `view`)")
+        }
+        pub fn stats(&self) -> Stats {
+            match *self {}
+        }
+    }
+
+    impl FrameSink for WindowSink {
+        fn frame(&mut self, _: &ViewFrame<'_>) -> Result<Flow, ViewError> {
+            match *self {}
         }
     }
 }

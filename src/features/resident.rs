@@ -1,4 +1,4 @@
-//! Images that stay on the GPU between the stages of a frame (issue 13):
+//! Images that stay on the GPU between the stages of a frame:
 //! a frame's grey levels uploaded once and read by every NCC matching of
 //! the frame (IT, KF) and by the next frame's IT, and a novel view packed
 //! by Harris on the GPU ([`super::Harris::resident_view`]), matched
@@ -127,7 +127,7 @@ crate::wgsl_struct! {
     }
 }
 
-/// A camera frame's way in (issue 13): its 8-bit RGB bytes uploaded as
+/// A camera frame's way in: its 8-bit RGB bytes uploaded as
 /// they are (3 bytes a pixel, against 8 for packed grey) and turned into
 /// a [`GpuGrey`] on the GPU (`shaders/frame.wgsl`), so that the host
 /// neither converts nor packs the frame for the resident matching. The

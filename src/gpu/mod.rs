@@ -100,7 +100,7 @@ struct Health {
     first_error: std::sync::Mutex<Option<GpuError>>,
     lost: std::sync::Mutex<Option<String>>,
     /// Buffers made through [`GpuContext::buffer`] and
-    /// [`GpuContext::buffer_init`] (issue 13: the steady frame loop makes
+    /// [`GpuContext::buffer_init`] (the steady frame loop makes
     /// none).
     buffers_created: std::sync::atomic::AtomicU64,
     /// Bind groups made through [`GpuContext::bind_group`].
@@ -111,7 +111,7 @@ struct Health {
     passes_untimed: std::sync::atomic::AtomicU64,
     /// Bytes read back to the host and the readbacks (each a wait for the
     /// GPU) that did it, through [`GpuContext::read_buffer`] and
-    /// [`GpuContext::read_texture`] (issue 13: a few floats per feature).
+    /// [`GpuContext::read_texture`] (a few floats per feature).
     bytes_read: std::sync::atomic::AtomicU64,
     readbacks: std::sync::atomic::AtomicU64,
     /// Nanoseconds the host spent blocked in those waits (the GPU's work
@@ -1155,7 +1155,7 @@ impl GpuContext {
     /// passes then cost the host one command buffer, not one each (each
     /// is validated, tracked and, once done, freed: 0.3-0.5 ms of the
     /// host's a frame on lavapipe for the resident loop's 20 or so,
-    /// BENCHMARKS.md, stop 30).
+    /// docs/performance.md).
     ///
     /// One encoder is lent at a time: submit (or drop) it before asking
     /// for another on the same thread, and before the batch's guard is

@@ -281,7 +281,9 @@ mod tests {
 
     #[test]
     fn shared_sequences_open() {
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data");
+        let Some(root) = crate::io::test_data("") else {
+            return;
+        };
         for name in ["visp_rbt_cube", "visp_rbt_dragon"] {
             let s = Sequence::open(&root.join(name)).unwrap();
             assert_eq!(s.frames.len(), 99, "{name}");

@@ -552,7 +552,7 @@ impl Splatter {
     /// with its uniform set to `params` (written now). Each kind of
     /// resolve, and the gather, has a uniform of its own: a batch of
     /// submissions ([`GpuContext::batch`]) may hold one of each. Kept per
-    /// (targets, out, points) and reused (issue 13: no allocation per
+    /// (targets, out, points) and reused (no allocation per
     /// frame).
     fn resolve_bind(
         &self,

@@ -1,6 +1,6 @@
 //! Windows of the image: where the object projects, so that the tracker
 //! splats, reads, detects and matches there instead of over the whole
-//! image (issue 13, "only what is needed, only where it is needed").
+//! image ("only what is needed, only where it is needed").
 //!
 //! How it works: a [`Window`] is a pixel rectangle inside the image. A
 //! render into it uses the camera shifted by the window's origin

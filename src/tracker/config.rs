@@ -13,22 +13,22 @@ use std::fmt;
     PartialEq,
     Eq,
     Default,
-    clap::ValueEnum,
     serde::Serialize,
     serde::Deserialize,
 )]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Mode {
     /// Frame to frame only: smooth, but drifts.
-    #[value(name = "it")]
+    #[cfg_attr(feature = "cli", value(name = "it"))]
     #[serde(rename = "it")]
     It,
     /// Against keyframe-textured novel views only: no drift, but jitter.
-    #[value(name = "kf")]
+    #[cfg_attr(feature = "cli", value(name = "kf"))]
     #[serde(rename = "kf")]
     Kf,
     /// IT, then KF from the IT estimate (the paper's hybrid).
     #[default]
-    #[value(name = "kf+it", aliases = ["kfit", "it+kf", "hybrid"])]
+    #[cfg_attr(feature = "cli", value(name = "kf+it", aliases = ["kfit", "it+kf", "hybrid"]))]
     #[serde(rename = "kf+it", alias = "kfit", alias = "it+kf", alias = "hybrid")]
     KfIt,
 }
@@ -227,7 +227,7 @@ pub struct TrackerConfig {
     pub contour: super::contour::ContourConfig,
     /// Confine renders, reads, corner detection and NCC matching to the
     /// object's projected region, and let the check's render serve the
-    /// next frame's IT step (issue 13; the same results up to f32
+    /// next frame's IT step (the same results up to f32
     /// rounding, tests/tracker.rs). Off: the loop as it was before, the
     /// whole image every time and every render made anew (for comparison).
     pub windows: bool,
@@ -239,7 +239,7 @@ pub struct TrackerConfig {
     /// adapter, else the GPU).
     #[serde(default)]
     pub feature_backend: crate::features::FeatureBackend,
-    /// Keep the frame loop's images on the GPU (issue 13): each frame's
+    /// Keep the frame loop's images on the GPU: each frame's
     /// bytes uploaded once and converted there
     /// ([`crate::features::FrameIntake`]), NCC, the mutual check and the KF step's
     /// sub-pixel refinement on the frame and the novel view where they
@@ -445,6 +445,7 @@ mod tests {
     }
 
     #[test]
+    #[cfg(feature = "cli")]
     fn mode_names_parse_display_and_serialise_alike() {
         use clap::ValueEnum;
         for m in Mode::ALL {

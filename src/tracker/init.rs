@@ -1,4 +1,4 @@
-//! Automatic initialisation and re-detection (issue 12, Deliver 2): find
+//! Automatic initialisation and re-detection: find
 //! the object anywhere in a frame without a prior pose.
 //!
 //! 1. Viewpoints: the keyframes' own poses, each also tilted four ways by

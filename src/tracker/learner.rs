@@ -1,4 +1,4 @@
-//! The contour's colour learning off the tracking thread (issue 13).
+//! The contour's colour learning off the tracking thread.
 //!
 //! After a tracked frame the contour learns the frame's colours at its
 //! pose ([`ColourModel::learn_around`]: about 2.5 ms a frame on the real

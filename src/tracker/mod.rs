@@ -491,12 +491,12 @@ pub struct Tracker {
     /// The frame's timed passes by label prefix, their timestamps still
     /// to come with the frame's readbacks (read at its end).
     pending_gpu: Vec<(String, crate::gpu::Timings)>,
-    /// The check's scoring on the GPU (issue 13).
+    /// The check's scoring on the GPU.
     check: verify_gpu::GpuCheck,
-    /// The contour's outline found on the GPU (issue 13).
+    /// The contour's outline found on the GPU.
     outline: outline_gpu::GpuOutline,
     /// The grey levels of the frame being tracked and of the previous one,
-    /// on the GPU for NCC and the refinement (issue 13; [`view::Resident`]).
+    /// on the GPU for NCC and the refinement ([`view::Resident`]).
     resident: view::Resident,
 }
 

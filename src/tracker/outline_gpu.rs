@@ -1,4 +1,4 @@
-//! The contour's silhouette points on the GPU (issue 13: no image readback
+//! The contour's silhouette points on the GPU (no image readback
 //! in the loop). The splatter resolves the contour render's depth into a
 //! buffer held here ([`GpuOutline::depth_target`]); `shaders/outline.wgsl`
 //! finds the points of [`super::contour::extract_contour`] (its CPU

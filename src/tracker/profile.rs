@@ -1,4 +1,4 @@
-//! GPU time per pass for `track --profile` (issue 13, Deliver 3): with
+//! GPU time per pass for `track --profile`: with
 //! timing on, every splat pass, Harris pass and NCC pass of a frame is
 //! timed by GPU timestamp queries and reported by stage in
 //! [`super::StageTimes::gpu`]. Off by default. The timestamps of a

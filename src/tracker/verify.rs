@@ -1,4 +1,4 @@
-//! Verification of a pose against the image (issue 12): before a frame is
+//! Verification of a pose against the image: before a frame is
 //! reported `tracking`, the model is splatted at the pose and compared
 //! with the frame. A pose passes when
 //!

@@ -1,4 +1,4 @@
-//! The pose check's scores on the GPU (issue 13: no image readback in the
+//! The pose check's scores on the GPU (no image readback in the
 //! loop). The splatter resolves the check's render (weight and colour)
 //! into buffers held here ([`GpuCheck::targets`]); `shaders/verify.wgsl`
 //! scores them against the frame's grey levels over the window and

@@ -1,4 +1,4 @@
-//! Where the steps work (issue 13): renders, reads, corners and NCC
+//! Where the steps work: renders, reads, corners and NCC
 //! windows are confined to the object's projected region instead of the
 //! whole image, with the results the full image gives.
 //!
@@ -48,7 +48,7 @@ impl Kept {
     }
 }
 
-/// The frames' grey levels on the GPU (issue 13): the frame being
+/// The frames' grey levels on the GPU: the frame being
 /// tracked, uploaded once when its step starts and read by its IT and KF
 /// matchings, and the previous frame's, kept for the next IT step. Used
 /// only while `on` ([`Tracker::set_resident_matching`]; on by default on

@@ -20,12 +20,14 @@
 //! [`compose`] and fake sinks directly, without a display.
 
 pub mod present;
+#[cfg(feature = "view")]
 pub mod window;
 
 use crate::draw::{self, Colour};
 use crate::tracker::{Mode, Status, TrackResult};
 use image::{RgbImage, RgbaImage};
 
+#[cfg(feature = "view")]
 pub use window::WindowSink;
 
 /// Why the live view failed.

@@ -131,24 +131,15 @@ impl Fig10 {
     }
 }
 
-/// The real sequence `name` under `../shared/data` (shared/data/README.txt);
-/// `None` (said on stderr) only when it is absent and
-/// `SPLATTRACK_SKIP_REAL_DATA` is set, else absent data fails the test.
+#[path = "../data_common/mod.rs"]
+mod data_common;
+
+/// The real sequence `name` in the folder `SPLATTRACK_DATA` names; `None`
+/// (said on the terminal) when that is unset.
 pub fn real_data_dir(name: &str) -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/data")
-        .join(name);
-    if dir.join("poses.csv").is_file() {
-        return Some(dir);
-    }
-    if std::env::var_os("SPLATTRACK_SKIP_REAL_DATA").is_some() {
-        eprintln!("skipped: no real data at {}", dir.display());
-        return None;
-    }
-    panic!(
-        "real data not found at {} (see shared/data/README.txt; set SPLATTRACK_SKIP_REAL_DATA=1 to skip)",
-        dir.display()
-    );
+    let dir = data_common::real_data(name)?;
+    assert!(dir.join("poses.csv").is_file(), "{}: no poses.csv", dir.display());
+    Some(dir)
 }
 
 /// A real sequence loaded for tracking: model, frames and camera, the
