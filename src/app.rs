@@ -372,7 +372,7 @@ pub struct RunStats {
     pub stopped: bool,
     /// GPU memory of the tracker's splatting at the end of the run
     /// ([`crate::tracker::Tracker::gpu_memory`]).
-    pub gpu_memory: Option<crate::tracker::GpuMemory>,
+    pub gpu_memory: Option<crate::tracker::GpuMemoryUse>,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.

@@ -1,21 +1,13 @@
 //! Tracker settings: which tracker runs ([`Mode`]) and everything it is
 //! tuned by ([`TrackerConfig`]), checked by [`TrackerConfig::validate`].
 
-use crate::features::{FeatureError, HarrisConfig, NccConfig};
+use super::error::ConfigError;
+use crate::features::{HarrisConfig, NccConfig};
 use crate::pose::IrlsConfig;
 use std::fmt;
 
 /// Which of the paper's trackers runs.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Mode {
     /// Frame to frame only: smooth, but drifts.
@@ -301,25 +293,6 @@ impl Default for TrackerConfig {
             resident: None,
         }
     }
-}
-
-/// A tracker setting out of its range.
-#[derive(Debug, thiserror::Error)]
-pub enum ConfigError {
-    /// The field (named as in [`TrackerConfig`], e.g. `it_search_px` or
-    /// `harris.relative_threshold`) breaks its rule.
-    #[error("{field} = {value}: must be {rule}")]
-    OutOfRange {
-        /// The field's path in [`TrackerConfig`].
-        field: &'static str,
-        /// Its value, as its type prints it.
-        value: String,
-        /// What it must be, e.g. `>= 0`.
-        rule: &'static str,
-    },
-    /// The Harris or NCC settings are impossible.
-    #[error(transparent)]
-    Features(#[from] FeatureError),
 }
 
 impl TrackerConfig {

@@ -13,86 +13,10 @@
 //! 4. The first frame in IT or KF+IT mode, with nothing to track against
 //!    yet, is tracking at the initial pose.
 
+use super::config::{Mode, TrackerConfig};
+use super::result::{LostReason, Stage, Status, StepError};
 use super::verify::Unverified;
-use super::{Mode, TrackerConfig};
 use crate::geometry::Pose;
-use crate::pose::SolveError;
-use std::fmt;
-
-/// Whether the track holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Status {
-    /// The frame's pose passed the inlier and residual checks.
-    Tracking,
-    /// It did not: the reported pose is the last good one.
-    Lost,
-}
-
-impl Status {
-    /// `tracking` or `lost`, as in the tracker output's `status` column.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Status::Tracking => "tracking",
-            Status::Lost => "lost",
-        }
-    }
-}
-
-impl fmt::Display for Status {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-/// The steps of a frame that estimate a pose.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Stage {
-    /// The frame-to-frame step.
-    It,
-    /// The step against the keyframes' novel view.
-    Kf,
-    /// The contour step (fused with the texture inliers).
-    Contour,
-}
-
-impl fmt::Display for Stage {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Stage::It => "IT",
-            Stage::Kf => "KF",
-            Stage::Contour => "contour",
-        })
-    }
-}
-
-/// Why a step gave no estimate.
-#[derive(Debug, Clone, PartialEq, thiserror::Error, serde::Serialize, serde::Deserialize)]
-pub enum StepError {
-    /// The robust solve refused the matches.
-    #[error(transparent)]
-    Solve(#[from] SolveError),
-    /// Splatting, feature detection or matching failed on the GPU (the
-    /// error's message: GPU errors are neither `Clone` nor serialisable).
-    #[error("{0}")]
-    Gpu(String),
-    /// The KF step ran without keyframes.
-    #[error("no keyframes")]
-    NoKeyframes,
-}
-
-impl From<crate::splat::SplatError> for StepError {
-    fn from(e: crate::splat::SplatError) -> Self {
-        StepError::Gpu(e.to_string())
-    }
-}
-
-impl From<crate::features::FeatureError> for StepError {
-    fn from(e: crate::features::FeatureError) -> Self {
-        StepError::Gpu(e.to_string())
-    }
-}
 
 /// What a step that ran to the end estimates.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -130,75 +54,6 @@ impl StepOutcome {
                 estimate: None,
                 error: Some(e),
             },
-        }
-    }
-}
-
-/// Why a frame is lost. Its `Display` is the text the tracker has always
-/// printed, e.g. `KF: 5 inliers, residual 0.80 px (need >= 8 and <= 3.0 px)`.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub enum LostReason {
-    /// A step failed.
-    Failed {
-        /// Which step.
-        stage: Stage,
-        /// Why.
-        error: StepError,
-    },
-    /// A step's estimate has too few inliers or too large a residual.
-    Untrusted {
-        /// Which step.
-        stage: Stage,
-        /// Its inliers.
-        inliers: usize,
-        /// Their RMS residual, pixels.
-        residual_px: f64,
-        /// The least trusted inlier count.
-        min_inliers: usize,
-        /// The largest trusted residual, pixels.
-        max_residual_px: f64,
-    },
-    /// KF+IT: IT's estimate is sound, but IT alone has stood in for the
-    /// keyframes for as many frames as allowed.
-    ItOnlyTooLong {
-        /// Why the KF step was not used.
-        kf: Option<Box<LostReason>>,
-        /// [`TrackerConfig::max_it_only_frames`].
-        frames: usize,
-    },
-    /// No step ran.
-    NothingToTrackAgainst,
-    /// The pose the steps gave (or the initial pose) fails the check of
-    /// the model against the image ([`super::verify`]).
-    Unverified(Unverified),
-    /// Automatic initialisation or re-detection found no candidate pose
-    /// that passes the check.
-    NotFound,
-}
-
-impl fmt::Display for LostReason {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LostReason::Failed { stage, error } => write!(f, "{stage}: {error}"),
-            LostReason::Untrusted {
-                stage,
-                inliers,
-                residual_px,
-                min_inliers,
-                max_residual_px,
-            } => write!(
-                f,
-                "{stage}: {inliers} inliers, residual {residual_px:.2} px (need >= {min_inliers} and <= {max_residual_px:.1} px)"
-            ),
-            LostReason::ItOnlyTooLong { kf, frames } => {
-                if let Some(kf) = kf {
-                    write!(f, "{kf}")?;
-                }
-                write!(f, "; IT alone has stood in for {frames} frames and drifts")
-            }
-            LostReason::NothingToTrackAgainst => f.write_str("nothing to track against"),
-            LostReason::Unverified(why) => write!(f, "verification: {why}"),
-            LostReason::NotFound => f.write_str("object not found in the image"),
         }
     }
 }
@@ -369,6 +224,7 @@ pub fn verified(d: Decision, check: Result<(), Unverified>) -> Decision {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::pose::SolveError;
     use nalgebra::{Matrix3, Vector3};
 
     const RULES: Rules = Rules {

@@ -3,9 +3,14 @@
 //! that land on the object matched to the new ones by NCC; the predictors at
 //! the old positions and the displacements solved for the update.
 
+use super::config::Mode;
+use super::decision::StepOutcome;
+use super::error::TrackError;
 use super::profile::Texture;
-use super::view::{AFeatures, Placed, crop_window, match_near, match_near_resident, placed};
-use super::{Frame, Mode, StepError, StepOutcome, TrackError, Tracker, estimate};
+use super::region::{AFeatures, Placed, crop_window, match_near, match_near_resident, placed};
+use super::result::StepError;
+use super::state::{Frame, Tracker};
+use super::workspace::estimate;
 use crate::features::{Corner, ExportPlace, FeatureError, ResidentImage};
 use crate::geometry::Pose;
 use crate::gpu::PassChain;

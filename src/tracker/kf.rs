@@ -3,10 +3,14 @@
 //! motion predictors are splatted in one pass; corners of the novel view
 //! matched to the frame's are solved for the correction.
 
-use super::view::{
+use super::config::Mode;
+use super::decision::StepOutcome;
+use super::region::{
     AFeatures, Bands, Placed, match_near, match_near_resident, placed, shifted, window_crop,
 };
-use super::{Frame, Mode, StepError, StepOutcome, Tracker, estimate};
+use super::result::StepError;
+use super::state::{Frame, Tracker};
+use super::workspace::estimate;
 use crate::features::resident::MAX_REFINE_WINDOW;
 use crate::features::{
     Corner, ExportPlace, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,

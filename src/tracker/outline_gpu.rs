@@ -16,13 +16,12 @@ use crate::gpu::{
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
+/// Least length of a contour point's offset sum over its window (the
+/// host outline's).
+pub use super::contour::OUTLINE_MIN_GRADIENT;
 /// Half-width of the window giving a contour point's normal and offset
-/// (pixels; shared with shaders/outline.wgsl).
-pub const OUTLINE_WINDOW: u32 = 5;
-/// Least length of a contour point's offset sum over its window: a
-/// straight edge through the centre gives 330 (11 x 11); thin parts and
-/// corners give less, and their normal is unreliable.
-pub const OUTLINE_MIN_GRADIENT: u32 = 120;
+/// (pixels; shared with shaders/outline.wgsl), the host outline's.
+pub use super::contour::OUTLINE_WINDOW;
 
 wgsl_struct! {
     /// Keep in sync with `OutlineParams` in shaders/outline.wgsl.

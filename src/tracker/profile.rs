@@ -6,7 +6,8 @@
 //! readbacks ([`crate::gpu::GpuTimer::resolve_later`]), so timing adds
 //! no wait for the GPU: the readbacks `--profile` counts are the loop's.
 
-use super::Tracker;
+use super::result::add;
+use super::state::Tracker;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuTimer, TimerReport, Timings};
 use crate::splat::{Attributes, SplatError};
@@ -110,13 +111,5 @@ impl Tracker {
 pub(super) fn note(acc: &mut Vec<(String, f64)>, prefix: &str, r: &TimerReport) {
     for (label, ms) in &r.passes {
         add(acc, &format!("{prefix} {label}"), *ms);
-    }
-}
-
-/// Adds `ms` to the entry `label` of `acc` (a new one at the end).
-pub(super) fn add(acc: &mut Vec<(String, f64)>, label: &str, ms: f64) {
-    match acc.iter_mut().find(|(l, _)| l == label) {
-        Some((_, v)) => *v += ms,
-        None => acc.push((label.to_owned(), ms)),
     }
 }

@@ -1,0 +1,345 @@
+//! The per-frame step: [`Tracker::track`] runs the steps in turn and
+//! decides the frame.
+
+use super::decision::{Decision, FrameSteps, Rules, StepOutcome, decide, verified};
+use super::error::TrackError;
+use super::result::{LostReason, StageTimes, Status, TrackResult};
+use super::state::{Frame, Tracker};
+use super::verify::{self, Unverified, VerifyScores};
+use crate::pose::Anchor;
+use std::time::{Duration, Instant};
+
+impl Tracker {
+    /// Tracks one frame (RGB, undistorted, the camera's size): Harris
+    /// corners, the IT step, the KF step(s), then [`decide`].
+    pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
+        let rgb = frame;
+        if frame.width() != self.cam.width || frame.height() != self.cam.height {
+            return Err(TrackError::FrameSize {
+                got_w: frame.width(),
+                got_h: frame.height(),
+                want_w: self.cam.width,
+                want_h: self.cam.height,
+            });
+        }
+        let t0 = Instant::now();
+        let read0 = (
+            self.ctx.bytes_read(),
+            self.ctx.readbacks(),
+            self.ctx.submissions(),
+            self.ctx.command_buffers(),
+            self.ctx.waited(),
+            self.ctx.encoding(),
+            self.ctx.uploads(),
+            self.ctx.passes(),
+        );
+        self.resident.begin();
+        self.pending_gpu.clear();
+        self.contour.begin_frame();
+        let mut times = StageTimes::default();
+        self.stages = StageTimes::default();
+        // No pose yet, or lost for a while: search the whole frame.
+        let every = self.config.init.redetect_after_lost;
+        if self.searching
+            || (every > 0 && self.lost_streak >= every && self.lost_streak.is_multiple_of(every))
+        {
+            let found = self.find(frame)?;
+            times.search = t0.elapsed();
+            times.waits.search = self.ctx.waited().saturating_sub(read0.4);
+            // The search's KF-like steps are its own time ("search"), not
+            // the KF stage's parts, which would otherwise exceed it (the
+            // passes' GPU times stay, under their own labels).
+            let s = &mut self.stages;
+            for part in [
+                &mut s.it_render,
+                &mut s.it_ncc,
+                &mut s.kf_render,
+                &mut s.kf_harris,
+                &mut s.kf_ncc,
+            ] {
+                *part = Duration::ZERO;
+            }
+            match found {
+                Some(p) => {
+                    log::info!("object found by search");
+                    self.pose = p;
+                    self.searching = false;
+                    self.lost_streak = 0;
+                    self.it_only_streak = 0;
+                    self.prev = None;
+                }
+                None if self.searching => {
+                    times.total = t0.elapsed();
+                    return Ok(TrackResult {
+                        pose: self.pose,
+                        inliers: 0,
+                        residual_px: f64::NAN,
+                        status: Status::Lost,
+                        reason: Some(LostReason::NotFound),
+                        keyframe: None,
+                        times,
+                        verify: None,
+                        texture_set_aside: false,
+                    });
+                }
+                None => {}
+            }
+        }
+        let t_features = Instant::now();
+        let w_features = self.ctx.waited();
+        // The frame kept for the next one, in the buffer of the frame
+        // before the last where it fits.
+        let kept = match self.spare_frame.take() {
+            Some(mut b) if b.dimensions() == rgb.dimensions() => {
+                b.copy_from_slice(rgb);
+                b
+            }
+            _ => rgb.clone(),
+        };
+        let mut frame = Frame::new(kept);
+        let frozen = self
+            .prev
+            .as_ref()
+            .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
+        let start_pose = self.pose;
+        let texture = self.config.modalities.texture;
+        let recovering = self.lost_streak > 0;
+        // The frame's intake and its window's packing go to the GPU with
+        // Harris's first readback (their parameters have buffers of their
+        // own), and so do IT's render and gather, which do not need the
+        // frame: that readback brings the gather's samples too.
+        let intake = self.ctx.batch();
+        let t_early = Instant::now();
+        let it_early = if texture {
+            self.it_gather_early(&start_pose, recovering)
+        } else {
+            None
+        };
+        let it_early_time = t_early.elapsed();
+        if texture {
+            self.resident.upload(&self.ctx, rgb)?;
+        }
+        // With IT's matching chained behind the frame's Harris where it
+        // can be (one wait for both).
+        let it_early = if texture {
+            let (corners, early) = self.frame_corners_chained(&frame, &start_pose, it_early)?;
+            frame.corners = corners;
+            early
+        } else {
+            None
+        };
+        drop(intake);
+        // IT's early render and gather count as IT's.
+        times.features = t_features.elapsed().saturating_sub(it_early_time);
+        times.waits.features = self.ctx.waited().saturating_sub(w_features);
+
+        let rules = Rules::of(&self.config);
+        let first_frame = self.prev.is_none() && !recovering;
+        let t_it = Instant::now();
+        let w_it = self.ctx.waited();
+        let (it, it_anchors) = if texture {
+            self.it_stage(&frame, &start_pose, recovering, it_early)
+        } else {
+            (StepOutcome::default(), Vec::new())
+        };
+        times.it = t_it.elapsed() + it_early_time;
+        times.waits.it = self.ctx.waited().saturating_sub(w_it);
+        let t_kf = Instant::now();
+        let w_kf = self.ctx.waited();
+        let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
+        self.kf_anchors.clear();
+        let (kf, keyframe) = if texture {
+            let fused: &[Anchor] = if self.config.fuse { &it_anchors } else { &[] };
+            self.kf_stage(&frame, &start_pose, recovering, it_trusted, fused)
+        } else {
+            (StepOutcome::default(), None)
+        };
+        times.kf = t_kf.elapsed();
+        times.waits.kf = self.ctx.waited().saturating_sub(w_kf);
+        let t_contour = Instant::now();
+        let w_contour = self.ctx.waited();
+        let contour = if self.config.modalities.contour {
+            // From the best texture estimate, fused with its inliers; else
+            // from the previous pose with longer lines.
+            let kf_trusted = kf.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
+            let anchors = std::mem::take(&mut self.kf_anchors);
+            match (kf_trusted, it_trusted) {
+                // A trusted KF step: the outline only refines it where
+                // configured ([`ContourConfig::refine_texture`]).
+                (Some(_), _) if !self.config.contour.refine_texture => StepOutcome::default(),
+                (Some(p), _) => self.contour_stage(rgb, &p, false, &anchors),
+                // IT's matches are not fused: they carry its drift (on the
+                // real dragon they pulled the fused pose 20 degrees off).
+                (None, Some(p)) => self.contour_stage(rgb, &p, false, &[]),
+                (None, None) => self.contour_stage(rgb, &start_pose, true, &[]),
+            }
+        } else {
+            StepOutcome::default()
+        };
+        times.contour = t_contour.elapsed();
+        times.waits.contour = self.ctx.waited().saturating_sub(w_contour);
+
+        let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
+            || it.estimate.is_some_and(|e| rules.trusted(&e));
+        let d = decide(
+            &rules,
+            &FrameSteps {
+                it,
+                kf,
+                contour,
+                first_frame,
+                it_only_streak: self.it_only_streak,
+            },
+        );
+        // Every pose reported `tracking` is checked against the image.
+        let mut scores = None;
+        let mut texture_set_aside = false;
+        let t_verify = Instant::now();
+        let w_verify = self.ctx.waited();
+        let mut d = d;
+        if d.status == Status::Tracking && self.config.verify.enabled {
+            let check = if frozen {
+                Err(Unverified::FrozenFrame)
+            } else {
+                let s = self.verify_scores(&frame, &d.pose.unwrap_or(start_pose))?;
+                scores = Some(s);
+                log::debug!("verify: {s:?}");
+                // Without a trusted texture step the object shows no
+                // texture to correlate (an untextured object's shading):
+                // the contour's edges decide.
+                if self.config.modalities.contour && !texture_held {
+                    verify::judge_with_contour(&s, &self.config.verify)
+                } else {
+                    verify::judge(&s, &self.config.verify)
+                }
+            };
+            // A trusted texture step whose pose does not look like the
+            // frame matched something the keyframes do not show (on an
+            // untextured object, the shading of a moving light): set the
+            // texture aside and let the contour alone solve from that
+            // pose, checked as when no texture step is trusted.
+            let aside = match &check {
+                Err(Unverified::Appearance { .. })
+                    if self.config.modalities.contour && texture_held =>
+                {
+                    self.contour_alone(&rules, &frame, rgb, &d, first_frame)?
+                }
+                _ => None,
+            };
+            match aside {
+                Some((alone, s)) => {
+                    scores = Some(s);
+                    texture_set_aside = true;
+                    d = alone;
+                }
+                None => d = verified(d, check),
+            }
+        }
+        times.verify = t_verify.elapsed();
+        times.waits.verify = self.ctx.waited().saturating_sub(w_verify);
+        if let Some(why) = &d.kf_passed_over {
+            log::debug!("KF step not used ({why}); keeping the IT estimate");
+        }
+        self.it_only_streak = d.it_only_streak;
+        if d.status == Status::Tracking {
+            self.pose = d.pose.unwrap_or(start_pose);
+            self.lost_streak = 0;
+            if self.config.modalities.contour {
+                let pose = self.pose;
+                self.learn_colours(rgb, &pose);
+            }
+        } else {
+            // Keep the last good pose: never report a pose that failed.
+            self.lost_streak += 1;
+        }
+        if let Some(old) = self.prev.replace(frame) {
+            self.spare_frame = Some(old.rgb);
+        }
+        self.resident.done();
+        self.collect_gpu_times();
+        let sub = std::mem::take(&mut self.stages);
+        times.it_render = sub.it_render;
+        times.it_ncc = sub.it_ncc;
+        times.kf_render = sub.kf_render;
+        times.kf_harris = sub.kf_harris;
+        times.kf_ncc = sub.kf_ncc;
+        times.gpu = sub.gpu;
+        times.gpu_timeline = sub.gpu_timeline;
+        times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
+        times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
+        times.submissions = (self.ctx.submissions() - read0.2) as f64;
+        times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
+        let uploads = self.ctx.uploads();
+        times.uploads = (uploads.0 - read0.6.0) as f64;
+        times.uploads_skipped = (uploads.1 - read0.6.1) as f64;
+        let passes = self.ctx.passes();
+        times.passes = (passes.0 - read0.7.0) as f64;
+        times.passes_untimed = (passes.1 - read0.7.1) as f64;
+        times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
+        let (finish, submit) = self.ctx.encoding();
+        times.gpu_finish = finish.saturating_sub(read0.5.0);
+        times.gpu_submit = submit.saturating_sub(read0.5.1);
+        times.contour_rounds = self.contour.rounds as f64;
+        times.contour_renders = self.contour.renders as f64;
+        (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
+        times.total = t0.elapsed();
+        Ok(TrackResult {
+            pose: self.pose,
+            inliers: d.inliers,
+            residual_px: d.residual_px,
+            status: d.status,
+            reason: d.reason,
+            keyframe,
+            times,
+            verify: scores,
+            texture_set_aside,
+        })
+    }
+
+    /// The contour alone from the pose of decision `d` (whose texture
+    /// steps were trusted but whose check failed on appearance), decided
+    /// as if no texture step had run and checked by the contour's edges
+    /// ([`verify::judge_with_contour`]): the decision and its scores when
+    /// that pose passes, `None` when it does not (the frame stays lost).
+    fn contour_alone(
+        &mut self,
+        rules: &Rules,
+        frame: &Frame,
+        rgb: &image::RgbImage,
+        d: &Decision,
+        first_frame: bool,
+    ) -> Result<Option<(Decision, VerifyScores)>, TrackError> {
+        let Some(from) = d.pose else {
+            return Ok(None);
+        };
+        let contour = self.contour_stage(rgb, &from, false, &[]);
+        let alone = decide(
+            rules,
+            &FrameSteps {
+                it: StepOutcome::default(),
+                kf: StepOutcome::default(),
+                contour,
+                first_frame,
+                it_only_streak: 0,
+            },
+        );
+        let Some(pose) = alone.pose.filter(|_| alone.status == Status::Tracking) else {
+            return Ok(None);
+        };
+        let s = self.verify_scores(frame, &pose)?;
+        log::debug!("verify (contour alone): {s:?}");
+        match verify::judge_with_contour(&s, &self.config.verify) {
+            Ok(()) => {
+                log::debug!(
+                    "texture set aside (its pose did not look like the frame); the contour alone: {:.2} deg from it",
+                    pose.rotation_error_deg(&from)
+                );
+                Ok(Some((alone, s)))
+            }
+            Err(why) => {
+                log::debug!("the contour alone does not pass either: {why}");
+                Ok(None)
+            }
+        }
+    }
+}

@@ -1,0 +1,222 @@
+//! The tracker's state ([`Tracker`]) and the frames it keeps, with the
+//! accessors.
+
+use super::config::TrackerConfig;
+use super::contour::ContourState;
+use super::outline_gpu::GpuOutline;
+use super::region::{Kept, Resident};
+use super::result::{GpuMemoryUse, StageTimes};
+use super::verify_gpu::GpuCheck;
+use crate::features::{Corner, GreyImage, Harris, NccMatcher};
+use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::GpuContext;
+use crate::keyframes::KeyframeStore;
+use crate::model::PointModel;
+use crate::pose::Anchor;
+use crate::splat::{GpuModel, SplatTargets, Splatter, Window};
+use nalgebra::Vector3;
+use std::sync::Arc;
+
+/// A frame as the steps see it (the one being tracked, and the previous
+/// one for IT): its bytes, kept (the next frame's frozen check compares
+/// them), its corners, and its grey levels, made from the bytes when a
+/// host path first asks for them ([`Frame::grey`]). The resident loop
+/// never does: the GPU makes its own grey image from the uploaded bytes
+/// ([`crate::features::resident::FrameIntake`]).
+pub(super) struct Frame {
+    pub(super) rgb: image::RgbImage,
+    pub(super) grey: std::sync::OnceLock<GreyImage>,
+    pub(super) corners: Vec<Corner>,
+}
+
+impl Frame {
+    /// Frame `rgb`, its corners to come.
+    pub(super) fn new(rgb: image::RgbImage) -> Self {
+        Self {
+            rgb,
+            grey: std::sync::OnceLock::new(),
+            corners: Vec::new(),
+        }
+    }
+
+    /// The frame's grey levels ([`GreyImage::from_rgb8`]), made at the
+    /// first call.
+    pub(super) fn grey(&self) -> &GreyImage {
+        self.grey.get_or_init(|| GreyImage::from_rgb8(&self.rgb))
+    }
+
+    /// The whole frame as a window.
+    pub(super) fn whole(&self) -> crate::splat::Window {
+        crate::splat::Window {
+            x0: 0,
+            y0: 0,
+            width: self.rgb.width(),
+            height: self.rgb.height(),
+        }
+    }
+}
+
+/// The tracker: create once per sequence, then call [`Tracker::track`] on
+/// each frame in order. It keeps its own handle on the GPU context (a
+/// cheap clone), so a program may keep both side by side.
+///
+/// ```no_run
+/// use splattrack::gpu::{AdapterChoice, GpuContext};
+/// use splattrack::io::{Sequence, read_poses};
+/// use splattrack::keyframes::KeyframeStore;
+/// use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
+/// use splattrack::PointModel;
+/// use std::path::Path;
+///
+/// let ctx = GpuContext::new(&AdapterChoice::from_env()?)?;
+/// let model = PointModel::load("object.ply")?;
+/// let seq = Sequence::open(Path::new("sequence"))?; // camera.json, frames/, init.csv
+/// let init = read_poses(&seq.init_path())?[0].pose;
+/// // A store built once by `splattrack keyframes` (or KeyframeStore::build).
+/// let store = KeyframeStore::load(Path::new("object.stkf"))?;
+/// store.check_model(&model, Path::new("object.stkf"))?;
+/// let config = TrackerConfig { mode: Mode::KfIt, ..Default::default() };
+/// let mut tracker = Tracker::new(&ctx, model, seq.camera, Some(store), config, init)?;
+/// for path in &seq.frames {
+///     let frame = image::open(path)?.to_rgb8(); // undistorted, the camera's size
+///     let r = tracker.track(&frame)?;
+///     println!("{} {:?} {} inliers", r.status, r.pose.translation, r.inliers);
+///     if let Some(reason) = &r.reason {
+///         // Lost: r.pose is the last good pose; later frames try to recover.
+///         println!("lost: {reason}");
+///     }
+/// }
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub struct Tracker {
+    pub(super) cam: Intrinsics,
+    pub(super) config: TrackerConfig,
+    /// The model as splatted (its radii raised and grown); the caller's
+    /// own, shared, where they needed no change.
+    pub(super) model: Arc<PointModel>,
+    pub(super) store: Option<Arc<KeyframeStore>>,
+    pub(super) splatter: Splatter,
+    pub(super) geometry: GpuModel,
+    pub(super) textured: crate::keyframes::TexturedCache,
+    /// The targets of the last render, the size of [`Tracker::window`].
+    pub(super) targets: SplatTargets,
+    /// The window of the last render (frame coordinates).
+    pub(super) window: Window,
+    /// Targets of other window sizes, for reuse.
+    pub(super) spare: Vec<SplatTargets>,
+    /// The check's render of the last reported pose, for the next IT step.
+    pub(super) kept: Option<Kept>,
+    /// The model's bounding box grown by its largest splat (where renders
+    /// can cover pixels).
+    pub(super) box_lo: Vector3<f64>,
+    pub(super) box_hi: Vector3<f64>,
+    pub(super) harris: Harris,
+    pub(super) it_matcher: NccMatcher,
+    pub(super) kf_matcher: NccMatcher,
+    pub(super) recover_matcher: NccMatcher,
+    pub(super) center: Vector3<f64>,
+    pub(super) radius: f64,
+    pub(super) pose: Pose,
+    pub(super) prev: Option<Frame>,
+    /// The bytes of the frame before `prev`, a buffer for the next one.
+    pub(super) spare_frame: Option<image::RgbImage>,
+    pub(super) lost_streak: usize,
+    /// KF+IT: consecutive frames tracked by IT alone.
+    pub(super) it_only_streak: usize,
+    /// No pose yet: each frame is searched ([`Tracker::new_searching`]).
+    pub(super) searching: bool,
+    /// The tracker's own handle on the device (a cheap clone).
+    pub(super) ctx: GpuContext,
+    /// The contour step's colours, coverage, normals and counts.
+    pub(super) contour: ContourState,
+    /// The inliers of this frame's last KF step (for the fused solve).
+    pub(super) kf_anchors: Vec<Anchor>,
+    /// The sub-stage times of the frame being tracked.
+    pub(super) stages: StageTimes,
+    /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
+    pub(super) gpu_timer: Option<crate::gpu::GpuTimer>,
+    /// The frame's timed passes by label prefix, their timestamps still
+    /// to come with the frame's readbacks (read at its end).
+    pub(super) pending_gpu: Vec<(String, crate::gpu::Timings)>,
+    /// The check's scoring on the GPU.
+    pub(super) check: GpuCheck,
+    /// The contour's outline found on the GPU.
+    pub(super) outline: GpuOutline,
+    /// The grey levels of the frame being tracked and of the previous one,
+    /// on the GPU for NCC and the refinement ([`Resident`]).
+    pub(super) resident: Resident,
+}
+
+impl Tracker {
+    /// The model as the tracker splats it: the one it was given (the
+    /// same `Arc`) where its radii needed no change, else a copy with the
+    /// radii raised to `min_splat_radius_px` and grown to close gaps.
+    pub fn model(&self) -> &Arc<PointModel> {
+        &self.model
+    }
+
+    /// Whether no pose has been found yet ([`Tracker::new_searching`]).
+    pub fn searching(&self) -> bool {
+        self.searching
+    }
+
+    /// The current pose estimate.
+    pub fn pose(&self) -> Pose {
+        self.pose
+    }
+
+    /// The settings the tracker runs with.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// The GPU context the tracker runs on.
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    /// The keyframe store in use: the one given to [`Tracker::new`], or
+    /// the single texture made from the model's colours, or none (IT mode).
+    pub fn keyframes(&self) -> Option<&KeyframeStore> {
+        self.store.as_deref()
+    }
+
+    /// The radius, pixels, of the object's bounding sphere seen at `pose`
+    /// (at its centre's depth; not positive behind the camera).
+    pub(super) fn radius_px(&self, pose: &Pose) -> f64 {
+        let c = pose.transform_point(&self.center);
+        self.cam.fx.max(self.cam.fy) * self.radius / c.z
+    }
+
+    /// The object's projected bounding circle plus the margin, as a pixel
+    /// rectangle (x0, y0, x1, y1) clipped to the image; `None` when the
+    /// object is behind the camera or wholly outside the image.
+    pub(super) fn roi(&self, pose: &Pose) -> Option<(usize, usize, usize, usize)> {
+        let c = pose.transform_point(&self.center);
+        if c.z <= self.radius * 0.1 {
+            return None;
+        }
+        let uv = self.cam.project(&c)?;
+        let r = self.cam.fx.max(self.cam.fy) * self.radius / (c.z - self.radius).max(c.z * 0.1)
+            + self.config.roi_margin_px;
+        let (w, h) = (self.cam.width as f64, self.cam.height as f64);
+        let x0 = (uv.x - r).floor().max(0.0);
+        let y0 = (uv.y - r).floor().max(0.0);
+        let x1 = (uv.x + r).ceil().min(w - 1.0);
+        let y1 = (uv.y + r).ceil().min(h - 1.0);
+        (x0 <= x1 && y0 <= y1).then_some((x0 as usize, y0 as usize, x1 as usize, y1 as usize))
+    }
+}
+
+impl Tracker {
+    /// The GPU memory of the splatting now ([`GpuMemoryUse`]).
+    pub fn gpu_memory(&self) -> GpuMemoryUse {
+        GpuMemoryUse {
+            model: self.geometry.gpu_bytes(),
+            keyframe_colors: self.textured.gpu_bytes(),
+            targets: self.targets.gpu_bytes()
+                + self.spare.iter().map(|t| t.gpu_bytes()).sum::<u64>()
+                + self.kept.as_ref().map_or(0, |k| k.targets().gpu_bytes()),
+        }
+    }
+}

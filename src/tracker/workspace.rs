@@ -1,0 +1,431 @@
+//! Where the steps work: the windows of renders, the targets kept for
+//! them, the frame's corners in its window, and what the steps share
+//! (the textured render at a pose, a match as a correspondence, the
+//! robust solve). The types are in [`super::region`].
+
+use super::decision::Estimate;
+use super::error::TrackError;
+use super::profile;
+use super::region::{Kept, Placed, SPARE_TARGETS, placed};
+use super::result::StepError;
+use super::state::{Frame, Tracker};
+use crate::features::{Corner, FeatureError};
+use crate::geometry::{Intrinsics, Pose};
+use crate::pose::{Anchor, Correspondence, Observation, Refined, Refiner};
+use crate::splat::{
+    Attribute, Attributes, GatherMode, GatherSample, SplatError, SplatTargets, Window,
+};
+use nalgebra::Vector2;
+
+impl Tracker {
+    /// Matches on GPU-resident images (`true`, the default on GPUs): the frames'
+    /// grey levels uploaded once per frame, the novel view left on the GPU
+    /// by Harris, the mutual check and the KF step's sub-pixel refinement
+    /// on the GPU ([`NccMatcher::match_resident`]), so only a few values
+    /// per feature come back; or (`false`, the default on CPU adapters)
+    /// on host crops uploaded per call, with the view's grey levels read
+    /// back and the refinement on the host. The same matches (refined
+    /// points within f32 rounding). On lavapipe the host path measured
+    /// faster (the real cube's KF matching about 10-14 ms a frame against
+    /// 42-48 ms: the GPU refinement samples each window more often than
+    /// the host's, and runs on the same two cores).
+    pub fn set_resident_matching(&mut self, on: bool) {
+        self.resident.on = on;
+        if !on {
+            self.resident.current = None;
+            self.resident.previous = None;
+        }
+    }
+
+    /// Chains the KF step's detection on the novel view, its matching and
+    /// the gather at its corners on the GPU where matching is resident
+    /// (`true`, the default): one wait for the three instead of two, the
+    /// same corners, matches and samples (the corners go from Harris to
+    /// NCC and the gather on the GPU; the matching's crop is the view's
+    /// window grown by the search margin instead of its corners' box,
+    /// which gives the same matches). `false`: detect, then match.
+    pub fn set_chained_kf(&mut self, on: bool) {
+        self.resident.chain_kf = on;
+    }
+
+    /// Chains the frame's detection and IT's matching on the GPU where
+    /// matching is resident (`true`, the default): one wait for both
+    /// instead of two, the same corners and matches. The frame's corners
+    /// go from Harris to NCC on the GPU as B's features (those outside the
+    /// crop left out there), the previous frame's corners off the object
+    /// are left out there by the gate (their samples in IT's gather,
+    /// which never comes back first), and the crop is cut around all the
+    /// previous frame's corners instead of those on the object, which
+    /// gives the same matches. Not with `it_interior_px` (its probes need
+    /// the gather first). `false`: detect, then match.
+    pub fn set_chained_it(&mut self, on: bool) {
+        self.resident.chain_it = on;
+    }
+
+    /// The most candidates Harris selects among on the GPU
+    /// ([`crate::features::Harris::set_select_limit`]; more are selected
+    /// on the host, and the chained steps fall back to matching from the
+    /// host's corners): for tests of those fallbacks.
+    #[doc(hidden)]
+    pub fn set_harris_select_limit(&mut self, n: usize) {
+        self.harris.set_select_limit(n);
+    }
+
+    /// The corner selection's O(n^2) passes tiled in workgroup memory or
+    /// one thread an item ([`crate::features::Harris::set_tiled_selection`]):
+    /// for the tracker bench's comparison of the two in the loop.
+    #[doc(hidden)]
+    pub fn set_harris_tiled_selection(&mut self, tiled: bool) {
+        self.harris.set_tiled_selection(tiled);
+    }
+
+    /// Where tiled, the corner selection in one workgroup a pass or split
+    /// over workgroups ([`crate::features::Harris::set_small_selection`]):
+    /// for the tests and benches comparing the two in the loop.
+    #[doc(hidden)]
+    pub fn set_harris_small_selection(&mut self, small: Option<bool>) {
+        self.harris.set_small_selection(small);
+    }
+
+    /// Every kernel choice between a GPU's (workgroup tiles, splits and
+    /// groups) and a CPU adapter's (one thread an item), whatever the
+    /// adapter: Harris's selection, the three matchers and the check.
+    /// For tests that run the GPUs' kernels in the loop on lavapipe.
+    #[doc(hidden)]
+    pub fn set_gpu_kernels(&mut self, gpu: bool) {
+        self.harris.set_tiled_selection(gpu);
+        self.it_matcher.set_tiled(gpu);
+        self.kf_matcher.set_tiled(gpu);
+        self.recover_matcher.set_tiled(gpu);
+        self.check.set_tiled(gpu);
+    }
+
+    /// The window a render of the model at `pose` needs: every pixel it
+    /// can cover, plus `margin` pixels.
+    pub(super) fn view_window(&self, pose: &Pose) -> Window {
+        let full = Window::full(&self.cam);
+        if !self.config.windows {
+            return full;
+        }
+        // The low-pass filter spreads a splat by up to 3 x 0.75 px beyond
+        // its radius (shaders/splat.wgsl); 4 px more for rounding.
+        let margin = self.window_margin() + 4.0;
+        // Origins on the Harris grid and on the contour's cells.
+        let (a, b) = (
+            self.config.harris.grid_cell.max(1),
+            self.config.contour.spacing_px.max(1),
+        );
+        let gcd = |mut x: u32, mut y: u32| {
+            while y != 0 {
+                (x, y) = (y, x % y);
+            }
+            x
+        };
+        let align = (a / gcd(a, b)).saturating_mul(b);
+        Window::of_box(&self.cam, pose, &self.box_lo, &self.box_hi, margin, align).unwrap_or(full)
+    }
+
+    /// The margin around what a step looks at that keeps Harris supports,
+    /// sub-pixel refinements and the check's edge search inside a window.
+    pub(super) fn window_margin(&self) -> f64 {
+        let h = &self.config.harris;
+        (h.support_radius() + h.refine_radius as usize + 4) as f64
+            + self.config.verify.edge_search_px as f64
+    }
+
+    /// The margin of the NCC crops for a search radius `r` (`None`: no
+    /// crops, windows off).
+    pub(super) fn match_margin(&self, r: f32) -> Option<f64> {
+        self.config.windows.then_some(
+            (r + self.config.ncc.window as f32 + self.config.refine_window as f32 + 4.0) as f64,
+        )
+    }
+
+    /// Makes the tracker's targets the size of `w` (reusing spare ones)
+    /// and records `w` as the window of the next render; returns the
+    /// window's camera.
+    pub(super) fn use_window(&mut self, w: Window) -> Intrinsics {
+        if (self.targets.width(), self.targets.height()) != (w.width, w.height) {
+            let fresh = self.spare_targets(w);
+            let old = std::mem::replace(&mut self.targets, fresh);
+            self.put_spare(old);
+        }
+        self.window = w;
+        w.camera(&self.cam)
+    }
+
+    /// Targets of `w`'s size: a spare one, else new ones.
+    fn spare_targets(&mut self, w: Window) -> SplatTargets {
+        match self
+            .spare
+            .iter()
+            .position(|t| (t.width(), t.height()) == (w.width, w.height))
+        {
+            Some(i) => self.spare.remove(i),
+            None => SplatTargets::new(&self.ctx, w.width, w.height),
+        }
+    }
+
+    fn put_spare(&mut self, t: SplatTargets) {
+        self.spare.insert(0, t);
+        self.spare.truncate(SPARE_TARGETS);
+    }
+
+    /// Keeps the last render (made at `pose` with the predictors and the
+    /// model's geometry) for [`Tracker::reuse_render`].
+    pub(super) fn keep_render(&mut self, pose: Pose) {
+        if !self.config.windows {
+            return;
+        }
+        let fresh = self.spare_targets(self.window);
+        let targets = std::mem::replace(&mut self.targets, fresh);
+        let kept = Kept {
+            pose,
+            window: self.window,
+            targets,
+        };
+        if let Some(old) = self.kept.replace(kept) {
+            self.put_spare(old.targets);
+        }
+    }
+
+    /// The kept render and its window, when it was made at `pose`.
+    pub(super) fn kept_at(&self, pose: &Pose) -> Option<(&SplatTargets, Window)> {
+        self.kept
+            .as_ref()
+            .filter(|k| k.pose == *pose)
+            .map(|k| (&k.targets, k.window))
+    }
+
+    /// Makes the kept render current when it was made at `pose` in window
+    /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
+    /// give); whether it was.
+    pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window) -> bool {
+        match self.kept.take() {
+            Some(k) if k.pose == *pose && k.window == w => {
+                let old = std::mem::replace(&mut self.targets, k.targets);
+                self.put_spare(old);
+                self.window = w;
+                true
+            }
+            Some(k) => {
+                self.put_spare(k.targets);
+                false
+            }
+            None => false,
+        }
+    }
+
+    /// Predictors and depth of the last render at `points` (frame
+    /// coordinates).
+    pub(super) fn gather_frame(
+        &self,
+        points: &[[f32; 2]],
+    ) -> Result<Vec<GatherSample>, SplatError> {
+        self.gather_frame_later(points)?.wait(&self.ctx)
+    }
+
+    /// [`Tracker::gather_frame`], its readback put off to go with the
+    /// next one ([`crate::splat::Splatter::gather_later`]).
+    pub(super) fn gather_frame_later(
+        &self,
+        points: &[[f32; 2]],
+    ) -> Result<crate::splat::PendingGather, SplatError> {
+        let o = self.window.origin();
+        let local: Vec<[f32; 2]> = points.iter().map(|p| [p[0] - o[0], p[1] - o[1]]).collect();
+        self.splatter
+            .gather_later(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
+    }
+
+    /// The window of `frame` Harris looks in at `pose` (the region of
+    /// interest grown by the corners' support) and the region of interest
+    /// (`x0, y0, x1, y1`, inclusive); `None` where the object is not in
+    /// view.
+    pub(super) fn frame_window(&self, frame: &Frame, pose: &Pose) -> Option<(Window, [usize; 4])> {
+        let (x0, y0, x1, y1) = self.roi(pose)?;
+        let full = frame.whole();
+        let w = if self.config.windows {
+            Window::around(
+                [x0 as f64, y0 as f64, x1 as f64, y1 as f64],
+                self.window_margin(),
+                self.config.harris.grid_cell,
+                full.width,
+                full.height,
+            )
+            .unwrap_or(full)
+        } else {
+            full
+        };
+        Some((w, [x0, y0, x1, y1]))
+    }
+
+    /// Packs the resident frame's window `w` for Harris on the GPU, the
+    /// region of interest `roi` allowed (as the host packs the crop), and
+    /// returns its size.
+    pub(super) fn pack_frame_window(
+        &mut self,
+        w: Window,
+        roi: [usize; 4],
+    ) -> Result<(usize, usize), FeatureError> {
+        let (ww, wh) = (w.width as usize, w.height as usize);
+        let target = self.harris.input_target(ww, wh)?;
+        let (ox, oy) = (w.x0 as usize, w.y0 as usize);
+        let [x0, y0, x1, y1] = roi;
+        let allowed = [x0 - ox, y0 - oy, x1 - ox, y1 - oy].map(|v| v as u32);
+        self.resident
+            .pack_window([w.x0, w.y0, w.width, w.height], allowed, &target)?;
+        Ok((ww, wh))
+    }
+
+    /// Harris corners of `frame` within the region of interest at `pose`
+    /// (frame coordinates), detected on the region grown by the corners'
+    /// support only.
+    pub(super) fn frame_corners(
+        &mut self,
+        frame: &Frame,
+        pose: &Pose,
+    ) -> Result<Vec<Corner>, FeatureError> {
+        let Some((w, [x0, y0, x1, y1])) = self.frame_window(frame, pose) else {
+            return Ok(Vec::new());
+        };
+        let (ww, wh) = (w.width as usize, w.height as usize);
+        let o = w.origin();
+        let corners = if !self.harris.host() && self.resident.frames().0.is_some() {
+            // The frame is on the GPU: its window is packed there.
+            self.pack_frame_window(w, [x0, y0, x1, y1])?;
+            self.harris.detect_packed(ww, wh)?
+        } else {
+            let mut mask = vec![false; ww * wh];
+            for y in y0..=y1 {
+                let row = (y - w.y0 as usize) * ww;
+                mask[row + x0 - w.x0 as usize..=row + x1 - w.x0 as usize].fill(true);
+            }
+            let crop = Placed::full(frame.grey()).crop(&w);
+            self.harris.detect(&crop, Some(&mask))?
+        };
+        self.note_harris("features");
+        Ok(placed(&corners, o))
+    }
+}
+
+impl Tracker {
+    /// The model's coverage mask at `pose` (for overlays and the live
+    /// view): one flag per pixel of the frame. Only the window the model
+    /// can cover at `pose` is splatted and read back (the whole frame with
+    /// windows off), the rest is uncovered; at the pose the last frame's
+    /// check rendered (a tracked frame's), that render's coverage is read
+    /// instead of splatting again.
+    pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
+        let (weight, window) = match self.kept_at(pose) {
+            Some((targets, window)) => (
+                self.splatter.read(&self.ctx, targets, Attribute::Weight)?,
+                window,
+            ),
+            None => {
+                let window = self.view_window(pose);
+                let cam = self.use_window(window);
+                self.splatter.render(
+                    &self.ctx,
+                    &self.geometry,
+                    &cam,
+                    pose,
+                    Attributes::COLOR,
+                    &mut self.targets,
+                )?;
+                let weight = self
+                    .splatter
+                    .read(&self.ctx, &self.targets, Attribute::Weight)?;
+                (weight, window)
+            }
+        };
+        let (fw, fh) = (self.cam.width as usize, self.cam.height as usize);
+        let (x0, y0, ww) = (
+            window.x0 as usize,
+            window.y0 as usize,
+            window.width as usize,
+        );
+        let mut mask = vec![false; fw * fh];
+        for (y, row) in weight.data.chunks(ww.max(1)).enumerate() {
+            let at = (y0 + y) * fw + x0;
+            for (m, v) in mask[at..at + row.len()].iter_mut().zip(row) {
+                *m = *v > 0.0 && !v.is_nan();
+            }
+        }
+        Ok(mask)
+    }
+}
+
+/// What the steps share: the view of the model at a pose, turning a match
+/// into a correspondence, and the robust solve.
+impl Tracker {
+    /// Splats `attrs` of the model at `pose` into window `w` of the image
+    /// (the tracker's targets for that size), textured by the keyframe
+    /// closest to `pose` (its index is returned), or untextured when there
+    /// is no keyframe store (`None`); its GPU passes are timed under
+    /// `stage`.
+    pub(super) fn render_view_in(
+        &mut self,
+        pose: &Pose,
+        attrs: Attributes,
+        w: Window,
+        stage: &str,
+    ) -> Result<Option<usize>, crate::splat::SplatError> {
+        let cam = self.use_window(w);
+        let k = self.store.as_ref().map(|s| s.closest(pose));
+        let texture = k.map_or(profile::Texture::None, profile::Texture::Keyframe);
+        self.splat(texture, &cam, pose, attrs, stage)?;
+        Ok(k)
+    }
+
+    /// The match of pixel `from` of the view splatted at `pose` (`s`: its
+    /// predictors and depth there) with `to` in the live frame: its row of
+    /// the linear solve, and the object point seen at `from` (lifted with
+    /// the splatted depth) for the refinement.
+    pub(super) fn correspondence(
+        &self,
+        s: &GatherSample,
+        from: Vector2<f64>,
+        to: Vector2<f64>,
+        pose: &Pose,
+    ) -> Correspondence {
+        Correspondence {
+            observation: Observation {
+                predictors: s.matrix(),
+                displacement: to - from,
+            },
+            anchor: Anchor {
+                point: pose
+                    .inverse()
+                    .transform_point(&self.cam.unproject(&from, s.depth as f64)),
+                target: to,
+            },
+        }
+    }
+
+    /// The linear solve of `obs` from `pose`, then the Gauss-Newton
+    /// refinements, with `extra` anchors from another step.
+    pub(super) fn refine(
+        &self,
+        obs: &[Correspondence],
+        pose: &Pose,
+        extra: &[Anchor],
+    ) -> Result<Refined, StepError> {
+        let refiner = Refiner {
+            cam: &self.cam,
+            irls: &self.config.irls,
+            iterations: self.config.refine_iterations,
+            extra_weight: self.config.fuse_weight,
+        };
+        Ok(refiner.solve(obs, pose, extra)?)
+    }
+}
+
+/// A step's estimate from its refined solve.
+pub(super) fn estimate(r: &Refined) -> Estimate {
+    Estimate {
+        pose: r.pose,
+        inliers: r.solve.inlier_count,
+        residual_px: r.solve.residual_rms_px,
+        scale_px: r.solve.scale_px,
+    }
+}
