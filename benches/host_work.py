@@ -18,7 +18,7 @@ GPU API calls behind the submission category, and wgpu's API calls
 wherever they are made (the frame's intake records and submits GPU work
 too). The contour's colour
 learning runs on a thread of its own while the next frame's texture steps
-run (src/tracker/learner.rs); its time is printed apart, not in the host's
+run (src/tracker/contour/learner.rs); its time is printed apart, not in the host's
 total. Needs perf; standard library only.
 """
 
@@ -37,7 +37,7 @@ CATEGORIES = [
      r"wgpu|read_buffer|map_read|poll"),
 ]
 
-# The contour's colour learning on its own thread (src/tracker/learner.rs,
+# The contour's colour learning on its own thread (src/tracker/contour/learner.rs,
 # named so; perf keeps 15 characters): not on the frame's path, reported
 # apart.
 LEARNER = "splattrack-colours"[:15]

@@ -37,7 +37,7 @@ use splattrack::splat::{Backend, Splatter};
 use splattrack::synth::{
     SynthConfig, SynthObject, background, keyframe_images, render_frame, sequence::sample_model,
 };
-use splattrack::tracker::{Modalities, Mode, Tracker, TrackerConfig};
+use splattrack::tracker::{Execution, Modalities, Mode, Tracker, TrackerConfig};
 use std::time::{Duration, Instant};
 
 const FRAMES: usize = 16;
@@ -123,25 +123,26 @@ fn case(
         model,
         store,
     } = *on;
+    let execution = match selection {
+        Selection::Default => Execution::default(),
+        Selection::Direct => Execution {
+            harris_tiled_selection: Some(false),
+            ..Default::default()
+        },
+        Selection::Split => Execution {
+            harris_tiled_selection: Some(true),
+            harris_small_selection: Some(false),
+            ..Default::default()
+        },
+    };
     let new = || {
-        let mut t = Tracker::new(
-            ctx,
-            model.clone(),
-            scene.cfg.camera,
-            Some(store.clone()),
-            config.clone(),
-            scene.frames[0].pose,
-        )
-        .unwrap();
-        match selection {
-            Selection::Default => {}
-            Selection::Direct => t.set_harris_tiled_selection(false),
-            Selection::Split => {
-                t.set_harris_tiled_selection(true);
-                t.set_harris_small_selection(Some(false));
-            }
-        }
-        t
+        Tracker::builder(ctx, model.clone(), scene.cfg.camera)
+            .keyframes(store.clone())
+            .config(config.clone())
+            .initial_pose(scene.frames[0].pose)
+            .execution(execution)
+            .build()
+            .unwrap()
     };
     let mut tracker = new();
     let mut i = 0usize;

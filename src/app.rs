@@ -216,7 +216,7 @@ pub fn load_or_build_keyframes(
 /// Everything a tracking run needs, loaded and checked.
 pub struct TrackInputs {
     /// The object's point model (shared with each run's tracker, not
-    /// copied, where the tracker keeps its radii: [`Tracker::new_shared`]).
+    /// copied, where the tracker keeps its radii: [`Tracker::builder`]).
     pub model: Arc<PointModel>,
     /// The sequence, its camera and frames, when the frames come from a
     /// sequence directory (`None`: from a video or a camera, given to the
@@ -227,10 +227,10 @@ pub struct TrackInputs {
     /// The camera file.
     pub camera_path: PathBuf,
     /// The pose of the first frame; `None`: the tracker searches the
-    /// frames for the object ([`Tracker::new_searching`]).
+    /// frames for the object ([`crate::tracker::TrackerBuilder::initial_pose`]).
     pub init: Option<Pose>,
     /// The keyframe store, when there is one (shared with each run's
-    /// tracker, not copied: [`Tracker::new_shared`]).
+    /// tracker, not copied: [`crate::tracker::TrackerBuilder::keyframes`]).
     pub keyframes: Option<Arc<KeyframeStore>>,
 }
 
@@ -340,6 +340,19 @@ pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
     row
 }
 
+/// Milliseconds per frame of the main stages ([`RunStats::mean`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FrameMs {
+    /// The frame's Harris corners.
+    pub features: f64,
+    /// The frame-to-frame step.
+    pub it: f64,
+    /// The keyframe step(s).
+    pub kf: f64,
+    /// The whole frame ([`crate::tracker::StageTimes::total`]).
+    pub total: f64,
+}
+
 /// What a run measured.
 #[derive(Debug, Clone, Default)]
 pub struct RunStats {
@@ -350,8 +363,9 @@ pub struct RunStats {
     /// Frames whose texture steps were set aside for the contour alone
     /// ([`crate::tracker::TrackResult::texture_set_aside`]).
     pub texture_set_aside: usize,
-    /// Mean milliseconds per frame: features, IT, KF, total.
-    pub mean_ms: [f64; 4],
+    /// Mean milliseconds per frame of the features, the IT and KF steps,
+    /// and the whole frame.
+    pub mean: FrameMs,
     /// Mean milliseconds per frame of the contour step.
     pub contour_ms: f64,
     /// Median total milliseconds per frame.
@@ -419,7 +433,7 @@ impl<'a> TrackRun<'a> {
     }
 
     /// Times every GPU pass with timestamp queries
-    /// ([`Tracker::enable_gpu_timing`]; the means land in
+    /// ([`crate::tracker::Execution::gpu_timing`]; the means land in
     /// [`RunStats::mean_stages`]).
     pub fn gpu_timing(mut self, on: bool) -> Self {
         self.gpu_timing = on;
@@ -533,17 +547,19 @@ impl<'a> TrackRun<'a> {
             source.tracking_camera(),
             self.inputs.keyframes.clone(),
         );
-        let mut tracker = match self.inputs.init {
-            Some(init) => Tracker::new_shared(self.ctx, model, cam, store, self.config, init),
-            None => Tracker::new_searching_shared(self.ctx, model, cam, store, self.config),
-        }
-        .map_err(|e| AppError::Start {
-            sequence: source.name().to_owned(),
-            source: Box::new(e),
-        })?;
-        if self.gpu_timing {
-            tracker.enable_gpu_timing();
-        }
+        let mut tracker = Tracker::builder(self.ctx, model, cam)
+            .maybe_keyframes(store)
+            .config(self.config)
+            .initial_pose(self.inputs.init)
+            .execution(crate::tracker::Execution {
+                gpu_timing: self.gpu_timing,
+                ..Default::default()
+            })
+            .build()
+            .map_err(|e| AppError::Start {
+                sequence: source.name().to_owned(),
+                source: Box::new(e),
+            })?;
         let timestamps = source.has_timestamps();
         let mut columns = RESULT_COLUMNS.to_vec();
         if timestamps {
@@ -624,13 +640,11 @@ impl<'a> TrackRun<'a> {
                 w.row(&row)?;
             }
             let t = &r.times;
-            for (acc, d) in stats
-                .mean_ms
-                .iter_mut()
-                .zip([t.features, t.it, t.kf, t.total])
-            {
-                *acc += ms(d);
-            }
+            let m = &mut stats.mean;
+            m.features += ms(t.features);
+            m.it += ms(t.it);
+            m.kf += ms(t.kf);
+            m.total += ms(t.total);
             stats.contour_ms += ms(t.contour);
             sum_stages.add_scaled(t, 1.0);
             totals.push(ms(t.total));
@@ -714,7 +728,8 @@ impl<'a> TrackRun<'a> {
         }
         let k = 1.0 / done as f64;
         stats.frames = done;
-        stats.mean_ms.iter_mut().for_each(|m| *m *= k);
+        let m = &mut stats.mean;
+        (m.features, m.it, m.kf, m.total) = (m.features * k, m.it * k, m.kf * k, m.total * k);
         stats.contour_ms *= k;
         stats.mean_stages.add_scaled(&sum_stages, k);
         stats.source_ms = ms(source_time) * k;

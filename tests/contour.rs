@@ -445,15 +445,12 @@ fn track_frames(
     config: splattrack::tracker::TrackerConfig,
     store: Option<splattrack::keyframes::KeyframeStore>,
 ) -> Vec<(splattrack::tracker::TrackResult, f64)> {
-    let mut t = splattrack::tracker::Tracker::new(
-        ctx(),
-        model.clone(),
-        camera,
-        store,
-        config,
-        frames[0].pose,
-    )
-    .unwrap();
+    let mut t = splattrack::tracker::Tracker::builder(ctx(), model.clone(), camera)
+        .maybe_keyframes(store)
+        .config(config)
+        .initial_pose(frames[0].pose)
+        .build()
+        .unwrap();
     frames
         .iter()
         .map(|f| {
@@ -490,12 +487,12 @@ fn contour_holds_the_untextured_object_that_texture_loses() {
 }
 
 /// The untextured object's first 8 frames at 320x240, contour alone,
-/// tracked by two trackers set up by `setup(tracker, false)` and
-/// `setup(tracker, true)`: each frame's results, which must be tracking
-/// and give the same poses bit for bit and the same inliers.
+/// tracked by two trackers on the code paths `execution(false)` and
+/// `execution(true)`: each frame's results, which must be tracking and
+/// give the same poses bit for bit and the same inliers.
 fn contour_alone_both_ways(
     ctx: &GpuContext,
-    setup: impl Fn(&mut splattrack::tracker::Tracker, bool),
+    execution: impl Fn(bool) -> splattrack::tracker::Execution,
 ) -> [Vec<splattrack::tracker::TrackResult>; 2] {
     use splattrack::tracker::{Modalities, Status, TrackerConfig};
     let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
@@ -505,16 +502,12 @@ fn contour_alone_both_ways(
             modalities: Modalities::CONTOUR,
             ..Default::default()
         };
-        let mut t = splattrack::tracker::Tracker::new(
-            ctx,
-            model.clone(),
-            camera,
-            None,
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
-        setup(&mut t, on);
+        let mut t = splattrack::tracker::Tracker::builder(ctx, model.clone(), camera)
+            .config(config)
+            .initial_pose(frames[0].pose)
+            .execution(execution(on))
+            .build()
+            .unwrap();
         frames
             .iter()
             .map(|f| t.track(&f.image).unwrap())
@@ -530,14 +523,17 @@ fn contour_alone_both_ways(
 }
 
 /// The colours of a tracked frame are learnt on a thread of their own,
-/// beside the next frame's steps (src/tracker/learner.rs): the poses must
+/// beside the next frame's steps (src/tracker/contour/learner.rs): the poses must
 /// be those of learning on the tracking thread, bit for bit, and each
 /// frame after the first reports the learning's time. The untextured
 /// object's first 8 frames at 320x240, contour alone (every frame learns).
 #[test]
 fn learning_the_colours_beside_the_next_frame_gives_the_same_poses() {
     let [here, beside] =
-        contour_alone_both_ways(ctx(), |t, background| t.set_background_learning(background));
+        contour_alone_both_ways(ctx(), |background| splattrack::tracker::Execution {
+            background_learning: background,
+            ..Default::default()
+        });
     for (i, (a, b)) in here.iter().zip(&beside).enumerate() {
         // On the tracking thread, a frame's learning is its own; beside,
         // the previous frame's, reported when the contour step takes the
@@ -564,11 +560,12 @@ fn the_outline_found_on_the_gpu_gives_the_hosts_poses_from_fewer_bytes() {
     // A context of its own, so that other tests' readbacks are not
     // counted.
     let own = gpu::own_test_context();
-    let [host, gpu] = contour_alone_both_ways(&own, |t, resident| {
-        t.set_resident_outline(resident);
+    let [host, gpu] = contour_alone_both_ways(&own, |resident| splattrack::tracker::Execution {
+        resident_outline: Some(resident),
         // The check scored on the GPU in both (on the host it reads the
         // view back).
-        t.set_resident_check(true);
+        resident_check: Some(true),
+        ..Default::default()
     });
     for (i, (a, b)) in host.iter().zip(&gpu).enumerate() {
         assert_eq!(a.times.readbacks, b.times.readbacks, "frame {i}");

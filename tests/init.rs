@@ -34,14 +34,11 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
         frames,
     } = Fig10::blob((0..4).map(|i| 20 + 3 * i));
     let cam = scene.cam;
-    let mut t = Tracker::new_searching(
-        ctx,
-        scene.model.clone(),
-        cam,
-        Some(store.clone()),
-        TrackerConfig::default(),
-    )
-    .unwrap();
+    let mut t = Tracker::builder(ctx, scene.model.clone(), cam)
+        .keyframes(store.clone())
+        .config(TrackerConfig::default())
+        .build()
+        .unwrap();
     assert!(t.searching());
     let t0 = Instant::now();
     let r = t.track(&frames[0].image).unwrap();
@@ -74,14 +71,11 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
         0.01,
         5,
     );
-    let mut t = Tracker::new_searching(
-        ctx,
-        scene.model.clone(),
-        cam,
-        Some(store.clone()),
-        TrackerConfig::default(),
-    )
-    .unwrap();
+    let mut t = Tracker::builder(ctx, scene.model.clone(), cam)
+        .keyframes(store.clone())
+        .config(TrackerConfig::default())
+        .build()
+        .unwrap();
     let r = t.track(&empty).unwrap();
     assert_eq!(
         (r.status, r.reason),
@@ -91,15 +85,12 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
 
     // Re-detection: tracking, five frames without the object, then the
     // object far from where it was lost.
-    let mut t = Tracker::new(
-        ctx,
-        scene.model.clone(),
-        cam,
-        Some(store),
-        TrackerConfig::default(),
-        frames[0].pose,
-    )
-    .unwrap();
+    let mut t = Tracker::builder(ctx, scene.model.clone(), cam)
+        .keyframes(store)
+        .config(TrackerConfig::default())
+        .initial_pose(frames[0].pose)
+        .build()
+        .unwrap();
     assert_eq!(t.track(&frames[0].image).unwrap().status, Status::Tracking);
     for _ in 0..5 {
         assert_eq!(t.track(&empty).unwrap().status, Status::Lost);
@@ -169,14 +160,11 @@ fn start_with(
     diameter: f64,
     config: TrackerConfig,
 ) -> (bool, f64) {
-    let mut t = Tracker::new_searching(
-        shared_test_context(),
-        model.clone(),
-        cam,
-        Some(store.clone()),
-        config,
-    )
-    .unwrap();
+    let mut t = Tracker::builder(shared_test_context(), model.clone(), cam)
+        .keyframes(store.clone())
+        .config(config)
+        .build()
+        .unwrap();
     let t0 = Instant::now();
     let r = t.track(img).unwrap();
     let secs = t0.elapsed().as_secs_f64();

@@ -63,7 +63,12 @@ fn track_first_frames_with(
     let init: Pose = read_poses(&seq.init_path()).unwrap()[0].pose;
     let ok = gt_ok(&dir.join("gt_quality.csv"));
     let diameter = model.diameter() as f64;
-    let mut tracker = Tracker::new(ctx, model, cam, Some(store), config, init).unwrap();
+    let mut tracker = Tracker::builder(ctx, model, cam)
+        .keyframes(store)
+        .config(config)
+        .initial_pose(init)
+        .build()
+        .unwrap();
     let mut out = Vec::new();
     for (i, g) in gt.iter().enumerate().take(frames) {
         assert_eq!(g.frame_index(), Some(i));

@@ -65,15 +65,12 @@ fn ten_thousand_frames_with_flat_memory() {
         mode: Mode::KfIt,
         ..Default::default()
     };
-    let mut tracker = Tracker::new_shared(
-        ctx,
-        inputs.model.clone(),
-        inputs.tracking_camera(),
-        inputs.keyframes.clone(),
-        config,
-        inputs.init.expect("the synthetic sequence has an init.csv"),
-    )
-    .unwrap();
+    let mut tracker = Tracker::builder(ctx, inputs.model.clone(), inputs.tracking_camera())
+        .maybe_keyframes(inputs.keyframes.clone())
+        .config(config)
+        .initial_pose(inputs.init.expect("the synthetic sequence has an init.csv"))
+        .build()
+        .unwrap();
     let mut samples = Vec::new();
     let mut lost = 0;
     let start = std::time::Instant::now();

@@ -172,7 +172,7 @@ fn shared_models_at_ground_truth() {
         let mesh = TriangleMesh::load_obj(dir.join("mesh.obj")).unwrap();
         let poses = splattrack::io::read_poses(&dir.join("poses.csv")).unwrap();
         // The tracker's 1 px floor at the object's distance in frame 0,
-        // then close_gaps, as Tracker::new does.
+        // then close_gaps, as the tracker does (Tracker::builder).
         let z0 = poses[0].pose.transform_point(&Vector3::zeros()).z;
         let mut floored = model.clone();
         let floor = (z0 / cam.fx.max(cam.fy)) as f32;

@@ -64,15 +64,12 @@ fn fig10_kf_it_beats_it_and_kf_and_it_drifts() {
             mode,
             ..Default::default()
         };
-        let mut t = Tracker::new(
-            ctx,
-            model.clone(),
-            cfg.camera,
-            Some(store.clone()),
-            config,
-            frames[0].pose,
-        )
-        .unwrap();
+        let mut t = Tracker::builder(ctx, model.clone(), cfg.camera)
+            .keyframes(store.clone())
+            .config(config)
+            .initial_pose(frames[0].pose)
+            .build()
+            .unwrap();
         let mut e = ModeErrors {
             rotation: Vec::new(),
             translation_pct: Vec::new(),

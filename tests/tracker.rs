@@ -19,7 +19,9 @@ use splattrack::geometry::Pose;
 use splattrack::gpu::{GpuContext, shared_test_context};
 use splattrack::keyframes::KeyframeStore;
 use splattrack::rng::Rng;
-use splattrack::tracker::{Modalities, Mode, Status, TrackError, Tracker, TrackerConfig};
+use splattrack::tracker::{
+    Execution, Modalities, Mode, Status, TrackError, Tracker, TrackerConfig,
+};
 use std::sync::{Arc, OnceLock};
 use tracking_common::Fig10;
 
@@ -32,32 +34,37 @@ fn fixture() -> &'static Fig10 {
 }
 
 fn tracker(mode: Mode, store: Option<KeyframeStore>, initial: Pose) -> Tracker {
+    tracker_with(mode, store, initial, Execution::default())
+}
+
+/// [`tracker`] on the code paths of `execution`.
+fn tracker_with(
+    mode: Mode,
+    store: Option<KeyframeStore>,
+    initial: Pose,
+    execution: Execution,
+) -> Tracker {
     let f = fixture();
-    Tracker::new(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        store,
-        TrackerConfig {
+    Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .maybe_keyframes(store)
+        .config(TrackerConfig {
             mode,
             ..Default::default()
-        },
-        initial,
-    )
-    .expect("tracker")
+        })
+        .initial_pose(initial)
+        .execution(execution)
+        .build()
+        .expect("tracker")
 }
 
 /// A tracker on `ctx` with a GPU's frame loop (features in the shaders,
 /// the resident loop), texture and optionally the contour, from the
-/// window's first frame.
-fn gpu_loop_tracker(ctx: &GpuContext, contour: bool) -> Tracker {
+/// window's first frame, on the code paths of `execution`.
+fn gpu_loop_tracker(ctx: &GpuContext, contour: bool, execution: Execution) -> Tracker {
     let f = fixture();
-    Tracker::new(
-        ctx,
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(f.store.clone()),
-        TrackerConfig {
+    Tracker::builder(ctx, f.scene.model.clone(), f.scene.cam)
+        .keyframes(f.store.clone())
+        .config(TrackerConfig {
             feature_backend: FeatureBackend::Gpu,
             resident: Some(true),
             modalities: Modalities {
@@ -65,10 +72,11 @@ fn gpu_loop_tracker(ctx: &GpuContext, contour: bool) -> Tracker {
                 contour,
             },
             ..Default::default()
-        },
-        f.frames[0].pose,
-    )
-    .expect("tracker")
+        })
+        .initial_pose(f.frames[0].pose)
+        .execution(execution)
+        .build()
+        .expect("tracker")
 }
 
 /// Tracks the first `n` frames of the window; returns per-frame (rotation
@@ -222,14 +230,11 @@ fn object_behind_the_camera_is_refused() {
     let f = fixture();
     let mut behind = f.frames[0].pose;
     behind.translation.z = -behind.translation.z;
-    let e = Tracker::new(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(f.store.clone()),
-        TrackerConfig::default(),
-        behind,
-    );
+    let e = Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .keyframes(f.store.clone())
+        .config(TrackerConfig::default())
+        .initial_pose(behind)
+        .build();
     assert!(
         matches!(e, Err(TrackError::ObjectNotInView)),
         "{:?}",
@@ -238,14 +243,10 @@ fn object_behind_the_camera_is_refused() {
     // Far off to the side (the whole object outside the image) too.
     let mut aside = f.frames[0].pose;
     aside.translation.x += 5.0;
-    let e = Tracker::new(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        None,
-        TrackerConfig::default(),
-        aside,
-    );
+    let e = Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .config(TrackerConfig::default())
+        .initial_pose(aside)
+        .build();
     assert!(
         matches!(e, Err(TrackError::ObjectNotInView)),
         "{:?}",
@@ -259,17 +260,13 @@ fn kf_mode_needs_keyframes_or_model_colours() {
     let mut bare = f.scene.model.clone();
     bare.colors = None;
     for mode in [Mode::Kf, Mode::KfIt] {
-        let e = Tracker::new(
-            shared_test_context(),
-            bare.clone(),
-            f.scene.cam,
-            None,
-            TrackerConfig {
+        let e = Tracker::builder(shared_test_context(), bare.clone(), f.scene.cam)
+            .config(TrackerConfig {
                 mode,
                 ..Default::default()
-            },
-            f.frames[0].pose,
-        );
+            })
+            .initial_pose(f.frames[0].pose)
+            .build();
         match e {
             Err(TrackError::NeedsKeyframes(name)) => assert_eq!(name, mode.name()),
             other => panic!(
@@ -294,15 +291,12 @@ fn a_shared_store_is_used_in_place_and_tracks_the_same() {
     let f = fixture();
     let shared = Arc::new(f.store.clone());
     let config = TrackerConfig::default();
-    let mut t = Tracker::new_shared(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(Arc::clone(&shared)),
-        config.clone(),
-        f.frames[0].pose,
-    )
-    .unwrap();
+    let mut t = Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .keyframes(Arc::clone(&shared))
+        .config(config.clone())
+        .initial_pose(f.frames[0].pose)
+        .build()
+        .unwrap();
     assert!(std::ptr::eq(t.keyframes().unwrap(), &*shared));
     assert_eq!(Arc::strong_count(&shared), 2);
     let mut moved = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
@@ -315,14 +309,11 @@ fn a_shared_store_is_used_in_place_and_tracks_the_same() {
     drop(t);
     assert_eq!(Arc::strong_count(&shared), 1);
     // Searching trackers share theirs too.
-    let s = Tracker::new_searching_shared(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(Arc::clone(&shared)),
-        config,
-    )
-    .unwrap();
+    let s = Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .keyframes(Arc::clone(&shared))
+        .config(config)
+        .build()
+        .unwrap();
     assert!(std::ptr::eq(s.keyframes().unwrap(), &*shared));
 }
 
@@ -379,7 +370,7 @@ fn assert_same_poses(
     b: impl Fn(bool) -> TrackerConfig,
     n: [usize; 2],
 ) {
-    assert_same_poses_set(a, b, n, |_, _| {});
+    assert_same_poses_set(a, b, n, |_| Execution::default());
 }
 
 /// [`assert_same_poses`] with `set(tracker, is_b)` applied to each new
@@ -388,21 +379,17 @@ fn assert_same_poses_set(
     a: impl Fn(bool) -> TrackerConfig,
     b: impl Fn(bool) -> TrackerConfig,
     n: [usize; 2],
-    set: impl Fn(&mut Tracker, bool),
+    execution: impl Fn(bool) -> Execution,
 ) {
     let f = fixture();
     let make = |config: TrackerConfig, is_b: bool| {
-        let mut t = Tracker::new(
-            shared_test_context(),
-            f.scene.model.clone(),
-            f.scene.cam,
-            Some(f.store.clone()),
-            config,
-            f.frames[0].pose,
-        )
-        .expect("tracker");
-        set(&mut t, is_b);
-        t
+        Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+            .keyframes(f.store.clone())
+            .config(config)
+            .initial_pose(f.frames[0].pose)
+            .execution(execution(is_b))
+            .build()
+            .expect("tracker")
     };
     for (contour, n) in [(false, n[0]), (true, n[1])] {
         let (mut ta, mut tb) = (make(a(contour), false), make(b(contour), true));
@@ -432,7 +419,7 @@ fn assert_same_poses_set(
 }
 
 /// The GPUs' kernels (workgroup tiles, split counts, a workgroup a match,
-/// window or corner: `Tracker::set_gpu_kernels`) against the CPU
+/// window or corner: `Execution::gpu_kernels`) against the CPU
 /// adapters' (one thread an item) in the GPU frame loop (resident, features
 /// in the shaders), on lavapipe whatever its defaults: the same poses.
 #[test]
@@ -446,8 +433,9 @@ fn the_gpus_kernels_give_the_cpu_adapters_poses() {
         },
         ..Default::default()
     };
-    assert_same_poses_set(gpu_loop, gpu_loop, [6, 4], |t, is_b| {
-        t.set_gpu_kernels(!is_b)
+    assert_same_poses_set(gpu_loop, gpu_loop, [6, 4], |is_b| Execution {
+        gpu_kernels: Some(!is_b),
+        ..Default::default()
     });
 }
 
@@ -462,10 +450,15 @@ fn the_selection_in_one_workgroup_gives_the_split_selections_poses() {
     let ctx = shared_test_context();
     for (contour, n) in [(false, 5), (true, 3)] {
         let make = |small: bool| {
-            let mut t = gpu_loop_tracker(ctx, contour);
-            t.set_gpu_kernels(true);
-            t.set_harris_small_selection(Some(small));
-            t
+            gpu_loop_tracker(
+                ctx,
+                contour,
+                Execution {
+                    gpu_kernels: Some(true),
+                    harris_small_selection: Some(small),
+                    ..Default::default()
+                },
+            )
         };
         let (mut one, mut split) = (make(true), make(false));
         for (i, fr) in f.frames[..n].iter().enumerate() {
@@ -487,18 +480,14 @@ fn the_windowed_silhouette_is_the_whole_frame_one() {
     // Overlays and the live view splat only the window the model can cover.
     let f = fixture();
     let make = |windows: bool| {
-        Tracker::new(
-            shared_test_context(),
-            f.scene.model.clone(),
-            f.scene.cam,
-            None,
-            TrackerConfig {
+        Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+            .config(TrackerConfig {
                 windows,
                 ..Default::default()
-            },
-            f.frames[0].pose,
-        )
-        .expect("tracker")
+            })
+            .initial_pose(f.frames[0].pose)
+            .build()
+            .expect("tracker")
     };
     let (mut windowed, mut whole) = (make(true), make(false));
     let same = |a: &[bool], b: &[bool]| {
@@ -545,12 +534,9 @@ fn steady_loop_allocates_nothing(resident: bool) {
     use splattrack::gpu::own_test_context;
     let f = fixture();
     let ctx = own_test_context();
-    let mut t = Tracker::new(
-        &ctx,
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(f.store.clone()),
-        TrackerConfig {
+    let mut t = Tracker::builder(&ctx, f.scene.model.clone(), f.scene.cam)
+        .keyframes(f.store.clone())
+        .config(TrackerConfig {
             feature_backend: if resident {
                 FeatureBackend::Gpu
             } else {
@@ -559,10 +545,10 @@ fn steady_loop_allocates_nothing(resident: bool) {
             // Both the matching and the check (TrackerConfig::resident).
             resident: Some(resident),
             ..Default::default()
-        },
-        f.frames[0].pose,
-    )
-    .expect("tracker");
+        })
+        .initial_pose(f.frames[0].pose)
+        .build()
+        .expect("tracker");
     let order: Vec<usize> = (0..8).chain((0..7).rev()).collect();
     let made: Vec<(u64, u64)> = order
         .iter()
@@ -616,9 +602,15 @@ fn the_resident_check_gives_the_host_checks_poses() {
     // tests/verify_gpu.rs).
     let f = fixture();
     let make = |resident: bool| {
-        let mut t = tracker(Mode::KfIt, Some(f.store.clone()), f.frames[0].pose);
-        t.set_resident_check(resident);
-        t
+        tracker_with(
+            Mode::KfIt,
+            Some(f.store.clone()),
+            f.frames[0].pose,
+            Execution {
+                resident_check: Some(resident),
+                ..Default::default()
+            },
+        )
     };
     same_checks(make(true), make(false));
 }
@@ -632,22 +624,21 @@ fn the_check_on_the_resident_frame_gives_the_host_checks_scores() {
     // (fails when the frame's window is not cut: stale values).
     let f = fixture();
     let make = |resident_check: bool| {
-        let mut t = Tracker::new(
-            shared_test_context(),
-            f.scene.model.clone(),
-            f.scene.cam,
-            Some(f.store.clone()),
-            TrackerConfig {
+        Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+            .keyframes(f.store.clone())
+            .config(TrackerConfig {
                 mode: Mode::KfIt,
                 feature_backend: FeatureBackend::Gpu,
                 resident: Some(true),
                 ..Default::default()
-            },
-            f.frames[0].pose,
-        )
-        .expect("tracker");
-        t.set_resident_check(resident_check);
-        t
+            })
+            .initial_pose(f.frames[0].pose)
+            .execution(Execution {
+                resident_check: Some(resident_check),
+                ..Default::default()
+            })
+            .build()
+            .expect("tracker")
     };
     same_checks(make(true), make(false));
 }
@@ -672,20 +663,19 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
     let f = fixture();
     let ctx = own_test_context();
     let make = |resident: bool, start: usize| {
-        let mut t = Tracker::new(
-            &ctx,
-            f.scene.model.clone(),
-            f.scene.cam,
-            Some(f.store.clone()),
-            TrackerConfig {
+        Tracker::builder(&ctx, f.scene.model.clone(), f.scene.cam)
+            .keyframes(f.store.clone())
+            .config(TrackerConfig {
                 feature_backend: FeatureBackend::Gpu,
                 ..Default::default()
-            },
-            f.frames[start].pose,
-        )
-        .expect("tracker");
-        t.set_resident_matching(resident);
-        t
+            })
+            .initial_pose(f.frames[start].pose)
+            .execution(Execution {
+                resident_matching: Some(resident),
+                ..Default::default()
+            })
+            .build()
+            .expect("tracker")
     };
     let (mut read_gpu, mut read_host) = (0u64, 0u64);
     for start in [0, 2, 4] {
@@ -756,9 +746,14 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     let f = fixture();
     let ctx = own_test_context();
     let make = |chained: bool, contour: bool| {
-        let mut t = gpu_loop_tracker(&ctx, contour);
-        t.set_chained_kf(chained);
-        t
+        gpu_loop_tracker(
+            &ctx,
+            contour,
+            Execution {
+                chained_kf: chained,
+                ..Default::default()
+            },
+        )
     };
     for (contour, n) in [(false, 6), (true, 4)] {
         let (mut one, mut two) = (make(true, contour), make(false, contour));
@@ -786,7 +781,7 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     }
 }
 
-/// `--profile`'s GPU timing (`Tracker::enable_gpu_timing`) reads its
+/// `--profile`'s GPU timing (`Execution::gpu_timing`) reads its
 /// timestamps with the frame's own readbacks: a timed frame loop waits
 /// for the GPU and submits work as often as an untimed one, gives the
 /// same poses bit for bit, and reports the passes of every stage (the
@@ -799,12 +794,15 @@ fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
     let ctx = own_test_context();
     for (contour, n) in [(false, 4), (true, 3)] {
         let make = |timed: bool| {
-            let mut t = gpu_loop_tracker(&ctx, contour);
-            t.set_resident_outline(true);
-            if timed {
-                t.enable_gpu_timing();
-            }
-            t
+            gpu_loop_tracker(
+                &ctx,
+                contour,
+                Execution {
+                    resident_outline: Some(true),
+                    gpu_timing: timed,
+                    ..Default::default()
+                },
+            )
         };
         let (mut timed, mut plain) = (make(true), make(false));
         for (i, fr) in f.frames[..n].iter().enumerate() {
@@ -856,7 +854,7 @@ fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
 #[test]
 fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less() {
     // IT's matching chained behind the frame's Harris on the GPU
-    // (`set_chained_it`): the same poses, inliers and residuals
+    // (`Execution::chained_it`): the same poses, inliers and residuals
     // bit for bit as detecting, then matching, and one readback fewer on
     // every frame IT runs (from the second on), with the contour or
     // without. Features in the shaders, as on a GPU. A context of its
@@ -865,12 +863,15 @@ fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
     let f = fixture();
     let ctx = own_test_context();
     let make = |chained: bool, contour: bool, host_selects: bool| {
-        let mut t = gpu_loop_tracker(&ctx, contour);
-        t.set_chained_it(chained);
-        if host_selects {
-            t.set_harris_select_limit(0);
-        }
-        t
+        gpu_loop_tracker(
+            &ctx,
+            contour,
+            Execution {
+                chained_it: chained,
+                harris_select_limit: host_selects.then_some(0),
+                ..Default::default()
+            },
+        )
     };
     // Where the host selects the corners (a select limit of 0), the chain
     // falls back to matching from the host's corners: the same poses, no
@@ -918,15 +919,12 @@ fn the_tracker_shares_the_callers_model_unless_it_changes_the_radii() {
     let f = fixture();
     let given = Arc::new(f.scene.model.clone());
     let make = |config: TrackerConfig| {
-        Tracker::new_shared(
-            shared_test_context(),
-            given.clone(),
-            f.scene.cam,
-            Some(Arc::new(f.store.clone())),
-            config,
-            f.frames[0].pose,
-        )
-        .expect("tracker")
+        Tracker::builder(shared_test_context(), given.clone(), f.scene.cam)
+            .keyframes(Arc::new(f.store.clone()))
+            .config(config)
+            .initial_pose(f.frames[0].pose)
+            .build()
+            .expect("tracker")
     };
     let kept = make(TrackerConfig {
         min_splat_radius_px: 0.0,
@@ -960,18 +958,15 @@ fn the_tracker_shares_the_callers_model_unless_it_changes_the_radii() {
     let mut gapped = f.scene.model.clone();
     gapped.radii.iter_mut().for_each(|r| *r /= 3.0);
     let gapped = Arc::new(gapped);
-    let closed = Tracker::new_shared(
-        shared_test_context(),
-        gapped.clone(),
-        f.scene.cam,
-        Some(Arc::new(f.store.clone())),
-        TrackerConfig {
+    let closed = Tracker::builder(shared_test_context(), gapped.clone(), f.scene.cam)
+        .keyframes(Arc::new(f.store.clone()))
+        .config(TrackerConfig {
             min_splat_radius_px: 0.0,
             ..Default::default()
-        },
-        f.frames[0].pose,
-    )
-    .expect("tracker");
+        })
+        .initial_pose(f.frames[0].pose)
+        .build()
+        .expect("tracker");
     assert!(!Arc::ptr_eq(closed.model(), &gapped));
     let grown = closed
         .model()

@@ -58,15 +58,12 @@ fn track(
         close_gaps,
         ..Default::default()
     };
-    let mut t = Tracker::new(
-        ctx,
-        model.clone(),
-        scene.cam,
-        Some(store),
-        config,
-        frames[0].pose,
-    )
-    .unwrap();
+    let mut t = Tracker::builder(ctx, model.clone(), scene.cam)
+        .keyframes(store)
+        .config(config)
+        .initial_pose(frames[0].pose)
+        .build()
+        .unwrap();
     let (mut rot, mut max_rot, mut tr, mut lost, mut inliers) = (0.0, 0.0f64, 0.0, 0, 0.0);
     for f in frames {
         let r = t.track(&f.image).unwrap();

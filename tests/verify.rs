@@ -38,19 +38,16 @@ fn tracker(mode: Mode, initial: Pose) -> Tracker {
 
 fn tracker_with(mode: Mode, modalities: Modalities, initial: Pose) -> Tracker {
     let f = fixture();
-    Tracker::new(
-        shared_test_context(),
-        f.scene.model.clone(),
-        f.scene.cam,
-        Some(f.store.clone()),
-        TrackerConfig {
+    Tracker::builder(shared_test_context(), f.scene.model.clone(), f.scene.cam)
+        .keyframes(f.store.clone())
+        .config(TrackerConfig {
             mode,
             modalities,
             ..Default::default()
-        },
-        initial,
-    )
-    .expect("tracker")
+        })
+        .initial_pose(initial)
+        .build()
+        .expect("tracker")
 }
 
 /// `pose` turned by `deg` degrees about `axis` through the object's origin
@@ -251,18 +248,15 @@ fn real_cube_with_a_wrong_initial_pose_is_never_tracking_far_off() {
     for modalities in [Modalities::TEXTURE, Modalities::BOTH, Modalities::CONTOUR] {
         for (deg, axis) in inits {
             let init = turned(&real.gt[0].pose, axis, deg);
-            let mut t = Tracker::new(
-                ctx,
-                real.model.clone(),
-                real.seq.camera,
-                Some(real.store.clone()),
-                TrackerConfig {
+            let mut t = Tracker::builder(ctx, real.model.clone(), real.seq.camera)
+                .keyframes(real.store.clone())
+                .config(TrackerConfig {
                     modalities,
                     ..Default::default()
-                },
-                init,
-            )
-            .unwrap();
+                })
+                .initial_pose(init)
+                .build()
+                .unwrap();
             let what = format!("real cube {} init off by {deg}", modalities.name());
             track_safely(&what, &mut t, &frames);
         }

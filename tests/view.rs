@@ -385,7 +385,7 @@ fn a_run_hands_the_sink_every_frame_in_order_and_stops_when_told() {
         .unwrap();
     assert!(stats.stopped);
     assert_eq!(stats.frames, 2);
-    assert!(stats.mean_ms[3] > 0.0 && stats.mean_ms[3].is_finite());
+    assert!(stats.mean.total > 0.0 && stats.mean.total.is_finite());
     assert_eq!(read_poses(&poses).unwrap().len(), 2);
     assert!(!splattrack::io::atomic::partial_path(&poses).exists());
     assert_eq!(rec.seen.len(), 2);

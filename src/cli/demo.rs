@@ -110,7 +110,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         println!(
             "   {:<6} {:.1} ms per frame (median {:.1})",
             m.name(),
-            t.mean_ms[3],
+            t.mean.total,
             t.median_ms
         );
     }

@@ -3,6 +3,7 @@
 use super::config::{Mode, TrackerConfig};
 use super::contour::ContourState;
 use super::error::{CameraInvalid, TrackError};
+use super::execution::Execution;
 use super::outline_gpu::GpuOutline;
 use super::region::Resident;
 use super::result::StageTimes;
@@ -17,34 +18,123 @@ use crate::splat::{GpuModel, SplatTargets, Splatter, Window};
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
 
+/// Makes a [`Tracker`] ([`Tracker::builder`]): the model, the camera
+/// and the GPU context, then what the tracker needs beyond them.
+///
+/// - [`TrackerBuilder::keyframes`]: the keyframe store, moved in or
+///   shared (`Arc`). None is needed in the IT mode, or when the model has
+///   colours (they then serve as the single texture).
+/// - [`TrackerBuilder::config`]: the settings (default:
+///   [`TrackerConfig::default`]); they must pass
+///   [`TrackerConfig::validate`].
+/// - [`TrackerBuilder::initial_pose`]: the pose of the first frame given
+///   to [`Tracker::track`]. Without one, each frame is searched for the
+///   object ([`super::init`]) until it is found (until then the frames
+///   are `lost`, reason `not found`), then tracked; the search needs a
+///   texture (keyframes or model colours).
+/// - [`TrackerBuilder::execution`]: the code paths ([`Execution`]).
+pub struct TrackerBuilder<'a> {
+    ctx: &'a GpuContext,
+    model: Arc<PointModel>,
+    cam: Intrinsics,
+    keyframes: Option<Arc<KeyframeStore>>,
+    config: TrackerConfig,
+    initial: Option<Pose>,
+    execution: Execution,
+}
+
 impl Tracker {
-    /// A tracker for `model` seen by `cam` (undistorted frames), starting at
-    /// `initial` (the pose of the first frame given to [`Tracker::track`]).
-    /// `keyframes` may be `None` for the IT mode, or when the model has
-    /// colours (they then serve as the single texture). `config` must pass
-    /// [`TrackerConfig::validate`].
-    pub fn new(
+    /// A tracker for `model` seen by `cam` (undistorted frames), on
+    /// `ctx` (the tracker keeps its own handle, a cheap clone). The model
+    /// may be shared (an `Arc<PointModel>`): the tracker copies it only
+    /// where it changes its radii (`min_splat_radius_px`, `close_gaps`;
+    /// [`Tracker::model`]).
+    pub fn builder(
         ctx: &GpuContext,
         model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
-        keyframes: Option<KeyframeStore>,
-        config: TrackerConfig,
-        initial: Pose,
-    ) -> Result<Self, TrackError> {
-        Self::new_shared(ctx, model, cam, keyframes.map(Arc::new), config, initial)
+    ) -> TrackerBuilder<'_> {
+        TrackerBuilder {
+            ctx,
+            model: model.into(),
+            cam,
+            keyframes: None,
+            config: TrackerConfig::default(),
+            initial: None,
+            execution: Execution::default(),
+        }
+    }
+}
+
+impl TrackerBuilder<'_> {
+    /// The keyframe store: moved in, or shared with the caller (an
+    /// `Arc`): a store holds 12 bytes of colour per point and keyframe
+    /// (144 MB for a 1M-point model and 12 keyframes), which a caller
+    /// that keeps its own (an application tracking several runs from one
+    /// set of inputs) need not copy.
+    pub fn keyframes(mut self, store: impl Into<Arc<KeyframeStore>>) -> Self {
+        self.keyframes = Some(store.into());
+        self
     }
 
-    /// [`Tracker::new`] with a keyframe store shared with the caller
-    /// instead of moved in: a store holds 12 bytes of colour per point and
-    /// keyframe (144 MB for a 1M-point model and 12 keyframes), which a
-    /// caller that keeps its own (an application tracking several runs
-    /// from one set of inputs) need not copy. The model may be shared
-    /// likewise (an `Arc<PointModel>`): the tracker copies it only where
-    /// it changes its radii (`min_splat_radius_px`, `close_gaps`;
-    /// [`Tracker::model`]).
-    pub fn new_shared(
+    /// [`TrackerBuilder::keyframes`] where `store` is `Some`; none where
+    /// it is `None`.
+    pub fn maybe_keyframes(mut self, store: Option<impl Into<Arc<KeyframeStore>>>) -> Self {
+        self.keyframes = store.map(Into::into);
+        self
+    }
+
+    /// The settings.
+    pub fn config(mut self, config: TrackerConfig) -> Self {
+        self.config = config;
+        self
+    }
+
+    /// The pose of the first frame (`None`: search each frame for the
+    /// object until it is found).
+    pub fn initial_pose(mut self, pose: impl Into<Option<Pose>>) -> Self {
+        self.initial = pose.into();
+        self
+    }
+
+    /// The code paths ([`Execution`]; default: the adapter's).
+    pub fn execution(mut self, execution: Execution) -> Self {
+        self.execution = execution;
+        self
+    }
+
+    /// The tracker. Fails on settings out of range, an impossible camera
+    /// or initial pose, an initial pose that puts the object out of view,
+    /// a mode or a search that needs a texture without one, or a GPU
+    /// failure.
+    pub fn build(self) -> Result<Tracker, TrackError> {
+        let mut t = match self.initial {
+            Some(initial) => Tracker::start(
+                self.ctx,
+                self.model,
+                self.cam,
+                self.keyframes,
+                self.config,
+                initial,
+            )?,
+            None => Tracker::start_searching(
+                self.ctx,
+                self.model,
+                self.cam,
+                self.keyframes,
+                self.config,
+            )?,
+        };
+        t.apply(&self.execution);
+        Ok(t)
+    }
+}
+
+impl Tracker {
+    /// The tracker starting at `initial`.
+    fn start(
         ctx: &GpuContext,
-        model: impl Into<Arc<PointModel>>,
+        mut model: Arc<PointModel>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
         config: TrackerConfig,
@@ -53,7 +143,6 @@ impl Tracker {
         config.validate()?;
         cam.validate().map_err(CameraInvalid)?;
         initial.validate()?;
-        let mut model: Arc<PointModel> = model.into();
         let store =
             keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial).map(Arc::new));
         if store.is_none() && config.mode != Mode::It {
@@ -184,30 +273,14 @@ impl Tracker {
         Ok(tracker)
     }
 
-    /// A tracker without an initial pose: each frame is searched for the
-    /// object ([`init`]) until it is found (until then the frames are
-    /// `lost`, reason `not found`), then tracked. Needs a texture
-    /// (keyframes or model colours) for the search.
-    pub fn new_searching(
+    /// The tracker without an initial pose: searching each frame.
+    fn start_searching(
         ctx: &GpuContext,
-        model: impl Into<Arc<PointModel>>,
-        cam: Intrinsics,
-        keyframes: Option<KeyframeStore>,
-        config: TrackerConfig,
-    ) -> Result<Self, TrackError> {
-        Self::new_searching_shared(ctx, model, cam, keyframes.map(Arc::new), config)
-    }
-
-    /// [`Tracker::new_searching`] with a shared keyframe store (see
-    /// [`Tracker::new_shared`]).
-    pub fn new_searching_shared(
-        ctx: &GpuContext,
-        model: impl Into<Arc<PointModel>>,
+        model: Arc<PointModel>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
         config: TrackerConfig,
     ) -> Result<Self, TrackError> {
-        let model: Arc<PointModel> = model.into();
         // A placeholder pose: the object's centre on the axis, a third of
         // the image across; the store's own viewpoint when there is one.
         let bounds = crate::splat::ModelBounds::of(&model);
@@ -221,11 +294,43 @@ impl Tracker {
             Some(k) => placeholder(k.pose.rotation)?,
             None => placeholder(Matrix3::identity())?,
         };
-        let mut t = Self::new_shared(ctx, model, cam, keyframes, config, initial)?;
+        let mut t = Self::start(ctx, model, cam, keyframes, config, initial)?;
         if t.store.is_none() {
             return Err(TrackError::NeedsKeyframes("search (no initial pose)"));
         }
         t.searching = true;
         Ok(t)
+    }
+
+    /// Takes the code paths of `e` (after the constructor's own choices;
+    /// each where it is not the default).
+    fn apply(&mut self, e: &Execution) {
+        if let Some(gpu) = e.gpu_kernels {
+            self.set_gpu_kernels(gpu);
+        }
+        if let Some(tiled) = e.harris_tiled_selection {
+            self.harris.set_tiled_selection(tiled);
+        }
+        if let Some(small) = e.harris_small_selection {
+            self.harris.set_small_selection(Some(small));
+        }
+        if let Some(n) = e.harris_select_limit {
+            self.harris.set_select_limit(n);
+        }
+        if let Some(on) = e.resident_matching {
+            self.set_resident_matching(on);
+        }
+        self.resident.chain_kf = e.chained_kf;
+        self.resident.chain_it = e.chained_it;
+        if let Some(on) = e.resident_check {
+            self.check.set_resident(on);
+        }
+        if let Some(on) = e.resident_outline {
+            self.outline.set_resident(on);
+        }
+        self.contour.colours.set_background(e.background_learning);
+        if e.gpu_timing {
+            self.enable_gpu_timing();
+        }
     }
 }

@@ -33,13 +33,6 @@ impl super::Tracker {
         seen as f64 / all as f64
     }
 
-    /// Scores the check on the GPU (`true`, the default on GPUs) or on the
-    /// host from a readback of the view (the default on CPU adapters):
-    /// [`super::verify_gpu::GpuCheck::resident`]. The scores are the same.
-    pub fn set_resident_check(&mut self, on: bool) {
-        self.check.set_resident(on);
-    }
-
     /// Scores `pose` against `frame` (module docs).
     pub(super) fn verify_scores(
         &mut self,

@@ -239,7 +239,7 @@ pub struct TrackerConfig {
     /// back (`Some(true)`); or match host crops and score the check from
     /// a readback of the view (`Some(false)`). `None`: on with a GPU,
     /// off on a CPU adapter (lavapipe), where the host path measured
-    /// faster ([`super::Tracker::set_resident_matching`]). The same poses
+    /// faster ([`super::Execution::resident_matching`]). The same poses
     /// within f32 rounding (tests/tracker.rs).
     #[serde(default)]
     pub resident: Option<bool>,
@@ -297,7 +297,7 @@ impl Default for TrackerConfig {
 
 impl TrackerConfig {
     /// Checks every setting's range (the ones the detectors check too);
-    /// [`crate::tracker::Tracker::new`] refuses a configuration that fails.
+    /// [`crate::tracker::TrackerBuilder::build`] refuses a configuration that fails.
     pub fn validate(&self) -> Result<(), ConfigError> {
         fn check<T: fmt::Display + Copy>(
             field: &'static str,

@@ -110,7 +110,7 @@ impl Tracker {
     }
 
     /// The frame's corners ([`Tracker::frame_corners`]) and, where IT
-    /// chains on the GPU ([`Tracker::set_chained_it`]), IT's matching
+    /// chains on the GPU ([`super::Execution::chained_it`]), IT's matching
     /// recorded behind their detection, with one wait for both and IT's
     /// `early` gather; elsewhere the corners alone and the gather handed
     /// on for IT's step.

@@ -45,6 +45,7 @@ mod config;
 pub mod contour;
 mod decision;
 mod error;
+mod execution;
 mod frame;
 pub mod init;
 mod it;
@@ -59,10 +60,12 @@ pub mod verify;
 pub mod verify_gpu;
 mod workspace;
 
+pub use builder::TrackerBuilder;
 pub use config::{Modalities, Mode, TrackerConfig};
 pub use contour::ContourConfig;
 pub use decision::{Decision, Estimate, FrameSteps, Rules, StepOutcome, decide, verified};
 pub use error::{CameraInvalid, ConfigError, TrackError};
+pub use execution::Execution;
 pub use init::InitConfig;
 pub use result::{
     GpuMemoryUse, LostReason, Stage, StageTimes, StageWaits, Status, StepError, TrackResult,

@@ -149,12 +149,12 @@ impl GpuOutline {
     }
 
     /// Overrides [`GpuOutline::resident`].
-    pub fn set_resident(&mut self, on: bool) {
+    pub(crate) fn set_resident(&mut self, on: bool) {
         self.resident = on;
     }
 
     /// Times the three passes with GPU timestamp queries from now on.
-    pub fn enable_timing(&mut self) {
+    pub(crate) fn enable_timing(&mut self) {
         self.timer = Some(GpuTimer::new(&self.ctx, 3));
     }
 

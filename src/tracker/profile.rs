@@ -23,8 +23,9 @@ pub(super) enum Texture {
 
 impl Tracker {
     /// Times every GPU pass of every frame from now on (where the adapter
-    /// supports timestamp queries): [`super::StageTimes::gpu`].
-    pub fn enable_gpu_timing(&mut self) {
+    /// supports timestamp queries): [`super::StageTimes::gpu`]
+    /// ([`super::Execution::gpu_timing`]).
+    pub(super) fn enable_gpu_timing(&mut self) {
         self.gpu_timer = Some(GpuTimer::new(&self.ctx, 2));
         self.harris.enable_timing();
         self.check.enable_timing();

@@ -50,15 +50,15 @@ impl Kept {
 /// The frames' grey levels on the GPU: the frame being
 /// tracked, uploaded once when its step starts and read by its IT and KF
 /// matchings, and the previous frame's, kept for the next IT step. Used
-/// only while `on` ([`Tracker::set_resident_matching`]; on by default on
+/// only while `on` ([`super::Execution::resident_matching`]; on by default on
 /// GPUs, off on CPU adapters, where the host path measured faster).
 pub(super) struct Resident {
     pub(super) on: bool,
     /// The KF step's detection, matching and gather chained on the GPU
-    /// ([`Tracker::set_chained_kf`]).
+    /// ([`super::Execution::chained_kf`]).
     pub(super) chain_kf: bool,
     /// The frame's detection and IT's matching chained on the GPU
-    /// ([`Tracker::set_chained_it`]).
+    /// ([`super::Execution::chained_it`]).
     pub(super) chain_it: bool,
     pub(super) images: [GpuGrey; 2],
     /// The frames' way in: their bytes uploaded, converted on the GPU

@@ -43,7 +43,7 @@ pub struct StageTimes {
     #[serde(default)]
     pub kf_ncc: Duration,
     /// GPU time of each pass, milliseconds, as "stage kernel pass" (from
-    /// timestamp queries; empty unless [`Tracker::enable_gpu_timing`]).
+    /// timestamp queries; empty unless [`super::Execution::gpu_timing`]).
     #[serde(default)]
     pub gpu: Vec<(String, f64)>,
     /// When the GPU worked during the frame, from the same timestamps:
@@ -108,7 +108,7 @@ pub struct StageTimes {
     /// The contour's colour learning from a tracked frame, wherever it ran:
     /// by default on a thread of its own, beside the next frame's texture
     /// steps (counted in the frame it finished in, and not in `total`
-    /// then); see [`Tracker::set_background_learning`].
+    /// then); see [`super::Execution::background_learning`].
     #[serde(default)]
     pub colour_learning: Duration,
     /// Within the contour step: waiting for that thread to finish the

@@ -76,7 +76,11 @@ impl Frame {
 /// let store = KeyframeStore::load(Path::new("object.stkf"))?;
 /// store.check_model(&model, Path::new("object.stkf"))?;
 /// let config = TrackerConfig { mode: Mode::KfIt, ..Default::default() };
-/// let mut tracker = Tracker::new(&ctx, model, seq.camera, Some(store), config, init)?;
+/// let mut tracker = Tracker::builder(&ctx, model, seq.camera)
+///     .keyframes(store)
+///     .config(config)
+///     .initial_pose(init)
+///     .build()?;
 /// for path in &seq.frames {
 ///     let frame = image::open(path)?.to_rgb8(); // undistorted, the camera's size
 ///     let r = tracker.track(&frame)?;
@@ -123,7 +127,7 @@ pub struct Tracker {
     pub(super) lost_streak: usize,
     /// KF+IT: consecutive frames tracked by IT alone.
     pub(super) it_only_streak: usize,
-    /// No pose yet: each frame is searched ([`Tracker::new_searching`]).
+    /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
     pub(super) searching: bool,
     /// The tracker's own handle on the device (a cheap clone).
     pub(super) ctx: GpuContext,
@@ -133,7 +137,7 @@ pub struct Tracker {
     pub(super) kf_anchors: Vec<Anchor>,
     /// The sub-stage times of the frame being tracked.
     pub(super) stages: StageTimes,
-    /// Times the splat passes when on ([`Tracker::enable_gpu_timing`]).
+    /// Times the splat passes when on ([`super::Execution::gpu_timing`]).
     pub(super) gpu_timer: Option<crate::gpu::GpuTimer>,
     /// The frame's timed passes by label prefix, their timestamps still
     /// to come with the frame's readbacks (read at its end).
@@ -155,7 +159,7 @@ impl Tracker {
         &self.model
     }
 
-    /// Whether no pose has been found yet ([`Tracker::new_searching`]).
+    /// Whether no pose has been found yet (no initial pose given to [`Tracker::builder`]).
     pub fn searching(&self) -> bool {
         self.searching
     }
@@ -175,7 +179,7 @@ impl Tracker {
         &self.ctx
     }
 
-    /// The keyframe store in use: the one given to [`Tracker::new`], or
+    /// The keyframe store in use: the one given to [`Tracker::builder`], or
     /// the single texture made from the model's colours, or none (IT mode).
     pub fn keyframes(&self) -> Option<&KeyframeStore> {
         self.store.as_deref()

@@ -125,12 +125,12 @@ impl GpuCheck {
     }
 
     /// Overrides [`GpuCheck::resident`].
-    pub fn set_resident(&mut self, on: bool) {
+    pub(crate) fn set_resident(&mut self, on: bool) {
         self.resident = on;
     }
 
     /// Times the two passes with GPU timestamp queries from now on.
-    pub fn enable_timing(&mut self) {
+    pub(crate) fn enable_timing(&mut self) {
         self.timer = Some(crate::gpu::GpuTimer::new(&self.ctx, 2));
     }
 

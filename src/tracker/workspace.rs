@@ -18,18 +18,9 @@ use crate::splat::{
 use nalgebra::Vector2;
 
 impl Tracker {
-    /// Matches on GPU-resident images (`true`, the default on GPUs): the frames'
-    /// grey levels uploaded once per frame, the novel view left on the GPU
-    /// by Harris, the mutual check and the KF step's sub-pixel refinement
-    /// on the GPU ([`NccMatcher::match_resident`]), so only a few values
-    /// per feature come back; or (`false`, the default on CPU adapters)
-    /// on host crops uploaded per call, with the view's grey levels read
-    /// back and the refinement on the host. The same matches (refined
-    /// points within f32 rounding). On lavapipe the host path measured
-    /// faster (the real cube's KF matching about 10-14 ms a frame against
-    /// 42-48 ms: the GPU refinement samples each window more often than
-    /// the host's, and runs on the same two cores).
-    pub fn set_resident_matching(&mut self, on: bool) {
+    /// Matches on GPU-resident images or on host crops
+    /// ([`super::Execution::resident_matching`]).
+    pub(super) fn set_resident_matching(&mut self, on: bool) {
         self.resident.on = on;
         if !on {
             self.resident.current = None;
@@ -37,62 +28,9 @@ impl Tracker {
         }
     }
 
-    /// Chains the KF step's detection on the novel view, its matching and
-    /// the gather at its corners on the GPU where matching is resident
-    /// (`true`, the default): one wait for the three instead of two, the
-    /// same corners, matches and samples (the corners go from Harris to
-    /// NCC and the gather on the GPU; the matching's crop is the view's
-    /// window grown by the search margin instead of its corners' box,
-    /// which gives the same matches). `false`: detect, then match.
-    pub fn set_chained_kf(&mut self, on: bool) {
-        self.resident.chain_kf = on;
-    }
-
-    /// Chains the frame's detection and IT's matching on the GPU where
-    /// matching is resident (`true`, the default): one wait for both
-    /// instead of two, the same corners and matches. The frame's corners
-    /// go from Harris to NCC on the GPU as B's features (those outside the
-    /// crop left out there), the previous frame's corners off the object
-    /// are left out there by the gate (their samples in IT's gather,
-    /// which never comes back first), and the crop is cut around all the
-    /// previous frame's corners instead of those on the object, which
-    /// gives the same matches. Not with `it_interior_px` (its probes need
-    /// the gather first). `false`: detect, then match.
-    pub fn set_chained_it(&mut self, on: bool) {
-        self.resident.chain_it = on;
-    }
-
-    /// The most candidates Harris selects among on the GPU
-    /// ([`crate::features::Harris::set_select_limit`]; more are selected
-    /// on the host, and the chained steps fall back to matching from the
-    /// host's corners): for tests of those fallbacks.
-    #[doc(hidden)]
-    pub fn set_harris_select_limit(&mut self, n: usize) {
-        self.harris.set_select_limit(n);
-    }
-
-    /// The corner selection's O(n^2) passes tiled in workgroup memory or
-    /// one thread an item ([`crate::features::Harris::set_tiled_selection`]):
-    /// for the tracker bench's comparison of the two in the loop.
-    #[doc(hidden)]
-    pub fn set_harris_tiled_selection(&mut self, tiled: bool) {
-        self.harris.set_tiled_selection(tiled);
-    }
-
-    /// Where tiled, the corner selection in one workgroup a pass or split
-    /// over workgroups ([`crate::features::Harris::set_small_selection`]):
-    /// for the tests and benches comparing the two in the loop.
-    #[doc(hidden)]
-    pub fn set_harris_small_selection(&mut self, small: Option<bool>) {
-        self.harris.set_small_selection(small);
-    }
-
-    /// Every kernel choice between a GPU's (workgroup tiles, splits and
-    /// groups) and a CPU adapter's (one thread an item), whatever the
-    /// adapter: Harris's selection, the three matchers and the check.
-    /// For tests that run the GPUs' kernels in the loop on lavapipe.
-    #[doc(hidden)]
-    pub fn set_gpu_kernels(&mut self, gpu: bool) {
+    /// Every kernel choice a GPU's or a CPU adapter's
+    /// ([`super::Execution::gpu_kernels`]).
+    pub(super) fn set_gpu_kernels(&mut self, gpu: bool) {
         self.harris.set_tiled_selection(gpu);
         self.it_matcher.set_tiled(gpu);
         self.kf_matcher.set_tiled(gpu);

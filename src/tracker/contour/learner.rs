@@ -128,7 +128,7 @@ impl Colours {
 
     /// Learn on the worker (`true`, the default) or on the calling thread.
     /// The histograms are the same either way.
-    pub fn set_background(&mut self, on: bool) {
+    pub(crate) fn set_background(&mut self, on: bool) {
         self.background = on;
     }
 

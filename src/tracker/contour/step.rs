@@ -430,27 +430,9 @@ impl Tracker {
         }))
     }
 
-    /// Whether the contour learns a tracked frame's colours on a thread of
-    /// its own while the next frame's texture steps run (`true`, the
-    /// default), or on the calling thread before [`Tracker::track`]
-    /// returns (for profiling, or an embedding that wants no thread). The
-    /// colours, and so the poses, are the same either way.
-    pub fn set_background_learning(&mut self, on: bool) {
-        self.contour.colours.set_background(on);
-    }
-
-    /// Finds the contour's outline on the GPU (`true`, the default on
-    /// GPUs) or on the host from a readback of the window's depth (the
-    /// default on CPU adapters): [`super::outline_gpu::GpuOutline::resident`].
-    /// Only for depth-only contour renders; the points, and so the poses,
-    /// are the same.
-    pub fn set_resident_outline(&mut self, on: bool) {
-        self.outline.set_resident(on);
-    }
-
     /// Learns the colours of `frame` at the last contour render (after a
     /// tracked frame): on the colour learner's thread (see
-    /// [`Tracker::set_background_learning`]).
+    /// [`crate::tracker::Execution::background_learning`]).
     pub(in crate::tracker) fn learn_colours(&mut self, frame: &image::RgbImage, pose: &Pose) {
         let fresh = std::mem::take(&mut self.contour.mask_fresh);
         if let (true, Some(rect), Some(centre)) = (fresh, self.roi(pose), self.centre_px(pose)) {
