@@ -101,7 +101,7 @@ impl Modalities {
 impl Default for Modalities {
     /// Texture only: on the textured real cube the fused contour costs
     /// accuracy (0.50 against 0.35 degrees), while on the weakly textured
-    /// objects texture alone loses the track (README, "Contour": use
+    /// objects texture alone loses the track (docs/contour.md: use
     /// `contour` or `texture,contour` there).
     fn default() -> Self {
         Self::TEXTURE
@@ -257,8 +257,8 @@ impl Default for TrackerConfig {
             // Harris and NCC void any window with an invalid pixel (their
             // tolerance of pinholes, min_valid 0.8, measured no better on
             // the real cube: 0.381 against 0.349 deg with the 1 px floor's
-            // radii, 0.364 against 0.368 with closed radii; README "Hole-free
-            // views"). `track --min-valid 0.8` turns it on.
+            // radii, 0.364 against 0.368 with closed radii;
+            // docs/accuracy.md). `track --min-valid 0.8` turns it on.
             harris: HarrisConfig {
                 min_valid_weight: 1.0,
                 ..HarrisConfig::default().with_relative_threshold(0.003)

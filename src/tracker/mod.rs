@@ -2,7 +2,7 @@
 //! frame-to-frame tracking (IT), tracking against keyframe-textured novel
 //! views (KF), and both in turn (KF+IT).
 //!
-//! How it works, per frame `t` (DESIGN.md section 4):
+//! How it works, per frame `t` (docs/how-it-works.md):
 //! 1. Harris corners of the frame, inside the object's projected bounding
 //!    circle (plus a margin) at the previous pose.
 //! 2. IT: the motion predictors are splatted at the previous pose `E_{t-1}`;

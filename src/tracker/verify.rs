@@ -32,8 +32,7 @@ use crate::features::GreyImage;
 use std::fmt;
 
 /// The thresholds of the check. Calibrated on the synthetic sequences and
-/// the real ViSP cube and dragon (README, "What `tracking` and `lost`
-/// guarantee").
+/// the real ViSP cube and dragon (docs/trust.md).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(default)]
 pub struct VerifyConfig {

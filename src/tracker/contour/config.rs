@@ -73,13 +73,13 @@ pub struct ContourConfig {
     /// outline is nearly the same points of the surface; keeping them also
     /// keeps the points' sampling of the frame (a new render picks other
     /// pixels of the outline, whose line noise moves the weakly seen
-    /// rotations; README "Contour": the real dragon fused 98.8% to 100%).
+    /// rotations; docs/contour.md: the real dragon fused 98.8% to 100%).
     pub reproject_px: f64,
     /// Sectors of directions around the object's projected centre, each
     /// with its own colour histograms (learnt from the pixels in its
     /// directions, its lines weighed with them): what lies behind an object
     /// changes along its outline. 0: one pair of histograms for the whole
-    /// object (README "Contour": measured 0, 4, 6, 8, 12).
+    /// object (docs/contour.md: measured 0, 4, 6, 8, 12).
     pub sectors: usize,
     /// Whether a render the targets already hold near the step's start
     /// (the KF step's novel view, whose depth comes from its predictors;

@@ -1,5 +1,4 @@
-//! The contour modality (beyond the paper; DESIGN.md section 3, "Contour
-//! residuals"): the object's silhouette, splatted at the predicted pose, is
+//! The contour modality (beyond the paper; docs/contour.md): the object's silhouette, splatted at the predicted pose, is
 //! searched for along its normals in the live frame, and each contour point
 //! gives one residual row that joins the texture rows in one robust solve.
 //!

@@ -23,8 +23,8 @@ pub fn contour_row(l: &Matrix2x6<f64>, n: &Vector2<f64>, d: f64) -> Observation 
 /// The rows of `points` with `d = 0` ([`contour_row`]), their predictors
 /// `L` from the splatted depth `depth` (one channel, NaN where empty) at
 /// each point's pixel, lifted to the camera-space point: the projection's
-/// Jacobian that the splatter's motion targets hold there (DESIGN.md
-/// section 3), without rendering them.
+/// Jacobian that the splatter's motion targets hold there
+/// (docs/how-it-works.md), without rendering them.
 pub fn contour_predictors(
     cam: &crate::geometry::Intrinsics,
     depth: &crate::splat::SplatImage,

@@ -211,7 +211,7 @@ impl Tracker {
         let spacing = self.config.contour.spacing_px;
         // The splatted depth gives the coverage (NaN: empty) and, lifted
         // to the camera-space point, the motion predictors L there: the
-        // projection's Jacobian of DESIGN.md section 3, what the motion
+        // projection's Jacobian (docs/how-it-works.md), what the motion
         // targets would hold, without rendering them. On the GPU
         // (depth-only renders, whose normals come from the model): the
         // outline found there, a few integers a point and the coverage's

@@ -8,123 +8,29 @@
 //! results, progress through a [`ProgressFn`], a callback per frame and a
 //! [`FrameSink`] (the live view).
 
+mod error;
+mod stats;
+
+pub use error::AppError;
+pub use stats::{FrameMs, RunStats};
+
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
 use crate::gpu::GpuContext;
-use crate::io::atomic::WriteError;
 use crate::io::bop::BopWriter;
-use crate::io::poses::{PoseFileError, PoseRow, PoseWriter, read_poses};
-use crate::io::sequence::{Frame, Sequence, SequenceError};
-use crate::io::source::{FrameSource, SequenceFrames, SourceError};
-use crate::io::video::VideoError;
-use crate::keyframes::{KeyframeConfig, KeyframeError, KeyframeStore, load_keyframe_images};
-use crate::model::{LoadOptions, ModelError, PointModel};
+use crate::io::poses::{PoseRow, PoseWriter, read_poses};
+use crate::io::sequence::{Frame, Sequence};
+use crate::io::source::{FrameSource, SequenceFrames};
+use crate::keyframes::{KeyframeConfig, KeyframeStore, load_keyframe_images};
+use crate::model::{LoadOptions, PointModel};
 use crate::progress::{ProgressEvent, ProgressFn};
-use crate::splat::{SplatError, Splatter};
-use crate::tracker::{Status, TrackError, TrackResult, Tracker, TrackerConfig};
-use crate::view::{Flow, FrameSink, ViewError, ViewFrame};
+use crate::splat::Splatter;
+use crate::tracker::{Status, TrackResult, Tracker, TrackerConfig};
+use crate::view::{Flow, FrameSink, ViewFrame};
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
-
-/// Why a tracking run could not be set up or finished (a lost frame is not
-/// an error).
-#[derive(Debug, thiserror::Error)]
-pub enum AppError {
-    /// The point model could not be loaded.
-    #[error(transparent)]
-    Model(#[from] ModelError),
-    /// The sequence directory or one of its frames is unusable.
-    #[error(transparent)]
-    Sequence(#[from] SequenceError),
-    /// A video or camera could not be read.
-    #[error(transparent)]
-    Video(#[from] VideoError),
-    /// The camera file could not be read.
-    #[error(transparent)]
-    Camera(#[from] crate::io::camera::CameraError),
-    /// A pose file could not be read or written.
-    #[error(transparent)]
-    Poses(#[from] PoseFileError),
-    /// An output file (BOP results) could not be written.
-    #[error(transparent)]
-    Write(#[from] WriteError),
-    /// A keyframe store could not be loaded or saved, or is for another model.
-    #[error(transparent)]
-    Keyframes(#[from] KeyframeError),
-    /// The splatter could not be created.
-    #[error(transparent)]
-    Splat(#[from] SplatError),
-    /// A keyframe path that is neither a store nor a keyframe directory.
-    #[error("{0}: not a keyframe store file nor a directory with poses.csv")]
-    NotKeyframes(PathBuf),
-    /// Building a keyframe store from images failed.
-    #[error("building keyframes from {path}: {source}")]
-    BuildKeyframes {
-        /// The keyframe directory.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: KeyframeError,
-    },
-    /// A keyframe image could not be undistorted.
-    #[error("{path}: cannot undistort: {reason}")]
-    Undistort {
-        /// The keyframe directory.
-        path: PathBuf,
-        /// Why.
-        reason: String,
-    },
-    /// The tracker refused its inputs.
-    #[error("starting the tracker on {sequence}: {source}")]
-    Start {
-        /// The sequence directory.
-        sequence: PathBuf,
-        /// Why.
-        #[source]
-        source: Box<TrackError>,
-    },
-    /// Tracking stopped at a frame (bad frame, GPU failure).
-    #[error("{frame}: {source}")]
-    Track {
-        /// The frame's image file.
-        frame: PathBuf,
-        /// Why.
-        #[source]
-        source: Box<TrackError>,
-    },
-    /// An overlay picture could not be written.
-    #[error("{path}: cannot write: {source}")]
-    Overlay {
-        /// The picture or its directory.
-        path: PathBuf,
-        /// Why.
-        #[source]
-        source: image::ImageError,
-    },
-    /// No frame to track (an empty range).
-    #[error("no frames to track")]
-    NoFrames,
-    /// A run without a sequence was given no [`FrameSource`].
-    #[error("no frames to track: the inputs have no sequence and the run no frame source")]
-    NoSource,
-    /// An output would overwrite one of the run's inputs.
-    #[error(transparent)]
-    Clobber(#[from] crate::io::guard::ClobberError),
-    /// The live view failed.
-    #[error(transparent)]
-    View(#[from] ViewError),
-}
-
-impl From<SourceError> for AppError {
-    fn from(e: SourceError) -> Self {
-        match e {
-            SourceError::Sequence(e) => AppError::Sequence(e),
-            SourceError::Video(e) => AppError::Video(e),
-        }
-    }
-}
 
 /// Loads the keyframe store `path` names: a store file saved by
 /// [`KeyframeStore::save`] (refused when built for another model), or a
@@ -338,55 +244,6 @@ pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
         .map(|(v, k)| (k.to_string(), v))
         .collect();
     row
-}
-
-/// Milliseconds per frame of the main stages ([`RunStats::mean`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct FrameMs {
-    /// The frame's Harris corners.
-    pub features: f64,
-    /// The frame-to-frame step.
-    pub it: f64,
-    /// The keyframe step(s).
-    pub kf: f64,
-    /// The whole frame ([`crate::tracker::StageTimes::total`]).
-    pub total: f64,
-}
-
-/// What a run measured.
-#[derive(Debug, Clone, Default)]
-pub struct RunStats {
-    /// Frames tracked.
-    pub frames: usize,
-    /// Of which lost.
-    pub lost: usize,
-    /// Frames whose texture steps were set aside for the contour alone
-    /// ([`crate::tracker::TrackResult::texture_set_aside`]).
-    pub texture_set_aside: usize,
-    /// Mean milliseconds per frame of the features, the IT and KF steps,
-    /// and the whole frame.
-    pub mean: FrameMs,
-    /// Mean milliseconds per frame of the contour step.
-    pub contour_ms: f64,
-    /// Median total milliseconds per frame.
-    pub median_ms: f64,
-    /// Mean time per frame of every stage and sub-stage.
-    pub mean_stages: crate::tracker::StageTimes,
-    /// Mean milliseconds per frame spent getting the frame from its source
-    /// (reading and decoding an image, or waiting for the video decoder or
-    /// the camera, and undistorting it), outside the tracker's total.
-    pub source_ms: f64,
-    /// Frames the source dropped (a live camera: frames that arrived while
-    /// one was being tracked).
-    pub dropped: u64,
-    /// True when the run ended before its last frame: on its stop flag
-    /// ([`TrackRun::stop_on`], Ctrl-C) or because its [`FrameSink`] said
-    /// [`Flow::Stop`] (the live view was closed); `frames` counts the
-    /// frames tracked.
-    pub stopped: bool,
-    /// GPU memory of the tracker's splatting at the end of the run
-    /// ([`crate::tracker::Tracker::gpu_memory`]).
-    pub gpu_memory: Option<crate::tracker::GpuMemoryUse>,
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
