@@ -6,11 +6,11 @@ use crate::features::FeatureError;
 /// A tracker setting out of its range.
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
-    /// The field (named as in [`TrackerConfig`], e.g. `it_search_px` or
+    /// The field (named as in [`super::TrackerConfig`], e.g. `it_search_px` or
     /// `harris.relative_threshold`) breaks its rule.
     #[error("{field} = {value}: must be {rule}")]
     OutOfRange {
-        /// The field's path in [`TrackerConfig`].
+        /// The field's path in [`super::TrackerConfig`].
         field: &'static str,
         /// Its value, as its type prints it.
         value: String,
@@ -26,7 +26,7 @@ pub enum ConfigError {
 /// frame that is merely lost.
 #[derive(Debug, thiserror::Error)]
 pub enum TrackError {
-    /// [`Tracker::track`] got a frame whose size is not the camera's.
+    /// [`super::Tracker::track`] got a frame whose size is not the camera's.
     #[error("frame is {got_w}x{got_h}, the camera is {want_w}x{want_h}")]
     FrameSize {
         /// The frame's width, pixels.

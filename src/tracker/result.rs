@@ -51,15 +51,15 @@ pub struct StageTimes {
     #[serde(default)]
     pub gpu_timeline: crate::gpu::GpuTimeline,
     /// Bytes read back from the GPU during the call
-    /// ([`GpuContext::bytes_read`]; a mean over frames is fractional).
+    /// ([`crate::gpu::GpuContext::bytes_read`]; a mean over frames is fractional).
     #[serde(default)]
     pub readback_bytes: f64,
     /// Readbacks (waits for the GPU) during the call
-    /// ([`GpuContext::readbacks`]).
+    /// ([`crate::gpu::GpuContext::readbacks`]).
     #[serde(default)]
     pub readbacks: f64,
     /// The time the host spent blocked in those readbacks' waits
-    /// ([`GpuContext::waited`]): the GPU's work queued before them and the
+    /// ([`crate::gpu::GpuContext::waited`]): the GPU's work queued before them and the
     /// round trip; the rest of `total` is the host's own work.
     #[serde(default)]
     pub gpu_wait: Duration,
@@ -67,22 +67,22 @@ pub struct StageTimes {
     #[serde(default)]
     pub waits: StageWaits,
     /// The host's time finishing command encoders (wgpu's encoding and
-    /// validation of the passes; [`GpuContext::encoding`]): part of its
+    /// validation of the passes; [`crate::gpu::GpuContext::encoding`]): part of its
     /// own work.
     #[serde(default)]
     pub gpu_finish: Duration,
-    /// The host's time in `Queue::submit` ([`GpuContext::encoding`]).
+    /// The host's time in `Queue::submit` ([`crate::gpu::GpuContext::encoding`]).
     #[serde(default)]
     pub gpu_submit: Duration,
     /// Submissions of GPU work during the call
-    /// ([`GpuContext::submissions`]).
+    /// ([`crate::gpu::GpuContext::submissions`]).
     #[serde(default)]
     pub submissions: f64,
     /// Command buffers in those submissions
-    /// ([`GpuContext::command_buffers`]).
+    /// ([`crate::gpu::GpuContext::command_buffers`]).
     #[serde(default)]
     pub command_buffers: f64,
-    /// Uploads during the call ([`GpuContext::write_buffer`]: each a
+    /// Uploads during the call ([`crate::gpu::GpuContext::write_buffer`]: each a
     /// staging buffer of wgpu's), and parameter uploads skipped as
     /// unchanged ([`crate::gpu::Uniform`]).
     #[serde(default)]
@@ -90,7 +90,7 @@ pub struct StageTimes {
     /// Parameter uploads skipped as unchanged during the call.
     #[serde(default)]
     pub uploads_skipped: f64,
-    /// Passes recorded during the call ([`GpuContext::passes`]): one a
+    /// Passes recorded during the call ([`crate::gpu::GpuContext::passes`]): one a
     /// stage where `--profile`'s timer times them.
     #[serde(default)]
     pub passes: f64,
@@ -115,12 +115,12 @@ pub struct StageTimes {
     /// previous frame's learning.
     #[serde(default)]
     pub colour_wait: Duration,
-    /// The whole call to [`Tracker::track`].
+    /// The whole call to [`super::Tracker::track`].
     pub total: Duration,
 }
 
 /// The host's time blocked waiting for the GPU within each stage of
-/// [`StageTimes`] ([`GpuContext::waited`]): what the stage's time is not
+/// [`StageTimes`] ([`crate::gpu::GpuContext::waited`]): what the stage's time is not
 /// the host's own work.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StageWaits {
@@ -186,7 +186,7 @@ impl StageTimes {
     }
 }
 
-/// What [`Tracker::track`] says about a frame. Serialised field by field
+/// What [`super::Tracker::track`] says about a frame. Serialised field by field
 /// (a NaN residual as `null`).
 #[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
 pub struct TrackResult {
@@ -341,7 +341,7 @@ pub enum LostReason {
     ItOnlyTooLong {
         /// Why the KF step was not used.
         kf: Option<Box<LostReason>>,
-        /// [`TrackerConfig::max_it_only_frames`].
+        /// [`super::TrackerConfig::max_it_only_frames`].
         frames: usize,
     },
     /// No step ran.
@@ -381,9 +381,9 @@ impl fmt::Display for LostReason {
     }
 }
 
-/// GPU memory the splatting of a [`Tracker`] holds (bytes), from the sizes
-/// of the buffers and textures it created ([`GpuModel::gpu_bytes`],
-/// [`SplatTargets::gpu_bytes`], `TexturedCache::gpu_bytes`). Not counted:
+/// GPU memory the splatting of a [`super::Tracker`] holds (bytes), from the sizes
+/// of the buffers and textures it created ([`crate::splat::GpuModel::gpu_bytes`],
+/// [`crate::splat::SplatTargets::gpu_bytes`], `TexturedCache::gpu_bytes`). Not counted:
 /// the Harris and NCC buffers (grow-only, sized by the frame and the
 /// features), pipelines, and the driver's own allocations.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

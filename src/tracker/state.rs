@@ -224,3 +224,14 @@ impl Tracker {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    /// Embedders move trackers across threads and share them behind
+    /// locks: the colour learner's queues must not take that away.
+    #[test]
+    fn the_tracker_stays_send_and_sync() {
+        fn send_sync<T: Send + Sync>() {}
+        send_sync::<super::Tracker>();
+    }
+}

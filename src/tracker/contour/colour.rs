@@ -7,7 +7,7 @@ use nalgebra::Vector2;
 
 /// Foreground (object) and background colour histograms, learnt online
 /// from frames at their tracked poses: one pair over the whole object and,
-/// where configured ([`ContourConfig::sectors`]), one pair per sector of
+/// where configured ([`super::ContourConfig::sectors`]), one pair per sector of
 /// directions around the object's projected centre. What lies behind an
 /// object changes along its outline (the real dragon's head stands
 /// against an orange model, its tail against the white table): a line

@@ -63,7 +63,7 @@ pub struct ContourConfig {
     /// Whether the contour's renders are depth-only
     /// ([`crate::splat::Splatter::render_depth`]: the visibility pass
     /// alone, a third of a depth and normal render), the limb normals then
-    /// taken from the model's points ([`ModelNormals`]); else depth and
+    /// taken from the model's points ([`super::ModelNormals`]); else depth and
     /// normals are splatted (the former way, for comparison).
     pub depth_only: bool,
     /// A later round moves the last render's contour points to the newest
@@ -117,7 +117,7 @@ impl Default for ContourConfig {
 }
 
 impl ContourConfig {
-    /// Checks the ranges (part of [`super::TrackerConfig::validate`]).
+    /// Checks the ranges (part of [`crate::tracker::TrackerConfig::validate`]).
     pub fn validate(&self) -> Result<(), ConfigError> {
         let bad = |field, value: String, rule| Err(ConfigError::OutOfRange { field, value, rule });
         if self.search_px.is_empty()

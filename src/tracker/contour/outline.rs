@@ -140,7 +140,7 @@ pub fn limb_normals(
 /// given by `normal_at` (`None`: keep the point's normal). `perpendicular`:
 /// a limb's normal is taken perpendicular to the ray (the part along the
 /// ray removed), as it is by definition: a mean of the normals around the
-/// limb ([`ModelNormals`]) leans towards the camera, which would tilt the
+/// limb ([`super::ModelNormals`]) leans towards the camera, which would tilt the
 /// image normal towards or away from the principal point.
 pub fn limb_normals_with(
     cam: &crate::geometry::Intrinsics,
