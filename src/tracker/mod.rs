@@ -27,15 +27,16 @@
 //!    frames try to recover against the keyframes with a wide search
 //!    ([`decide`], a pure function with a typed [`LostReason`]).
 //!
-//! Files: `config.rs` (settings), `builder.rs` (making a tracker),
-//! `state.rs` (what it keeps), `frame.rs` ([`Tracker::track`] running the
-//! steps in turn), `it.rs` and `kf.rs` (the texture steps: each gathers
-//! correspondences on the GPU and solves them), `contour/` (the contour
-//! step), `search.rs` and `init.rs` (the search for the object),
-//! `check.rs` and `verify.rs` (the check of a pose against the image),
-//! `decision.rs` (the rules), `result.rs` (what a frame reports),
-//! `error.rs`, `region.rs` and `workspace.rs` (the object's region of
-//! the image: windows, renders and reads), `profile.rs` (GPU timing).
+//! Files: `config.rs` (settings), `execution.rs` (the code paths),
+//! `builder.rs` (making a tracker), `state.rs` (what it keeps),
+//! `frame.rs` ([`Tracker::track`] running the steps in turn), `it.rs` and
+//! `kf.rs` (the texture steps: each gathers correspondences on the GPU and
+//! solves them), `contour/` (the contour step), `search.rs` and `init.rs`
+//! (the search for the object), `check.rs` and `verify.rs` (the check of a
+//! pose against the image), `decision.rs` (the rules), `result.rs` (what a
+//! frame reports), `error.rs`, `region.rs` and `workspace.rs` (where the
+//! steps work: the object's region of the image, its renders and reads),
+//! `profile.rs` (GPU timing).
 
 #![warn(missing_docs)]
 
