@@ -1,6 +1,6 @@
 //! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N] --out DIR`.
 
-use super::{Choice, choice_name};
+use super::common::{Choice, choice_name};
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
 use splattrack::synth::{SynthConfig, Trajectory, sequence};
