@@ -18,7 +18,7 @@
 
 use crate::geometry::{Intrinsics, Pose, PoseError, sample_bilinear_rgb};
 use crate::gpu::GpuContext;
-use crate::io::PoseRow;
+use crate::io::poses::PoseRow;
 use crate::model::PointModel;
 use crate::splat::{Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter};
 use nalgebra::Vector3;
@@ -334,7 +334,7 @@ impl KeyframeStore {
         dir: &Path,
         cfg: &KeyframeConfig,
     ) -> Result<Self, KeyframeError> {
-        let rows = crate::io::read_poses(&dir.join("poses.csv"))?;
+        let rows = crate::io::poses::read_poses(&dir.join("poses.csv"))?;
         let frames = load_keyframe_images(dir, &rows, cam)?;
         Self::build(ctx, splatter, model, cam, &frames, cfg)
     }
@@ -395,7 +395,7 @@ impl KeyframeStore {
             path: path.to_owned(),
             source,
         };
-        crate::io::write_atomic(path, |f| {
+        crate::io::atomic::write_atomic(path, |f| {
             f.write_all(MAGIC)?;
             for v in [self.points, self.fingerprint, self.keyframes.len() as u64] {
                 f.write_all(&v.to_le_bytes())?;

@@ -281,7 +281,7 @@ mod tests {
 
     #[test]
     fn shared_sequences_open() {
-        let Some(root) = crate::io::test_data("") else {
+        let Some(root) = crate::io::testing::test_data("") else {
             return;
         };
         for name in ["visp_rbt_cube", "visp_rbt_dragon"] {

@@ -10,8 +10,8 @@
 //! drops the frames that arrive while one is being tracked and counts them.
 
 use crate::geometry::Intrinsics;
+use crate::io::ffmpeg::VideoError;
 use crate::io::sequence::{Frame, Sequence, SequenceError};
-use crate::io::video::VideoError;
 use crate::par::ChannelThread;
 use std::path::Path;
 
@@ -272,7 +272,7 @@ mod tests {
     /// turn, after the frames before it, and again when asked again.
     #[test]
     fn frames_read_ahead_are_the_sequences_in_order_with_errors_in_their_turn() {
-        let Some(root) = crate::io::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn sequence_frames_start_where_asked() {
-        let Some(root) = crate::io::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();
