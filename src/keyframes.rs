@@ -323,7 +323,7 @@ impl KeyframeStore {
         })
     }
 
-    /// Loads keyframe images and poses from a directory (FORMATS.md:
+    /// Loads keyframe images and poses from a directory (docs/formats.md:
     /// `keyframes/poses.csv`, images named by its frame column, extension
     /// optional) and builds the store.
     pub fn build_from_dir(
@@ -565,7 +565,7 @@ pub fn load_keyframe_images(
 /// Default GPU memory for the keyframe colours of [`TexturedCache`]:
 /// 64 MB (16 keyframes of a million points, 160 of 100k), so that a
 /// 1M-point model's whole GPU memory at 640x480 stays under 256 MB
-/// (BENCHMARKS.md "Memory"); a dropped keyframe costs one 4-bytes-a-point
+/// (docs/performance.md); a dropped keyframe costs one 4-bytes-a-point
 /// upload when it is needed again.
 pub const DEFAULT_TEXTURED_BUDGET: u64 = 64 << 20;
 

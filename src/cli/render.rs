@@ -1,5 +1,5 @@
 //! `splattrack render`: one splatted view of a point model, as a picture
-//! (.png) or a raw float image (.npy, channel layout of FORMATS.md).
+//! (.png) or a raw float image (.npy, channel layout of docs/formats.md).
 
 use anyhow::{Context, bail};
 use nalgebra::{Matrix3, Vector3};

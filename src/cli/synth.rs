@@ -76,7 +76,7 @@ pub struct Args {
     pub force: bool,
 }
 
-/// The files of a sequence directory that `synth` writes (FORMATS.md).
+/// The files of a sequence directory that `synth` writes (docs/formats.md).
 const SEQUENCE_FILES: [&str; 5] = [
     "camera.json",
     "init.csv",

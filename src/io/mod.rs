@@ -1,4 +1,4 @@
-//! Files on disk (FORMATS.md): sequence directories, pose CSVs, BOP
+//! Files on disk (docs/formats.md): sequence directories, pose CSVs, BOP
 //! results, raw float images (.npy), all written crash-safely
 //! ([`atomic`]); frames from a sequence, a video file or a camera
 //! ([`source`], [`video`], [`live`]).

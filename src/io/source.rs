@@ -4,7 +4,7 @@
 //! ([`crate::io::live::LiveSource`]).
 //!
 //! Every source yields [`Frame`]s in order, numbered from 0 in the order
-//! they were read or decoded (FORMATS.md), undistorted when the camera has
+//! they were read or decoded (docs/formats.md), undistorted when the camera has
 //! distortion, ready for a tracker on [`FrameSource::tracking_camera`].
 //! Videos and cameras also give each frame its timestamp; a live camera
 //! drops the frames that arrive while one is being tracked and counts them.
