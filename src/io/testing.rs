@@ -6,7 +6,10 @@
 pub(crate) fn test_data(rel: &str) -> Option<std::path::PathBuf> {
     use std::io::Write;
     let Some(root) = std::env::var_os("SPLATTRACK_DATA") else {
-        let test = std::thread::current().name().unwrap_or("a test").to_owned();
+        let test = match std::thread::current().name() {
+            Some(name) if !name.is_empty() && name != "main" => name.to_owned(),
+            _ => "a test".to_owned(),
+        };
         let _ = writeln!(
             std::io::stderr(),
             "{test}: not run, it needs the real data (set SPLATTRACK_DATA to the real data folder; scripts/get_real_data.sh makes one)"
