@@ -1,7 +1,6 @@
 //! The point-model schema of PLY files: which elements and properties make
-//! a [`PointModel`](super::PointModel) or a
-//! [`TriangleMesh`](super::TriangleMesh), read and written through the
-//! codec in the `ply` module.
+//! a [`PointModel`] or a [`TriangleMesh`](super::TriangleMesh), read and
+//! written through the codec in the `ply` module.
 //!
 //! Read: the `vertex` element's `x y z` (required), `nx ny nz` (or
 //! `normal_x ...`), `red green blue` (or `diffuse_red ...`, `r g b`; uchar
