@@ -525,13 +525,18 @@ fn adapter_choice_parses_and_unknown_names_fail_clearly() {
 }
 
 #[test]
-fn invalid_shader_names_are_errors_not_panics() {
+fn invalid_shaders_are_errors_not_panics() {
+    static BROKEN: splattrack::shaders::Shader = splattrack::shaders::Shader {
+        name: "no_such_shader",
+        parts: &[("shaders/none.wgsl", "fn main( {")],
+        constants: &[],
+    };
     assert!(matches!(
-        ctx().compute_pipeline("no_such_shader", "main"),
+        ctx().compute_pipeline(&BROKEN, "main"),
         Err(GpuError::Shader { .. })
     ));
     assert!(matches!(
-        ctx().compute_pipeline("selftest", "no_such_entry"),
+        ctx().compute_pipeline(&splattrack::gpu::selftest::SHADER, "no_such_entry"),
         Err(GpuError::Validation { .. })
     ));
 }

@@ -207,6 +207,22 @@ const ENTRIES: [&str; 8] = [
     "vectorize_group",
 ];
 
+/// The NCC shader: vectorisation, scores and bests, the refinement of
+/// the mutual bests, the gate.
+pub(crate) static SHADER: crate::shaders::Shader = crate::shaders::Shader {
+    name: "ncc",
+    parts: &[
+        super::gpu_data::PIXEL_WGSL,
+        crate::wgsl_file!("ncc_score.wgsl"),
+        crate::wgsl_file!("ncc_refine.wgsl"),
+        crate::wgsl_file!("ncc_gate.wgsl"),
+    ],
+    constants: &[
+        super::gpu_data::NCC_CONSTANTS,
+        super::gpu_data::PIXEL_CONSTANTS,
+    ],
+};
+
 impl NccMatcher {
     pub fn new(ctx: &GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
         config.validate()?;
@@ -216,7 +232,7 @@ impl NccMatcher {
         entries.push(compute_entry(2, storage(true)));
         entries.extend((3..8).map(|b| compute_entry(b, storage(false))));
         let layout = ctx.bind_group_layout("ncc", &entries);
-        let mut passes = ctx.compute_pipelines("ncc", &layout, &ENTRIES)?;
+        let mut passes = ctx.compute_pipelines(&SHADER, &layout, &ENTRIES)?;
         let vectorize_group = passes.pop().expect("eight pipelines");
         let mutual_refine_wide = passes.pop().expect("eight pipelines");
         let mutual_refine = passes.pop().expect("eight pipelines");
@@ -230,7 +246,7 @@ impl NccMatcher {
         ];
         let gate_layout = ctx.bind_group_layout("ncc gate", &gate_entries);
         let gate = ctx
-            .compute_pipelines("ncc", &gate_layout, &["gate"])?
+            .compute_pipelines(&SHADER, &gate_layout, &["gate"])?
             .pop()
             .expect("one pipeline");
         Ok(Self {
@@ -446,7 +462,7 @@ impl NccMatcher {
     /// slot `a.len()` on) into the `slots` positions after A's, in B's
     /// band's pixels (slots without a feature far outside any image: those
     /// outside the crop too, where the host leaves them out); with `gate`
-    /// (a gather's samples at A's features, [`crate::splat::GATHER_STRIDE`]
+    /// (a gather's samples at A's features, [`crate::gpu::GATHER_STRIDE`]
     /// floats each, its validity last, left on the GPU by
     /// [`crate::splat::Splatter::gather_later`]), A's features whose
     /// sample is empty left out as if not given. The matches' readback is
@@ -557,7 +573,7 @@ impl NccMatcher {
         }
         let (na, nb) = (a.len(), b.len());
         if let Some(g) = gate {
-            let need = (na * crate::splat::GATHER_STRIDE * 4) as u64;
+            let need = (na * crate::gpu::GATHER_STRIDE * 4) as u64;
             if g.size() < need {
                 return Err(FeatureError::Config(format!(
                     "a gate of {} bytes for {na} features ({need} needed)",

@@ -205,6 +205,24 @@ enum Size {
 // or a workgroup a selected corner stays within a dimension's 65535.
 const _: () = assert!(SELECT_MAX.div_ceil(WORKGROUP_1D) <= 65_535 && SELECT_MAX <= 65_535);
 
+/// The Harris shader: the maps, the selection (split passes and one
+/// workgroup), the export.
+pub(crate) static SHADER: crate::shaders::Shader = crate::shaders::Shader {
+    name: "harris",
+    parts: &[
+        super::super::gpu_data::PIXEL_WGSL,
+        crate::wgsl_file!("harris_maps.wgsl"),
+        crate::wgsl_file!("harris_select.wgsl"),
+        crate::wgsl_file!("harris_select_small.wgsl"),
+        crate::wgsl_file!("harris_export.wgsl"),
+    ],
+    constants: &[
+        super::super::gpu_data::HARRIS_CONSTANTS,
+        super::super::gpu_data::PIXEL_CONSTANTS,
+        super::super::image::LUMA_CONSTANTS,
+    ],
+};
+
 /// The selection's entry points (`shaders/harris.wgsl`, "The selection")
 /// and their sizes.
 const SELECT_ENTRIES: [(&str, Size); 19] = [
@@ -291,7 +309,7 @@ impl Harris {
         entries.push(compute_entry(8, storage(true)));
         let layout = ctx.bind_group_layout("harris", &entries);
         let mut all = ctx.compute_pipelines(
-            "harris",
+            &SHADER,
             &layout,
             &[
                 PASSES[0],
@@ -317,8 +335,8 @@ impl Harris {
         ];
         let sizes_layout = ctx.bind_group_layout("harris select sizes", &sizes_entries);
         let names = SELECT_ENTRIES.map(|(name, _)| name);
-        let mut select = ctx.compute_pipelines("harris", &sizes_layout, &names[..1])?;
-        select.extend(ctx.compute_pipelines("harris", &select_layout, &names[1..])?);
+        let mut select = ctx.compute_pipelines(&SHADER, &sizes_layout, &names[..1])?;
+        select.extend(ctx.compute_pipelines(&SHADER, &select_layout, &names[1..])?);
         let export_entries = [
             compute_entry(0, wgpu::BufferBindingType::Uniform),
             compute_entry(5, storage(false)),
@@ -329,11 +347,11 @@ impl Harris {
         ];
         let export_layout = ctx.bind_group_layout("harris export", &export_entries);
         let export = ctx
-            .compute_pipelines("harris", &export_layout, &["export_corners"])?
+            .compute_pipelines(&SHADER, &export_layout, &["export_corners"])?
             .pop()
             .expect("one pipeline");
         let fused = if ctx.limits.max_compute_workgroup_storage_size >= FUSED_BYTES {
-            ctx.compute_pipelines("harris", &layout, &["maps_fused"])?
+            ctx.compute_pipelines(&SHADER, &layout, &["maps_fused"])?
                 .pop()
         } else {
             None

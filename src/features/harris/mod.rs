@@ -13,6 +13,7 @@ mod gpu;
 mod host;
 
 pub use cpu::{harris_cpu, harris_response_cpu};
+pub(crate) use gpu::SHADER;
 pub use gpu::{Detected, ExportPlace, Harris, PendingCorners};
 pub use host::{harris_host, harris_response_host};
 
