@@ -106,7 +106,7 @@ fn cell_of(c: Candidate) -> u32 {
 // integers; what changes is that a workgroup reads each item from
 // global memory once instead of each thread reading all of them (the
 // H200's first measurement put these passes at most of a whole-image
-// detection, BENCHMARKS.md "NVIDIA H200"). The item count comes through
+// detection, docs/performance.md). The item count comes through
 // workgroupUniformLoad so that the tile loops, and their barriers, are
 // uniform over the workgroup.
 var<workgroup> sel_count: u32;
@@ -163,7 +163,7 @@ fn load_corner_tile(lid: u32, t0: u32, n: u32, merged: bool) {
 // an item turns the count into its rank or place (`*_finish`). A
 // workgroup comparing its items with every candidate walked thousands of
 // them through two barriers a tile: 0.94 ms for a whole 640x480 image's
-// selection on the H200 (BENCHMARKS.md "NVIDIA H200").
+// selection on the H200 (docs/performance.md).
 const SELECT_CHUNK: u32 = 16u * WORKGROUP_1D;
 
 // The chunks of `n` others: the y size of the split dispatches.
@@ -544,7 +544,7 @@ fn merge_links(
 // other item from global memory (the first selection): the
 // default on CPU adapters, where a workgroup barrier costs more than the
 // loads it saves (lavapipe: the tiled passes took 1.4-1.6x as long in the
-// real cube's GPU loop, GPU timestamps); `Harris::set_tiled_selection`.
+// real cube's GPU loop, GPU timestamps); `HarrisGpuOptions::tiled_selection`.
 // Candidate i's rank within its grid cell (1: the cell's best; 0 for all
 // without a grid) into select_index[i], against every other of the n
 // read from global memory.

@@ -13,7 +13,7 @@
 // the CPU adapters' kernels), so the corners are the same; the merge's
 // rounds run until every corner is decided (none is left to the host).
 // The host picks these from the last detections' counts
-// (`Harris::set_small_selection`) and then caps params.select_limit at
+// (`HarrisGpuOptions::small_selection`) and then caps params.select_limit at
 // SMALL_CAP (1024): a busier detection is selected on the host, as beyond
 // the limit (one workgroup's loops over thousands would be slow, and
 // would pass lavapipe's 65535 iterations an invocation).

@@ -254,7 +254,7 @@ fn mutual_refine_wide(@builtin(local_invocation_id) lid: vec3<u32>, @builtin(wor
 // instead of by one thread sampling the images three times a score (the
 // H200 measured mutual_refine_wide at 0.5 ms of the real cube's frame, a
 // few hundred workgroups each waiting on thousands of dependent global
-// loads: BENCHMARKS.md "NVIDIA H200"). Every window's sums still run in
+// loads: docs/performance.md). Every window's sums still run in
 // sample order on one thread, so the scores are the same floats:
 //   - A's window at pa, sampled in parallel, then its mean and norm (one
 //     thread), then normalised in parallel ((a - mean) / norm, as before);

@@ -769,8 +769,11 @@ fn indirect_dispatches_give_the_same_results_without_wgpus_validation() {
         let c = GpuContext::with_indirect_validation(&choice, validate).unwrap();
         assert_eq!(c.validates_indirect, validate);
         let mut harris = Harris::new(&c, HarrisConfig::default()).unwrap();
-        harris.set_select_limit(SELECT_MAX as usize);
-        harris.set_tiled_selection(true);
+        harris.set_options(splattrack::features::HarrisGpuOptions {
+            select_limit: Some(SELECT_MAX as usize),
+            tiled_selection: Some(true),
+            ..harris.options()
+        });
         let corners = harris.detect(&img, None).unwrap();
         let splatter = Splatter::with_params(
             &c,
