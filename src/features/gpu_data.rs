@@ -200,7 +200,7 @@ wgsl_struct! {
         /// 1: [`super::HarrisConfig::refine`].
         pub refine: u32,
         /// The most candidates the GPU selects among
-        /// ([`HarrisGpuOptions::select_limit`](crate::features::HarrisGpuOptions::select_limit)).
+        /// ([`super::HarrisGpuOptions::select_limit`]).
         pub select_limit: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.

@@ -40,7 +40,7 @@ pub struct Harris {
     layout: wgpu::BindGroupLayout,
     passes: Vec<wgpu::ComputePipeline>,
     /// The four filter passes in one (`maps_fused`), where the adapter
-    /// has its workgroup memory ([`HarrisGpuOptions::fused_maps`](crate::features::HarrisGpuOptions::fused_maps)).
+    /// has its workgroup memory ([`HarrisGpuOptions::fused_maps`]).
     fused: Option<wgpu::ComputePipeline>,
     /// The fused filter pass forced on or off; `None`: on GPUs, where the
     /// radii fit.
@@ -82,7 +82,7 @@ pub struct Harris {
     sizes_bind: Option<wgpu::BindGroup>,
     timer: Option<GpuTimer>,
     timings: Timings,
-    /// Detect on the host ([`HarrisGpuOptions::host`](crate::features::HarrisGpuOptions::host)), in these images.
+    /// Detect on the host ([`HarrisGpuOptions::host`]), in these images.
     host: bool,
     scratch: Scratch,
     /// The corner counts of the last two detections (on the GPU) of
@@ -94,13 +94,13 @@ pub struct Harris {
     /// The merge's parallel rounds ([`MERGE_ROUNDS`]; the tests try
     /// none, leaving the whole merge to the host's finish).
     merge_rounds: usize,
-    /// The most candidates selected on the GPU ([`HarrisGpuOptions::select_limit`](crate::features::HarrisGpuOptions::select_limit)).
+    /// The most candidates selected on the GPU ([`HarrisGpuOptions::select_limit`]).
     select_limit: usize,
     /// Whether the selection's O(n^2) passes share tiles of the items in
-    /// workgroup memory ([`HarrisGpuOptions::tiled_selection`](crate::features::HarrisGpuOptions::tiled_selection)).
+    /// workgroup memory ([`HarrisGpuOptions::tiled_selection`]).
     tiled_select: bool,
     /// The selection in one workgroup forced on or off
-    /// ([`HarrisGpuOptions::small_selection`](crate::features::HarrisGpuOptions::small_selection)); `None`: by the candidates of the
+    /// ([`HarrisGpuOptions::small_selection`]); `None`: by the candidates of the
     /// last detection of the kind (`recent_candidates`).
     small_select: Option<bool>,
     /// The candidates of the last detection (on the GPU) of frames (0)
@@ -377,7 +377,7 @@ impl Harris {
         self.options.fused_maps = fuse;
     }
 
-    /// Whether detection runs on the host ([`HarrisGpuOptions::host`](crate::features::HarrisGpuOptions::host)).
+    /// Whether detection runs on the host ([`HarrisGpuOptions::host`]).
     pub fn host(&self) -> bool {
         self.host
     }

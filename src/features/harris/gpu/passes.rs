@@ -78,13 +78,13 @@ pub(super) const SELECT_ENTRIES: [(&str, Size); 19] = [
 ];
 
 /// The most candidates of the last detection of a kind for the next one
-/// to select in one workgroup ([`HarrisGpuOptions::small_selection`](crate::features::HarrisGpuOptions::small_selection)): the
+/// to select in one workgroup ([`super::HarrisGpuOptions::small_selection`]): the
 /// frame loop's detections have a few hundred.
 pub(super) const SMALL_SELECT: usize = 512;
 
 /// The most candidates a selection in one workgroup takes: with more (a
 /// detection far busier than the last), the host selects, as beyond
-/// [`HarrisGpuOptions::select_limit`](crate::features::HarrisGpuOptions::select_limit) (its loops stay within lavapipe's 65535
+/// [`super::HarrisGpuOptions::select_limit`] (its loops stay within lavapipe's 65535
 /// iterations an invocation; thousands are what the split passes are
 /// for).
 pub(super) const SMALL_CAP: usize = 1024;
@@ -96,7 +96,7 @@ pub(super) const SMALL_CAP: usize = 1024;
 /// most max_corners, fit one workgroup where the candidates do not); the
 /// refinement a workgroup a corner (where its radius fits
 /// [`REFINE_GROUP_RADIUS`]); else (CPU adapters) one thread an item
-/// ([`HarrisGpuOptions::tiled_selection`](crate::features::HarrisGpuOptions::tiled_selection)).
+/// ([`super::HarrisGpuOptions::tiled_selection`]).
 pub(super) fn select_passes(
     tiled: bool,
     small: bool,

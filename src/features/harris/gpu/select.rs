@@ -29,7 +29,7 @@ impl Harris {
     }
 
     /// Whether the next selection's merge runs in one workgroup (with
-    /// the selection, or alone: [`HarrisGpuOptions::small_selection`](crate::features::HarrisGpuOptions::small_selection)).
+    /// the selection, or alone: [`super::HarrisGpuOptions::small_selection`]).
     pub(super) fn small_merge(&self) -> bool {
         self.small_selection()
             || (self.tiled_select
@@ -40,7 +40,7 @@ impl Harris {
     /// Records the selection of the corners behind the map passes
     /// (`shaders/harris_select.wgsl`) into `chain`: three
     /// stages (selection, refinement, merge), several dispatches each, one thread an item
-    /// (the O(n^2) ones tiled or not: [`HarrisGpuOptions::tiled_selection`](crate::features::HarrisGpuOptions::tiled_selection)),
+    /// (the O(n^2) ones tiled or not: [`super::HarrisGpuOptions::tiled_selection`]),
     /// sized on the GPU (`select_sizes`, then indirect dispatches).
     pub(super) fn encode_select(&mut self, chain: &mut PassChain) {
         let bind = self.select_bind.as_ref().expect("prepared");
