@@ -817,10 +817,10 @@ mod tests {
     }
 }
 
-#[cfg(feature = "view")]
-use splattrack::view::WindowSink;
 #[cfg(not(feature = "view"))]
 use no_view::WindowSink;
+#[cfg(feature = "view")]
+use splattrack::view::WindowSink;
 
 /// Stands in for the live view in a build without it (the `view` feature
 /// off): `--view` is refused before anything runs.
@@ -841,7 +841,9 @@ mod no_view {
 
     impl WindowSink {
         pub fn open(_: &GpuContext, _: &str) -> anyhow::Result<Self> {
-            anyhow::bail!("--view: this splattrack was built without the live view (cargo feature `view`)")
+            anyhow::bail!(
+                "--view: this splattrack was built without the live view (cargo feature `view`)"
+            )
         }
         pub fn stats(&self) -> Stats {
             match *self {}
