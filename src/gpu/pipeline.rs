@@ -65,11 +65,12 @@ impl GpuContext {
     /// every pass.
     pub fn compute_pipelines(
         &self,
-        shader: &str,
+        shader: &crate::shaders::Shader,
         layout: &wgpu::BindGroupLayout,
         entries: &[&str],
     ) -> Result<Vec<wgpu::ComputePipeline>, GpuError> {
         let module = self.shader(shader)?;
+        let shader = shader.name;
         let pl = self.catch(shader, || {
             self.device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {

@@ -13,6 +13,7 @@ use crate::gpu::{
     GpuContext, GpuError, GpuTimer, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, TimerReport,
     Timings, WORKGROUP_1D, WORKGROUP_2D, compute_entry, storage, workgroups,
 };
+use crate::shaders::{Shader, WgslValue};
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
@@ -22,6 +23,18 @@ pub use super::contour::OUTLINE_MIN_GRADIENT;
 /// Half-width of the window giving a contour point's normal and offset
 /// (pixels; shared with shaders/outline.wgsl), the host outline's.
 pub use super::contour::OUTLINE_WINDOW;
+
+/// The outline's shader.
+pub(crate) static SHADER: Shader = Shader {
+    name: "outline",
+    parts: &[crate::wgsl_file!("outline.wgsl")],
+    constants: &[&[
+        ("WORKGROUP_1D", WgslValue::U32(WORKGROUP_1D)),
+        ("WORKGROUP_2D", WgslValue::U32(WORKGROUP_2D)),
+        ("OUTLINE_WINDOW", WgslValue::U32(OUTLINE_WINDOW)),
+        ("OUTLINE_MIN_GRADIENT", WgslValue::U32(OUTLINE_MIN_GRADIENT)),
+    ]],
+};
 
 wgsl_struct! {
     /// Keep in sync with `OutlineParams` in shaders/outline.wgsl.
@@ -109,7 +122,7 @@ impl GpuOutline {
         let layout = ctx.bind_group_layout("outline", &entries);
         let [candidates, points_of_cells, coverage]: [wgpu::ComputePipeline; 3] = ctx
             .compute_pipelines(
-                "outline",
+                &SHADER,
                 &layout,
                 &["candidates", "points_of_cells", "coverage"],
             )?
