@@ -241,7 +241,8 @@ fn save_ply_round_trips_and_ply_rs_agrees() {
     let Some(path) = data_common::real_data("visp_rbt_cube/model.ply") else {
         return;
     };
-    let m = PointModel::load_with(path, &quiet()).expect("load shared cube");
+    let m = PointModel::load_with(path, &quiet())
+        .expect("load shared cube");
     let out = TempFile::new("save", "ply");
     m.save_ply(out.path()).expect("save");
     let back = PointModel::load_with(out.path(), &quiet()).expect("reload");

@@ -388,8 +388,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     };
     let ctx = super::gpu(adapter)?;
     // Before anything is loaded or written: no display, no run.
-    let mut window = match args.view {
-        true => Some(WindowSink::open(
+    let mut display = match args.view {
+        true => Some(DisplaySink::open(
             &ctx,
             &format!("splattrack track {}", input.describe()),
         )?),
@@ -461,7 +461,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         (None, Input::Device { .. }) => {}
     }
-    if let Some(w) = window.as_mut() {
+    if let Some(w) = display.as_mut() {
         run = run.sink(w);
     }
     let wall = std::time::Instant::now();
@@ -527,11 +527,11 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         println!(
             "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
-            if window.is_some() { ", live view" } else { "" },
+            if display.is_some() { ", live view" } else { "" },
             wall * 1e3 / stats.frames as f64,
             stats.frames as f64 / wall
         );
-        if let Some(w) = &window {
+        if let Some(w) = &display {
             let v = w.stats();
             println!(
                 "live view: {} frames shown, {} skipped (surface not ready); {:.1} ms per frame to compose, draw and present",
@@ -817,10 +817,10 @@ mod tests {
     }
 }
 
-#[cfg(feature = "view")]
-use splattrack::view::WindowSink;
 #[cfg(not(feature = "view"))]
-use no_view::WindowSink;
+use no_view::DisplaySink;
+#[cfg(feature = "view")]
+use splattrack::view::DisplaySink;
 
 /// Stands in for the live view in a build without it (the `view` feature
 /// off): `--view` is refused before anything runs.
@@ -836,19 +836,21 @@ mod no_view {
         pub busy: std::time::Duration,
     }
 
-    /// Never made: [`WindowSink::open`] always fails.
-    pub enum WindowSink {}
+    /// Never made: [`DisplaySink::open`] always fails.
+    pub enum DisplaySink {}
 
-    impl WindowSink {
+    impl DisplaySink {
         pub fn open(_: &GpuContext, _: &str) -> anyhow::Result<Self> {
-            anyhow::bail!("--view: this splattrack was built without the live view (cargo feature `view`)")
+            anyhow::bail!(
+                "--view: this splattrack was built without the live view (cargo feature `view`)"
+            )
         }
         pub fn stats(&self) -> Stats {
             match *self {}
         }
     }
 
-    impl FrameSink for WindowSink {
+    impl FrameSink for DisplaySink {
         fn frame(&mut self, _: &ViewFrame<'_>) -> Result<Flow, ViewError> {
             match *self {}
         }
