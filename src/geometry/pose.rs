@@ -230,7 +230,7 @@ impl Pose {
         Vector6::new(v.x, v.y, v.z, w.x, w.y, w.z)
     }
 
-    /// `exp(xi^) * self`: the update of DESIGN.md section 2.
+    /// `exp(xi^) * self`: the update of the conventions (docs/design.md).
     pub fn apply_twist(&self, xi: &Vector6<f64>) -> Pose {
         Pose::exp(xi).compose(self)
     }

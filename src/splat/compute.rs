@@ -8,9 +8,9 @@
 //!
 //! Why: a GPU with weak raster units (NVIDIA's compute parts, H100/H200)
 //! splats far faster with atomics in a compute shader than through a render
-//! pass (DESIGN.md section 5 measured ~14x on an H100); on lavapipe this
+//! pass (~14x measured on an H100, docs/performance.md); on lavapipe this
 //! kernel halves a tracked frame with a 100k-point model, though the render
-//! pass stays faster for sparse models of large splats (BENCHMARKS.md).
+//! pass stays faster for sparse models of large splats (docs/benchmarks.md).
 //!
 //! A render is three compute passes, no clear and no indirect dispatch:
 //! `finish` runs over the whole target, converting the sums inside the

@@ -150,6 +150,6 @@ pub const FIXED_SCALE: f32 = 1_048_576.0;
 /// workgroup in 8x8 blocks (`visibility_big`, `accumulate`'s last groups), not by one
 /// thread: splats of a dense model stay one per thread, a huge or
 /// near-plane splat no longer serialises on one. Measured on lavapipe
-/// (BENCHMARKS.md): thresholds of 64 and 256 pixels, and binning large
+/// (docs/benchmarks.md): thresholds of 64 and 256 pixels, and binning large
 /// splats into 8x8 tiles of the image instead, were slower.
 pub const BIG_SPLAT_PIXELS: u32 = 1024;

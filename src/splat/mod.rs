@@ -27,7 +27,7 @@
 //! - Back-facing splats (`n_c . c >= 0` in camera space) are culled, as are
 //!   splats whose centre is not in front of the near plane.
 //!
-//! Three passes (DESIGN.md section 3):
+//! Three passes (docs/how-it-works.md):
 //! 1. visibility: depth only, the depth of the nearest surface pushed back
 //!    by `epsilon * r` along the ray ([`SplatParams::epsilon`]);
 //! 2. attributes: additive blending of `w * A` and `w` into RGBA32F targets,

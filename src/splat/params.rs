@@ -15,11 +15,11 @@ pub enum Backend {
     /// [`Backend::RenderPass`]; on a CPU adapter, per render, the render
     /// pass where splats are large on screen
     /// ([`AUTO_CPU_RENDER_PASS_ABOVE_PX`], [`Splatter::backend_for`](super::Splatter::backend_for)).
-    /// Measured (BENCHMARKS.md): on lavapipe a KF+IT frame with a
+    /// Measured (docs/benchmarks.md): on lavapipe a KF+IT frame with a
     /// 100k-point model takes half the time with the compute splatter, the
     /// render pass is faster for sparse models of large splats; on an H100
-    /// DESIGN.md section 5 measured a compute splat ~14x faster than the
-    /// render pass.
+    /// a compute splat measured ~14x faster than the render pass
+    /// (docs/performance.md).
     #[default]
     Auto,
     /// Instanced quads through the rasteriser, additive blending.
@@ -33,7 +33,7 @@ pub enum Backend {
 /// [`Backend::Auto`] on a CPU adapter (lavapipe): renders whose typical
 /// splat (the model's median radius at the depth of its centre) is wider
 /// than this many pixels in radius go through the render pass, the others
-/// through the compute splatter. Measured on lavapipe (BENCHMARKS.md,
+/// through the compute splatter. Measured on lavapipe (docs/benchmarks.md,
 /// `cargo bench --bench splat`, colour + predictors, criterion medians): a
 /// 10k-point sphere (median splat radius 6.5 px at 640x480, 13 px at
 /// 1280x720) splats 1.9x and 2.0x faster through the render pass, where
