@@ -95,7 +95,10 @@ fn bench_sample(c: &mut Criterion) {
     let root = std::env::var_os("SPLATTRACK_DATA").unwrap_or_else(|| "../shared/data".into());
     let path = std::path::Path::new(&root).join("visp_rbt_dragon/mesh.obj");
     let Ok(mesh) = TriangleMesh::load_obj(&path) else {
-        eprintln!("{} not found (SPLATTRACK_DATA); no sampling bench", path.display());
+        eprintln!(
+            "{} not found (SPLATTRACK_DATA); no sampling bench",
+            path.display()
+        );
         return;
     };
     let mut group = c.benchmark_group("sample_dragon_mesh");

@@ -5,8 +5,7 @@ use std::sync::OnceLock;
 /// The cores this process may use ([`std::thread::available_parallelism`],
 /// 1 where unknown), read once: on Linux each call reads the cgroup's CPU
 /// quota from `/proc` and `/sys`, which cost the contour's line searches
-/// about 0.5 ms a frame when they asked every time (BENCHMARKS.md, stop
-/// 28).
+/// about 0.5 ms a frame when they asked every time (docs/performance.md).
 pub fn cores() -> usize {
     static CORES: OnceLock<usize> = OnceLock::new();
     *CORES.get_or_init(|| std::thread::available_parallelism().map_or(1, |n| n.get()))

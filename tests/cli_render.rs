@@ -318,7 +318,6 @@ fn npy_depth_and_motion_match_the_host_geometry() {
     assert!(!out.exists());
 }
 
-
 fn pose_string(p: &Pose) -> String {
     let r = p.rotation;
     let t = p.translation;

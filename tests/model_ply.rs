@@ -241,8 +241,7 @@ fn save_ply_round_trips_and_ply_rs_agrees() {
     let Some(path) = data_common::real_data("visp_rbt_cube/model.ply") else {
         return;
     };
-    let m = PointModel::load_with(path, &quiet())
-        .expect("load shared cube");
+    let m = PointModel::load_with(path, &quiet()).expect("load shared cube");
     let out = TempFile::new("save", "ply");
     m.save_ply(out.path()).expect("save");
     let back = PointModel::load_with(out.path(), &quiet()).expect("reload");
@@ -311,12 +310,10 @@ fn save_without_colours_and_refuse_invalid_models() {
 
 #[test]
 fn load_auto_dispatches_on_type_and_faces() {
-    let (Some(ply), Some(mesh)) = (
-        data_common::real_data("visp_rbt_cube/model.ply"),
-        data_common::real_data("visp_rbt_cube/mesh.obj"),
-    ) else {
+    let Some(ply) = data_common::real_data("visp_rbt_cube/model.ply") else {
         return;
     };
+    let mesh = data_common::real_data("visp_rbt_cube/mesh.obj").expect("beside model.ply");
     let cube = PointModel::load_auto(ply, 0).expect("ply");
     assert_eq!(cube.len(), 100_000);
     assert_eq!(cube.provenance.normals, AttributeSource::Loaded);

@@ -27,7 +27,6 @@ use splattrack::gpu::{self, GpuContext};
 use splattrack::model::{GAP_MODEL_FRACTION, PointModel, TriangleMesh};
 use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets, Splatter};
 use splattrack::synth::raster;
-use std::path::Path;
 use tracking_common::random_sample;
 
 fn ctx() -> &'static GpuContext {

@@ -29,7 +29,10 @@ pub use source::{FrameSource, SourceError, Start};
 pub(crate) fn test_data(rel: &str) -> Option<std::path::PathBuf> {
     use std::io::Write;
     let Some(root) = std::env::var_os("SPLATTRACK_DATA") else {
-        let test = std::thread::current().name().unwrap_or("a test").to_owned();
+        let test = match std::thread::current().name() {
+            Some(name) if !name.is_empty() && name != "main" => name.to_owned(),
+            _ => "a test".to_owned(),
+        };
         let _ = writeln!(
             std::io::stderr(),
             "{test}: not run, it needs the real data (set SPLATTRACK_DATA to the real data folder; scripts/get_real_data.sh makes one)"
@@ -37,6 +40,10 @@ pub(crate) fn test_data(rel: &str) -> Option<std::path::PathBuf> {
         return None;
     };
     let path = std::path::PathBuf::from(root).join(rel);
-    assert!(path.exists(), "{} not found (SPLATTRACK_DATA)", path.display());
+    assert!(
+        path.exists(),
+        "{} not found (SPLATTRACK_DATA)",
+        path.display()
+    );
     Some(path)
 }

@@ -6,16 +6,7 @@ use crate::pose::IrlsConfig;
 use std::fmt;
 
 /// Which of the paper's trackers runs.
-#[derive(
-    Debug,
-    Clone,
-    Copy,
-    PartialEq,
-    Eq,
-    Default,
-    serde::Serialize,
-    serde::Deserialize,
-)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum Mode {
     /// Frame to frame only: smooth, but drifts.

@@ -8,15 +8,22 @@ use std::io::Write;
 use std::path::PathBuf;
 
 /// How to get the data, for the line a test prints when it does not run.
-pub const HOW: &str = "set SPLATTRACK_DATA to the real data folder; scripts/get_real_data.sh makes one";
+pub const HOW: &str =
+    "set SPLATTRACK_DATA to the real data folder; scripts/get_real_data.sh makes one";
 
 /// `rel` under the real data folder, or `None` (said on the terminal) when
 /// `SPLATTRACK_DATA` is unset.
 pub fn real_data(rel: &str) -> Option<PathBuf> {
     let Some(root) = std::env::var_os("SPLATTRACK_DATA") else {
         // Straight to the terminal: the test harness captures eprintln!.
-        let test = std::thread::current().name().unwrap_or("a test").to_owned();
-        let _ = writeln!(std::io::stderr(), "{test}: not run, it needs the real data ({HOW})");
+        let test = match std::thread::current().name() {
+            Some(name) if !name.is_empty() && name != "main" => name.to_owned(),
+            _ => "a test".to_owned(),
+        };
+        let _ = writeln!(
+            std::io::stderr(),
+            "{test}: not run, it needs the real data ({HOW})"
+        );
         return None;
     };
     let path = PathBuf::from(root).join(rel);

@@ -138,7 +138,11 @@ mod data_common;
 /// (said on the terminal) when that is unset.
 pub fn real_data_dir(name: &str) -> Option<PathBuf> {
     let dir = data_common::real_data(name)?;
-    assert!(dir.join("poses.csv").is_file(), "{}: no poses.csv", dir.display());
+    assert!(
+        dir.join("poses.csv").is_file(),
+        "{}: no poses.csv",
+        dir.display()
+    );
     Some(dir)
 }
 
