@@ -1,4 +1,4 @@
-//! The state every clone of a [`GpuContext`] shares: the device's
+//! The state every clone of a [`GpuContext`](super::GpuContext) shares: the device's
 //! health (the first error, device loss), the counters of [`GpuStats`],
 //! the readbacks' staging buffers, the batch of submissions and the
 //! readbacks put off.

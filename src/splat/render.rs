@@ -98,11 +98,11 @@ impl Splatter {
 
     /// A depth-only render: the visibility pass alone (one pass over the
     /// splats instead of two, no attribute sums). Afterwards
-    /// [`Splatter::read`] gives [`Attribute::Depth`], the depth of the
+    /// [`Splatter::read`] gives [`Attribute::Depth`](super::Attribute::Depth), the depth of the
     /// nearest surface pushed back by the visibility epsilon (`epsilon *
-    /// r` along the ray, [`SplatParams::epsilon`]: what the attribute pass
+    /// r` along the ray, [`SplatParams::epsilon`](super::SplatParams::epsilon): what the attribute pass
     /// tests against, within a splat radius behind the averaged depth of a
-    /// full render), and [`Attribute::Weight`], 1 where covered; the
+    /// full render), and [`Attribute::Weight`](super::Attribute::Weight), 1 where covered; the
     /// coverage is exactly a full render's (a pixel is covered when a
     /// splat's kernel reaches it, and the nearest such splat passes the
     /// attribute pass's test). Other reads fail with

@@ -5,7 +5,7 @@ use super::error::SplatError;
 use super::gpu_data::{ACC_STRIDE, ComputeParams};
 use crate::gpu::{GpuContext, GrowBuffer, Uniform};
 
-/// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
+/// Per-size scratch of the compute back end, kept in [`SplatTargets`](super::SplatTargets):
 /// the depth keys, the fixed-point sums and the parameters.
 pub(super) struct Scratch {
     pub(super) depth: wgpu::Buffer,

@@ -4,7 +4,7 @@
 //!
 //! A tracking run ([`crate::app::TrackRun::sink`]) hands every finished
 //! frame to a [`FrameSink`] as a [`ViewFrame`]: the frame as tracked
-//! (undistorted), its [`TrackResult`], the model's silhouette at the
+//! (undistorted), its [`TrackResult`](crate::tracker::TrackResult), the model's silhouette at the
 //! tracked pose (one splatting of the model, the mask `--overlay` draws)
 //! and the frame's timestamp when the source has one. The sink answers
 //! [`Flow::Continue`] or [`Flow::Stop`]; `Stop` ends the run as the end of
