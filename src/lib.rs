@@ -61,3 +61,8 @@ pub mod view;
 pub use geometry::{Intrinsics, Pose};
 pub use gpu::{AdapterChoice, GpuContext};
 pub use model::PointModel;
+
+/// The README's examples, compiled and run as doctests.
+#[doc = include_str!("../README.md")]
+#[cfg(doctest)]
+pub struct ReadmeDoctests;
