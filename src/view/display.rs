@@ -13,7 +13,7 @@
 //! or `q` answer [`Flow::Stop`]: the run ends there as at the end of the
 //! sequence.
 
-use super::compose::compose;
+use super::picture::compose;
 use super::present::Presenter;
 use super::sink::{Flow, FrameSink, ViewError, ViewFrame};
 use crate::gpu::GpuContext;

@@ -20,13 +20,13 @@
 //! reference); tests feed [`compose`] and fake sinks directly, without a
 //! display.
 
-mod compose;
 #[cfg(feature = "view")]
 pub mod display;
+mod picture;
 pub mod present;
 mod sink;
 
-pub use compose::{BAND_COLOUR, BAND_LINES, Layout, Rate, compose, status_colour, status_lines};
 #[cfg(feature = "view")]
 pub use display::{DisplaySink, DisplayStats};
+pub use picture::{BAND_COLOUR, BAND_LINES, Layout, Rate, compose, status_colour, status_lines};
 pub use sink::{Flow, FrameSink, ViewError, ViewFrame};
