@@ -75,7 +75,10 @@ fn bench(c: &mut Criterion) {
     let mut harris = Harris::new(&ctx, cfg.clone()).unwrap();
     let mut host_rows = Vec::new();
     let mut host_harris = Harris::new(&ctx, cfg.clone()).unwrap();
-    host_harris.set_host(true);
+    host_harris.set_options(splattrack::features::HarrisGpuOptions {
+        host: true,
+        ..host_harris.options()
+    });
     for (w, h) in [(640usize, 480usize), (1280, 720)] {
         let img = patterns::smooth_noise(w, h, 1.5, w as u64);
         g.bench_function(format!("harris_gpu_{w}x{h}"), |b| {
@@ -115,7 +118,10 @@ fn bench(c: &mut Criterion) {
     // on GPUs) and one thread an item (on CPU adapters).
     let img = patterns::smooth_noise(640, 480, 1.5, 640);
     let mut direct = Harris::new(&ctx, cfg.clone()).unwrap();
-    direct.set_tiled_selection(false);
+    direct.set_options(splattrack::features::HarrisGpuOptions {
+        tiled_selection: Some(false),
+        ..direct.options()
+    });
     g.bench_function("harris_gpu_direct_selection_640x480", |b| {
         b.iter(|| black_box(direct.detect(&img, None).unwrap()))
     });
@@ -123,7 +129,10 @@ fn bench(c: &mut Criterion) {
     // GPUs; CPU adapters run the four).
     for (name, fuse) in [("four_passes", false), ("fused_passes", true)] {
         let mut h = Harris::new(&ctx, cfg.clone()).unwrap();
-        h.set_fused_maps(Some(fuse));
+        h.set_options(splattrack::features::HarrisGpuOptions {
+            fused_maps: Some(fuse),
+            ..h.options()
+        });
         g.bench_function(format!("harris_gpu_640x480_{name}"), |b| {
             b.iter(|| black_box(h.detect(&img, None).unwrap()))
         });
@@ -131,8 +140,11 @@ fn bench(c: &mut Criterion) {
     // The whole image's merge split over workgroups too (the default on
     // GPUs merges its at most max_corners slots in one workgroup).
     let mut split_merge = Harris::new(&ctx, cfg.clone()).unwrap();
-    split_merge.set_tiled_selection(true);
-    split_merge.set_small_selection(Some(false));
+    split_merge.set_options(splattrack::features::HarrisGpuOptions {
+        tiled_selection: Some(true),
+        small_selection: Some(false),
+        ..split_merge.options()
+    });
     assert_eq!(
         split_merge.detect(&img, None).unwrap(),
         harris.detect(&img, None).unwrap()
@@ -140,9 +152,18 @@ fn bench(c: &mut Criterion) {
     g.bench_function("harris_gpu_640x480_split_merge", |b| {
         b.iter(|| black_box(split_merge.detect(&img, None).unwrap()))
     });
-    harris.enable_timing();
-    direct.enable_timing();
-    split_merge.enable_timing();
+    harris.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..harris.options()
+    });
+    direct.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..direct.options()
+    });
+    split_merge.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..split_merge.options()
+    });
     let timed = |h: &mut Harris| {
         pass_medians(|| {
             h.detect(&img, None).unwrap();
@@ -160,8 +181,11 @@ fn bench(c: &mut Criterion) {
     let mut split = Harris::new(&ctx, cfg.clone()).unwrap();
     let mut small = Harris::new(&ctx, cfg.clone()).unwrap();
     for (h, one) in [(&mut split, false), (&mut small, true)] {
-        h.set_tiled_selection(true);
-        h.set_small_selection(Some(one));
+        h.set_options(splattrack::features::HarrisGpuOptions {
+            tiled_selection: Some(true),
+            small_selection: Some(one),
+            ..h.options()
+        });
     }
     let window_corners = split.detect(&window, None).unwrap();
     assert_eq!(window_corners, small.detect(&window, None).unwrap());
@@ -171,8 +195,14 @@ fn bench(c: &mut Criterion) {
     g.bench_function("harris_gpu_200x160_small_selection", |b| {
         b.iter(|| black_box(small.detect(&window, None).unwrap()))
     });
-    split.enable_timing();
-    small.enable_timing();
+    split.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..split.options()
+    });
+    small.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..small.options()
+    });
     let timed_window = |h: &mut Harris| {
         pass_medians(|| {
             h.detect(&window, None).unwrap();
@@ -264,7 +294,10 @@ fn bench(c: &mut Criterion) {
         black_box(ncc_match_cpu(&a, &pa, &b, &pb, &ncfg).unwrap());
     });
     summary.push(("NCC 900 x 900, 9x9, all pairs".into(), gpu, cpu));
-    matcher.enable_timing();
+    matcher.set_options(splattrack::features::NccOptions {
+        timing: true,
+        ..matcher.options()
+    });
     let ncc_passes = pass_medians(|| {
         matcher.match_features(&a, &pa, &b, &pb).unwrap();
         matcher.last_timings().passes.clone()

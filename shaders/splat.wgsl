@@ -7,10 +7,10 @@
 // The CPU reference in src/splat/cpu.rs implements the same maths line by
 // line; change both together.
 
-// `CameraUniform` is in common.wgsl; `SplatGpu`, `cam`, the culling and
+// `CameraUniform` is in camera.wgsl; `SplatGpu`, `cam`, the culling and
 // screen bounds (`view_splat`) and the intersection (`ray_hit`) are in
 // splat_common.wgsl, shared with the compute splatter (both composed
-// before this file by src/shaders.rs).
+// before this file, src/splat/splatter.rs declares the parts).
 
 @group(0) @binding(1) var<storage, read> splats: array<SplatGpu>;
 // One RGBA8 colour per splat (`pack_color`), a buffer of its own so that

@@ -1,4 +1,4 @@
-// What the two splatters share (composed, after common.wgsl, into
+// What the two splatters share (composed, after camera.wgsl, into
 // splat.wgsl, the render pass, and splat_compute.wgsl, the compute
 // shader): the splat as stored, the view uniform, the vertex stage's
 // culling and screen bounds, and the ray-splat intersection. One copy, so

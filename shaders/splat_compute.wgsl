@@ -11,7 +11,7 @@
 // walks call the same per-pixel functions (`splat_pixel`: `visibility_key`,
 // `fragment`). (Binning large splats into 8x8 tiles, a workgroup per tile
 // summing a pixel's fragments in registers, was measured slower on
-// lavapipe at every threshold: BENCHMARKS.md.)
+// lavapipe at every threshold: docs/performance.md.)
 //
 // 1. `visibility`: the nearest depth, pushed back by epsilon along the ray,
 //    by atomicMax on `DEPTH_ONE - bits(depth)` (an f32 in [0, 1] orders

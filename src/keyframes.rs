@@ -18,7 +18,7 @@
 
 use crate::geometry::{Intrinsics, Pose, PoseError, sample_bilinear_rgb};
 use crate::gpu::GpuContext;
-use crate::io::PoseRow;
+use crate::io::poses::PoseRow;
 use crate::model::PointModel;
 use crate::splat::{Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter};
 use nalgebra::Vector3;
@@ -323,7 +323,7 @@ impl KeyframeStore {
         })
     }
 
-    /// Loads keyframe images and poses from a directory (FORMATS.md:
+    /// Loads keyframe images and poses from a directory (docs/formats.md:
     /// `keyframes/poses.csv`, images named by its frame column, extension
     /// optional) and builds the store.
     pub fn build_from_dir(
@@ -334,7 +334,7 @@ impl KeyframeStore {
         dir: &Path,
         cfg: &KeyframeConfig,
     ) -> Result<Self, KeyframeError> {
-        let rows = crate::io::read_poses(&dir.join("poses.csv"))?;
+        let rows = crate::io::poses::read_poses(&dir.join("poses.csv"))?;
         let frames = load_keyframe_images(dir, &rows, cam)?;
         Self::build(ctx, splatter, model, cam, &frames, cfg)
     }
@@ -395,7 +395,7 @@ impl KeyframeStore {
             path: path.to_owned(),
             source,
         };
-        crate::io::write_atomic(path, |f| {
+        crate::io::atomic::write_atomic(path, |f| {
             f.write_all(MAGIC)?;
             for v in [self.points, self.fingerprint, self.keyframes.len() as u64] {
                 f.write_all(&v.to_le_bytes())?;
@@ -565,7 +565,7 @@ pub fn load_keyframe_images(
 /// Default GPU memory for the keyframe colours of [`TexturedCache`]:
 /// 64 MB (16 keyframes of a million points, 160 of 100k), so that a
 /// 1M-point model's whole GPU memory at 640x480 stays under 256 MB
-/// (BENCHMARKS.md "Memory"); a dropped keyframe costs one 4-bytes-a-point
+/// (docs/performance.md); a dropped keyframe costs one 4-bytes-a-point
 /// upload when it is needed again.
 pub const DEFAULT_TEXTURED_BUDGET: u64 = 64 << 20;
 

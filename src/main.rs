@@ -1,4 +1,4 @@
-//! The `splattrack` command line (FORMATS.md "Command line").
+//! The `splattrack` command line (docs/formats.md).
 
 mod cli;
 
@@ -38,7 +38,7 @@ fn main() -> std::process::ExitCode {
     }
 }
 
-/// A command-line error in one line (FORMATS.md: "non-zero with a one-line
+/// A command-line error in one line (docs/formats.md: "non-zero with a one-line
 /// reason on stderr"): clap's message up to its usage text, its lines
 /// joined. Help and version requests print as clap prints them.
 fn usage_error(e: clap::Error) -> std::process::ExitCode {

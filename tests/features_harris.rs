@@ -181,9 +181,15 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
         let mut harris = Harris::new(&c, cfg.clone()).unwrap();
         // The GPU selects among as many as it can on any adapter (on CPU
         // adapters by default only among SELECT_MAX_CPU).
-        harris.set_select_limit(SELECT_MAX as usize);
+        harris.set_options(splattrack::features::HarrisGpuOptions {
+            select_limit: Some(SELECT_MAX as usize),
+            ..harris.options()
+        });
         let mut lax = Harris::new(&c, cfg.clone().with_relative_threshold(0.0)).unwrap();
-        lax.set_select_limit(SELECT_MAX as usize);
+        lax.set_options(splattrack::features::HarrisGpuOptions {
+            select_limit: Some(SELECT_MAX as usize),
+            ..lax.options()
+        });
         let mut waits = Vec::new();
         for (name, img, strict) in [
             ("few", &few, true),
@@ -264,8 +270,11 @@ fn tiled_and_direct_selections_give_the_references_corners() {
     for (ci, cfg) in configs.iter().enumerate() {
         for tiled in [true, false] {
             let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
-            harris.set_select_limit(SELECT_MAX as usize);
-            harris.set_tiled_selection(tiled);
+            harris.set_options(splattrack::features::HarrisGpuOptions {
+                select_limit: Some(SELECT_MAX as usize),
+                tiled_selection: Some(tiled),
+                ..harris.options()
+            });
             for (name, img) in [("few", &few), ("busy", &busy), ("odd", &odd)] {
                 let got = harris.detect(img, None).unwrap();
                 let want = harris_cpu(img, cfg, None).unwrap();
@@ -526,7 +535,10 @@ fn selection_is_spread_over_the_image() {
 fn pass_timings_are_reported_when_enabled() {
     let img = patterns::polygons(64, 48, 5, 12);
     let mut harris = Harris::new(ctx(), HarrisConfig::default()).unwrap();
-    harris.enable_timing();
+    harris.set_options(splattrack::features::HarrisGpuOptions {
+        timing: true,
+        ..harris.options()
+    });
     for _ in 0..3 {
         // Repeated calls (and response maps) must not fill the timer up.
         harris.response(&img).unwrap();
@@ -743,7 +755,10 @@ fn host_detector_is_the_reference_bit_for_bit() {
 fn harris_in_host_mode_gives_the_references_corners() {
     let cfg = HarrisConfig::default();
     let mut harris = Harris::new(ctx(), cfg.clone()).unwrap();
-    harris.set_host(true);
+    harris.set_options(splattrack::features::HarrisGpuOptions {
+        host: true,
+        ..harris.options()
+    });
     assert!(harris.host());
     let img = patterns::polygons(160, 120, 14, 21);
     let mask: Vec<bool> = (0..img.data.len()).map(|i| i % 160 >= 30).collect();
@@ -838,10 +853,16 @@ fn fused_filter_passes_give_the_four_passes_responses_and_corners() {
     let mut checked = 0;
     for (ci, cfg) in [HarrisConfig::default(), wide].into_iter().enumerate() {
         let mut four = Harris::new(ctx(), cfg.clone()).unwrap();
-        four.set_fused_maps(Some(false));
+        four.set_options(splattrack::features::HarrisGpuOptions {
+            fused_maps: Some(false),
+            ..four.options()
+        });
         let mut one = Harris::new(ctx(), cfg.clone()).unwrap();
-        one.set_fused_maps(Some(true));
-        one.enable_timing();
+        one.set_options(splattrack::features::HarrisGpuOptions {
+            fused_maps: Some(true),
+            timing: true,
+            ..one.options()
+        });
         for (i, (w, h)) in [(7, 5), (16, 16), (17, 8), (31, 33), (75, 61), (203, 157)]
             .into_iter()
             .enumerate()

@@ -131,7 +131,10 @@ fn ncc_with_pinholes_gpu_matches_cpu() {
     ] {
         let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
         for tiled in [true, false] {
-            m.set_tiled(tiled);
+            m.set_options(splattrack::features::NccOptions {
+                tiled: Some(tiled),
+                ..m.options()
+            });
             let fa: Vec<Corner> = (0..150)
                 .map(|_| Corner {
                     x: rng.uniform(-3.0, 123.0) as f32,

@@ -55,7 +55,10 @@ fn gpu_matches_equal_cpu_on_random_images_and_features() {
             .into_iter()
             .flat_map(|case| [(case, true), (case, false)])
         {
-            m.set_tiled(tiled);
+            m.set_options(splattrack::features::NccOptions {
+                tiled: Some(tiled),
+                ..m.options()
+            });
             let name = format!("{name}, tiled {tiled}");
             let name = name.as_str();
             // Random positions, with some features of B placed at the
@@ -296,7 +299,10 @@ fn host_mode_matches_are_the_references() {
     .image(&a);
     let cfg = NccConfig::default().with_search_radius(Some(10.0));
     let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
-    m.set_host(true);
+    m.set_options(splattrack::features::NccOptions {
+        host: true,
+        ..m.options()
+    });
     assert!(m.host());
     let fa = random_points(&mut rng, 200, a.width, a.height);
     let fb = random_points(&mut rng, 200, b.width, b.height);

@@ -176,7 +176,10 @@ fn resident_matches_and_refinements_equal_the_host_path() {
         // Both kernels: the refinement from workgroup memory (tiled, the
         // GPUs' default) and sampling the images (the CPU adapters').
         for tiled in [true, false] {
-            m.set_tiled(tiled);
+            m.set_options(splattrack::features::NccOptions {
+                tiled: Some(tiled),
+                ..m.options()
+            });
             let got = m
                 .match_resident(
                     ga.image().unwrap(),
@@ -569,7 +572,10 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
     for (round, limit) in [(0, None), (1, None), (2, Some(0)), (3, None)] {
         let at = format!("round {round}");
         for harris in [&mut reference, &mut chained] {
-            harris.set_select_limit(limit.unwrap_or(splattrack::features::SELECT_MAX as usize));
+            harris.set_options(splattrack::features::HarrisGpuOptions {
+                select_limit: Some(limit.unwrap_or(splattrack::features::SELECT_MAX as usize)),
+                ..harris.options()
+            });
             let target = harris.colour_target(w, h).unwrap();
             c.queue.write_buffer(&target, 0, bytemuck::cast_slice(&rgb));
         }
@@ -698,7 +704,10 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
         .is_err()
     );
     cold.finish_later(pending).unwrap();
-    cold.set_host(true);
+    cold.set_options(splattrack::features::HarrisGpuOptions {
+        host: true,
+        ..cold.options()
+    });
     assert!(cold.detect_resolved_resident_later(w, h).is_err());
 }
 

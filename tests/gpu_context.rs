@@ -560,13 +560,18 @@ fn adapter_choice_parses_and_unknown_names_fail_clearly() {
 }
 
 #[test]
-fn invalid_shader_names_are_errors_not_panics() {
+fn invalid_shaders_are_errors_not_panics() {
+    static BROKEN: splattrack::shaders::Shader = splattrack::shaders::Shader {
+        name: "no_such_shader",
+        parts: &[("shaders/none.wgsl", "fn main( {")],
+        constants: &[],
+    };
     assert!(matches!(
-        ctx().compute_pipeline("no_such_shader", "main"),
+        ctx().compute_pipeline(&BROKEN, "main"),
         Err(GpuError::Shader { .. })
     ));
     assert!(matches!(
-        ctx().compute_pipeline("selftest", "no_such_entry"),
+        ctx().compute_pipeline(&splattrack::gpu::selftest::SHADER, "no_such_entry"),
         Err(GpuError::Validation { .. })
     ));
 }
@@ -799,8 +804,11 @@ fn indirect_dispatches_give_the_same_results_without_wgpus_validation() {
         let c = GpuContext::with_indirect_validation(&choice, validate).unwrap();
         assert_eq!(c.validates_indirect, validate);
         let mut harris = Harris::new(&c, HarrisConfig::default()).unwrap();
-        harris.set_select_limit(SELECT_MAX as usize);
-        harris.set_tiled_selection(true);
+        harris.set_options(splattrack::features::HarrisGpuOptions {
+            select_limit: Some(SELECT_MAX as usize),
+            tiled_selection: Some(true),
+            ..harris.options()
+        });
         let corners = harris.detect(&img, None).unwrap();
         let splatter = Splatter::with_params(
             &c,

@@ -205,7 +205,10 @@ fn features_alone_and_host_memory() {
     let mut ncc = NccMatcher::new(ctx, NccConfig::default()).unwrap();
     let which = std::env::var("SPLATTRACK_SOAK_PART").unwrap_or_default();
     if which == "tiled" {
-        ncc.set_tiled(true);
+        ncc.set_options(splattrack::features::NccOptions {
+            tiled: Some(true),
+            ..ncc.options()
+        });
     }
     for i in 0..total {
         let c = harris.detect_rgb8(&img, None).unwrap();

@@ -17,7 +17,6 @@
 //!   floor, and closed (`cargo test --release --test splat_holes --
 //!   --ignored --nocapture`).
 
-mod data_common;
 mod tracking_common;
 
 use glam::DVec3;
@@ -161,7 +160,7 @@ fn stratified_samplings_with_default_radii_come_out_nearly_unchanged() {
 #[test]
 #[ignore = "reads the real data (SPLATTRACK_DATA); prints the figures of the docs"]
 fn shared_models_at_ground_truth() {
-    let Some(root) = data_common::real_data("") else {
+    let Some(root) = tracking_common::data_common::real_data("") else {
         return;
     };
     for name in ["visp_rbt_cube", "visp_rbt_dragon"] {

@@ -35,7 +35,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let ctx = std::sync::Arc::new(super::gpu(adapter)?);
+    let ctx = std::sync::Arc::new(super::common::gpu(adapter)?);
     println!("splattrack demo on {}", ctx.describe());
     let seq_dir = args.out.join("sequence");
     let synth_args = synth::Args {
@@ -62,7 +62,14 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         seq_dir.display()
     );
     let model = seq_dir.join("model.ply");
-    let inputs = TrackInputs::load(&ctx, &model, &super::model_options(), &seq_dir, None, None)?;
+    let inputs = TrackInputs::load(
+        &ctx,
+        &model,
+        &super::common::model_options(),
+        &seq_dir,
+        None,
+        None,
+    )?;
     println!(
         "2. built {} keyframes from {}",
         inputs.keyframes.as_ref().map_or(0, |k| k.keyframes.len()),

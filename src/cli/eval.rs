@@ -83,7 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let gt = splattrack::io::read_poses(&args.gt)?;
     let diameter = match (&args.model, args.diameter) {
-        (Some(m), _) => Some(super::load_model(m)?.diameter() as f64),
+        (Some(m), _) => Some(super::common::load_model(m)?.diameter() as f64),
         (None, Some(d)) if d.is_finite() && d > 0.0 => Some(d),
         (None, Some(d)) => bail!("--diameter {d}: must be a positive number"),
         (None, None) => None,

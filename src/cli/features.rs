@@ -123,7 +123,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let ctx = if args.cpu {
         None
     } else {
-        Some(super::gpu(adapter)?)
+        Some(super::common::gpu(adapter)?)
     };
     let mut corners: Vec<Vec<Corner>> = Vec::new();
     match &ctx {

@@ -11,7 +11,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let ctx = super::gpu(adapter)?;
+    let ctx = super::common::gpu(adapter)?;
     println!("adapter:   {}", ctx.describe());
     println!(
         "driver:    {} {}",
@@ -47,7 +47,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         println!("splatter:  {backend} (what --splatter auto picks here)");
     }
     if let Some(path) = args.model {
-        let m = super::load_model(&path)?;
+        let m = super::common::load_model(&path)?;
         let (lo, hi) = m.bounds();
         let src = |s: splattrack::model::AttributeSource| match s {
             splattrack::model::AttributeSource::Loaded => "from the file",

@@ -26,8 +26,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         "--out",
         &[&args.model, &args.camera, &args.keyframes.join("poses.csv")],
     )?;
-    let ctx = super::gpu(adapter)?;
-    let model = super::load_model(&args.model)?;
+    let ctx = super::common::gpu(adapter)?;
+    let model = super::common::load_model(&args.model)?;
     let cam = Intrinsics::load(&args.camera)?;
     let store = load_keyframes(&ctx, &model, &cam, &args.keyframes)?;
     store.save(&args.out)?;

@@ -1,7 +1,8 @@
-//! Subcommands, one file each; this file holds the shared flags, the
-//! logger and the dispatch. The work is the library's ([`splattrack::app`]
+//! Subcommands, one file each (what they share in [`common`]); this file
+//! holds the global flags and the dispatch. The work is the library's ([`splattrack::app`]
 //! for tracking); the commands parse flags, print and draw progress.
 
+mod common;
 mod demo;
 mod eval;
 mod features;
@@ -12,13 +13,9 @@ mod render;
 mod synth;
 mod track;
 
-use clap::builder::{PossibleValue, TypedValueParser};
-use clap::{Parser, Subcommand, ValueEnum};
-use splattrack::PointModel;
-use splattrack::gpu::{AdapterChoice, GpuContext};
-use splattrack::model::LoadOptions;
-use std::io::Write;
-use std::marker::PhantomData;
+use clap::{Parser, Subcommand};
+
+pub use common::init_logging;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -62,105 +59,6 @@ pub enum Command {
     Synth(synth::Args),
 }
 
-/// The logger: `RUST_LOG` when set (env_logger's syntax), else warnings
-/// from this crate and errors from others, `-v` this crate's info, `-vv`
-/// debug from every crate (wgpu and naga included). One line a message:
-/// `level: message`, other crates' messages naming their module.
-pub fn init_logging(verbose: u8) {
-    let filters = match std::env::var("RUST_LOG") {
-        Ok(s) if !s.trim().is_empty() => s,
-        _ => match verbose {
-            0 => "error,splattrack=warn",
-            1 => "error,splattrack=info",
-            _ => "debug",
-        }
-        .to_string(),
-    };
-    env_logger::Builder::new()
-        .parse_filters(&filters)
-        .format(|f, r| {
-            let level = r.level().as_str().to_ascii_lowercase();
-            if r.target().starts_with("splattrack") {
-                writeln!(f, "{level}: {}", r.args())
-            } else {
-                writeln!(f, "{level}: {}: {}", r.target(), r.args())
-            }
-        })
-        .target(env_logger::Target::Stderr)
-        .init();
-}
-
-/// A parser for an enumerated flag ([`ValueEnum`]: its values listed in
-/// `--help`) that refuses a bad value in one line naming it and the
-/// choices: `unknown NOUN "x" (use a, b, c)`.
-pub struct Choice<E> {
-    noun: &'static str,
-    values: PhantomData<fn() -> E>,
-}
-
-impl<E> Choice<E> {
-    pub fn new(noun: &'static str) -> Self {
-        Self {
-            noun,
-            values: PhantomData,
-        }
-    }
-}
-
-impl<E> Clone for Choice<E> {
-    fn clone(&self) -> Self {
-        Self::new(self.noun)
-    }
-}
-
-impl<E: ValueEnum + Clone + Send + Sync + 'static> TypedValueParser for Choice<E> {
-    type Value = E;
-
-    fn parse_ref(
-        &self,
-        _cmd: &clap::Command,
-        _arg: Option<&clap::Arg>,
-        value: &std::ffi::OsStr,
-    ) -> Result<E, clap::Error> {
-        let s = value.to_string_lossy();
-        E::from_str(&s, false).map_err(|_| {
-            let names: Vec<String> = E::value_variants()
-                .iter()
-                .filter_map(|v| v.to_possible_value())
-                .map(|p| p.get_name().to_owned())
-                .collect();
-            clap::Error::raw(
-                clap::error::ErrorKind::InvalidValue,
-                format!("unknown {} {s:?} (use {})\n", self.noun, names.join(", ")),
-            )
-        })
-    }
-
-    fn possible_values(&self) -> Option<Box<dyn Iterator<Item = PossibleValue> + '_>> {
-        Some(Box::new(
-            E::value_variants()
-                .iter()
-                .filter_map(ValueEnum::to_possible_value),
-        ))
-    }
-}
-
-/// The name a [`ValueEnum`] value has on the command line.
-pub fn choice_name<E: ValueEnum>(v: &E) -> String {
-    v.to_possible_value()
-        .map(|p| p.get_name().to_owned())
-        .unwrap_or_default()
-}
-
-/// The GPU context for `--adapter` (or the environment).
-pub fn gpu(adapter: &Option<String>) -> anyhow::Result<GpuContext> {
-    let choice = match adapter {
-        Some(a) => a.parse()?,
-        None => AdapterChoice::from_env()?,
-    };
-    Ok(GpuContext::new(&choice)?)
-}
-
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Demo(a) => demo::run(a, &cli.adapter),
@@ -172,18 +70,4 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),
     }
-}
-
-/// How the commands load point models: with progress bars for clouds large
-/// enough to take a while.
-pub fn model_options() -> LoadOptions {
-    LoadOptions {
-        progress: Some(progress::bars("", 200_000)),
-        ..Default::default()
-    }
-}
-
-/// Loads a point model with [`model_options`].
-pub fn load_model(path: &std::path::Path) -> anyhow::Result<PointModel> {
-    Ok(PointModel::load_with(path, &model_options())?)
 }

@@ -1,5 +1,5 @@
 //! `splattrack render`: one splatted view of a point model, as a picture
-//! (.png) or a raw float image (.npy, channel layout of FORMATS.md).
+//! (.png) or a raw float image (.npy, channel layout of docs/formats.md).
 
 use anyhow::{Context, bail};
 use nalgebra::{Matrix3, Vector3};
@@ -126,8 +126,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         );
     }
     let pose = pick_pose(&args)?;
-    let model = super::load_model(&args.model)?;
-    let ctx = super::gpu(adapter)?;
+    let model = super::common::load_model(&args.model)?;
+    let ctx = super::common::gpu(adapter)?;
     let splatter = Splatter::with_params(
         &ctx,
         SplatParams {

@@ -1,6 +1,6 @@
 //! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N] --out DIR`.
 
-use super::{Choice, choice_name};
+use super::common::{Choice, choice_name};
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
 use splattrack::synth::{SynthConfig, Trajectory, sequence};
@@ -76,7 +76,7 @@ pub struct Args {
     pub force: bool,
 }
 
-/// The files of a sequence directory that `synth` writes (FORMATS.md).
+/// The files of a sequence directory that `synth` writes (docs/formats.md).
 const SEQUENCE_FILES: [&str; 5] = [
     "camera.json",
     "init.csv",

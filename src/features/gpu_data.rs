@@ -1,10 +1,13 @@
-//! Host twins of the structs in `shaders/harris.wgsl`, `shaders/ncc.wgsl`
-//! and `shaders/common.wgsl` (`Pixel`), and the constants the shaders
+//! Host twins of the structs in `shaders/harris_*.wgsl`, `shaders/ncc_*.wgsl`
+//! and `shaders/pixel.wgsl` (`Pixel`), and the constants the shaders
 //! share with the host. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct), and
 //! the tests of [`crate::shaders`] compare it member by member with its
-//! WGSL twin; each constant reaches WGSL through the prelude of
-//! [`crate::shaders::CONSTANTS`], never by copy.
+//! WGSL twin; each constant reaches WGSL through a shader's prelude, from
+//! the tables here ([`PIXEL_CONSTANTS`], [`HARRIS_CONSTANTS`],
+//! [`NCC_CONSTANTS`]), never by copy.
 
+use crate::gpu::{GATHER_STRIDE, WORKGROUP_1D, WORKGROUP_2D};
+use crate::shaders::{Constants, Part, WgslValue::F32, WgslValue::U32};
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
@@ -19,17 +22,17 @@ pub const MAX_INTEGRATION_RADIUS: usize = 14;
 /// loads once: (8 + 2r) / 8 loads an output instead of 2r + 1. On lavapipe,
 /// where every load of a storage buffer is a gather, this took the four
 /// filter passes of a 640x480 image from 205 to 89 ms (each pass timed
-/// alone) and a whole detection from 221 to 115 ms (BENCHMARKS.md).
+/// alone) and a whole detection from 221 to 115 ms (docs/performance.md).
 pub const HARRIS_BLOCK: u32 = 8;
 /// The most rows (rd + ri) above and below a tile of the fused filter
-/// pass (`maps_fused` in shaders/harris.wgsl) reads: the default sigmas
+/// pass (`maps_fused` in shaders/harris_maps.wgsl) reads: the default sigmas
 /// (1.0, 1.5) need 3 + 5. Larger radii run the four passes.
 pub const FUSED_HALO: u32 = 8;
 /// Workgroup memory of the fused filter pass: six lines of
 /// (`WORKGROUP_2D` + 2 [`FUSED_HALO`])^2 f32 and an atomic.
 pub const FUSED_BYTES: u32 = 6 * (crate::gpu::WORKGROUP_2D + 2 * FUSED_HALO).pow(2) * 4 + 4;
 /// The most candidates Harris selects among on the GPU
-/// (`shaders/harris.wgsl`, "The selection"): its passes compare every
+/// (`shaders/harris_select.wgsl`): its passes compare every
 /// pair (at most 2^26 comparisons a pass). A detection with more (a
 /// noisy image) reads its candidates back and selects on the host.
 pub const SELECT_MAX: u32 = 8192;
@@ -197,7 +200,7 @@ wgsl_struct! {
         /// 1: [`super::HarrisConfig::refine`].
         pub refine: u32,
         /// The most candidates the GPU selects among
-        /// ([`super::Harris::set_select_limit`]).
+        /// ([`super::HarrisGpuOptions::select_limit`]).
         pub select_limit: u32,
         pub _pad2: u32,
         /// g_d[0..2rd+1], g'_d[0..2rd+1], g_i[0..2ri+1], packed by fours.
@@ -346,6 +349,44 @@ wgsl_struct! {
         pub score: f32,
     }
 }
+
+/// The grey pixel of the feature kernels (`Pixel` and its flag tests),
+/// composed first into each of them; its constants: [`PIXEL_CONSTANTS`].
+pub(crate) const PIXEL_WGSL: Part = crate::wgsl_file!("pixel.wgsl");
+
+/// The pixel flags (shaders/pixel.wgsl and the kernels that read pixels).
+pub(crate) const PIXEL_CONSTANTS: Constants = &[
+    ("PIXEL_VALID", U32(PIXEL_VALID)),
+    ("PIXEL_ALLOWED", U32(PIXEL_ALLOWED)),
+    ("PIXEL_HOLE", U32(PIXEL_HOLE)),
+];
+
+/// The constants of the Harris shader (shaders/harris_*.wgsl).
+pub(crate) const HARRIS_CONSTANTS: Constants = &[
+    ("WORKGROUP_1D", U32(WORKGROUP_1D)),
+    ("WORKGROUP_2D", U32(WORKGROUP_2D)),
+    ("PINHOLE_NEIGHBOURS", U32(PINHOLE_NEIGHBOURS as u32)),
+    ("INVALID_RESPONSE", F32(INVALID_RESPONSE)),
+    ("MAX_TAPS", U32(MAX_TAPS as u32)),
+    ("MAX_DERIV_RADIUS", U32(MAX_DERIV_RADIUS as u32)),
+    ("MAX_INTEGRATION_RADIUS", U32(MAX_INTEGRATION_RADIUS as u32)),
+    ("HARRIS_BLOCK", U32(HARRIS_BLOCK)),
+    ("FUSED_HALO", U32(FUSED_HALO)),
+    ("SELECT_MAX", U32(SELECT_MAX)),
+    ("MERGE_LINKS", U32(MERGE_LINKS)),
+    ("REFINE_GROUP_RADIUS", U32(REFINE_GROUP_RADIUS)),
+];
+
+/// The constants of the NCC shader (shaders/ncc_*.wgsl).
+pub(crate) const NCC_CONSTANTS: Constants = &[
+    ("WORKGROUP_1D", U32(WORKGROUP_1D)),
+    ("NO_SCORE", F32(NO_SCORE)),
+    ("NO_INDEX", U32(NO_INDEX)),
+    ("NCC_TILE", U32(NCC_TILE)),
+    ("REFINE_LOCAL_WINDOW", U32(REFINE_LOCAL_WINDOW)),
+    ("VECTORIZE_GROUP_WINDOW", U32(VECTORIZE_GROUP_WINDOW)),
+    ("GATHER_STRIDE", U32(GATHER_STRIDE as u32)),
+];
 
 #[cfg(test)]
 mod tests {

@@ -5,6 +5,13 @@ use super::FeatureError;
 /// Rec. 601 luma weights, the usual grey conversion of 8-bit video.
 pub const LUMA: [f32; 3] = [0.299, 0.587, 0.114];
 
+/// [`LUMA`] for WGSL (shaders/harris_maps.wgsl, shaders/verify.wgsl).
+pub(crate) const LUMA_CONSTANTS: crate::shaders::Constants = &[
+    ("LUMA_R", crate::shaders::WgslValue::F32(LUMA[0])),
+    ("LUMA_G", crate::shaders::WgslValue::F32(LUMA[1])),
+    ("LUMA_B", crate::shaders::WgslValue::F32(LUMA[2])),
+];
+
 /// `LUMA[c] * (v as f32 / 255.0)` for every channel `c` and byte `v`
 /// ([`GreyImage::from_rgb8`]).
 pub(crate) static LUMA_TERMS: std::sync::LazyLock<[[f32; 256]; 3]> =

@@ -47,101 +47,26 @@
 //! pixel. Grey values are `f32` in 0..1 ([`GreyImage`]); NaN marks an
 //! invalid (empty) pixel.
 
+mod backend;
+mod error;
 pub(crate) mod gpu_data;
 pub mod harris;
 pub mod image;
 pub mod ncc;
-mod ncc_cpu;
 pub mod patterns;
 pub mod refine;
 pub mod resident;
 
+pub use backend::FeatureBackend;
+pub use error::FeatureError;
 pub use gpu_data::{
     INVALID_RESPONSE, REFINE_GROUP_RADIUS, SELECT_MAX, SELECT_MAX_CPU, VECTORIZE_GROUP_WINDOW,
 };
 pub use harris::{
-    Corner, Detected, ExportPlace, Harris, HarrisConfig, PendingCorners, harris_cpu, harris_host,
-    harris_response_cpu, harris_response_host,
+    Corner, Detected, ExportPlace, Harris, HarrisConfig, HarrisGpuOptions, PendingCorners,
+    harris_cpu, harris_host, harris_response_cpu, harris_response_host,
 };
 pub use image::GreyImage;
-pub use ncc::{ExportFn, Match, NccConfig, NccMatcher, PendingMatches};
-pub use ncc_cpu::ncc_match_cpu;
+pub use ncc::{ExportFn, Match, NccConfig, NccMatcher, NccOptions, PendingMatches, ncc_match_cpu};
 pub use refine::refine_match;
 pub use resident::{FrameIntake, GpuGrey, Refinement, ResidentImage, ResidentMatch};
-
-use crate::gpu::GpuError;
-
-/// Errors of feature detection and matching.
-#[derive(Debug, thiserror::Error)]
-pub enum FeatureError {
-    #[error("image data has {len} values for {width}x{height} pixels")]
-    ImageSize {
-        width: usize,
-        height: usize,
-        len: usize,
-    },
-    #[error("mask has {got} values for an image of {expected} pixels")]
-    MaskSize { expected: usize, got: usize },
-    #[error("image of {width}x{height} pixels is too large for the GPU ({reason})")]
-    TooLarge {
-        width: usize,
-        height: usize,
-        reason: String,
-    },
-    #[error("{n} features is more than the matcher supports ({max})")]
-    TooManyFeatures { n: usize, max: usize },
-    #[error("invalid configuration: {0}")]
-    Config(String),
-    #[error(transparent)]
-    Gpu(#[from] GpuError),
-}
-
-/// Where the tracker detects corners ([`Harris::set_host`]) and matches
-/// them on host images ([`NccMatcher::set_host`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-pub enum FeatureBackend {
-    /// The host on a CPU adapter (lavapipe: its shader loads are gathers,
-    /// and the host measured faster, BENCHMARKS.md "Features on the host"),
-    /// else the GPU.
-    #[default]
-    Auto,
-    /// The compute shaders (`shaders/harris.wgsl`, `shaders/ncc.wgsl`).
-    Gpu,
-    /// Corners by [`harris_host`] (the CPU reference's arithmetic,
-    /// vectorised, on every core; a view rendered on the GPU comes back
-    /// as colour) and matches by [`ncc_match_cpu`].
-    Host,
-}
-
-impl FeatureBackend {
-    /// Whether detection runs on the host with adapter `ctx`.
-    pub fn host_on(self, ctx: &crate::gpu::GpuContext) -> bool {
-        match self {
-            Self::Auto => ctx.is_cpu(),
-            Self::Gpu => false,
-            Self::Host => true,
-        }
-    }
-}
-
-impl std::str::FromStr for FeatureBackend {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "auto" => Ok(Self::Auto),
-            "gpu" => Ok(Self::Gpu),
-            "host" => Ok(Self::Host),
-            _ => Err(format!("{s:?}: expected gpu, host or auto")),
-        }
-    }
-}
-
-impl std::fmt::Display for FeatureBackend {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Self::Auto => "auto",
-            Self::Gpu => "gpu",
-            Self::Host => "host",
-        })
-    }
-}

@@ -97,6 +97,20 @@ impl GpuGrey {
     }
 }
 
+/// The frame kernels' shader (shaders/frame.wgsl: the grey levels of a
+/// frame and of a window, on the GPU).
+pub(crate) static SHADER: crate::shaders::Shader = crate::shaders::Shader {
+    name: "frame",
+    parts: &[super::gpu_data::PIXEL_WGSL, crate::wgsl_file!("frame.wgsl")],
+    constants: &[
+        &[(
+            "WORKGROUP_2D",
+            crate::shaders::WgslValue::U32(crate::gpu::WORKGROUP_2D),
+        )],
+        super::gpu_data::PIXEL_CONSTANTS,
+    ],
+};
+
 crate::wgsl_struct! {
     /// Keep in sync with `FrameParams` in shaders/frame.wgsl.
     #[derive(Clone, Copy, Debug, Pod, Zeroable)]
@@ -169,7 +183,7 @@ impl Kernel {
         let entries: Vec<_> = bindings.iter().map(|&(b, t)| compute_entry(b, t)).collect();
         let layout = ctx.bind_group_layout(entry, &entries);
         let pipeline = ctx
-            .compute_pipelines("frame", &layout, &[entry])?
+            .compute_pipelines(&SHADER, &layout, &[entry])?
             .pop()
             .expect("one pipeline");
         Ok(Self {

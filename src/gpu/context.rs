@@ -139,19 +139,15 @@ impl GpuContext {
     }
 
     /// Compiles one of the crate's WGSL shaders (see [`crate::shaders`]).
-    pub fn shader(&self, name: &str) -> Result<wgpu::ShaderModule, GpuError> {
-        let source = crate::shaders::source(name).ok_or_else(|| GpuError::Shader {
-            name: name.to_owned(),
-            message: "no such shader in shaders/".into(),
-        })?;
-        crate::shaders::validate(name, source).map_err(|message| GpuError::Shader {
-            name: name.to_owned(),
+    pub fn shader(&self, shader: &crate::shaders::Shader) -> Result<wgpu::ShaderModule, GpuError> {
+        let (source, _) = shader.validate().map_err(|message| GpuError::Shader {
+            name: shader.name.to_owned(),
             message,
         })?;
         Ok(self
             .device
             .create_shader_module(wgpu::ShaderModuleDescriptor {
-                label: Some(name),
+                label: Some(shader.name),
                 source: wgpu::ShaderSource::Wgsl(source.into()),
             }))
     }
@@ -159,11 +155,11 @@ impl GpuContext {
     /// A compute pipeline with an automatically derived layout.
     pub fn compute_pipeline(
         &self,
-        shader: &str,
+        shader: &crate::shaders::Shader,
         entry_point: &str,
     ) -> Result<wgpu::ComputePipeline, GpuError> {
         let module = self.shader(shader)?;
-        self.catch(&format!("{shader}::{entry_point}"), || {
+        self.catch(&format!("{}::{entry_point}", shader.name), || {
             self.device
                 .create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                     label: Some(entry_point),

@@ -42,8 +42,8 @@ pub use context::GpuContext;
 pub use error::{DEFAULT_TIMEOUT_S, GpuError, LimitExceeded, TIMEOUT_ENV};
 pub use memory::{GpuMemory, human_bytes};
 pub use pipeline::{
-    BindCache, PassChain, WORKGROUP_1D, WORKGROUP_2D, buffer_entry, compute_entry, storage,
-    texture_entry, workgroups,
+    BindCache, GATHER_STRIDE, PassChain, WORKGROUP_1D, WORKGROUP_2D, buffer_entry, compute_entry,
+    storage, texture_entry, workgroups,
 };
 pub use readback::PendingRead;
 pub use stats::GpuStats;

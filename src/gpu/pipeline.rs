@@ -70,11 +70,12 @@ impl GpuContext {
     /// every pass.
     pub fn compute_pipelines(
         &self,
-        shader: &str,
+        shader: &crate::shaders::Shader,
         layout: &wgpu::BindGroupLayout,
         entries: &[&str],
     ) -> Result<Vec<wgpu::ComputePipeline>, GpuError> {
         let module = self.shader(shader)?;
+        let shader = shader.name;
         let pl = self.catch(shader, || {
             self.device
                 .create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
@@ -184,6 +185,11 @@ pub const WORKGROUP_1D: u32 = 64;
 /// Workgroup edge of the kernels that run one thread per pixel in
 /// `WORKGROUP_2D x WORKGROUP_2D` tiles (Harris's image passes).
 pub const WORKGROUP_2D: u32 = 16;
+
+/// Floats per gathered point: 12 predictors, depth, validity (the stride
+/// of `gather`'s output in shaders/splat_resolve.wgsl; the NCC gate,
+/// shaders/ncc_gate.wgsl, reads the validity).
+pub const GATHER_STRIDE: usize = 14;
 
 /// Number of workgroups of `size` threads covering `n` items.
 pub fn workgroups(n: u32, size: u32) -> u32 {

@@ -2,7 +2,15 @@
 //! readback of `y = a x + y`, compared with the same sum on the host.
 
 use super::{GpuContext, GpuError, STORAGE_IN, STORAGE_OUT, WORKGROUP_1D, workgroups};
+use crate::shaders::{Shader, WgslValue};
 use crate::wgsl_struct;
+
+/// The self-test's shader (`saxpy`).
+pub static SHADER: Shader = Shader {
+    name: "selftest",
+    parts: &[crate::wgsl_file!("selftest.wgsl")],
+    constants: &[&[("WORKGROUP_1D", WgslValue::U32(WORKGROUP_1D))]],
+};
 
 wgsl_struct! {
     /// The uniform of the `saxpy` kernel.
@@ -35,7 +43,7 @@ impl Saxpy {
     pub fn new(ctx: &GpuContext, a: f32, x: &[f32], y: &[f32]) -> Result<Self, GpuError> {
         assert_eq!(x.len(), y.len(), "saxpy: x and y differ in length");
         let n = x.len() as u32;
-        let pipeline = ctx.compute_pipeline("selftest", "saxpy")?;
+        let pipeline = ctx.compute_pipeline(&SHADER, "saxpy")?;
         let params = ctx.buffer_init(
             "saxpy params",
             &[SelftestParams {

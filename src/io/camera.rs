@@ -1,4 +1,4 @@
-//! Camera files (FORMATS.md): `camera.json` and OpenCV calibration YAML,
+//! Camera files (docs/formats.md): `camera.json` and OpenCV calibration YAML,
 //! read into [`Intrinsics`].
 
 use crate::geometry::Intrinsics;
@@ -20,7 +20,7 @@ pub enum CameraError {
     Invalid { path: PathBuf, reason: String },
 }
 
-/// `camera.json` as written (FORMATS.md): the distortion list is optional
+/// `camera.json` as written (docs/formats.md): the distortion list is optional
 /// and may have any length up to OpenCV's.
 #[derive(Deserialize)]
 struct CameraJson {
@@ -35,7 +35,7 @@ struct CameraJson {
 }
 
 impl Intrinsics {
-    /// Loads `camera.json` (FORMATS.md) or an OpenCV calibration YAML
+    /// Loads `camera.json` (docs/formats.md) or an OpenCV calibration YAML
     /// (`.yaml`/`.yml`, as written by OpenCV's calibration sample).
     pub fn load(path: &Path) -> Result<Self, CameraError> {
         let text = std::fs::read_to_string(path).map_err(|source| CameraError::Io {

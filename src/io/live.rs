@@ -14,9 +14,11 @@
 //! skipped at start-up.
 
 use crate::geometry::{Intrinsics, Undistorter};
+use crate::io::ffmpeg::{
+    Ffmpeg, FfmpegKiller, VideoError, check_size, replay_args, undistort, v4l2_args,
+};
 use crate::io::sequence::Frame;
 use crate::io::source::{FrameSource, SourceError};
-use crate::io::video::{Ffmpeg, FfmpegKiller, VideoError, check_size, undistort};
 use image::RgbImage;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
@@ -218,9 +220,7 @@ impl LiveSource {
         if !file.is_file() {
             return Err(VideoError::NotFound(file.to_owned()));
         }
-        let mut input = OsString::from("file:");
-        input.push(file.as_os_str());
-        let args: Vec<OsString> = vec!["-re".into(), "-i".into(), input];
+        let args = replay_args(file);
         let killer: Arc<Mutex<Option<FfmpegKiller>>> = Arc::default();
         let slot = killer.clone();
         let (path, cam, cam_path) = (file.to_owned(), *camera, camera_path.to_owned());
@@ -265,14 +265,7 @@ impl LiveSource {
                 reason: "no such device (cameras are /dev/video0, /dev/video1, ...)".into(),
             });
         }
-        let args: Vec<OsString> = vec![
-            "-f".into(),
-            "v4l2".into(),
-            "-video_size".into(),
-            format!("{}x{}", camera.width, camera.height).into(),
-            "-i".into(),
-            path.clone().into_os_string(),
-        ];
+        let args = v4l2_args(&path, camera.width, camera.height);
         Self::ffmpeg(&path, &args, camera, camera_path)
     }
 

@@ -1,4 +1,4 @@
-//! Files on disk (FORMATS.md): sequence directories, pose CSVs, BOP
+//! Files on disk (docs/formats.md): sequence directories, pose CSVs, BOP
 //! results, raw float images (.npy), all written crash-safely
 //! ([`atomic`]); frames from a sequence, a video file or a camera
 //! ([`source`], [`video`], [`live`]).
@@ -6,6 +6,7 @@
 pub mod atomic;
 pub mod bop;
 pub mod camera;
+pub mod ffmpeg;
 #[doc(hidden)]
 pub mod fuzz_entry;
 pub mod guard;
@@ -14,6 +15,8 @@ pub mod npy;
 pub mod poses;
 pub mod sequence;
 pub mod source;
+#[cfg(test)]
+mod testing;
 pub mod video;
 
 pub use atomic::{PartialFile, WriteError, write_atomic};
@@ -21,29 +24,3 @@ pub use bop::BopWriter;
 pub use poses::{PoseRow, PoseWriter, read_poses, write_poses};
 pub use sequence::{Frame, Sequence};
 pub use source::{FrameSource, SourceError, Start};
-
-/// The real data for the unit tests: `rel` in the folder `SPLATTRACK_DATA`
-/// names, or `None` (said on the terminal, which the harness does not
-/// capture) when it is unset; a missing file fails the test.
-#[cfg(test)]
-pub(crate) fn test_data(rel: &str) -> Option<std::path::PathBuf> {
-    use std::io::Write;
-    let Some(root) = std::env::var_os("SPLATTRACK_DATA") else {
-        let test = match std::thread::current().name() {
-            Some(name) if !name.is_empty() && name != "main" => name.to_owned(),
-            _ => "a test".to_owned(),
-        };
-        let _ = writeln!(
-            std::io::stderr(),
-            "{test}: not run, it needs the real data (set SPLATTRACK_DATA to the real data folder; scripts/get_real_data.sh makes one)"
-        );
-        return None;
-    };
-    let path = std::path::PathBuf::from(root).join(rel);
-    assert!(
-        path.exists(),
-        "{} not found (SPLATTRACK_DATA)",
-        path.display()
-    );
-    Some(path)
-}

@@ -1,5 +1,5 @@
 //! NumPy `.npy` files (format version 1.0) for raw float images: `<f4`,
-//! C order, shape `(height, width, channels)` (FORMATS.md "Raw images").
+//! C order, shape `(height, width, channels)` (docs/formats.md).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -1,4 +1,4 @@
-//! Pose CSV files (FORMATS.md "Poses"): a header line, then one row per pose,
+//! Pose CSV files (docs/formats.md): a header line, then one row per pose,
 //! `frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra columns]`,
 //! object-to-camera, R row-major.
 

@@ -1,4 +1,4 @@
-//! Sequence directories (FORMATS.md "Sequence directory"): `camera.json` (or
+//! Sequence directories (docs/formats.md): `camera.json` (or
 //! an OpenCV `camera.yaml`), `frames/` (png or jpg, sorted by name),
 //! `init.csv`, optional `poses.csv` (ground truth) and `keyframes/`.
 //! [`Sequence::frames`] yields the frames in order, undistorted when the
@@ -269,7 +269,7 @@ impl Sequence {
         Some(self.dir.join("keyframes")).filter(|p| p.join("poses.csv").is_file())
     }
 
-    /// The label of frame `i` in pose files: its index, as FORMATS.md says.
+    /// The label of frame `i` in pose files: its index, as docs/formats.md says.
     pub fn frame_label(&self, i: usize) -> String {
         i.to_string()
     }
@@ -281,7 +281,7 @@ mod tests {
 
     #[test]
     fn shared_sequences_open() {
-        let Some(root) = crate::io::test_data("") else {
+        let Some(root) = crate::io::testing::test_data("") else {
             return;
         };
         for name in ["visp_rbt_cube", "visp_rbt_dragon"] {

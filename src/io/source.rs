@@ -4,14 +4,14 @@
 //! ([`crate::io::live::LiveSource`]).
 //!
 //! Every source yields [`Frame`]s in order, numbered from 0 in the order
-//! they were read or decoded (FORMATS.md), undistorted when the camera has
+//! they were read or decoded (docs/formats.md), undistorted when the camera has
 //! distortion, ready for a tracker on [`FrameSource::tracking_camera`].
 //! Videos and cameras also give each frame its timestamp; a live camera
 //! drops the frames that arrive while one is being tracked and counts them.
 
 use crate::geometry::Intrinsics;
+use crate::io::ffmpeg::VideoError;
 use crate::io::sequence::{Frame, Sequence, SequenceError};
-use crate::io::video::VideoError;
 use crate::par::ChannelThread;
 use std::path::Path;
 
@@ -272,7 +272,7 @@ mod tests {
     /// turn, after the frames before it, and again when asked again.
     #[test]
     fn frames_read_ahead_are_the_sequences_in_order_with_errors_in_their_turn() {
-        let Some(root) = crate::io::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn sequence_frames_start_where_asked() {
-        let Some(root) = crate::io::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();

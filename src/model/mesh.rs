@@ -25,8 +25,8 @@
 
 use super::error::{ModelError, memory_path};
 use super::ply::read_line_capped;
-use super::schema;
-use super::{AttributeSource, PointModel, Provenance};
+use super::schema::{self, index_out_of_range};
+use super::types::{AttributeSource, PointModel, Provenance};
 use crate::rng::Rng;
 use glam::{DVec3, Vec3};
 use std::fs::File;
@@ -201,14 +201,6 @@ pub fn load_obj(path: impl AsRef<Path>) -> Result<TriangleMesh, ModelError> {
         colors: (all_colored && nv > 0).then_some(colors),
         path: Some(path.to_path_buf()),
     })
-}
-
-/// The first triangle with a vertex index of `nv` or more, and that index.
-pub(crate) fn index_out_of_range(triangles: &[[u32; 3]], nv: usize) -> Option<(usize, u32)> {
-    triangles
-        .iter()
-        .enumerate()
-        .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
 }
 
 impl TriangleMesh {

@@ -1,7 +1,6 @@
 //! The point-model schema of PLY files: which elements and properties make
-//! a [`PointModel`](super::PointModel) or a
-//! [`TriangleMesh`](super::TriangleMesh), read and written through the
-//! codec in the `ply` module.
+//! a [`PointModel`] or a [`TriangleMesh`](super::TriangleMesh), read and
+//! written through the codec in the `ply` module.
 //!
 //! Read: the `vertex` element's `x y z` (required), `nx ny nz` (or
 //! `normal_x ...`), `red green blue` (or `diffuse_red ...`, `r g b`; uchar
@@ -11,10 +10,10 @@
 //! `x y z nx ny nz`, uchar `red green blue` when the model has colours, and
 //! float `radius`, binary little-endian.
 
-use super::Stage;
 use super::error::ModelError;
-use super::mesh::index_out_of_range;
 use super::ply::{self, BodyReader, Element, Header, Kind, Property, Scalar, Slot, Values};
+use super::stage::Stage;
+use super::types::{AttributeSource, PointModel};
 use crate::progress::ProgressFn;
 use glam::Vec3;
 use std::path::Path;
@@ -385,4 +384,52 @@ pub(crate) fn write(path: &Path, data: &WriteData) -> Result<(), ModelError> {
             rec.extend_from_slice(&data.radii[i].to_le_bytes());
         },
     )
+}
+
+/// The first triangle with a vertex index of `nv` or more, and that index.
+pub(crate) fn index_out_of_range(triangles: &[[u32; 3]], nv: usize) -> Option<(usize, u32)> {
+    triangles
+        .iter()
+        .enumerate()
+        .find_map(|(t, tri)| tri.iter().find(|&&v| v as usize >= nv).map(|&v| (t, v)))
+}
+
+impl PointModel {
+    /// Writes the model as a binary little-endian PLY: float x y z nx ny nz,
+    /// uchar red green blue when the model has colours, float radius. The file
+    /// is written under a temporary name and renamed into place.
+    pub fn save_ply(&self, path: impl AsRef<Path>) -> Result<(), ModelError> {
+        let path = path.as_ref();
+        self.validate().map_err(|e| match e {
+            ModelError::Invalid { reason, .. } => ModelError::Invalid {
+                path: path.to_path_buf(),
+                reason: format!("refusing to save an invalid model: {reason}"),
+            },
+            other => other,
+        })?;
+        let source = |s: AttributeSource| match s {
+            AttributeSource::Loaded => "loaded",
+            AttributeSource::Estimated => "estimated",
+            AttributeSource::FromMesh => "from a mesh",
+            AttributeSource::Absent => "absent",
+        };
+        let mut comments = vec![format!(
+            "splattrack point model: normals {}, radii {}",
+            source(self.provenance.normals),
+            source(self.provenance.radii)
+        )];
+        if let Some(p) = &self.provenance.path {
+            comments.push(format!("source: {}", p.display()));
+        }
+        write(
+            path,
+            &WriteData {
+                positions: &self.positions,
+                normals: &self.normals,
+                radii: &self.radii,
+                colors: self.colors.as_deref(),
+                comments: &comments,
+            },
+        )
+    }
 }

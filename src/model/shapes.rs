@@ -11,7 +11,8 @@
 //!   so tests can check rendered depth and predictors against the surface
 //!   without any reference renderer.
 
-use super::{AttributeSource, PointModel, Provenance, TriangleMesh};
+use super::mesh::TriangleMesh;
+use super::types::{AttributeSource, PointModel, Provenance};
 use crate::rng::Rng;
 use glam::{DVec3, Vec3};
 

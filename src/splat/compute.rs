@@ -105,7 +105,7 @@ impl ComputeSplatter {
                 compute_entry(12, storage(true)),
             ],
         );
-        let module = ctx.shader("splat_compute")?;
+        let module = ctx.shader(&super::gpu_data::COMPUTE_SHADER)?;
         let pipeline = |entry: &str, layouts: &[Option<&wgpu::BindGroupLayout>]| {
             ctx.catch(&format!("splat_compute::{entry}"), || {
                 let pl = ctx

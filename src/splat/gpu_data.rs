@@ -1,10 +1,13 @@
 //! Structs and constants shared with shaders/splat.wgsl,
-//! shaders/splat_resolve.wgsl and shaders/common.wgsl (`CameraUniform`),
-//! byte for byte. Each struct is declared with [`wgsl_struct!`](crate::wgsl_struct) and
-//! compared member by member with its WGSL twin by the tests of
-//! [`crate::shaders`]; the constants reach WGSL through its prelude.
+//! shaders/splat_resolve.wgsl, shaders/splat_compute.wgsl and
+//! shaders/camera.wgsl (`CameraUniform`), byte for byte. Each struct is
+//! declared with [`wgsl_struct!`](crate::wgsl_struct) and compared member
+//! by member with its WGSL twin by the tests of [`crate::shaders`]; the
+//! constants reach WGSL through the prelude, from the tables here.
 
 use crate::geometry::{Intrinsics, Pose};
+use crate::gpu::WORKGROUP_1D;
+use crate::shaders::{Constants, Part, Shader, WgslValue::U32};
 use crate::wgsl_struct;
 
 wgsl_struct! {
@@ -74,9 +77,7 @@ impl CameraUniform {
     }
 }
 
-/// Floats per gathered point: 12 predictors, depth, validity (the stride
-/// of `gather`'s output in shaders/splat_resolve.wgsl).
-pub const GATHER_STRIDE: usize = 14;
+pub use crate::gpu::GATHER_STRIDE;
 
 wgsl_struct! {
     /// Parameters of the resolve kernels.
@@ -150,6 +151,68 @@ pub const FIXED_SCALE: f32 = 1_048_576.0;
 /// workgroup in 8x8 blocks (`visibility_big`, `accumulate`'s last groups), not by one
 /// thread: splats of a dense model stay one per thread, a huge or
 /// near-plane splat no longer serialises on one. Measured on lavapipe
-/// (docs/benchmarks.md): thresholds of 64 and 256 pixels, and binning large
+/// (docs/performance.md): thresholds of 64 and 256 pixels, and binning large
 /// splats into 8x8 tiles of the image instead, were slower.
 pub const BIG_SPLAT_PIXELS: u32 = 1024;
+
+/// The splatters' camera (`CameraUniform`), composed first into both.
+pub(crate) const CAMERA_WGSL: Part = crate::wgsl_file!("camera.wgsl");
+
+/// What the two splatters share (the splat, the view uniform, culling,
+/// screen bounds, the ray-splat intersection), composed after the camera.
+pub(crate) const SPLAT_COMMON_WGSL: Part = crate::wgsl_file!("splat_common.wgsl");
+
+/// The constants of shaders/splat_resolve.wgsl.
+pub(crate) const RESOLVE_CONSTANTS: Constants = &[
+    ("WORKGROUP_1D", U32(WORKGROUP_1D)),
+    ("GATHER_STRIDE", U32(GATHER_STRIDE as u32)),
+    ("RESOLVE_WORKGROUP", U32(RESOLVE_WORKGROUP)),
+    ("RESOLVE_COLOR", U32(RESOLVE_COLOR)),
+    ("RESOLVE_DEPTH", U32(RESOLVE_DEPTH)),
+    ("RESOLVE_NORMAL", U32(RESOLVE_NORMAL)),
+    ("RESOLVE_MOTION", U32(RESOLVE_MOTION)),
+    ("RESOLVE_WEIGHT", U32(RESOLVE_WEIGHT)),
+    ("RESOLVE_DEPTH_MOTION", U32(RESOLVE_DEPTH_MOTION)),
+    ("GATHER_NEAREST", U32(GATHER_NEAREST)),
+    ("GATHER_BILINEAR", U32(GATHER_BILINEAR)),
+];
+
+/// The constants of shaders/splat_compute.wgsl.
+pub(crate) const COMPUTE_CONSTANTS: Constants = &[
+    ("WORKGROUP_1D", U32(WORKGROUP_1D)),
+    ("RESOLVE_WORKGROUP", U32(RESOLVE_WORKGROUP)),
+    ("COMPUTE_GEOMETRY", U32(COMPUTE_GEOMETRY)),
+    ("COMPUTE_MOTION", U32(COMPUTE_MOTION)),
+    ("ACC_STRIDE", U32(ACC_STRIDE)),
+    ("FIXED_SCALE", crate::shaders::WgslValue::F32(FIXED_SCALE)),
+    ("BIG_SPLAT_PIXELS", U32(BIG_SPLAT_PIXELS)),
+];
+
+/// The render splatter's shader (`Splatter`).
+pub(crate) static SPLAT_SHADER: Shader = Shader {
+    name: "splat",
+    parts: &[
+        CAMERA_WGSL,
+        SPLAT_COMMON_WGSL,
+        crate::wgsl_file!("splat.wgsl"),
+    ],
+    constants: &[],
+};
+
+/// The resolve and gather kernels of the render splatter.
+pub(crate) static RESOLVE_SHADER: Shader = Shader {
+    name: "splat_resolve",
+    parts: &[crate::wgsl_file!("splat_resolve.wgsl")],
+    constants: &[RESOLVE_CONSTANTS],
+};
+
+/// The compute splatter's shader (`ComputeSplatter`).
+pub(crate) static COMPUTE_SHADER: Shader = Shader {
+    name: "splat_compute",
+    parts: &[
+        CAMERA_WGSL,
+        SPLAT_COMMON_WGSL,
+        crate::wgsl_file!("splat_compute.wgsl"),
+    ],
+    constants: &[COMPUTE_CONSTANTS],
+};

@@ -93,7 +93,7 @@ impl Splatter {
             bind_group_layouts: &[Some(&render_layout)],
             immediate_size: 0,
         });
-        let module = ctx.shader("splat")?;
+        let module = ctx.shader(&super::gpu_data::SPLAT_SHADER)?;
         let pipeline =
             |label: &str, entry: &str, write: bool, targets: &[Option<wgpu::ColorTargetState>]| {
                 ctx.catch(label, || {
@@ -189,7 +189,11 @@ impl Splatter {
             ],
         );
         let [resolve, gather]: [wgpu::ComputePipeline; 2] = ctx
-            .compute_pipelines("splat_resolve", &resolve_layout, &["resolve", "gather"])?
+            .compute_pipelines(
+                &super::gpu_data::RESOLVE_SHADER,
+                &resolve_layout,
+                &["resolve", "gather"],
+            )?
             .try_into()
             .expect("two pipelines");
         let dummy_points = ctx.buffer("no points", 16, wgpu::BufferUsages::STORAGE);

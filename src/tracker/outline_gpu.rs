@@ -13,6 +13,7 @@ use crate::gpu::{
     GpuContext, GpuError, GpuTimer, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, TimerReport,
     Timings, WORKGROUP_1D, WORKGROUP_2D, compute_entry, storage, workgroups,
 };
+use crate::shaders::{Shader, WgslValue};
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
@@ -23,6 +24,18 @@ pub const OUTLINE_WINDOW: u32 = 5;
 /// straight edge through the centre gives 330 (11 x 11); thin parts and
 /// corners give less, and their normal is unreliable.
 pub const OUTLINE_MIN_GRADIENT: u32 = 120;
+
+/// The outline's shader.
+pub(crate) static SHADER: Shader = Shader {
+    name: "outline",
+    parts: &[crate::wgsl_file!("outline.wgsl")],
+    constants: &[&[
+        ("WORKGROUP_1D", WgslValue::U32(WORKGROUP_1D)),
+        ("WORKGROUP_2D", WgslValue::U32(WORKGROUP_2D)),
+        ("OUTLINE_WINDOW", WgslValue::U32(OUTLINE_WINDOW)),
+        ("OUTLINE_MIN_GRADIENT", WgslValue::U32(OUTLINE_MIN_GRADIENT)),
+    ]],
+};
 
 wgsl_struct! {
     /// Keep in sync with `OutlineParams` in shaders/outline.wgsl.
@@ -110,7 +123,7 @@ impl GpuOutline {
         let layout = ctx.bind_group_layout("outline", &entries);
         let [candidates, points_of_cells, coverage]: [wgpu::ComputePipeline; 3] = ctx
             .compute_pipelines(
-                "outline",
+                &SHADER,
                 &layout,
                 &["candidates", "points_of_cells", "coverage"],
             )?

@@ -12,6 +12,7 @@ use crate::gpu::{
     GpuContext, GpuError, GrowBuffer, PassChain, STORAGE_IN, STORAGE_OUT, Uniform, compute_entry,
     storage,
 };
+use crate::shaders::{Shader, WgslValue};
 use crate::wgsl_struct;
 use bytemuck::{Pod, Zeroable};
 
@@ -19,6 +20,19 @@ use bytemuck::{Pod, Zeroable};
 pub const CHECK_SUMS: u32 = 11;
 /// Threads (rows) per workgroup of the check's row pass.
 pub const CHECK_WORKGROUP: u32 = 64;
+
+/// The check's shader.
+pub(crate) static SHADER: Shader = Shader {
+    name: "verify",
+    parts: &[crate::wgsl_file!("verify.wgsl")],
+    constants: &[
+        &[
+            ("CHECK_SUMS", WgslValue::U32(CHECK_SUMS)),
+            ("CHECK_WORKGROUP", WgslValue::U32(CHECK_WORKGROUP)),
+        ],
+        crate::features::image::LUMA_CONSTANTS,
+    ],
+};
 
 /// Grey levels are summed less this (ZNCC ignores an offset; f32 sums of
 /// squares then keep the variance of values near mid-grey).
@@ -71,7 +85,7 @@ impl GpuCheck {
         let layout = ctx.bind_group_layout("verify", &entries);
         let [rows, sum_rows, rows_tiled, sum_rows_tiled]: [wgpu::ComputePipeline; 4] = ctx
             .compute_pipelines(
-                "verify",
+                &SHADER,
                 &layout,
                 &["rows", "sum_rows", "rows_tiled", "sum_rows_tiled"],
             )?

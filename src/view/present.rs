@@ -7,6 +7,13 @@
 use crate::gpu::{GpuContext, GpuError, buffer_entry, texture_entry};
 use image::RgbaImage;
 
+/// The presentation's shader (the render pass onto the window).
+pub(crate) static SHADER: crate::shaders::Shader = crate::shaders::Shader {
+    name: "present",
+    parts: &[crate::wgsl_file!("present.wgsl")],
+    constants: &[],
+};
+
 crate::wgsl_struct! {
     /// The uniform of `present.wgsl` (keep the field order in sync with
     /// the WGSL).
@@ -108,7 +115,7 @@ impl Presenter {
                 texture_entry(1, wgpu::ShaderStages::FRAGMENT),
             ],
         );
-        let module = ctx.shader("present")?;
+        let module = ctx.shader(&SHADER)?;
         let pipeline = ctx.catch("present pipeline", || {
             let pl = ctx
                 .device

@@ -132,7 +132,7 @@ impl Fig10 {
 }
 
 #[path = "../data_common/mod.rs"]
-mod data_common;
+pub mod data_common;
 
 /// The real sequence `name` in the folder `SPLATTRACK_DATA` names; `None`
 /// (said on the terminal) when that is unset.

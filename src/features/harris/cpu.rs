@@ -1,5 +1,5 @@
 //! CPU reference of the Harris detector: every pass of
-//! `shaders/harris.wgsl`, operation for operation in `f32`. The host steps
+//! `shaders/harris_*.wgsl`, operation for operation in `f32`. The host steps
 //! it shares with the GPU detector are in [`super`].
 
 use super::{Corner, HarrisConfig, gaussian_taps, merge, pack_pixels, radius, select_spread};

@@ -4,7 +4,7 @@
 //! row's pixels tap by tap (loops the compiler vectorises, with the image
 //! bounds hoisted out of them) and rows are split over the cores. On
 //! lavapipe a compute shader's loads are gathers and its passes cost
-//! several times this (BENCHMARKS.md); on a GPU the shader path stays.
+//! several times this (docs/performance.md); on a GPU the shader path stays.
 
 use super::cpu::{Maps, corners_of};
 use super::{Corner, HarrisConfig, gaussian_taps, pack_pixels, radius};

@@ -1,13 +1,14 @@
-//! CPU reference of NCC matching: `shaders/ncc.wgsl` operation for
+//! CPU reference of NCC matching: `shaders/ncc_*.wgsl` operation for
 //! operation in `f32` (same sampling, same summation order). Windows with
 //! a few invalid samples are scored over the samples valid in both windows
 //! of a pair (see [`NccConfig::min_valid`]).
 
-use super::FeatureError;
-use super::gpu_data::{Best, NO_INDEX, NO_SCORE, pinholes};
-use super::harris::Corner;
-use super::image::{GreyImage, check_mask};
-use super::ncc::{Match, NccConfig, mutual, sanitize};
+use super::config::{Match, NccConfig};
+use super::pairs::{mutual, sanitize};
+use crate::features::FeatureError;
+use crate::features::gpu_data::{Best, NO_INDEX, NO_SCORE, pinholes};
+use crate::features::harris::Corner;
+use crate::features::image::{GreyImage, check_mask};
 
 /// A feature's window as `vectorize` leaves it.
 enum Window {

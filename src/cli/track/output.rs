@@ -1,0 +1,97 @@
+//! What `splattrack track` writes and prints: its outputs checked before
+//! the run, the summary and the `--profile` report after it.
+
+use super::args::Args;
+use super::profile::profile_table;
+use splattrack::GpuContext;
+use splattrack::app::RunStats;
+use splattrack::io::guard::{check_output, check_output_dir};
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// Refuses outputs that are this run's other inputs (the sequence's own
+/// files are checked by the run).
+pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
+    let mut inputs = vec![args.model.as_path()];
+    inputs.extend(args.init.as_deref());
+    inputs.extend(args.keyframes.as_deref());
+    inputs.extend(args.video.as_deref());
+    inputs.extend(args.camera.as_deref());
+    check_output(&args.out, "--out", &inputs)?;
+    if let Some(bop) = &args.bop {
+        check_output(bop, "--bop", &inputs)?;
+    }
+    if let Some(dir) = &args.overlay {
+        let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
+        check_output_dir(dir, "--overlay", &protected, &inputs)?;
+    }
+    Ok(())
+}
+
+/// The lines after a run: frames tracked and lost, frames dropped by a
+/// live source, and how the run ended when it was stopped.
+pub fn print_summary(
+    args: &Args,
+    ctx: &GpuContext,
+    stats: &RunStats,
+    stop: &AtomicBool,
+    live: bool,
+) {
+    let aside = match stats.texture_set_aside {
+        0 => String::new(),
+        n => format!(" ({n} tracked by the contour alone, their texture set aside)"),
+    };
+    println!(
+        "tracked {} frames ({} mode, {}): {} lost{aside}; {:.1} ms per frame (median {:.1}); poses in {}",
+        stats.frames,
+        args.mode.name(),
+        ctx.describe(),
+        stats.lost,
+        stats.mean_ms[3],
+        stats.median_ms,
+        args.out.display()
+    );
+    let ctrl_c = stop.load(Ordering::SeqCst);
+    if live {
+        println!(
+            "{} frames dropped (arrived while a frame was being tracked){}",
+            stats.dropped,
+            if ctrl_c { "; stopped by Ctrl-C" } else { "" }
+        );
+    }
+    if stats.stopped && !ctrl_c {
+        println!(
+            "the live view was closed: stopped after {} frames",
+            stats.frames
+        );
+    }
+}
+
+/// `--profile`'s report: the frame source's time, the stage table, the
+/// splatting's GPU memory and the time end to end (`wall`: seconds;
+/// `viewed`: a live view ran).
+pub fn print_profile(ctx: &GpuContext, stats: &RunStats, wall: f64, viewed: bool) {
+    println!(
+        "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
+        stats.source_ms
+    );
+    print!(
+        "{}",
+        profile_table(&stats.mean_stages, ctx.is_cpu(), ctx.validates_indirect)
+    );
+    if let Some(m) = stats.gpu_memory {
+        let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+        println!(
+            "GPU memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+            mb(m.total()),
+            mb(m.model),
+            mb(m.keyframe_colors),
+            mb(m.targets)
+        );
+    }
+    println!(
+        "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
+        if viewed { ", live view" } else { "" },
+        wall * 1e3 / stats.frames as f64,
+        stats.frames as f64 / wall
+    );
+}
