@@ -1,13 +1,13 @@
 #!/bin/bash
 # One device call with everything GPU-side this crate measures or checks
-# (BENCHMARKS.md "NVIDIA H200"): build and pack here, run there.
+# (docs/performance.md "NVIDIA H200"): build and pack here, run there.
 #
 #   bash benches/device_call.sh pack    # here: .dev/ (ignored) holds the stripped
 #                                       # binaries, 15 GPU test binaries and the real cube
 #   then one `device` run, carry [".gl", ".dev"], timeout_s 590:
 #   BUDGET=545 bash benches/device_call.sh run
 #
-# `run` unpacks the Vulkan loader (.gl, BENCHMARKS.md "On an H200/H100"),
+# `run` unpacks the Vulkan loader (.gl, docs/benchmarks.md "On an H200/H100"),
 # runs each item under its own time limit inside BUDGET seconds, in order
 # of value: `splattrack info`; the real cube tracked with `--profile`
 # (texture and fused, three times each; render-pass splatter; resident

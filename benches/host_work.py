@@ -5,8 +5,8 @@ On lavapipe the "GPU" runs on the same CPU, as JIT-compiled shader code
 whose samples cannot be unwound into the tracker: the tracking thread's
 samples inside `Tracker::track` are what the host itself spends a frame (encoding and
 submitting GPU work, uploads, readback waits' CPU time, the host's own
-arithmetic), which it would spend with any GPU (BENCHMARKS.md, "The GPU
-frame loop's host side"). Record with call graphs first, e.g.
+arithmetic), which it would spend with any GPU (docs/performance.md, "The GPU
+loop's host work"). Record with call graphs first, e.g.
 
     perf record -F 999 --call-graph dwarf,32768 -o perf.data \\
         target/release/splattrack track --model M --sequence S \\

@@ -1,4 +1,4 @@
-//! Accuracy of tracked poses against ground truth (DESIGN.md section 7):
+//! Accuracy of tracked poses against ground truth (docs/accuracy.md):
 //! per-frame rotation and translation errors, their summary, success rates
 //! and plots.
 

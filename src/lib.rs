@@ -31,6 +31,12 @@
 //! - [`app`]: the application layer: a tracking run over a sequence with
 //!   its keyframe store and outputs, as the command line does it;
 //! - [`progress`]: progress of long jobs, for the caller to draw.
+//!
+//! Vocabulary: a *view* is a rendered image of the model (a splatting at a
+//! pose); the *live view* ([`view`]) is the display that shows each
+//! tracked frame as it is tracked, in an OS window (`view::DisplaySink`);
+//! a *window* is the object's region of the image ([`splat::Window`]), the
+//! part of a frame the tracker works in.
 
 pub mod app;
 pub mod draw;

@@ -200,7 +200,7 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
             ("busy", &busy, true),
             ("noisy", &noisy, false),
         ] {
-            let (before, subs) = (c.readbacks(), c.submissions());
+            let (before, subs) = (c.stats().readbacks, c.stats().submissions);
             let (got, want) = if strict {
                 let got = harris.detect(img, None).unwrap();
                 (got, harris_cpu(img, &cfg, None).unwrap())
@@ -208,10 +208,10 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
                 let got = lax.detect(img, None).unwrap();
                 (got, harris_cpu(img, lax.config(), None).unwrap())
             };
-            waits.push(c.readbacks() - before);
+            waits.push(c.stats().readbacks - before);
             assert_eq!(
-                c.submissions() - subs,
-                c.readbacks() - before,
+                c.stats().submissions - subs,
+                c.stats().readbacks - before,
                 "refine {refine}, {name}: submissions"
             );
             assert!(!want.is_empty(), "{name}");
@@ -225,9 +225,9 @@ fn a_detection_selects_on_the_gpu_and_reads_its_corners_back_at_once() {
         if c.is_cpu() {
             let mut default = Harris::new(&c, cfg.clone()).unwrap();
             default.detect(&few, None).unwrap();
-            let before = c.readbacks();
+            let before = c.stats().readbacks;
             let got = default.detect(&busy, None).unwrap();
-            assert_eq!(c.readbacks() - before, over, "refine {refine}, busy");
+            assert_eq!(c.stats().readbacks - before, over, "refine {refine}, busy");
             let want = harris_cpu(&busy, &cfg, None).unwrap();
             assert!(want.len() > SELECT_MAX_CPU as usize / 2);
             assert_same_corners(&format!("refine {refine}, busy, default"), &got, &want);

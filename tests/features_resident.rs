@@ -617,7 +617,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
             )
             .unwrap();
         // Chained.
-        let before = c.readbacks();
+        let before = c.stats().readbacks;
         let pending = chained.detect_resolved_resident_later(w, h).unwrap();
         let slots = pending.slots();
         let rows = pending.rows();
@@ -654,7 +654,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
             .unwrap()
         };
         let detected = chained.finish_later(pending).unwrap();
-        let waits = c.readbacks() - before;
+        let waits = c.stats().readbacks - before;
         assert_eq!(detected.corners, want_corners, "{at}: corners");
         let n = want_corners.len();
         let pts: Vec<[f32; 2]> = c.read_buffer(&points, slots).unwrap();
@@ -846,7 +846,7 @@ fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
             .map(|r| (a_idx[r.a], b_idx[r.b], r.score, r.at))
             .collect();
         // Chained.
-        let waits = c.readbacks();
+        let waits = c.stats().readbacks;
         let pending = chained
             .detect_packed_later(ww as usize, wh as usize)
             .unwrap();
@@ -883,7 +883,7 @@ fn frame_corners_exported_as_b_match_as_the_hosts_with_the_gate_in_one_wait() {
             .into_iter()
             .map(|r| (r.a, r.b, r.score, r.at))
             .collect();
-        let waits = c.readbacks() - waits;
+        let waits = c.stats().readbacks - waits;
         let got_corners: Vec<Corner> = detected
             .corners
             .iter()

@@ -70,11 +70,11 @@ fn read_buffers_reads_several_buffers_in_one_readback() {
     let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u8; 40], gpu::STORAGE_OUT);
     let bytes = |v: &[u32]| -> Vec<u8> { bytemuck::cast_slice(v).to_vec() };
-    let before = c.readbacks();
+    let before = c.stats().readbacks;
     let got = c
         .read_buffers(&[(&a, 6), (&b, 0), (&b, 40), (&a, 20)])
         .unwrap();
-    assert_eq!(c.readbacks() - before, 1);
+    assert_eq!(c.stats().readbacks - before, 1);
     assert_eq!(got[0], bytes(&[1, 2])[..6].to_vec());
     assert!(got[1].is_empty());
     assert_eq!(got[2], vec![7u8; 40]);
@@ -83,7 +83,7 @@ fn read_buffers_reads_several_buffers_in_one_readback() {
         c.read_buffers(&[(&a, 4), (&b, 41)]),
         Err(GpuError::Readback(_))
     ));
-    assert_eq!(c.readbacks() - before, 1);
+    assert_eq!(c.stats().readbacks - before, 1);
     assert!(c.read_buffers(&[]).unwrap().is_empty());
 }
 
@@ -97,20 +97,26 @@ fn a_readback_after_recorded_work_is_one_submission() {
     let c = own_ctx();
     let a = c.buffer_init("a", &[1u32, 2, 3, 4, 5], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[9u32; 3], gpu::STORAGE_OUT);
-    let (subs, reads) = (c.submissions(), c.readbacks());
+    let (subs, reads) = (c.stats().submissions, c.stats().readbacks);
     let mut enc = c.encoder();
     enc.clear_buffer(&a, 0, Some(8));
     enc.copy_buffer_to_buffer(&b, 0, &a, 12, 4);
     let got: Vec<u32> = c.read_buffer_after(enc, &a, 5).unwrap();
     assert_eq!(got, [0, 0, 3, 9, 5]);
-    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (1, 1));
+    assert_eq!(
+        (c.stats().submissions - subs, c.stats().readbacks - reads),
+        (1, 1)
+    );
 
     let mut enc = c.encoder();
     enc.clear_buffer(&b, 4, None);
     let parts = c.read_buffers_after(enc, &[(&b, 12), (&a, 6)]).unwrap();
     assert_eq!(parts[0], bytemuck::cast_slice::<u32, u8>(&[9, 0, 0]));
     assert_eq!(parts[1], bytemuck::cast_slice::<u32, u8>(&[0, 0])[..6]);
-    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (2, 2));
+    assert_eq!(
+        (c.stats().submissions - subs, c.stats().readbacks - reads),
+        (2, 2)
+    );
 
     let mut enc = c.encoder();
     enc.clear_buffer(&a, 0, None);
@@ -118,14 +124,20 @@ fn a_readback_after_recorded_work_is_one_submission() {
         c.read_buffer_after::<u32>(enc, &a, 6),
         Err(GpuError::Readback(_))
     ));
-    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (2, 2));
+    assert_eq!(
+        (c.stats().submissions - subs, c.stats().readbacks - reads),
+        (2, 2)
+    );
     assert_eq!(c.read_buffer::<u32>(&a, 5).unwrap(), [0, 0, 3, 9, 5]);
 
     // Nothing to read: the work is submitted alone, without a wait.
     let mut enc = c.encoder();
     enc.clear_buffer(&a, 16, None);
     assert!(c.read_buffers_after(enc, &[(&a, 0)]).unwrap()[0].is_empty());
-    assert_eq!((c.submissions() - subs, c.readbacks() - reads), (4, 3));
+    assert_eq!(
+        (c.stats().submissions - subs, c.stats().readbacks - reads),
+        (4, 3)
+    );
     assert_eq!(c.read_buffer::<u32>(&a, 5).unwrap(), [0, 0, 3, 9, 0]);
 }
 
@@ -139,28 +151,28 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
     let c = own_ctx();
     let a = c.buffer_init("a", &[1u32, 2, 3, 4], gpu::STORAGE_OUT);
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
-    let (subs, cbs) = (c.submissions(), c.command_buffers());
+    let (subs, cbs) = (c.stats().submissions, c.stats().command_buffers);
     {
         let _batch = c.batch();
         // Each step reads what the one before wrote.
         step(&c, |e| e.copy_buffer_to_buffer(&a, 0, &b, 4, 8));
         step(&c, |e| e.clear_buffer(&a, 0, Some(8)));
         step(&c, |e| e.copy_buffer_to_buffer(&b, 8, &a, 4, 4));
-        assert_eq!(c.submissions(), subs, "put off");
+        assert_eq!(c.stats().submissions, subs, "put off");
         let enc = c.encoder();
         let got: Vec<u32> = c.read_buffer_after(enc, &a, 4).unwrap();
         assert_eq!(got, [0, 2, 3, 4]);
-        assert_eq!(c.submissions() - subs, 1, "one submission");
-        assert_eq!(c.command_buffers() - cbs, 1, "one command buffer");
+        assert_eq!(c.stats().submissions - subs, 1, "one submission");
+        assert_eq!(c.stats().command_buffers - cbs, 1, "one command buffer");
         assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [7, 1, 2, 7]);
-        assert_eq!(c.submissions() - subs, 2);
+        assert_eq!(c.stats().submissions - subs, 2);
 
         // Nested: the inner guard's end submits nothing.
         {
             let _inner = c.batch();
             step(&c, |e| e.clear_buffer(&b, 0, None));
         }
-        assert_eq!(c.submissions() - subs, 2);
+        assert_eq!(c.stats().submissions - subs, 2);
 
         // Another thread submits and reads at once (and takes the work
         // put off here with it: submitting earlier is always safe).
@@ -170,24 +182,32 @@ fn a_batch_submits_a_chain_of_passes_with_its_readback() {
                 let mut enc = c.encoder();
                 enc.copy_buffer_to_buffer(&a, 12, &d, 0, 4);
                 c.submit(enc);
-                assert_eq!(c.submissions() - subs, 3, "not batched");
+                assert_eq!(c.stats().submissions - subs, 3, "not batched");
             });
         });
         assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0; 4]);
         assert_eq!(c.read_buffer::<u32>(&d, 4).unwrap(), [4, 5, 5, 5]);
         assert_eq!(c.read_buffer::<u32>(&a, 4).unwrap(), [0, 2, 3, 4]);
-        let done = c.submissions();
+        let done = c.stats().submissions;
         step(&c, |e| e.clear_buffer(&a, 0, Some(4)));
         c.wait().unwrap();
-        assert_eq!(c.submissions() - done, 1, "wait submits what is put off");
+        assert_eq!(
+            c.stats().submissions - done,
+            1,
+            "wait submits what is put off"
+        );
         step(&c, |e| e.clear_buffer(&a, 4, Some(4)));
-        assert_eq!(c.submissions() - done, 1);
+        assert_eq!(c.stats().submissions - done, 1);
     }
     // The guard's end submitted the last clear.
-    let done = c.submissions();
+    let done = c.stats().submissions;
     let got: Vec<u32> = c.read_buffer(&a, 4).unwrap();
     assert_eq!(got, [0, 0, 3, 4]);
-    assert_eq!(c.submissions() - done, 1, "no batch: the readback alone");
+    assert_eq!(
+        c.stats().submissions - done,
+        1,
+        "no batch: the readback alone"
+    );
 }
 
 #[test]
@@ -203,7 +223,7 @@ fn a_batch_records_its_work_into_one_encoder() {
     let b = c.buffer_init("b", &[7u32; 4], gpu::STORAGE_OUT);
     let mut early = c.encoder();
     early.copy_buffer_to_buffer(&a, 0, &b, 0, 16);
-    let (subs, cbs) = (c.submissions(), c.command_buffers());
+    let (subs, cbs) = (c.stats().submissions, c.stats().command_buffers);
     {
         let _batch = c.batch();
         step(&c, |e| e.clear_buffer(&a, 0, Some(4)));
@@ -213,14 +233,17 @@ fn a_batch_records_its_work_into_one_encoder() {
         }
         // After both clears: b = [0, 0, 3, 4].
         c.submit(early);
-        assert_eq!(c.submissions(), subs, "put off");
+        assert_eq!(c.stats().submissions, subs, "put off");
         assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0, 0, 3, 4]);
         assert_eq!(
-            (c.submissions() - subs, c.command_buffers() - cbs),
+            (
+                c.stats().submissions - subs,
+                c.stats().command_buffers - cbs
+            ),
             (1, 3),
             "the batch's encoder, the early one, the readback's"
         );
-        let cbs = c.command_buffers();
+        let cbs = c.stats().command_buffers;
         step(&c, |e| e.clear_buffer(&b, 12, None));
         step(&c, |e| e.copy_buffer_to_buffer(&a, 8, &b, 0, 4));
         let mut enc = c.encoder();
@@ -229,13 +252,13 @@ fn a_batch_records_its_work_into_one_encoder() {
             c.read_buffer_after::<u32>(enc, &b, 4).unwrap(),
             [3, 0, 3, 0]
         );
-        assert_eq!(c.command_buffers() - cbs, 1, "one command buffer");
-        assert_eq!(c.submissions() - subs, 2);
+        assert_eq!(c.stats().command_buffers - cbs, 1, "one command buffer");
+        assert_eq!(c.stats().submissions - subs, 2);
     }
-    let cbs = c.command_buffers();
+    let cbs = c.stats().command_buffers;
     step(&c, |e| e.clear_buffer(&a, 0, None));
     step(&c, |e| e.clear_buffer(&b, 0, None));
-    assert_eq!(c.command_buffers() - cbs, 2, "no batch: one each");
+    assert_eq!(c.stats().command_buffers - cbs, 2, "no batch: one each");
     assert_eq!(c.read_buffer::<u32>(&b, 4).unwrap(), [0; 4]);
 }
 
@@ -267,46 +290,54 @@ fn a_put_off_readback_goes_with_the_next_one() {
         enc
     };
     for round in 0..3 {
-        let (reads, made) = (c.readbacks(), c.buffers_created());
+        let (reads, made) = (c.stats().readbacks, c.stats().buffers_created);
         // b = a's first four, put off; then a is cleared.
         let pending = c.read_buffer_later(copy(&a, &b), &b, 12).unwrap();
         let mut enc = c.encoder();
         enc.clear_buffer(&a, 0, Some(8));
         c.submit(enc);
-        assert_eq!(c.readbacks(), reads, "round {round}: nothing waits");
+        assert_eq!(c.stats().readbacks, reads, "round {round}: nothing waits");
         let got: Vec<u32> = c.read_buffer(&a, 5).unwrap();
         assert_eq!(got, [0, 0, 3, 4, 5]);
-        assert_eq!(c.readbacks() - reads, 1, "round {round}: one wait");
+        assert_eq!(c.stats().readbacks - reads, 1, "round {round}: one wait");
         let bytes = pending.wait(&c).unwrap();
         assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&bytes), [1, 2, 3]);
-        assert_eq!(c.readbacks() - reads, 1, "round {round}: the bytes at hand");
+        assert_eq!(
+            c.stats().readbacks - reads,
+            1,
+            "round {round}: the bytes at hand"
+        );
         if round > 0 {
-            assert_eq!(c.buffers_created(), made, "round {round}: staging kept");
+            assert_eq!(
+                c.stats().buffers_created,
+                made,
+                "round {round}: staging kept"
+            );
         }
         // Restore a.
         c.queue
             .write_buffer(&a, 0, bytemuck::cast_slice(&[1u32, 2, 3, 4, 5]));
     }
     // Waited for first: a readback of its own.
-    let reads = c.readbacks();
+    let reads = c.stats().readbacks;
     let pending = c.read_buffer_later(copy(&a, &b), &b, 16).unwrap();
     let bytes = pending.wait(&c).unwrap();
     assert_eq!(
         bytemuck::pod_collect_to_vec::<u8, u32>(&bytes),
         [1, 2, 3, 4]
     );
-    assert_eq!(c.readbacks() - reads, 1);
+    assert_eq!(c.stats().readbacks - reads, 1);
     // Within a batch: put off with the batch, one submission with the
     // readback.
-    let (reads, subs) = (c.readbacks(), c.submissions());
+    let (reads, subs) = (c.stats().readbacks, c.stats().submissions);
     {
         let _batch = c.batch();
         let pending = c.read_buffer_later(copy(&a, &b), &b, 16).unwrap();
-        assert_eq!(c.submissions(), subs, "put off");
+        assert_eq!(c.stats().submissions, subs, "put off");
         let got: Vec<u32> = c.read_buffer(&a, 1).unwrap();
         assert_eq!(got, [1]);
         assert_eq!(
-            (c.submissions() - subs, c.readbacks() - reads),
+            (c.stats().submissions - subs, c.stats().readbacks - reads),
             (1, 1),
             "one submission, one wait"
         );
@@ -317,7 +348,7 @@ fn a_put_off_readback_goes_with_the_next_one() {
         );
     }
     // Another thread's readback leaves this thread's put-off one alone.
-    let reads = c.readbacks();
+    let reads = c.stats().readbacks;
     let pending = c.read_buffer_later(copy(&a, &b), &b, 8).unwrap();
     std::thread::scope(|s| {
         s.spawn(|| {
@@ -327,17 +358,21 @@ fn a_put_off_readback_goes_with_the_next_one() {
     });
     let bytes = pending.wait(&c).unwrap();
     assert_eq!(bytemuck::pod_collect_to_vec::<u8, u32>(&bytes), [1, 2]);
-    assert_eq!(c.readbacks() - reads, 2, "the other thread's, then its own");
+    assert_eq!(
+        c.stats().readbacks - reads,
+        2,
+        "the other thread's, then its own"
+    );
     // Dropped unwaited: no readback maps it.
-    let read = c.bytes_read();
+    let read = c.stats().bytes_read;
     drop(c.read_buffer_later(copy(&a, &b), &b, 16).unwrap());
     let got: Vec<u32> = c.read_buffer(&a, 1).unwrap();
     assert_eq!(got, [1]);
-    assert_eq!(c.bytes_read() - read, 4, "its bytes not read");
+    assert_eq!(c.stats().bytes_read - read, 4, "its bytes not read");
     // An overread is refused, nothing submitted.
-    let subs = c.submissions();
+    let subs = c.stats().submissions;
     assert!(c.read_buffer_later(copy(&a, &b), &b, 20).is_err());
-    assert_eq!(c.submissions(), subs);
+    assert_eq!(c.stats().submissions, subs);
 }
 
 #[test]
@@ -451,7 +486,7 @@ fn timings_come_with_the_next_readback() {
             }));
         }
     };
-    let counts = || (c.readbacks(), c.submissions());
+    let counts = || (c.stats().readbacks, c.stats().submissions);
     let check = |report: &splattrack::gpu::TimerReport, labels: &[&str]| {
         let got: Vec<&str> = report.passes.iter().map(|(l, _)| l.as_str()).collect();
         assert_eq!(got, labels);
@@ -821,7 +856,7 @@ fn a_uniform_uploads_only_what_changed() {
     let c = own_ctx();
     let usage = wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_SRC;
     let mut u = gpu::Uniform::with_usage(&c, "test uniform", 16, usage);
-    let (up0, skip0) = c.uploads();
+    let before = c.stats();
     let read = |c: &GpuContext, u: &gpu::Uniform| -> Vec<u32> {
         let out = c.buffer(
             "uniform copy",
@@ -848,6 +883,6 @@ fn a_uniform_uploads_only_what_changed() {
     assert_eq!(read(&c, &u), [1, 2, 3, 4]);
     assert!(u.write(&c, bytemuck::bytes_of(&[0u32, 0, 0, 9])));
     assert_eq!(read(&c, &u), [0, 0, 0, 9]);
-    let (up, skip) = c.uploads();
-    assert_eq!((up - up0, skip - skip0), (4, 2));
+    let done = c.stats().since(&before);
+    assert_eq!((done.uploads, done.uploads_skipped), (4, 2));
 }

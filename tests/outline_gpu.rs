@@ -154,12 +154,12 @@ fn more_points_than_the_last_outline_come_in_a_second_readback() {
         ("large again", &large),
         ("small", &small),
     ] {
-        let before = ctx.readbacks();
+        let before = ctx.stats().readbacks;
         let got = outline
             .extract_host(depth, w as u32, h as u32, 1)
             .expect("extract");
         assert_reference(name, &got, depth, w, h, 1);
-        counts.push((got.points.len(), ctx.readbacks() - before));
+        counts.push((got.points.len(), ctx.stats().readbacks - before));
     }
     // The large outline did not fit the small one's readback: two waits
     // for it after the small, one when it follows itself, one for the

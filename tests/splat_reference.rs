@@ -310,16 +310,16 @@ fn put_off_gathers_give_the_immediate_ones_samples_and_flush_only_when_needed() 
     // one before (two submissions), the readback the last (one more).
     {
         let _batch = c.batch();
-        let subs = c.submissions();
+        let subs = c.stats().submissions;
         let pending: Vec<_> = sets
             .iter()
             .map(|p| splatter.gather_later(&c, &t, p, mode).unwrap())
             .collect();
-        assert_eq!(c.submissions() - subs, 2, "put-off gathers flushed");
+        assert_eq!(c.stats().submissions - subs, 2, "put-off gathers flushed");
         for (i, (p, w)) in pending.into_iter().zip(&want).enumerate() {
             assert!(same(&p.wait(&c).unwrap(), w), "put-off gather {i}");
         }
-        assert_eq!(c.submissions() - subs, 3, "one readback for all");
+        assert_eq!(c.stats().submissions - subs, 3, "one readback for all");
     }
     // A gather waited for, then a render put off, then the next gather:
     // the readback submitted the first, so the render goes with the
@@ -328,14 +328,22 @@ fn put_off_gathers_give_the_immediate_ones_samples_and_flush_only_when_needed() 
         let _batch = c.batch();
         let first = splatter.gather_later(&c, &t, &sets[0], mode).unwrap();
         assert!(same(&first.wait(&c).unwrap(), &want[0]));
-        let subs = c.submissions();
+        let subs = c.stats().submissions;
         splatter
             .render(&c, &gm, &cam, &pose, Attributes::MOTION, &mut t)
             .unwrap();
         let second = splatter.gather_later(&c, &t, &sets[2], mode).unwrap();
-        assert_eq!(c.submissions(), subs, "nothing submitted before the wait");
+        assert_eq!(
+            c.stats().submissions,
+            subs,
+            "nothing submitted before the wait"
+        );
         assert!(same(&second.wait(&c).unwrap(), &want[2]));
-        assert_eq!(c.submissions() - subs, 1, "the render with the readback");
+        assert_eq!(
+            c.stats().submissions - subs,
+            1,
+            "the render with the readback"
+        );
     }
 }
 

@@ -553,12 +553,12 @@ fn steady_loop_allocates_nothing(resident: bool) {
     let made: Vec<(u64, u64)> = order
         .iter()
         .map(|&i| {
-            let before = (ctx.buffers_created(), ctx.bind_groups_created());
+            let before = (ctx.stats().buffers_created, ctx.stats().bind_groups_created);
             let r = t.track(&f.frames[i].image).expect("track");
             assert_eq!(r.status, Status::Tracking, "frame {i}");
             (
-                ctx.buffers_created() - before.0,
-                ctx.bind_groups_created() - before.1,
+                ctx.stats().buffers_created - before.0,
+                ctx.stats().bind_groups_created - before.1,
             )
         })
         .collect();
@@ -681,12 +681,12 @@ fn resident_matching_gives_the_host_paths_poses_with_fewer_bytes_read_back() {
     for start in [0, 2, 4] {
         let (mut gpu, mut host) = (make(true, start), make(false, start));
         for (i, fr) in f.frames[start..start + 2].iter().enumerate() {
-            let r0 = ctx.bytes_read();
+            let r0 = ctx.stats().bytes_read;
             let a = gpu.track(&fr.image).unwrap();
-            let r1 = ctx.bytes_read();
+            let r1 = ctx.stats().bytes_read;
             let b = host.track(&fr.image).unwrap();
             read_gpu += r1 - r0;
-            read_host += ctx.bytes_read() - r1;
+            read_host += ctx.stats().bytes_read - r1;
             let at = format!("frames from {start}, frame {i}");
             assert_eq!((a.status, a.inliers), (b.status, b.inliers), "{at}");
             let e = a.pose.rotation_error_deg(&b.pose);
@@ -759,9 +759,9 @@ fn the_chained_kf_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
         let (mut one, mut two) = (make(true, contour), make(false, contour));
         let mut fewer = Vec::new();
         for (i, fr) in f.frames[..n].iter().enumerate() {
-            let r0 = ctx.readbacks();
+            let r0 = ctx.stats().readbacks;
             let a = one.track(&fr.image).unwrap();
-            let r1 = ctx.readbacks();
+            let r1 = ctx.stats().readbacks;
             let b = two.track(&fr.image).unwrap();
             let at = format!("contour {contour}, frame {i}");
             assert_eq!(a.status, Status::Tracking, "{at}");
@@ -806,11 +806,11 @@ fn timing_the_passes_adds_no_wait_and_changes_no_pose() {
         };
         let (mut timed, mut plain) = (make(true), make(false));
         for (i, fr) in f.frames[..n].iter().enumerate() {
-            let (r0, s0) = (ctx.readbacks(), ctx.submissions());
+            let (r0, s0) = (ctx.stats().readbacks, ctx.stats().submissions);
             let a = timed.track(&fr.image).unwrap();
-            let (r1, s1) = (ctx.readbacks(), ctx.submissions());
+            let (r1, s1) = (ctx.stats().readbacks, ctx.stats().submissions);
             let b = plain.track(&fr.image).unwrap();
-            let (r2, s2) = (ctx.readbacks(), ctx.submissions());
+            let (r2, s2) = (ctx.stats().readbacks, ctx.stats().submissions);
             let at = format!("contour {contour}, frame {i}");
             assert_eq!(a.status, Status::Tracking, "{at}");
             assert_eq!(a.pose.rotation, b.pose.rotation, "{at}");
@@ -883,9 +883,9 @@ fn the_chained_it_step_gives_the_two_step_poses_bit_for_bit_with_one_wait_less()
         );
         let mut fewer = Vec::new();
         for (i, fr) in f.frames[..n].iter().enumerate() {
-            let r0 = ctx.readbacks();
+            let r0 = ctx.stats().readbacks;
             let a = one.track(&fr.image).unwrap();
-            let r1 = ctx.readbacks();
+            let r1 = ctx.stats().readbacks;
             let b = two.track(&fr.image).unwrap();
             let at = format!("contour {contour}, host {host_selects}, frame {i}");
             assert_eq!(a.status, Status::Tracking, "{at}");

@@ -304,7 +304,7 @@ impl FrameSink for Recorder {
     }
     fn frame(&mut self, f: &ViewFrame<'_>) -> Result<Flow, ViewError> {
         if self.fail {
-            return Err(ViewError::Window("the fake window broke".into()));
+            return Err(ViewError::Open("the fake window broke".into()));
         }
         self.seen.push(Seen {
             index: f.index,
@@ -446,7 +446,7 @@ fn track_view_without_a_display_says_so_and_writes_nothing() {
 #[ignore = "needs a display (X11 or Wayland; Xvfb will do)"]
 fn a_window_shows_every_frame_it_is_given() {
     let ctx = shared_test_context();
-    let mut window = splattrack::view::WindowSink::open(ctx, "splattrack tests/view.rs").unwrap();
+    let mut window = splattrack::view::DisplaySink::open(ctx, "splattrack tests/view.rs").unwrap();
     let (img, mask) = frame_and_mask();
     for (k, status) in [Status::Tracking, Status::Lost, Status::Tracking]
         .into_iter()

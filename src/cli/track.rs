@@ -23,9 +23,9 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 #[cfg(not(feature = "view"))]
-use no_view::WindowSink;
+use no_view::DisplaySink;
 #[cfg(feature = "view")]
-use splattrack::view::WindowSink;
+use splattrack::view::DisplaySink;
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let config = args.config()?;
@@ -41,8 +41,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let source = input.open(args.realtime, &stop)?;
     let ctx = crate::cli::common::gpu(adapter)?;
     // Before anything is loaded or written: no display, no run.
-    let mut window = match args.view {
-        true => Some(WindowSink::open(
+    let mut display = match args.view {
+        true => Some(DisplaySink::open(
             &ctx,
             &format!("splattrack track {}", input.describe()),
         )?),
@@ -84,7 +84,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
         (None, Input::Device { .. }) => {}
     }
-    if let Some(w) = window.as_mut() {
+    if let Some(w) = display.as_mut() {
         run = run.sink(w);
     }
     let wall = std::time::Instant::now();
@@ -97,8 +97,8 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let wall = wall.elapsed().as_secs_f64();
     output::print_summary(&args, &ctx, &stats, &stop, live);
     if args.profile {
-        output::print_profile(&ctx, &stats, wall, window.is_some());
-        if let Some(w) = &window {
+        output::print_profile(&ctx, &stats, wall, display.is_some());
+        if let Some(w) = &display {
             let v = w.stats();
             println!(
                 "live view: {} frames shown, {} skipped (surface not ready); {:.1} ms per frame to compose, draw and present",

@@ -271,7 +271,7 @@ fn round_to_u8(v: f32) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::geometry::Pose;
+    use crate::geometry::{Pose, look_at};
     use crate::rng::Rng;
     use nalgebra::Vector6;
 
@@ -405,5 +405,25 @@ mod tests {
             }
         }
         assert_eq!(round_to_u8(f32::NAN), reference(f32::NAN));
+    }
+
+    #[test]
+    fn look_at_centres_target() {
+        let cam = camera();
+        let p = look_at(
+            &Vector3::new(0.3, -0.4, 0.5),
+            &Vector3::new(0.01, 0.02, 0.03),
+            &Vector3::new(0.0, 0.0, 1.0),
+        );
+        p.validate().unwrap();
+        let c = cam
+            .project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.03)))
+            .unwrap();
+        assert!((c - Vector2::new(cam.cx, cam.cy)).norm() < 1e-9);
+        // Object "up" (+z) appears upwards in the image (smaller v).
+        let up = cam
+            .project(&p.transform_point(&Vector3::new(0.01, 0.02, 0.13)))
+            .unwrap();
+        assert!(up.y < c.y);
     }
 }

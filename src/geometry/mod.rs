@@ -1,7 +1,7 @@
 //! Camera and pose maths on the host, in `f64`: the reference that every GPU
 //! kernel is tested against.
 //!
-//! Conventions (DESIGN.md section 2, fixed here once for the whole crate):
+//! Conventions (docs/design.md, fixed here once for the whole crate):
 //! - A [`Pose`] is the object-to-camera transform `T_co`: `X_c = R X_o + t`.
 //! - [`Intrinsics`] are an OpenCV pinhole camera; pixel (0,0) is the *centre*
 //!   of the top-left pixel. GPU rasterisers put pixel centres at +0.5; the one

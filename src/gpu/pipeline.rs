@@ -1,7 +1,12 @@
-//! Bind-group layouts, pipelines and passes: the plumbing every GPU module
-//! (the splatter, Harris, NCC) builds the same way.
+//! Bind-group layouts, pipelines, passes, bind groups kept and workgroup
+//! sizes: the plumbing every GPU module (the splatter, Harris, NCC) builds
+//! the same way.
 
-use super::{GpuContext, GpuError, GpuTimer};
+use super::context::GpuContext;
+use super::error::GpuError;
+use super::health::Health;
+use super::stats::Counters;
+use super::timer::GpuTimer;
 
 /// A bind group layout entry for a whole buffer, visible to `visibility`.
 pub fn buffer_entry(
@@ -115,13 +120,13 @@ pub struct PassChain<'e> {
     begun: usize,
     /// Whether an untimed run would have a pass open here.
     untimed_open: bool,
-    /// Counted by [`GpuContext::passes`].
-    health: std::sync::Arc<super::Health>,
+    /// Counted in [`GpuStats::passes`](super::GpuStats::passes).
+    health: std::sync::Arc<Health>,
 }
 
 impl<'e> PassChain<'e> {
     /// A chain recording into `enc`, its passes counted by `ctx`
-    /// ([`GpuContext::passes`]).
+    /// ([`GpuStats::passes`](super::GpuStats::passes)).
     pub fn new(ctx: &GpuContext, enc: &'e mut wgpu::CommandEncoder) -> Self {
         Self {
             enc,
@@ -139,10 +144,9 @@ impl<'e> PassChain<'e> {
         label: &str,
         timer: Option<&mut GpuTimer>,
     ) -> &mut wgpu::ComputePass<'static> {
-        let relaxed = std::sync::atomic::Ordering::Relaxed;
         if !self.untimed_open {
             self.untimed_open = true;
-            self.health.passes_untimed.fetch_add(1, relaxed);
+            Counters::add(&self.health.counts.passes_untimed, 1);
         }
         let timestamps = timer.and_then(|t| t.compute_pass(label));
         if timestamps.is_some() || self.pass.is_none() {
@@ -153,7 +157,7 @@ impl<'e> PassChain<'e> {
                 timestamp_writes: timestamps,
             });
             self.begun += 1;
-            self.health.passes.fetch_add(1, relaxed);
+            Counters::add(&self.health.counts.passes, 1);
             self.pass = Some(pass.forget_lifetime());
         }
         self.pass.as_mut().expect("just begun")
@@ -173,53 +177,71 @@ impl<'e> PassChain<'e> {
     }
 }
 
-/// A buffer that grows (never shrinks) to fit what it must hold, so that
-/// per-frame work allocates nothing in the steady state.
-pub struct GrowBuffer {
-    label: &'static str,
-    usage: wgpu::BufferUsages,
-    buffer: Option<wgpu::Buffer>,
+/// Workgroup size of the kernels that run one thread per item (Harris's
+/// refinement, NCC's vectorisation and reductions, the splatter's gather,
+/// the self-test), a power of two (the NCC reductions halve it).
+pub const WORKGROUP_1D: u32 = 64;
+
+/// Workgroup edge of the kernels that run one thread per pixel in
+/// `WORKGROUP_2D x WORKGROUP_2D` tiles (Harris's image passes).
+pub const WORKGROUP_2D: u32 = 16;
+
+/// Floats per gathered point: 12 predictors, depth, validity (the stride
+/// of `gather`'s output in shaders/splat_resolve.wgsl; the NCC gate,
+/// shaders/ncc_gate.wgsl, reads the validity).
+pub const GATHER_STRIDE: usize = 14;
+
+/// Number of workgroups of `size` threads covering `n` items.
+pub fn workgroups(n: u32, size: u32) -> u32 {
+    n.div_ceil(size)
 }
 
-impl GrowBuffer {
-    pub fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
+/// Bind groups kept for as long as the buffers they bind are the same
+/// ones (wgpu buffers compare by identity): a pass whose inputs are
+/// grow-only buffers, or buffers lent by another stage, binds anew only
+/// when one of them was replaced. The last two sets are kept, so that a
+/// pass fed in turn by two stages (Harris's export, into IT's matching
+/// and then KF's, each frame) binds nothing anew either.
+pub struct BindCache<const N: usize> {
+    /// The most recently used first.
+    held: Vec<([wgpu::Buffer; N], wgpu::BindGroup)>,
+    /// How many sets are kept.
+    keep: usize,
+}
+
+impl<const N: usize> Default for BindCache<N> {
+    fn default() -> Self {
+        Self::keeping(2)
+    }
+}
+
+impl<const N: usize> BindCache<N> {
+    /// A cache of the bind groups of the last `keep` sets of buffers (at
+    /// least one).
+    pub fn keeping(keep: usize) -> Self {
+        let keep = keep.max(1);
         Self {
-            label,
-            usage,
-            buffer: None,
+            held: Vec::with_capacity(keep),
+            keep,
         }
     }
 
-    /// Ensures at least `size` bytes; true when the buffer was (re)created,
-    /// so bind groups referencing it must be rebuilt. Grows to the next
-    /// power of two (within the adapter's limit), so that sizes that vary
-    /// from frame to frame stop reallocating after a few frames.
-    pub fn ensure(&mut self, ctx: &GpuContext, size: u64) -> bool {
-        let size = size.max(16).next_multiple_of(16);
-        if self.buffer.as_ref().is_some_and(|b| b.size() >= size) {
-            return false;
+    /// The bind group of `buffers`: a held one when it binds these, else
+    /// `bind(&buffers)`'s, held from now on (in place of the least
+    /// recently used).
+    pub fn get<E>(
+        &mut self,
+        buffers: [wgpu::Buffer; N],
+        bind: impl FnOnce(&[wgpu::Buffer; N]) -> Result<wgpu::BindGroup, E>,
+    ) -> Result<&wgpu::BindGroup, E> {
+        match self.held.iter().position(|(held, _)| *held == buffers) {
+            Some(i) => self.held[..=i].rotate_right(1),
+            None => {
+                let group = bind(&buffers)?;
+                self.held.truncate(self.keep - 1);
+                self.held.insert(0, (buffers, group));
+            }
         }
-        let grown = size
-            .next_power_of_two()
-            .min(
-                ctx.limits
-                    .max_buffer_size
-                    .min(ctx.limits.max_storage_buffer_binding_size)
-                    / 16
-                    * 16,
-            )
-            .max(size);
-        self.buffer = Some(ctx.buffer(self.label, grown, self.usage));
-        true
-    }
-
-    /// Bytes allocated now (0 before the first [`GrowBuffer::ensure`]).
-    pub fn size(&self) -> u64 {
-        self.buffer.as_ref().map_or(0, |b| b.size())
-    }
-
-    /// The buffer; panics before the first [`GrowBuffer::ensure`].
-    pub fn get(&self) -> &wgpu::Buffer {
-        self.buffer.as_ref().expect("GrowBuffer used before ensure")
+        Ok(&self.held[0].1)
     }
 }

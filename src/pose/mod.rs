@@ -1,6 +1,6 @@
 //! Robust pose updates from feature matches: iteratively reweighted least
 //! squares (IRLS) on the motion-predictor model (Dehais et al. 2010, eqs. 6-7;
-//! DESIGN.md section 3).
+//! docs/how-it-works.md).
 //!
 //! How it works: match `i` moved from `m_{t-1}^i` to `m_t^i`; the motion
 //! predictors `L^i` (2x6) sampled at `m_{t-1}^i` say that a small twist `a`

@@ -8,9 +8,9 @@
 //!
 //! Why: a GPU with weak raster units (NVIDIA's compute parts, H100/H200)
 //! splats far faster with atomics in a compute shader than through a render
-//! pass (DESIGN.md section 5 measured ~14x on an H100); on lavapipe this
+//! pass (~14x measured on an H100, docs/performance.md); on lavapipe this
 //! kernel halves a tracked frame with a 100k-point model, though the render
-//! pass stays faster for sparse models of large splats (BENCHMARKS.md).
+//! pass stays faster for sparse models of large splats (docs/benchmarks.md).
 //!
 //! A render is three compute passes, no clear and no indirect dispatch:
 //! `finish` runs over the whole target, converting the sums inside the
@@ -19,75 +19,14 @@
 //! of workgroups striding over those pass 1 listed.
 
 use super::gpu_data::{
-    ACC_STRIDE, COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
+    COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
 };
-use super::targets::TARGETS;
+use super::scratch::{KEPT_BINDS, Scratch};
+use super::targets::{TARGETS, compute_supported};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
-    GpuContext, GpuTimer, GrowBuffer, PassChain, Uniform, WORKGROUP_1D, buffer_entry,
-    compute_entry, storage, workgroups,
+    GpuContext, GpuTimer, PassChain, WORKGROUP_1D, buffer_entry, compute_entry, storage, workgroups,
 };
-
-/// Per-size scratch of the compute back end, kept in [`SplatTargets`]:
-/// the depth keys, the fixed-point sums and the parameters.
-pub(super) struct Scratch {
-    depth: wgpu::Buffer,
-    acc: wgpu::Buffer,
-    params: Uniform,
-    /// The splats' pixel bounding box and the count of large splats, in
-    /// two halves of 8 u32: a render uses one and its last pass zeroes
-    /// the other for the next (no clear between renders).
-    bounds: wgpu::Buffer,
-    /// The half the next render uses.
-    slot: u32,
-    /// The list of large splats (one u32 per splat of the largest model).
-    big: GrowBuffer,
-    /// The splat's bind groups by the buffers that vary (the model's
-    /// geometry and colours, the list of large splats), most recent
-    /// first: the frame loop's renders (a keyframe's colours, the bare
-    /// geometry) bind anew only when a model or the list changes.
-    binds: Vec<([wgpu::Buffer; 3], wgpu::BindGroup)>,
-}
-
-/// Bind groups a [`Scratch`] keeps: the frame loop's two models (each
-/// keeps its buffers alive, so no more: a keyframe's colours dropped
-/// from the cache are freed at the next change).
-const KEPT_BINDS: usize = 2;
-
-impl Scratch {
-    fn new(ctx: &GpuContext, width: u32, height: u32) -> Result<Self, SplatError> {
-        let pixels = width as u64 * height as u64;
-        let acc_bytes = pixels * ACC_STRIDE as u64 * 4;
-        let usage = wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST;
-        ctx.check_buffer_size("compute splatter sums", acc_bytes, usage)?;
-        Ok(Self {
-            depth: ctx.buffer("compute splat depth", pixels * 4, usage),
-            acc: ctx.buffer("compute splat sums", acc_bytes, usage),
-            params: Uniform::new(
-                ctx,
-                "compute splat params",
-                std::mem::size_of::<ComputeParams>() as u64,
-            ),
-            bounds: ctx.buffer("compute splat bounds", 64, usage),
-            slot: 0,
-            big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
-            binds: Vec::new(),
-        })
-    }
-}
-
-impl Scratch {
-    /// GPU bytes of this scratch: the depth keys (4 a pixel), the sums
-    /// (4 * ACC_STRIDE a pixel), the list of large splats (4 a splat of the
-    /// largest model rendered) and the small buffers.
-    pub(super) fn gpu_bytes(&self) -> u64 {
-        [&self.depth, &self.acc, self.params.buffer(), &self.bounds]
-            .iter()
-            .map(|b| b.size())
-            .sum::<u64>()
-            + self.big.size()
-    }
-}
 
 /// Workgroups of the large splats' passes on GPUs: each walks a listed
 /// splat at a time, striding over the rest; those beyond the list's
@@ -101,12 +40,6 @@ const BIG_GROUPS_CPU: u32 = 16;
 // `visibility_big` and the large splats' workgroups of `accumulate` lay a
 // workgroup out as 8x8 lanes.
 const _: () = assert!(WORKGROUP_1D == 64);
-
-/// Whether the adapter can run the compute back end (it writes the five
-/// accumulation targets as storage textures in one pass).
-pub(super) fn supported(ctx: &GpuContext) -> bool {
-    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
-}
 
 /// The pipelines of the compute back end.
 pub(super) struct ComputeSplatter {
@@ -124,7 +57,7 @@ pub(super) struct ComputeSplatter {
 
 impl ComputeSplatter {
     pub(super) fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
-        if !supported(ctx) {
+        if !compute_supported(ctx) {
             return Err(SplatError::Unsupported(format!(
                 "the compute splatter writes {TARGETS} storage textures, the adapter allows {}",
                 ctx.limits.max_storage_textures_per_shader_stage

@@ -2,6 +2,7 @@
 //! images read back from them ([`SplatImage`]).
 
 use super::gpu_data::CameraUniform;
+use super::scratch::Scratch;
 use super::{Attribute, Attributes, SplatError};
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
@@ -24,7 +25,7 @@ pub struct SplatTargets {
     /// depth and the coverage can be read.
     pub(super) depth_only: bool,
     /// Scratch of the compute back end, made on its first render here.
-    pub(super) compute: Option<super::compute::Scratch>,
+    pub(super) compute: Option<Scratch>,
     /// The pose and camera of the last render (`None` before one, or from
     /// the start of a render that then failed).
     pub(super) view: Option<(Pose, Intrinsics)>,
@@ -236,4 +237,10 @@ pub(super) fn target_slots(attrs: Attributes) -> [bool; TARGETS] {
         attrs.motion,
         attrs.motion,
     ]
+}
+
+/// Whether the adapter can run the compute back end (it writes the five
+/// accumulation targets as storage textures in one pass).
+pub(super) fn compute_supported(ctx: &GpuContext) -> bool {
+    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
 }

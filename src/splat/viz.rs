@@ -1,5 +1,5 @@
 //! Pictures of splatted attribute images (for `splattrack render` and the
-//! README): colour as 8-bit sRGB, depth through a colour map, normals as
+//! docs, docs/guide.md): colour as 8-bit sRGB, depth through a colour map, normals as
 //! RGB, and the motion predictors as a motion-field picture in the spirit of
 //! the paper's Figs. 4c and 5: six panels, one per generator (top row:
 //! translations x, y, z; bottom row: rotations about x, y, z), each a

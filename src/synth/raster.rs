@@ -1,7 +1,7 @@
 //! An ordinary CPU triangle rasteriser for ground-truth images.
 //!
 //! Synthetic sequences must not be rendered by the splatter under test
-//! (DESIGN.md section 7), or the splatter's own errors would cancel out. This
+//! (docs/how-it-works.md), or the splatter's own errors would cancel out. This
 //! is a plain z-buffered scan conversion with perspective-correct
 //! interpolation, sampled exactly at pixel centres in OpenCV's convention
 //! (pixel (u, v) is the point (u, v) of the image plane), with an optional

@@ -1,4 +1,4 @@
-//! Writing a synthetic sequence directory in the layout of FORMATS.md
+//! Writing a synthetic sequence directory in the layout of docs/formats.md
 //! ("Sequence directory"), so that `splattrack track` reads it like any
 //! recorded sequence.
 

@@ -23,16 +23,7 @@ impl Tracker {
             });
         }
         let t0 = Instant::now();
-        let read0 = (
-            self.ctx.bytes_read(),
-            self.ctx.readbacks(),
-            self.ctx.submissions(),
-            self.ctx.command_buffers(),
-            self.ctx.waited(),
-            self.ctx.encoding(),
-            self.ctx.uploads(),
-            self.ctx.passes(),
-        );
+        let read0 = self.ctx.stats();
         self.resident.begin();
         self.pending_gpu.clear();
         self.contour.begin_frame();
@@ -45,7 +36,7 @@ impl Tracker {
         {
             let found = self.find(frame)?;
             times.search = t0.elapsed();
-            times.waits.search = self.ctx.waited().saturating_sub(read0.4);
+            times.waits.search = self.ctx.stats().wait_time.saturating_sub(read0.wait_time);
             // The search's KF-like steps are its own time ("search"), not
             // the KF stage's parts, which would otherwise exceed it (the
             // passes' GPU times stay, under their own labels).
@@ -86,7 +77,7 @@ impl Tracker {
             }
         }
         let t_features = Instant::now();
-        let w_features = self.ctx.waited();
+        let w_features = self.ctx.stats().wait_time;
         // The frame kept for the next one, in the buffer of the frame
         // before the last where it fits.
         let kept = match self.spare_frame.take() {
@@ -131,21 +122,21 @@ impl Tracker {
         drop(intake);
         // IT's early render and gather count as IT's.
         times.features = t_features.elapsed().saturating_sub(it_early_time);
-        times.waits.features = self.ctx.waited().saturating_sub(w_features);
+        times.waits.features = self.ctx.stats().wait_time.saturating_sub(w_features);
 
         let rules = Rules::of(&self.config);
         let first_frame = self.prev.is_none() && !recovering;
         let t_it = Instant::now();
-        let w_it = self.ctx.waited();
+        let w_it = self.ctx.stats().wait_time;
         let (it, it_anchors) = if texture {
             self.it_stage(&frame, &start_pose, recovering, it_early)
         } else {
             (StepOutcome::default(), Vec::new())
         };
         times.it = t_it.elapsed() + it_early_time;
-        times.waits.it = self.ctx.waited().saturating_sub(w_it);
+        times.waits.it = self.ctx.stats().wait_time.saturating_sub(w_it);
         let t_kf = Instant::now();
-        let w_kf = self.ctx.waited();
+        let w_kf = self.ctx.stats().wait_time;
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
         self.kf_anchors.clear();
         let (kf, keyframe) = if texture {
@@ -155,9 +146,9 @@ impl Tracker {
             (StepOutcome::default(), None)
         };
         times.kf = t_kf.elapsed();
-        times.waits.kf = self.ctx.waited().saturating_sub(w_kf);
+        times.waits.kf = self.ctx.stats().wait_time.saturating_sub(w_kf);
         let t_contour = Instant::now();
-        let w_contour = self.ctx.waited();
+        let w_contour = self.ctx.stats().wait_time;
         let contour = if self.config.modalities.contour {
             // From the best texture estimate, fused with its inliers; else
             // from the previous pose with longer lines.
@@ -177,7 +168,7 @@ impl Tracker {
             StepOutcome::default()
         };
         times.contour = t_contour.elapsed();
-        times.waits.contour = self.ctx.waited().saturating_sub(w_contour);
+        times.waits.contour = self.ctx.stats().wait_time.saturating_sub(w_contour);
 
         let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
             || it.estimate.is_some_and(|e| rules.trusted(&e));
@@ -195,7 +186,7 @@ impl Tracker {
         let mut scores = None;
         let mut texture_set_aside = false;
         let t_verify = Instant::now();
-        let w_verify = self.ctx.waited();
+        let w_verify = self.ctx.stats().wait_time;
         let mut d = d;
         if d.status == Status::Tracking && self.config.verify.enabled {
             let check = if frozen {
@@ -236,7 +227,7 @@ impl Tracker {
             }
         }
         times.verify = t_verify.elapsed();
-        times.waits.verify = self.ctx.waited().saturating_sub(w_verify);
+        times.waits.verify = self.ctx.stats().wait_time.saturating_sub(w_verify);
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -265,20 +256,18 @@ impl Tracker {
         times.kf_ncc = sub.kf_ncc;
         times.gpu = sub.gpu;
         times.gpu_timeline = sub.gpu_timeline;
-        times.readback_bytes = (self.ctx.bytes_read() - read0.0) as f64;
-        times.readbacks = (self.ctx.readbacks() - read0.1) as f64;
-        times.submissions = (self.ctx.submissions() - read0.2) as f64;
-        times.command_buffers = (self.ctx.command_buffers() - read0.3) as f64;
-        let uploads = self.ctx.uploads();
-        times.uploads = (uploads.0 - read0.6.0) as f64;
-        times.uploads_skipped = (uploads.1 - read0.6.1) as f64;
-        let passes = self.ctx.passes();
-        times.passes = (passes.0 - read0.7.0) as f64;
-        times.passes_untimed = (passes.1 - read0.7.1) as f64;
-        times.gpu_wait = self.ctx.waited().saturating_sub(read0.4);
-        let (finish, submit) = self.ctx.encoding();
-        times.gpu_finish = finish.saturating_sub(read0.5.0);
-        times.gpu_submit = submit.saturating_sub(read0.5.1);
+        let done = self.ctx.stats().since(&read0);
+        times.readback_bytes = done.bytes_read as f64;
+        times.readbacks = done.readbacks as f64;
+        times.submissions = done.submissions as f64;
+        times.command_buffers = done.command_buffers as f64;
+        times.uploads = done.uploads as f64;
+        times.uploads_skipped = done.uploads_skipped as f64;
+        times.passes = done.passes as f64;
+        times.passes_untimed = done.passes_untimed as f64;
+        times.gpu_wait = done.wait_time;
+        times.gpu_finish = done.finish_time;
+        times.gpu_submit = done.submit_time;
         times.contour_rounds = self.contour.rounds as f64;
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();

@@ -51,15 +51,15 @@ pub struct StageTimes {
     #[serde(default)]
     pub gpu_timeline: crate::gpu::GpuTimeline,
     /// Bytes read back from the GPU during the call
-    /// ([`crate::gpu::GpuContext::bytes_read`]; a mean over frames is fractional).
+    /// ([`GpuStats::bytes_read`](crate::gpu::GpuStats::bytes_read); a mean over frames is fractional).
     #[serde(default)]
     pub readback_bytes: f64,
     /// Readbacks (waits for the GPU) during the call
-    /// ([`crate::gpu::GpuContext::readbacks`]).
+    /// ([`GpuStats::readbacks`](crate::gpu::GpuStats::readbacks)).
     #[serde(default)]
     pub readbacks: f64,
     /// The time the host spent blocked in those readbacks' waits
-    /// ([`crate::gpu::GpuContext::waited`]): the GPU's work queued before them and the
+    /// ([`GpuStats::wait_time`](crate::gpu::GpuStats::wait_time)): the GPU's work queued before them and the
     /// round trip; the rest of `total` is the host's own work.
     #[serde(default)]
     pub gpu_wait: Duration,
@@ -67,19 +67,19 @@ pub struct StageTimes {
     #[serde(default)]
     pub waits: StageWaits,
     /// The host's time finishing command encoders (wgpu's encoding and
-    /// validation of the passes; [`crate::gpu::GpuContext::encoding`]): part of its
+    /// validation of the passes; [`GpuStats::finish_time`](crate::gpu::GpuStats::finish_time)): part of its
     /// own work.
     #[serde(default)]
     pub gpu_finish: Duration,
-    /// The host's time in `Queue::submit` ([`crate::gpu::GpuContext::encoding`]).
+    /// The host's time in `Queue::submit` ([`GpuStats::submit_time`](crate::gpu::GpuStats::submit_time)).
     #[serde(default)]
     pub gpu_submit: Duration,
     /// Submissions of GPU work during the call
-    /// ([`crate::gpu::GpuContext::submissions`]).
+    /// ([`GpuStats::submissions`](crate::gpu::GpuStats::submissions)).
     #[serde(default)]
     pub submissions: f64,
     /// Command buffers in those submissions
-    /// ([`crate::gpu::GpuContext::command_buffers`]).
+    /// ([`GpuStats::command_buffers`](crate::gpu::GpuStats::command_buffers)).
     #[serde(default)]
     pub command_buffers: f64,
     /// Uploads during the call ([`crate::gpu::GpuContext::write_buffer`]: each a
@@ -90,7 +90,7 @@ pub struct StageTimes {
     /// Parameter uploads skipped as unchanged during the call.
     #[serde(default)]
     pub uploads_skipped: f64,
-    /// Passes recorded during the call ([`crate::gpu::GpuContext::passes`]): one a
+    /// Passes recorded during the call ([`GpuStats::passes`](crate::gpu::GpuStats::passes)): one a
     /// stage where `--profile`'s timer times them.
     #[serde(default)]
     pub passes: f64,
@@ -120,7 +120,7 @@ pub struct StageTimes {
 }
 
 /// The host's time blocked waiting for the GPU within each stage of
-/// [`StageTimes`] ([`crate::gpu::GpuContext::waited`]): what the stage's time is not
+/// [`StageTimes`] ([`GpuStats::wait_time`](crate::gpu::GpuStats::wait_time)): what the stage's time is not
 /// the host's own work.
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct StageWaits {

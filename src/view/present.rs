@@ -1,7 +1,8 @@
-//! Drawing the live view's picture into a window with the tracker's wgpu
-//! device: the composed RGBA picture is uploaded as a texture and drawn by
-//! `shaders/present.wgsl`, scaled to fit the target and letterboxed
-//! ([`letterbox`]); [`present_cpu`] is its CPU reference.
+//! Drawing the live view's picture onto the display (an OS window's
+//! surface) with the tracker's wgpu device: the composed RGBA picture is
+//! uploaded as a texture and drawn by `shaders/present.wgsl`, scaled to
+//! fit the target and letterboxed ([`letterbox`]); [`present_cpu`] is its
+//! CPU reference.
 
 use crate::gpu::{GpuContext, GpuError, buffer_entry, texture_entry};
 use image::RgbaImage;
@@ -29,7 +30,7 @@ crate::wgsl_struct! {
     }
 }
 
-/// The colour around the picture when the window's shape differs.
+/// The colour around the picture when the display's shape differs.
 pub const BACKGROUND: [u8; 4] = [0, 0, 0, 255];
 
 /// The rectangle (x0, y0, x1, y1, whole pixels) that a `src` picture
@@ -256,8 +257,8 @@ impl Presenter {
     }
 
     /// `picture` drawn into an offscreen `dst` target of this presenter's
-    /// format and read back (tests, and a screenshot of what the window
-    /// shows without a window). The format must be `Rgba8Unorm`.
+    /// format and read back (tests, and a screenshot of what the display
+    /// shows without an OS window). The format must be `Rgba8Unorm`.
     pub fn render_offscreen(
         &mut self,
         ctx: &GpuContext,

@@ -56,7 +56,7 @@ pub struct Args {
     /// textured objects), or both in one robust solve (texture,contour).
     #[arg(long, default_value = "texture")]
     pub modalities: Modalities,
-    /// Output pose CSV (FORMATS.md "Tracker output").
+    /// Output pose CSV (docs/formats.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
     /// Write each frame with the model's outline at the tracked pose here.
@@ -77,7 +77,7 @@ pub struct Args {
     pub frames: Option<usize>,
     /// The splatter: render (render pass), compute (compute shader with
     /// atomics) or auto ($SPLATTRACK_SPLATTER when set, else compute where
-    /// the adapter supports it: the faster measured, BENCHMARKS.md).
+    /// the adapter supports it: the faster measured, docs/benchmarks.md).
     #[arg(long, default_value = "auto")]
     pub splatter: Backend,
     /// Where corners are detected and matched: gpu (compute shaders),

@@ -11,10 +11,10 @@ pub struct Stats {
     pub busy: std::time::Duration,
 }
 
-/// Never made: [`WindowSink::open`] always fails.
-pub enum WindowSink {}
+/// Never made: [`DisplaySink::open`] always fails.
+pub enum DisplaySink {}
 
-impl WindowSink {
+impl DisplaySink {
     pub fn open(_: &GpuContext, _: &str) -> anyhow::Result<Self> {
         anyhow::bail!(
             "--view: this splattrack was built without the live view (cargo feature `view`)"
@@ -25,7 +25,7 @@ impl WindowSink {
     }
 }
 
-impl FrameSink for WindowSink {
+impl FrameSink for DisplaySink {
     fn frame(&mut self, _: &ViewFrame<'_>) -> Result<Flow, ViewError> {
         match *self {}
     }

@@ -1,8 +1,8 @@
-//! The live view's window (winit), drawn with the tracker's own wgpu
-//! device.
+//! The live view's display: an OS window (winit; "window" alone, in this
+//! file, means that OS window), drawn with the tracker's own wgpu device.
 //!
 //! The tracker runs on the calling thread and the window lives there too:
-//! instead of handing the thread to winit's event loop, [`WindowSink`]
+//! instead of handing the thread to winit's event loop, [`DisplaySink`]
 //! pumps the window's pending events (without waiting) each time a frame
 //! is finished, then draws that frame. So tracking never waits for the
 //! window: the view shows the newest frame the moment it is tracked, the
@@ -13,8 +13,9 @@
 //! or `q` answer [`Flow::Stop`]: the run ends there as at the end of the
 //! sequence.
 
+use super::picture::compose;
 use super::present::Presenter;
-use super::{Flow, FrameSink, ViewError, ViewFrame, compose};
+use super::sink::{Flow, FrameSink, ViewError, ViewFrame};
 use crate::gpu::GpuContext;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -24,16 +25,16 @@ use winit::event::{ElementState, KeyEvent, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{Key, NamedKey};
 use winit::platform::pump_events::EventLoopExtPumpEvents;
-use winit::window::{Window, WindowAttributes, WindowId};
+use winit::window::{Window as OsWindow, WindowAttributes, WindowId};
 
-/// How long [`WindowSink::open`] waits for the window system to create the
+/// How long [`DisplaySink::open`] waits for the window system to create the
 /// window.
 const OPEN_TIMEOUT: Duration = Duration::from_secs(10);
 
 /// The window's events, as far as the view cares.
 struct Handler {
     attributes: Option<WindowAttributes>,
-    window: Option<Arc<Window>>,
+    os_window: Option<Arc<OsWindow>>,
     error: Option<String>,
     close: bool,
     resized: bool,
@@ -43,7 +44,7 @@ impl ApplicationHandler for Handler {
     fn resumed(&mut self, event_loop: &ActiveEventLoop) {
         if let Some(attributes) = self.attributes.take() {
             match event_loop.create_window(attributes) {
-                Ok(w) => self.window = Some(Arc::new(w)),
+                Ok(w) => self.os_window = Some(Arc::new(w)),
                 Err(e) => self.error = Some(e.to_string()),
             }
         }
@@ -71,9 +72,9 @@ impl ApplicationHandler for Handler {
     }
 }
 
-/// What a [`WindowSink`] did.
+/// What a [`DisplaySink`] did.
 #[derive(Debug, Clone, Copy, Default)]
-pub struct WindowStats {
+pub struct DisplayStats {
     /// Frames drawn into the window.
     pub shown: usize,
     /// Frames skipped because the window's surface was not ready.
@@ -82,22 +83,23 @@ pub struct WindowStats {
     pub busy: Duration,
 }
 
-/// A window showing each finished frame ([`compose`]) as it is tracked.
-pub struct WindowSink {
+/// The live view: an OS window showing each finished frame ([`compose`])
+/// as it is tracked.
+pub struct DisplaySink {
     ctx: GpuContext,
     surface: wgpu::Surface<'static>,
     config: wgpu::SurfaceConfiguration,
     view_format: wgpu::TextureFormat,
     presenter: Presenter,
-    window: Arc<Window>,
+    os_window: Arc<OsWindow>,
     handler: Handler,
     event_loop: EventLoop<()>,
     sized: bool,
-    stats: WindowStats,
+    stats: DisplayStats,
 }
 
-impl WindowSink {
-    /// Opens a window titled `title` on the display, drawn by `ctx`'s
+impl DisplaySink {
+    /// Opens an OS window titled `title` on the display, drawn by `ctx`'s
     /// device. Fails with [`ViewError::NoDisplay`] where there is no
     /// display (no `DISPLAY` nor `WAYLAND_DISPLAY`, or the connection
     /// fails), before anything else happens.
@@ -105,26 +107,26 @@ impl WindowSink {
         let mut event_loop = build_event_loop()?;
         let mut handler = Handler {
             attributes: Some(
-                Window::default_attributes()
+                OsWindow::default_attributes()
                     .with_title(title)
                     .with_inner_size(PhysicalSize::new(640, 480)),
             ),
-            window: None,
+            os_window: None,
             error: None,
             close: false,
             resized: false,
         };
         let start = Instant::now();
-        let window = loop {
+        let os_window = loop {
             event_loop.pump_app_events(Some(Duration::from_millis(10)), &mut handler);
             if let Some(e) = handler.error.take() {
-                return Err(ViewError::Window(e));
+                return Err(ViewError::Open(e));
             }
-            if let Some(w) = &handler.window {
+            if let Some(w) = &handler.os_window {
                 break w.clone();
             }
             if start.elapsed() > OPEN_TIMEOUT {
-                return Err(ViewError::Window(format!(
+                return Err(ViewError::Open(format!(
                     "the window system did not create the window within {} s",
                     OPEN_TIMEOUT.as_secs()
                 )));
@@ -136,7 +138,7 @@ impl WindowSink {
         };
         let surface = ctx
             .instance
-            .create_surface(window.clone())
+            .create_surface(os_window.clone())
             .map_err(|e| surface_error(e.to_string()))?;
         if !ctx.adapter.is_surface_supported(&surface) {
             return Err(surface_error(
@@ -155,7 +157,7 @@ impl WindowSink {
         .into_iter()
         .find(|m| caps.present_modes.contains(m))
         .unwrap_or(wgpu::PresentMode::Fifo);
-        let size = window.inner_size();
+        let size = os_window.inner_size();
         let config = wgpu::SurfaceConfiguration {
             usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
             format,
@@ -189,16 +191,16 @@ impl WindowSink {
             config,
             view_format,
             presenter,
-            window,
+            os_window,
             handler,
             event_loop,
             sized: false,
-            stats: WindowStats::default(),
+            stats: DisplayStats::default(),
         })
     }
 
     /// What the window did so far.
-    pub fn stats(&self) -> WindowStats {
+    pub fn stats(&self) -> DisplayStats {
         self.stats
     }
 
@@ -211,7 +213,7 @@ impl WindowSink {
     }
 
     fn reconfigure(&mut self) -> Result<(), ViewError> {
-        let size = self.window.inner_size();
+        let size = self.os_window.inner_size();
         self.config.width = size.width.max(1);
         self.config.height = size.height.max(1);
         self.ctx.catch("configuring the window's surface", || {
@@ -256,14 +258,14 @@ impl WindowSink {
         self.presenter
             .draw(&self.ctx, &mut enc, picture, &view, dst)?;
         self.ctx.submit(enc);
-        self.window.pre_present_notify();
+        self.os_window.pre_present_notify();
         self.ctx.queue.present(texture);
         self.ctx.check()?;
         Ok(true)
     }
 }
 
-impl FrameSink for WindowSink {
+impl FrameSink for DisplaySink {
     fn frame(&mut self, frame: &ViewFrame<'_>) -> Result<Flow, ViewError> {
         let t0 = Instant::now();
         if self.pump() {
@@ -275,7 +277,7 @@ impl FrameSink for WindowSink {
             // user's size holds and the picture is scaled to fit.
             self.sized = true;
             let _ = self
-                .window
+                .os_window
                 .request_inner_size(PhysicalSize::new(picture.width(), picture.height()));
             self.pump();
         }
@@ -304,7 +306,7 @@ fn build_event_loop() -> Result<EventLoop<()>, ViewError> {
         winit::error::EventLoopError::Os(_) | winit::error::EventLoopError::NotSupported(_) => {
             ViewError::NoDisplay(no_display_reason(&e.to_string()))
         }
-        other => ViewError::Window(other.to_string()),
+        other => ViewError::Open(other.to_string()),
     })
 }
 
