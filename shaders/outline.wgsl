@@ -1,7 +1,7 @@
 // The contour's silhouette points on the GPU (no image readback
 // in the loop): from the splatted depth of the contour's window (NaN where
 // empty, as the splatter resolves it), the points `extract_contour` in
-// src/tracker/contour.rs finds, its CPU reference. A few integers a point
+// src/tracker/contour/outline.rs finds, its CPU reference. A few integers a point
 // come back (its pixel, the covered pixels' offset sums over its window,
 // their count, the depth there), and the window's coverage as bits, for
 // learning the colours; the host turns the sums into the normal and the

@@ -32,6 +32,40 @@
 //!   its keyframe store and outputs, as the command line does it;
 //! - [`progress`]: progress of long jobs, for the caller to draw.
 //!
+//! # Example
+//!
+//! A short synthetic sequence with exact ground truth ([`synth`]), tracked
+//! frame to frame from its first pose (any Vulkan adapter: a GPU, or Mesa's
+//! software lavapipe):
+//!
+//! ```
+//! use splattrack::io::{Sequence, read_poses};
+//! use splattrack::synth::{SynthConfig, sequence::write_sequence};
+//! use splattrack::tracker::{Mode, Status, Tracker, TrackerConfig};
+//! use splattrack::{AdapterChoice, GpuContext, Intrinsics, PointModel};
+//!
+//! let dir = std::env::temp_dir().join("splattrack-crate-example");
+//! let camera = Intrinsics::new(320, 240, 300.0, 300.0, 159.5, 119.5);
+//! let synth = SynthConfig { frames: 4, camera, ..Default::default() };
+//! write_sequence(&synth, &dir, 20_000, None)?; // frames, model.ply, init.csv, poses.csv
+//!
+//! let ctx = GpuContext::new(&AdapterChoice::from_env()?)?; // $SPLATTRACK_ADAPTER
+//! let seq = Sequence::open(&dir)?;
+//! let model = PointModel::load(dir.join("model.ply"))?;
+//! let first = read_poses(&seq.init_path())?[0].pose;
+//! let config = TrackerConfig { mode: Mode::It, ..Default::default() }; // no keyframes needed
+//! let mut tracker = Tracker::builder(&ctx, model, seq.tracking_camera())
+//!     .config(config)
+//!     .initial_pose(first)
+//!     .build()?;
+//! for frame in seq.iter_frames() {
+//!     let r = tracker.track(&frame?.image)?;
+//!     assert_eq!(r.status, Status::Tracking, "{:?}", r.reason);
+//! }
+//! # std::fs::remove_dir_all(&dir)?;
+//! # Ok::<(), Box<dyn std::error::Error>>(())
+//! ```
+//!
 //! Vocabulary: a *view* is a rendered image of the model (a splatting at a
 //! pose); the *live view* ([`view`]) is the display that shows each
 //! tracked frame as it is tracked, in an OS window (`view::DisplaySink`);
