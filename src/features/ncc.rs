@@ -1,9 +1,9 @@
 //! NCC matching on the GPU (`shaders/ncc_*.wgsl`): the matcher, its
 //! options and its host-image matching here; the matchings of images
-//! resident on the GPU in [`resident`], the kernels' buffers and passes in
-//! [`kernels`], the host's side of the pairs (positions, orders, mutual
-//! bests) in [`pairs`]. The CPU reference is [`ncc_match_cpu`] (in
-//! [`cpu`]). See the module docs of [`super`].
+//! resident on the GPU in `ncc/resident.rs`, the kernels' buffers and
+//! passes in `ncc/kernels.rs`, the host's side of the pairs (positions,
+//! orders, mutual bests) in `ncc/pairs.rs`. The CPU reference is
+//! [`ncc_match_cpu`] (in `ncc/cpu.rs`). See the module docs of [`super`].
 
 mod config;
 mod cpu;

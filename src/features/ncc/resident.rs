@@ -19,7 +19,7 @@ impl NccMatcher {
     /// gives on those rows as host images, without uploading or reading
     /// back any image. Both bands are copied on the GPU into the matcher's
     /// buffer. With `refine`, B's point of each match is moved to the
-    /// sub-pixel NCC peak on the GPU, as [`super::refine_match`] does on
+    /// sub-pixel NCC peak on the GPU, as [`crate::features::refine::refine_match`] does on
     /// the host. One readback of [`ResidentMatch`]'s few values per
     /// feature of `a`. Sorted by `a`.
     #[allow(clippy::too_many_arguments)]

@@ -312,7 +312,7 @@ impl Harris {
     /// [`Harris::detect_resolved_resident`] whose corners come back with
     /// a later readback: the detection is recorded and submitted (within
     /// a batch, put off with it) and the reads of its counters and first
-    /// corners put off ([`GpuContext::read_buffer_later`]), so that work
+    /// corners put off ([`crate::gpu::GpuContext::read_buffer_later`]), so that work
     /// fed from its corners on the GPU ([`Harris::export_corners`]) goes
     /// before the one wait. Finish it with [`Harris::finish_later`]. Not
     /// in host mode, nor for an empty view.
