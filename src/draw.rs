@@ -5,11 +5,16 @@
 use crate::features::{Corner, Match};
 use image::{Rgb, RgbImage};
 
+/// An RGB colour, one byte per channel.
 pub type Colour = [u8; 3];
 
+/// Pure white.
 pub const WHITE: Colour = [255, 255, 255];
+/// Pure black.
 pub const BLACK: Colour = [0, 0, 0];
+/// Mid grey, for axes and secondary marks.
 pub const GREY: Colour = [150, 150, 150];
+/// Light grey, for grid lines and backgrounds.
 pub const LIGHT_GREY: Colour = [225, 225, 225];
 
 /// A palette of distinguishable colours for series (Okabe-Ito).
@@ -34,6 +39,7 @@ pub fn blend(img: &mut RgbImage, x: i64, y: i64, c: Colour, alpha: f32) {
     }
 }
 
+/// Sets pixel (x, y) to `c` if inside the image; does nothing otherwise.
 pub fn put(img: &mut RgbImage, x: i64, y: i64, c: Colour) {
     if x >= 0 && y >= 0 && x < img.width() as i64 && y < img.height() as i64 {
         img.put_pixel(x as u32, y as u32, Rgb(c));

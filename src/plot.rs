@@ -8,17 +8,24 @@ use image::RgbImage;
 /// One curve.
 #[derive(Debug, Clone)]
 pub struct Series {
+    /// Name shown in the legend.
     pub name: String,
+    /// The (x, y) points, in drawing order.
     pub points: Vec<(f64, f64)>,
+    /// Line colour.
     pub colour: Colour,
 }
 
 /// A chart: axes, title, curves. Non-finite points break a curve.
 #[derive(Debug, Clone, Default)]
 pub struct LineChart {
+    /// Title drawn above the plot.
     pub title: String,
+    /// Label of the x axis.
     pub x_label: String,
+    /// Label of the y axis.
     pub y_label: String,
+    /// The curves.
     pub series: Vec<Series>,
     /// Draw a dashed horizontal line at these y values (thresholds).
     pub guides: Vec<f64>,
@@ -68,6 +75,7 @@ fn fmt_tick(v: f64, step: f64) -> String {
 }
 
 impl LineChart {
+    /// An empty chart with the given title and axis labels.
     pub fn new(title: &str, x_label: &str, y_label: &str) -> Self {
         Self {
             title: title.into(),

@@ -33,7 +33,9 @@ mod check;
 /// The value of a constant shared with WGSL.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum WgslValue {
+    /// An unsigned 32-bit integer (`u32` in WGSL).
     U32(u32),
+    /// A 32-bit float (`f32` in WGSL).
     F32(f32),
 }
 
@@ -132,8 +134,11 @@ pub fn validate(name: &str, source: &str) -> Result<naga::Module, String> {
 /// One member of a struct shared with WGSL, as Rust lays it out.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Member {
+    /// The member's name (Rust's; a padding member's has a leading underscore).
     pub name: &'static str,
+    /// Offset from the start of the struct, in bytes.
     pub offset: usize,
+    /// Size in bytes.
     pub size: usize,
 }
 
@@ -179,12 +184,16 @@ macro_rules! wgsl_struct {
 /// The layout of a Rust twin, for comparison with naga's.
 #[derive(Debug, Clone)]
 pub struct RustLayout {
+    /// The struct's name.
     pub name: &'static str,
+    /// Size of the whole struct, in bytes.
     pub size: usize,
+    /// Every member in declaration order.
     pub members: Vec<Member>,
 }
 
 impl RustLayout {
+    /// The layout of `T`.
     pub fn of<T: WgslStruct>() -> Self {
         Self {
             name: T::NAME,

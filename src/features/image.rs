@@ -25,8 +25,11 @@ pub(crate) static LUMA_TERMS: std::sync::LazyLock<[[f32; 256]; 3]> =
 /// no corner's support and no matching window may touch one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GreyImage {
+    /// Width in pixels.
     pub width: usize,
+    /// Height in pixels.
     pub height: usize,
+    /// `width * height` grey values, row-major; NaN marks an invalid pixel.
     pub data: Vec<f32>,
 }
 
@@ -134,6 +137,7 @@ impl GreyImage {
         self.data[y * self.width + x]
     }
 
+    /// Whether the image has no pixels.
     pub fn is_empty(&self) -> bool {
         self.data.is_empty()
     }

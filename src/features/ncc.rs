@@ -75,6 +75,8 @@ pub struct NccMatcher {
 }
 
 impl NccMatcher {
+    /// A matcher for `config` on `ctx`, with default options; fails if `config`
+    /// is invalid or a pipeline cannot be built.
     pub fn new(ctx: &GpuContext, config: NccConfig) -> Result<Self, FeatureError> {
         config.validate()?;
         // Parameters in a storage buffer, not a uniform: see shaders/ncc_score.wgsl.
@@ -136,6 +138,7 @@ impl NccMatcher {
         })
     }
 
+    /// The matching parameters.
     pub fn config(&self) -> &NccConfig {
         &self.config
     }

@@ -144,13 +144,18 @@ pub fn polygons(width: usize, height: usize, count: usize, seed: u64) -> GreyIma
 /// A square: centre, half side, rotation (radians).
 #[derive(Debug, Clone, Copy)]
 pub struct Square {
+    /// Centre column in pixels.
     pub cx: f32,
+    /// Centre row in pixels.
     pub cy: f32,
+    /// Half the side length, in pixels.
     pub half: f32,
+    /// Rotation in radians.
     pub angle: f32,
 }
 
 impl Square {
+    /// The four corners (x, y) in pixels, in order around the square.
     pub fn corners(&self) -> [[f32; 2]; 4] {
         let (s, c) = self.angle.sin_cos();
         [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)].map(|(u, v): (f32, f32)| {
@@ -220,10 +225,15 @@ pub fn checkerboard(
 /// with `T(p) = R(angle) (p - centre) + centre + shift`.
 #[derive(Debug, Clone, Copy)]
 pub struct Warp {
+    /// Translation added after the rotation, in pixels.
     pub shift: [f32; 2],
+    /// Rotation about `centre`, in radians.
     pub angle: f32,
+    /// Centre of the rotation (x, y), in pixels.
     pub centre: [f32; 2],
+    /// Multiplier of the intensities.
     pub gain: f32,
+    /// Offset added to the intensities.
     pub bias: f32,
 }
 

@@ -482,8 +482,13 @@ impl Refinement {
 /// failed), else `b`'s position.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ResidentMatch {
+    /// Index of the feature in the first set.
     pub a: usize,
+    /// Index of the feature in the second set.
     pub b: usize,
+    /// NCC of the two windows, in [-1, 1].
     pub score: f32,
+    /// Where `b`'s point lies in its image (x, y), in pixels: refined if a
+    /// refinement was asked for (`None` where it failed), else `b`'s position.
     pub at: Option<[f64; 2]>,
 }

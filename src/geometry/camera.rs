@@ -9,11 +9,17 @@ use nalgebra::{Matrix2x3, Matrix2x6, Matrix3, Vector2, Vector3};
 /// also a valid `camera.json`.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Intrinsics {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Horizontal focal length in pixels.
     pub fx: f64,
+    /// Vertical focal length in pixels.
     pub fy: f64,
+    /// Principal point x in pixels (OpenCV convention: centre of pixel (0,0) at 0).
     pub cx: f64,
+    /// Principal point y in pixels (OpenCV convention: centre of pixel (0,0) at 0).
     pub cy: f64,
     /// OpenCV order: k1, k2, p1, p2, k3. All zero for an ideal pinhole.
     pub distortion: [f64; 5],
@@ -90,6 +96,7 @@ impl Intrinsics {
         }
     }
 
+    /// The 3x3 camera matrix `K = [[fx, 0, cx], [0, fy, cy], [0, 0, 1]]`.
     pub fn matrix(&self) -> Matrix3<f64> {
         Matrix3::new(self.fx, 0.0, self.cx, 0.0, self.fy, self.cy, 0.0, 0.0, 1.0)
     }
@@ -200,6 +207,7 @@ pub struct Undistorter {
 }
 
 impl Undistorter {
+    /// Builds the remap table for `cam`'s image size and distortion.
     pub fn new(cam: &Intrinsics) -> Self {
         let (w, h) = (cam.width, cam.height);
         let mut map = Vec::with_capacity((w * h) as usize);

@@ -6,10 +6,14 @@ use nalgebra::{Matrix3, Matrix4, Vector3, Vector6};
 /// Errors of poses that are not rigid transforms.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum PoseError {
+    /// A rotation or translation entry is NaN or infinite.
     #[error("pose has a non-finite value")]
     NonFinite,
+    /// The rotation is not orthonormal with determinant 1 (to 1e-4); holds
+    /// the largest entry of `|R^T R - I|` and the determinant.
     #[error("pose rotation is not a rotation matrix (|R^T R - I| = {0:.2e}, det = {1:.4})")]
     NotRotation(f64, f64),
+    /// A 4x4 matrix's bottom row is not `(0, 0, 0, 1)`.
     #[error("pose matrix bottom row is not (0, 0, 0, 1)")]
     NotRigid,
 }
@@ -21,7 +25,9 @@ pub enum PoseError {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 #[serde(into = "PoseRepr", try_from = "PoseRepr")]
 pub struct Pose {
+    /// Rotation part R (orthonormal, determinant 1).
     pub rotation: Matrix3<f64>,
+    /// Translation part t, in the model's length units (usually metres).
     pub translation: Vector3<f64>,
 }
 
@@ -65,6 +71,7 @@ fn skew(w: &Vector3<f64>) -> Matrix3<f64> {
 }
 
 impl Pose {
+    /// The identity transform (no rotation, zero translation).
     pub fn identity() -> Self {
         Self {
             rotation: Matrix3::identity(),
@@ -108,6 +115,7 @@ impl Pose {
         ]
     }
 
+    /// From a homogeneous 4x4 matrix `[R t; 0 0 0 1]`, checked to be rigid.
     pub fn from_matrix4(m: &Matrix4<f64>) -> Result<Self, PoseError> {
         let bottom = m.fixed_view::<1, 4>(3, 0);
         if (bottom - nalgebra::RowVector4::new(0.0, 0.0, 0.0, 1.0)).amax() > 1e-9 {
@@ -119,6 +127,7 @@ impl Pose {
         )
     }
 
+    /// The homogeneous 4x4 matrix `[R t; 0 0 0 1]`.
     pub fn to_matrix4(&self) -> Matrix4<f64> {
         let mut m = Matrix4::identity();
         m.fixed_view_mut::<3, 3>(0, 0).copy_from(&self.rotation);
@@ -170,6 +179,7 @@ impl Pose {
         }
     }
 
+    /// The inverse transform: `(R^T, -R^T t)`.
     pub fn inverse(&self) -> Pose {
         let rt = self.rotation.transpose();
         Pose {
@@ -178,6 +188,7 @@ impl Pose {
         }
     }
 
+    /// Maps a point: `R x + t`.
     pub fn transform_point(&self, x: &Vector3<f64>) -> Vector3<f64> {
         self.rotation * x + self.translation
     }

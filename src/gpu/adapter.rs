@@ -19,7 +19,9 @@ pub enum AdapterChoice {
     /// Discrete GPU, else integrated, else virtual, else CPU.
     #[default]
     Auto,
+    /// A discrete GPU.
     Discrete,
+    /// An integrated GPU.
     Integrated,
     /// A CPU adapter (lavapipe): the same results on every machine, so tests
     /// prefer it.
@@ -108,6 +110,7 @@ impl GpuContext {
         Self::new(&AdapterChoice::from_env()?)
     }
 
+    /// [`GpuContext::new`] for async callers; honours [`VALIDATE_INDIRECT_ENV`].
     pub async fn new_async(choice: &AdapterChoice) -> Result<Self, GpuError> {
         // wgpu's own reading of its variable: anything but "0" sets it.
         let asked = std::env::var(VALIDATE_INDIRECT_ENV).ok().map(|v| v != "0");

@@ -44,6 +44,7 @@ impl Uniform {
         true
     }
 
+    /// The GPU buffer.
     pub fn buffer(&self) -> &wgpu::Buffer {
         &self.buffer
     }
@@ -68,6 +69,8 @@ pub struct GrowBuffer {
 }
 
 impl GrowBuffer {
+    /// An empty buffer with this label and usage; nothing is allocated until
+    /// [`GrowBuffer::ensure`].
     pub fn new(label: &'static str, usage: wgpu::BufferUsages) -> Self {
         Self {
             label,

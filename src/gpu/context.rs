@@ -21,12 +21,19 @@ use wgpu::util::DeviceExt;
 /// creation, so the headless context serves a display as it is.
 #[derive(Clone)]
 pub struct GpuContext {
+    /// The wgpu instance the adapter came from (for creating surfaces).
     pub instance: wgpu::Instance,
+    /// The adapter behind the device.
     pub adapter: wgpu::Adapter,
+    /// The logical device.
     pub device: wgpu::Device,
+    /// The device's queue.
     pub queue: wgpu::Queue,
+    /// The adapter's name, type and back end.
     pub info: wgpu::AdapterInfo,
+    /// The adapter's own limits, which the device was created with.
     pub limits: wgpu::Limits,
+    /// The features enabled on the device.
     pub features: wgpu::Features,
     /// Whether wgpu checks every indirect dispatch's arguments on the GPU
     /// first (see [`VALIDATE_INDIRECT_ENV`](super::VALIDATE_INDIRECT_ENV)).
@@ -130,10 +137,12 @@ impl GpuContext {
         describe_info(&self.info)
     }
 
+    /// Whether the adapter is a CPU (software) one, such as lavapipe.
     pub fn is_cpu(&self) -> bool {
         self.info.device_type == wgpu::DeviceType::Cpu
     }
 
+    /// Whether GPU timestamp queries are available.
     pub fn has_timestamps(&self) -> bool {
         self.features.contains(wgpu::Features::TIMESTAMP_QUERY)
     }

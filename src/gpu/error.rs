@@ -4,40 +4,77 @@
 /// Errors of the GPU layer.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
+    /// No adapter wgpu can see has the features the pipelines need.
     #[error(
         "no usable GPU adapter found{}. On Linux without a GPU, install Mesa's software Vulkan driver (lavapipe): `apt-get install mesa-vulkan-drivers`",
         rejected_note(.rejected)
     )]
-    NoAdapter { rejected: Vec<String> },
+    NoAdapter {
+        /// Each adapter seen but rejected, with the features it lacks.
+        rejected: Vec<String>,
+    },
+    /// No usable adapter matches the [`AdapterChoice`](super::AdapterChoice).
     #[error("no adapter matches: wanted {wanted}; available: {}", .available.join("; "))]
     AdapterNotFound {
+        /// The adapter asked for, in words.
         wanted: String,
+        /// The usable adapters, as "name (type, backend)".
         available: Vec<String>,
     },
+    /// An adapter choice given as text is empty.
     #[error(
         "invalid adapter choice {0:?}: use auto, discrete, integrated, cpu, or part of an adapter's name"
     )]
     BadChoice(String),
+    /// The adapter refused to create a device.
     #[error("cannot create a device on {adapter}: {source}")]
     RequestDevice {
+        /// The adapter, as "name (type, backend)".
         adapter: String,
+        /// wgpu's error.
         #[source]
         source: wgpu::RequestDeviceError,
     },
+    /// A readback of GPU results failed, could not be set up, or returned
+    /// unusable data.
     #[error("GPU readback failed: {0}")]
     Readback(String),
+    /// wgpu reported a validation error while creating or running something.
     #[error("GPU validation error in {context}: {message}")]
-    Validation { context: String, message: String },
+    Validation {
+        /// What was being done.
+        context: String,
+        /// wgpu's message.
+        message: String,
+    },
+    /// A WGSL shader failed naga's validation.
     #[error("shader {name} is invalid: {message}")]
-    Shader { name: String, message: String },
+    Shader {
+        /// The shader's name.
+        name: String,
+        /// naga's message.
+        message: String,
+    },
+    /// The device ran out of memory.
     #[error("GPU out of memory in {context}: {message}")]
-    OutOfMemory { context: String, message: String },
+    OutOfMemory {
+        /// What was being done.
+        context: String,
+        /// wgpu's message.
+        message: String,
+    },
+    /// A buffer or texture would exceed one of the adapter's limits; refused
+    /// before allocation.
     #[error("{0}")]
     TooLarge(Box<LimitExceeded>),
+    /// A GPU error outside any error scope, other than out-of-memory.
     #[error("GPU error: {0}")]
     Uncaptured(String),
+    /// The device was lost (driver reset, crash); carries wgpu's reason.
     #[error("the GPU device was lost ({0}); every frame finished before it is on disk")]
     DeviceLost(String),
+    /// The GPU did not finish within the time limit, in seconds
+    /// ([`TIMEOUT_ENV`]).
     #[error("the GPU did not finish its work within {0} s (set {TIMEOUT_ENV} to wait longer)")]
     Timeout(u64),
 }

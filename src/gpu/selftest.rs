@@ -16,9 +16,13 @@ wgsl_struct! {
     /// The uniform of the `saxpy` kernel.
     #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
     pub struct SelftestParams {
+        /// The factor `a` of `a * x + y`.
         pub a: f32,
+        /// Number of elements.
         pub n: u32,
+        /// Padding to a 16-byte size.
         pub _pad0: u32,
+        /// Padding to a 16-byte size.
         pub _pad1: u32,
     }
 }

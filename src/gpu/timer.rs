@@ -6,6 +6,7 @@ use super::{GpuContext, GpuError, PendingRead};
 /// Durations of the labelled passes of one submission, in milliseconds.
 #[derive(Debug, Clone, Default)]
 pub struct TimerReport {
+    /// Each pass's label and duration in milliseconds, in order.
     pub passes: Vec<(String, f64)>,
     /// Each pass's beginning and end on the GPU's clock, nanoseconds
     /// (one clock for every timer of a device; where the passes were read
@@ -79,6 +80,7 @@ impl GpuTimeline {
 }
 
 impl TimerReport {
+    /// Sum of the passes' durations, in milliseconds.
     pub fn total_ms(&self) -> f64 {
         self.passes.iter().map(|(_, ms)| ms).sum()
     }
@@ -198,6 +200,7 @@ impl GpuTimer {
         }
     }
 
+    /// Whether timestamps are recorded (the device supports them).
     pub fn enabled(&self) -> bool {
         self.query_set.is_some()
     }

@@ -8,16 +8,31 @@ use std::path::{Path, PathBuf};
 /// Errors of camera files and camera parameters.
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
+    /// The camera file could not be read.
     #[error("{path}: cannot read camera file: {source}")]
     Io {
+        /// The camera file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The file's text is not valid `camera.json` or OpenCV calibration YAML.
     #[error("{path}: not a valid camera file: {reason}")]
-    Parse { path: PathBuf, reason: String },
+    Parse {
+        /// The camera file.
+        path: PathBuf,
+        /// What is wrong with the text.
+        reason: String,
+    },
+    /// The file parses but describes an impossible or implausible camera.
     #[error("{path}: impossible camera: {reason}")]
-    Invalid { path: PathBuf, reason: String },
+    Invalid {
+        /// The camera file.
+        path: PathBuf,
+        /// Which parameter is wrong, and why.
+        reason: String,
+    },
 }
 
 /// `camera.json` as written (docs/formats.md): the distortion list is optional

@@ -4,16 +4,27 @@
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// Errors of reading and writing `.npy` files.
 #[derive(Debug, thiserror::Error)]
 pub enum NpyError {
+    /// The file could not be read or written.
     #[error("{path}: {source}")]
     Io {
+        /// The `.npy` file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The file is not a `<f4` C-order `.npy` array, or the data to write do
+    /// not match the given shape.
     #[error("{path}: not a supported .npy file: {reason}")]
-    Format { path: PathBuf, reason: String },
+    Format {
+        /// The `.npy` file.
+        path: PathBuf,
+        /// What is wrong.
+        reason: String,
+    },
 }
 
 fn header_for(shape: &[usize]) -> Vec<u8> {

@@ -12,28 +12,48 @@ pub const POSE_COLUMNS: [&str; 13] = [
     "frame", "r11", "r12", "r13", "r21", "r22", "r23", "r31", "r32", "r33", "tx", "ty", "tz",
 ];
 
+/// Errors of reading and writing pose CSV files.
 #[derive(Debug, thiserror::Error)]
 pub enum PoseFileError {
+    /// The pose file could not be read.
     #[error("{path}: cannot read pose file: {source}")]
     Io {
+        /// The pose file.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The pose file could not be written.
     #[error(transparent)]
     Write(#[from] WriteError),
+    /// The file as a whole is wrong: empty, a wrong header, or no pose rows.
     #[error("{path}: {reason}")]
-    Format { path: PathBuf, reason: String },
-    #[error("{path}, line {line}: {reason}")]
-    Row {
+    Format {
+        /// The pose file.
         path: PathBuf,
-        line: usize,
+        /// What is wrong.
         reason: String,
     },
+    /// A row is malformed: wrong field count, a non-number, or an empty
+    /// frame label.
+    #[error("{path}, line {line}: {reason}")]
+    Row {
+        /// The pose file.
+        path: PathBuf,
+        /// The 1-based line number in the file.
+        line: usize,
+        /// What is wrong with the row.
+        reason: String,
+    },
+    /// A row's numbers are not a rigid transform.
     #[error("{path}, line {line}: {source}")]
     BadPose {
+        /// The pose file.
         path: PathBuf,
+        /// The 1-based line number in the file.
         line: usize,
+        /// Why the pose was rejected.
         #[source]
         source: PoseError,
     },
@@ -43,12 +63,16 @@ pub enum PoseFileError {
 /// (by header name) that followed `tz`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseRow {
+    /// The frame label: an index (`000043`) or an image file name.
     pub frame: String,
+    /// The object-to-camera pose.
     pub pose: Pose,
+    /// Extra columns after `tz` as `(header name, value)`, in file order.
     pub extra: Vec<(String, String)>,
 }
 
 impl PoseRow {
+    /// A row with no extra columns.
     pub fn new(frame: impl Into<String>, pose: Pose) -> Self {
         Self {
             frame: frame.into(),

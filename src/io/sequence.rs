@@ -9,39 +9,63 @@ use crate::io::camera::CameraError;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+/// Errors of opening a sequence directory and reading its frames.
 #[derive(Debug, thiserror::Error)]
 pub enum SequenceError {
+    /// The sequence path is not a directory.
     #[error("{0}: not a directory")]
     NotADirectory(PathBuf),
+    /// The sequence directory has no `camera.json`, `camera.yaml` or `camera.yml`.
     #[error("{0}: no camera file (expected camera.json, camera.yaml or camera.yml)")]
     NoCamera(PathBuf),
+    /// `frames/` is missing or holds no images (the path is `frames/`).
     #[error("{0}: no frames (expected .png or .jpg images in frames/)")]
     NoFrames(PathBuf),
+    /// A directory could not be listed.
     #[error("{path}: {source}")]
     Io {
+        /// The directory.
         path: PathBuf,
+        /// The underlying I/O error.
         #[source]
         source: std::io::Error,
     },
+    /// The camera file could not be loaded.
     #[error(transparent)]
     Camera(#[from] CameraError),
+    /// A frame image could not be opened or decoded.
     #[error("{path}: cannot read frame: {source}")]
     FrameImage {
+        /// The frame image file.
         path: PathBuf,
+        /// The decoder's error.
         #[source]
         source: image::ImageError,
     },
+    /// A frame's size differs from the camera's.
     #[error("{path}: frame is {got_w}x{got_h}, the camera ({camera}) is {want_w}x{want_h}")]
     FrameSize {
+        /// The frame image file.
         path: PathBuf,
+        /// The camera file.
         camera: PathBuf,
+        /// The frame's width in pixels.
         got_w: u32,
+        /// The frame's height in pixels.
         got_h: u32,
+        /// The camera's width in pixels.
         want_w: u32,
+        /// The camera's height in pixels.
         want_h: u32,
     },
+    /// Undistorting a frame failed.
     #[error("{path}: cannot undistort: {reason}")]
-    Undistort { path: PathBuf, reason: String },
+    Undistort {
+        /// The frame image file.
+        path: PathBuf,
+        /// Why undistortion failed.
+        reason: String,
+    },
 }
 
 /// One frame of a sequence, as the tracker wants it.
@@ -63,9 +87,11 @@ pub struct Frame {
 /// A sequence on disk; frames are read lazily.
 #[derive(Clone)]
 pub struct Sequence {
+    /// The sequence directory.
     pub dir: PathBuf,
     /// The camera as calibrated (with its distortion, if any).
     pub camera: Intrinsics,
+    /// The camera file the camera was read from.
     pub camera_path: PathBuf,
     /// Frame image paths, sorted by file name.
     pub frames: Vec<PathBuf>,
@@ -157,6 +183,8 @@ pub fn list_images(dir: &Path) -> Result<Vec<PathBuf>, SequenceError> {
 }
 
 impl Sequence {
+    /// Opens a sequence directory: loads its camera, lists `frames/` and
+    /// checks the first frame's size against the camera.
     pub fn open(dir: &Path) -> Result<Self, SequenceError> {
         if !dir.is_dir() {
             return Err(SequenceError::NotADirectory(dir.to_owned()));

@@ -33,8 +33,9 @@ pub struct GapClosure {
     pub grown: usize,
     /// Points looked at.
     pub points: usize,
-    /// Mean radius before and after (model units).
+    /// Mean radius before (model units).
     pub mean_before: f64,
+    /// Mean radius after (model units).
     pub mean_after: f64,
 }
 

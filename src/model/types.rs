@@ -24,9 +24,14 @@ pub enum AttributeSource {
 /// How a model was obtained: what was read, what was estimated, what was dropped.
 #[derive(Debug, Clone)]
 pub struct Provenance {
+    /// The file the model (or the mesh it was sampled from) was read from;
+    /// `None` for a model built in memory.
     pub path: Option<PathBuf>,
+    /// Where the normals came from.
     pub normals: AttributeSource,
+    /// Where the radii came from.
     pub radii: AttributeSource,
+    /// Where the colours came from (`Absent` when the model has none).
     pub colors: AttributeSource,
     /// Points dropped because a coordinate was NaN or infinite (for sampled
     /// meshes: vertices with such coordinates, whose triangles were skipped).
@@ -39,6 +44,7 @@ pub struct Provenance {
 /// A point-sampled surface: one oriented disc (splat) per point.
 #[derive(Debug, Clone)]
 pub struct PointModel {
+    /// Point positions (splat centres) in model coordinates (the file's units).
     pub positions: Vec<Vec3>,
     /// Unit outward normals, one per point.
     pub normals: Vec<Vec3>,
@@ -46,6 +52,7 @@ pub struct PointModel {
     pub radii: Vec<f32>,
     /// Linear RGB in 0..1, one per point, when the model has colours.
     pub colors: Option<Vec<[f32; 3]>>,
+    /// Where the attributes came from, and what was dropped on loading.
     pub provenance: Provenance,
 }
 
@@ -100,6 +107,7 @@ impl PointModel {
         self.positions.len()
     }
 
+    /// True when the model has no points.
     pub fn is_empty(&self) -> bool {
         self.positions.is_empty()
     }

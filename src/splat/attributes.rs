@@ -26,6 +26,7 @@ pub enum Attribute {
 }
 
 impl Attribute {
+    /// Number of f32 channels of this attribute's image.
     pub fn channels(self) -> usize {
         match self {
             Self::Color | Self::Normal => 3,
@@ -60,7 +61,9 @@ impl Attribute {
 /// (depth + normal) 1, motion 3.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct Attributes {
+    /// Whether depth and normals are rendered.
     pub geometry: bool,
+    /// Whether the motion predictors are rendered.
     pub motion: bool,
 }
 

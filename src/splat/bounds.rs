@@ -25,8 +25,11 @@ pub fn bounding_sphere(points: impl Iterator<Item = Vector3<f64>> + Clone) -> (V
 /// depth range at any pose.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ModelBounds {
+    /// Centre of the bounding sphere, in model coordinates.
     pub center: Vector3<f64>,
+    /// Radius of the bounding sphere (model units).
     pub radius: f64,
+    /// The largest splat radius (model units).
     pub max_splat_radius: f64,
     /// The median splat radius (model units; 0 for no points): how large
     /// a typical splat is (`Splatter::backend_for`).

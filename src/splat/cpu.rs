@@ -16,8 +16,12 @@ use glam::{Vec2, Vec3};
 /// of [`super`]), all attribute groups included.
 #[derive(Debug, Clone)]
 pub struct Accumulators {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// The five targets T0..T4, each row-major RGBA (weighted sums, not
+    /// normalised).
     pub targets: [Vec<[f32; 4]>; 5],
 }
 

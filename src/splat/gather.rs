@@ -27,6 +27,8 @@ pub struct GatherSample {
 }
 
 impl GatherSample {
+    /// A sample from the 14 floats the GPU writes per position: 12 motion
+    /// predictors, depth, then the validity flag (> 0.5: valid).
     pub fn from_floats(v: &[f32]) -> Self {
         Self {
             motion: std::array::from_fn(|k| v[k]),

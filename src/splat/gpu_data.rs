@@ -42,6 +42,8 @@ wgsl_struct! {
     pub struct CameraUniform {
         /// Rows of R.
         pub rot: [[f32; 4]; 3],
+        /// Translation t of the pose (object to camera, model units), w
+        /// unused.
         pub trans: [f32; 4],
         /// fx, fy, cx, cy.
         pub intr: [f32; 4],
@@ -83,7 +85,9 @@ wgsl_struct! {
     /// Parameters of the resolve kernels.
     #[derive(Debug, Clone, Copy, PartialEq, Default, bytemuck::Pod, bytemuck::Zeroable)]
     pub struct ResolveParams {
+        /// Target width in pixels.
         pub width: u32,
+        /// Target height in pixels.
         pub height: u32,
         /// `resolve`: the attribute kind; `gather`: the number of points.
         pub kind: u32,
@@ -92,16 +96,22 @@ wgsl_struct! {
         /// `gather`: the focal length in x of the render (pixels), which
         /// turns the translation predictor du/dtx = fx / z into the depth.
         pub fx: f32,
+        /// Padding to a 16-byte multiple.
         pub _pad0: u32,
+        /// Padding to a 16-byte multiple.
         pub _pad1: u32,
+        /// Padding to a 16-byte multiple.
         pub _pad2: u32,
     }
 }
 
 /// `ResolveParams.kind` of `resolve`: which attribute to normalise.
 pub const RESOLVE_COLOR: u32 = 0;
+/// `ResolveParams.kind`: camera-space depth `z`.
 pub const RESOLVE_DEPTH: u32 = 1;
+/// `ResolveParams.kind`: camera-space unit normal.
 pub const RESOLVE_NORMAL: u32 = 2;
+/// `ResolveParams.kind`: the 12 motion predictors.
 pub const RESOLVE_MOTION: u32 = 3;
 /// The raw summed weight.
 pub const RESOLVE_WEIGHT: u32 = 4;
@@ -121,7 +131,9 @@ wgsl_struct! {
     /// Parameters of the compute splatter (shaders/splat_compute.wgsl).
     #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
     pub struct ComputeParams {
+        /// Target width in pixels.
         pub width: u32,
+        /// Target height in pixels.
         pub height: u32,
         /// Number of splats.
         pub count: u32,
@@ -130,8 +142,11 @@ wgsl_struct! {
         /// The half of the bounds buffer this render uses (0 or 1): its
         /// last pass zeroes the other half for the next render.
         pub slot: u32,
+        /// Padding to a 16-byte multiple.
         pub pad0: u32,
+        /// Padding to a 16-byte multiple.
         pub pad1: u32,
+        /// Padding to a 16-byte multiple.
         pub pad2: u32,
     }
 }

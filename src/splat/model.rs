@@ -17,7 +17,9 @@ use std::sync::Arc;
 /// colour ([`pack_color`]).
 #[derive(Debug, Clone, PartialEq)]
 pub struct PackedModel {
+    /// Each point's splat geometry, in the model's order.
     pub splats: Vec<SplatGpu>,
+    /// Each point's colour, packed by [`pack_color`].
     pub colors: Vec<u32>,
 }
 
@@ -123,6 +125,7 @@ pub struct GpuModel {
     pub(super) geometry: wgpu::Buffer,
     pub(super) colors: wgpu::Buffer,
     pub(super) count: u32,
+    /// Bounding sphere and splat radii of the model.
     pub bounds: ModelBounds,
     /// The model's index of each splat on the GPU ([`spatial_order`]),
     /// shared by the recoloured copies.
@@ -130,10 +133,14 @@ pub struct GpuModel {
 }
 
 impl GpuModel {
+    /// The model uploaded with default [`SplatParams`]; fails on an invalid
+    /// model or one too large for the adapter.
     pub fn new(ctx: &GpuContext, model: &PointModel) -> Result<Self, SplatError> {
         Self::with_params(ctx, model, &SplatParams::default())
     }
 
+    /// The model uploaded with `params` (whose default colour stands in for
+    /// missing colours).
     pub fn with_params(
         ctx: &GpuContext,
         model: &PointModel,
@@ -222,10 +229,12 @@ impl GpuModel {
         self.geometry.size()
     }
 
+    /// Number of splats (points).
     pub fn len(&self) -> usize {
         self.count as usize
     }
 
+    /// Whether the model has no splats.
     pub fn is_empty(&self) -> bool {
         self.count == 0
     }

@@ -116,6 +116,7 @@ pub struct SplatParams {
     pub lowpass_px: f32,
     /// Colour of models without colours (linear RGB).
     pub default_color: [f32; 3],
+    /// Which splatting implementation renders.
     pub backend: Backend,
 }
 

@@ -45,10 +45,14 @@ pub struct Splatter {
 }
 
 impl Splatter {
+    /// A splatter with default [`SplatParams`]; fails where the adapter cannot
+    /// splat.
     pub fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
         Self::with_params(ctx, SplatParams::default())
     }
 
+    /// A splatter with `params`; its back end is resolved on this adapter
+    /// ([`SplatError::Unsupported`] where none works).
     pub fn with_params(ctx: &GpuContext, params: SplatParams) -> Result<Self, SplatError> {
         let backend = params.backend.resolve(ctx)?;
         let compute = match backend {
@@ -234,6 +238,7 @@ impl Splatter {
         Backend::Compute
     }
 
+    /// The splatting parameters.
     pub fn params(&self) -> &SplatParams {
         &self.params
     }

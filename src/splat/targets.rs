@@ -32,6 +32,7 @@ pub struct SplatTargets {
 }
 
 impl SplatTargets {
+    /// Render targets of `width x height` pixels, with no render yet.
     pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Self {
         let size = wgpu::Extent3d {
             width,
@@ -113,10 +114,12 @@ impl SplatTargets {
             + self.compute.as_ref().map_or(0, |c| c.gpu_bytes())
     }
 
+    /// Width in pixels.
     pub fn width(&self) -> u32 {
         self.width
     }
 
+    /// Height in pixels.
     pub fn height(&self) -> u32 {
         self.height
     }
@@ -178,9 +181,13 @@ impl SplatTargets {
 /// `height x width x channels`, NaN in every channel of empty pixels.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SplatImage {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
+    /// Channels per pixel (see [`Attribute::channels`]).
     pub channels: usize,
+    /// `height * width * channels` values, row-major; NaN where empty.
     pub data: Vec<f32>,
 }
 

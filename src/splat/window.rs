@@ -21,9 +21,13 @@ use nalgebra::Vector3;
 /// `y0 .. y0 + height`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Window {
+    /// First column, in pixels of the full image.
     pub x0: u32,
+    /// First row, in pixels of the full image.
     pub y0: u32,
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
 }
 

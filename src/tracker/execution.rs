@@ -56,21 +56,17 @@ pub struct Execution {
     /// groups: `true`) and a CPU adapter's (one thread an item: `false`),
     /// whatever the adapter: Harris's selection, the three matchers and
     /// the check. For tests that run the GPUs' kernels on lavapipe.
-    #[doc(hidden)]
     pub gpu_kernels: Option<bool>,
     /// The corner selection's O(n^2) passes tiled in workgroup memory or
     /// one thread an item (the tracker's Harris; after
     /// [`Execution::gpu_kernels`]).
-    #[doc(hidden)]
     pub harris_tiled_selection: Option<bool>,
     /// Where tiled, the corner selection in one workgroup a pass (`true`)
     /// or split over workgroups (`false`), in the tracker's Harris.
-    #[doc(hidden)]
     pub harris_small_selection: Option<bool>,
     /// The most candidates the tracker's Harris selects among on the GPU
     /// (more are selected on the host, and the chained steps fall back to
     /// matching from the host's corners): for tests of those fallbacks.
-    #[doc(hidden)]
     pub harris_select_limit: Option<usize>,
 }
 

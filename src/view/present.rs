@@ -25,7 +25,9 @@ crate::wgsl_struct! {
         pub background: [f32; 4],
         /// The picture's size, pixels.
         pub size: [u32; 2],
+        /// Padding to a 16-byte multiple.
         pub _pad0: u32,
+        /// Padding to a 16-byte multiple.
         pub _pad1: u32,
     }
 }

@@ -7,8 +7,11 @@ use crate::features::gpu_data::{MAX_DERIV_RADIUS, MAX_INTEGRATION_RADIUS};
 /// centre of the top-left pixel) and its Harris response.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Corner {
+    /// Column in pixels (0 at the centre of the left column).
     pub x: f32,
+    /// Row in pixels (0 at the centre of the top row), downwards.
     pub y: f32,
+    /// Harris response `det - k trace²` at the pixel where it was detected.
     pub score: f32,
 }
 
@@ -77,27 +80,33 @@ impl Default for HarrisConfig {
 }
 
 impl HarrisConfig {
+    /// Sets [`max_corners`](Self::max_corners).
     pub fn with_max_corners(mut self, n: usize) -> Self {
         self.max_corners = n;
         self
     }
+    /// Sets [`sigma_d`](Self::sigma_d) and [`sigma_i`](Self::sigma_i) (pixels).
     pub fn with_sigmas(mut self, sigma_d: f32, sigma_i: f32) -> Self {
         self.sigma_d = sigma_d;
         self.sigma_i = sigma_i;
         self
     }
+    /// Sets [`k`](Self::k).
     pub fn with_k(mut self, k: f32) -> Self {
         self.k = k;
         self
     }
+    /// Sets [`relative_threshold`](Self::relative_threshold).
     pub fn with_relative_threshold(mut self, t: f32) -> Self {
         self.relative_threshold = t;
         self
     }
+    /// Sets [`grid_cell`](Self::grid_cell) (pixels; 0 disables the grid).
     pub fn with_grid_cell(mut self, cell: u32) -> Self {
         self.grid_cell = cell;
         self
     }
+    /// Turns sub-pixel [`refine`](Self::refine)ment on or off.
     pub fn with_refine(mut self, on: bool) -> Self {
         self.refine = on;
         self

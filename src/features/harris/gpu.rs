@@ -174,9 +174,15 @@ pub struct Detected {
 /// of the positions on (A's features first, then B's).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ExportPlace {
+    /// Offset added to each corner: the detection window's top-left
+    /// corner, in the matched image's pixels.
     pub origin: [f32; 2],
+    /// Corners outside `[x0, y0, x1, y1)` (matched image's pixels) are
+    /// left out; `None` keeps all.
     pub clip: Option<[f32; 4]>,
+    /// Subtracted from each corner's y: the first row of the band NCC reads.
     pub band_y0: f32,
+    /// First position slot written (A's features come first, then B's).
     pub first: usize,
 }
 
@@ -192,6 +198,8 @@ impl ExportPlace {
 }
 
 impl Harris {
+    /// A GPU Harris detector for `config` on `ctx`, with default options;
+    /// fails if `config` is invalid or a pipeline cannot be built.
     pub fn new(ctx: &GpuContext, config: HarrisConfig) -> Result<Self, FeatureError> {
         config.validate()?;
         let mut entries = vec![compute_entry(0, wgpu::BufferBindingType::Uniform)];
@@ -307,6 +315,7 @@ impl Harris {
         })
     }
 
+    /// The detector's parameters.
     pub fn config(&self) -> &HarrisConfig {
         &self.config
     }

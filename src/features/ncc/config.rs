@@ -7,8 +7,11 @@ use crate::features::gpu_data::NCC_TILE;
 /// the second, with their NCC score in [-1, 1].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Match {
+    /// Index of the feature in the first image's list.
     pub a: usize,
+    /// Index of the feature in the second image's list.
     pub b: usize,
+    /// NCC of the two windows, in [-1, 1].
     pub score: f32,
 }
 
@@ -51,19 +54,23 @@ impl Default for NccConfig {
 }
 
 impl NccConfig {
+    /// Sets [`window`](Self::window) (pixels, odd).
     pub fn with_window(mut self, w: u32) -> Self {
         self.window = w;
         self
     }
+    /// Sets [`min_score`](Self::min_score).
     pub fn with_min_score(mut self, s: f32) -> Self {
         self.min_score = s;
         self
     }
+    /// Sets [`search_radius`](Self::search_radius) (pixels; `None`: all pairs).
     pub fn with_search_radius(mut self, r: Option<f32>) -> Self {
         self.search_radius = r;
         self
     }
 
+    /// Checks every parameter; the error names the first bad one.
     pub fn validate(&self) -> Result<(), FeatureError> {
         let bad = |m: String| Err(FeatureError::Config(m));
         if self.window.is_multiple_of(2) || self.window > 63 {
