@@ -70,7 +70,11 @@
 //! pose); the *live view* ([`view`]) is the display that shows each
 //! tracked frame as it is tracked, in an OS window (`view::DisplaySink`);
 //! a *window* is the object's region of the image ([`splat::Window`]), the
-//! part of a frame the tracker works in.
+//! part of a frame the tracker works in; a *patch* is the square of pixels
+//! around a corner that NCC correlates ([`features::NccConfig::patch`]; the
+//! paper's correlation window, `--ncc-window` on the command line).
+
+#![warn(missing_docs)]
 
 pub mod app;
 pub mod draw;

@@ -126,7 +126,7 @@ fn ncc_with_pinholes_gpu_matches_cpu() {
             ..NccConfig::default().with_min_score(-1.0)
         },
         NccConfig::default()
-            .with_window(7)
+            .with_patch(7)
             .with_search_radius(Some(12.0)),
     ] {
         let mut m = NccMatcher::new(ctx(), cfg.clone()).unwrap();
@@ -159,7 +159,7 @@ fn ncc_with_pinholes_gpu_matches_cpu() {
             let cpu = ncc_match_cpu(&ha, &fa, &hb, &fb, &cfg).unwrap();
             let name = format!(
                 "min valid {}, window {}, tiled {tiled}",
-                cfg.min_valid, cfg.window
+                cfg.min_valid, cfg.patch
             );
             assert!(cpu.len() >= 10, "{name}: {} matches", cpu.len());
             assert_same_matches(&name, &gpu, &cpu);

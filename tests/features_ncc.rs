@@ -39,13 +39,13 @@ fn gpu_matches_equal_cpu_on_random_images_and_features() {
         NccConfig::default(),
         NccConfig::default().with_min_score(-1.0),
         NccConfig::default()
-            .with_window(7)
+            .with_patch(7)
             .with_search_radius(Some(12.0))
             .with_min_score(0.5),
-        NccConfig::default().with_window(11).with_min_score(0.3),
+        NccConfig::default().with_patch(11).with_min_score(0.3),
         // Wider than vectorize_group holds: a thread a window, tiled too.
         NccConfig::default()
-            .with_window(VECTORIZE_GROUP_WINDOW + 2)
+            .with_patch(VECTORIZE_GROUP_WINDOW + 2)
             .with_min_score(0.3),
     ];
     for (ci, cfg) in configs.iter().enumerate() {
@@ -259,7 +259,7 @@ fn degenerate_inputs_give_no_matches_and_no_panic() {
     }
     // Bad configurations and sizes are typed errors.
     for bad in [
-        NccConfig::default().with_window(8),
+        NccConfig::default().with_patch(8),
         NccConfig::default().with_min_score(1.5),
         NccConfig::default().with_search_radius(Some(f32::NAN)),
     ] {

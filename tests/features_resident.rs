@@ -50,7 +50,7 @@ fn host(
                     [ca.x, ca.y],
                     &bb,
                     [cb.x, cb.y],
-                    r.window,
+                    r.patch,
                     r.max_shift as i32,
                     r.min_score,
                 )
@@ -97,7 +97,7 @@ fn resident_matches_and_refinements_equal_the_host_path() {
     }
     let holed = (upload(&a), upload(&b));
     let refine = Refinement {
-        window: 11,
+        patch: 11,
         max_shift: 2,
         min_score: 0.5,
     };
@@ -117,11 +117,11 @@ fn resident_matches_and_refinements_equal_the_host_path() {
             5..60,
             5..60,
             Some(Refinement {
-                window: 7,
+                patch: 7,
                 max_shift: 3,
                 min_score: 0.0,
             }),
-            NccConfig::default().with_window(7).with_min_score(-1.0),
+            NccConfig::default().with_patch(7).with_min_score(-1.0),
             false,
         ),
         // More integer shifts than the workgroup's grid holds: each
@@ -130,7 +130,7 @@ fn resident_matches_and_refinements_equal_the_host_path() {
             0..80,
             0..80,
             Some(Refinement {
-                window: 9,
+                patch: 9,
                 max_shift: 5,
                 min_score: 0.3,
             }),
@@ -144,7 +144,7 @@ fn resident_matches_and_refinements_equal_the_host_path() {
             0..80,
             0..80,
             Some(Refinement {
-                window: 23,
+                patch: 23,
                 max_shift: 2,
                 min_score: 0.3,
             }),
@@ -256,7 +256,7 @@ fn the_gpu_refinement_recovers_a_known_subpixel_shift() {
             &pb,
             [0, 0],
             Some(Refinement {
-                window: 11,
+                patch: 11,
                 max_shift: 3,
                 min_score: 0.5,
             }),
@@ -295,7 +295,7 @@ fn bad_rows_and_refinements_are_errors() {
             .is_err()
     );
     let r = Refinement {
-        window: 65,
+        patch: 65,
         max_shift: 2,
         min_score: 0.5,
     };
@@ -553,7 +553,7 @@ fn corners_exported_on_the_gpu_match_as_the_hosts_corners_in_one_wait() {
         .with_search_radius(Some(6.0))
         .with_min_score(0.6);
     let refine = Some(Refinement {
-        window: 9,
+        patch: 9,
         max_shift: 2,
         min_score: 0.5,
     });

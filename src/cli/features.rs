@@ -107,7 +107,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         .with_max_corners(args.max)
         .with_relative_threshold(args.threshold);
     let ncfg = NccConfig {
-        window: args.window,
+        patch: args.window,
         min_score: args.min_score,
         search_radius: args.search_radius,
         ..NccConfig::default()

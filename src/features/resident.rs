@@ -448,16 +448,16 @@ fn window_params(frame: ResidentImage, at: [u32; 4], allowed: [u32; 4]) -> Windo
     }
 }
 
-/// The largest [`Refinement::window`] the GPU refines.
+/// The largest [`Refinement::patch`] the GPU refines.
 pub const MAX_REFINE_WINDOW: u32 = 63;
 
 /// The sub-pixel refinement of [`super::NccMatcher::match_resident`]: the
 /// arguments of [`super::refine_match`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Refinement {
-    /// Window side, pixels (an even side uses the odd one below, as
-    /// [`super::refine_match`] does).
-    pub window: u32,
+    /// Side of the correlation patch, pixels (an even side uses the odd
+    /// one below, as [`super::refine_match`] does).
+    pub patch: u32,
     /// The integer search, pixels each way.
     pub max_shift: u32,
     /// The least peak score.
@@ -466,10 +466,10 @@ pub struct Refinement {
 
 impl Refinement {
     pub(crate) fn validate(&self) -> Result<(), FeatureError> {
-        if self.window > MAX_REFINE_WINDOW || self.max_shift > 16 {
+        if self.patch > MAX_REFINE_WINDOW || self.max_shift > 16 {
             return Err(FeatureError::Config(format!(
-                "refinement window {} (at most 63) or shift {} (at most 16)",
-                self.window, self.max_shift
+                "refinement patch {} (at most 63) or shift {} (at most 16)",
+                self.patch, self.max_shift
             )));
         }
         Ok(())

@@ -177,11 +177,12 @@ pub struct TrackerConfig {
     pub fuse: bool,
     /// Weight of the IT matches relative to the KF matches when fusing.
     pub fuse_weight: f64,
-    /// Refine each KF match to the sub-pixel NCC peak (window of this many
-    /// pixels) rather than trusting the two detected corners; 0: off. The
-    /// novel view is blurrier than the frame, which biases independently
-    /// detected corners (see `features::refine`).
-    pub refine_window: u32,
+    /// Refine each KF match to the sub-pixel NCC peak (a correlation patch
+    /// of this many pixels a side) rather than trusting the two detected
+    /// corners; 0: off. The novel view is blurrier than the frame, which
+    /// biases independently detected corners (see `features::refine`).
+    #[serde(rename = "refine_window")]
+    pub refine_patch: u32,
     /// Splat radii are raised to at least this many pixels (at the initial
     /// pose's distance). Models sampled at about one point per pixel leave
     /// scattered empty pixels in the splatted views, and each one voids every
@@ -278,7 +279,7 @@ impl Default for TrackerConfig {
             max_residual_px: 3.0,
             fuse: false,
             fuse_weight: 0.5,
-            refine_window: 15,
+            refine_patch: 15,
             min_splat_radius_px: 1.0,
             close_gaps: true,
             max_it_only_frames: 5,
@@ -395,7 +396,7 @@ mod tests {
                 |c| c.min_splat_radius_px = f32::INFINITY,
                 "min_splat_radius_px = inf: must be >= 0",
             ),
-            (|c| c.ncc.window = 8, "window = 8"),
+            (|c| c.ncc.patch = 8, "patch = 8"),
             (
                 |c| c.roi_margin_px = -2.5,
                 "roi_margin_px = -2.5: must be >= 0",

@@ -133,7 +133,7 @@ impl Tracker {
         // Resident (the default): the view stays on the GPU for NCC and
         // the refinement; else its grey levels come back for host crops.
         let resident =
-            self.resident.frames().0.is_some() && self.config.refine_window <= MAX_REFINE_WINDOW;
+            self.resident.frames().0.is_some() && self.config.refine_patch <= MAX_REFINE_WINDOW;
         // Chained (resident, by default): the detection, the matching and
         // the gather go to the GPU together, and one wait brings them.
         let chained = if resident && self.resident.chain_kf && !self.harris.host() {
@@ -273,8 +273,8 @@ impl Tracker {
             Some(b) if w > 0 && h > 0 && !b.b_in.is_empty() => b,
             _ => return Ok(None),
         };
-        let refine = (self.config.refine_window > 0).then_some(Refinement {
-            window: self.config.refine_window,
+        let refine = (self.config.refine_patch > 0).then_some(Refinement {
+            patch: self.config.refine_patch,
             max_shift: REFINE_SHIFT as u32,
             min_score: self.config.ncc.min_score * 0.8,
         });
@@ -363,8 +363,8 @@ impl Tracker {
         search: Search,
         margin: Option<f64>,
     ) -> Result<Vec<Found>, StepError> {
-        let refine = (self.config.refine_window > 0).then_some(Refinement {
-            window: self.config.refine_window,
+        let refine = (self.config.refine_patch > 0).then_some(Refinement {
+            patch: self.config.refine_patch,
             max_shift: REFINE_SHIFT as u32,
             min_score: self.config.ncc.min_score * 0.8,
         });
@@ -440,7 +440,7 @@ impl Tracker {
         live: &GreyImage,
         b: &Corner,
     ) -> Option<Vector2<f64>> {
-        if self.config.refine_window == 0 {
+        if self.config.refine_patch == 0 {
             return Some(Vector2::new(b.x as f64, b.y as f64));
         }
         let (p, _) = refine_match(
@@ -448,7 +448,7 @@ impl Tracker {
             [a.x, a.y],
             live,
             [b.x, b.y],
-            self.config.refine_window,
+            self.config.refine_patch,
             REFINE_SHIFT,
             self.config.ncc.min_score * 0.8,
         )?;

@@ -75,7 +75,7 @@ impl Tracker {
     /// crops, windows off).
     pub(super) fn match_margin(&self, r: f32) -> Option<f64> {
         self.config.windows.then_some(
-            (r + self.config.ncc.window as f32 + self.config.refine_window as f32 + 4.0) as f64,
+            (r + self.config.ncc.patch as f32 + self.config.refine_patch as f32 + 4.0) as f64,
         )
     }
 

@@ -221,7 +221,7 @@ impl Tuning {
         set(&mut c.harris.relative_threshold, self.harris_threshold);
         set(&mut c.harris.max_corners, self.max_corners);
         set(&mut c.ncc.min_score, self.min_score);
-        set(&mut c.ncc.window, self.ncc_window);
+        set(&mut c.ncc.patch, self.ncc_window);
         set(&mut c.it_search_px, self.it_search);
         set(&mut c.kf_search_px, self.kf_search);
         set(&mut c.recover_search_px, self.recover_search);

@@ -18,8 +18,10 @@ pub struct Match {
 /// NCC matching parameters.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct NccConfig {
-    /// Window side in pixels, odd (the paper: 9).
-    pub window: u32,
+    /// Side of the correlation patch in pixels, odd (the paper's 9x9
+    /// window; `--ncc-window` on the command line).
+    #[serde(rename = "window")]
+    pub patch: u32,
     /// Keep mutual best matches scoring at least this. Default 0.8.
     pub min_score: f32,
     /// Only pairs at most this far apart (pixels) may match; `None`: all
@@ -44,7 +46,7 @@ fn default_min_valid() -> f32 {
 impl Default for NccConfig {
     fn default() -> Self {
         Self {
-            window: 9,
+            patch: 9,
             min_score: 0.8,
             search_radius: None,
             min_std: 0.005,
@@ -55,8 +57,8 @@ impl Default for NccConfig {
 
 impl NccConfig {
     /// Sets [`window`](Self::window) (pixels, odd).
-    pub fn with_window(mut self, w: u32) -> Self {
-        self.window = w;
+    pub fn with_patch(mut self, w: u32) -> Self {
+        self.patch = w;
         self
     }
     /// Sets [`min_score`](Self::min_score).
@@ -73,11 +75,8 @@ impl NccConfig {
     /// Checks every parameter; the error names the first bad one.
     pub fn validate(&self) -> Result<(), FeatureError> {
         let bad = |m: String| Err(FeatureError::Config(m));
-        if self.window.is_multiple_of(2) || self.window > 63 {
-            return bad(format!(
-                "window = {} is not odd and at most 63",
-                self.window
-            ));
+        if self.patch.is_multiple_of(2) || self.patch > 63 {
+            return bad(format!("patch = {} is not odd and at most 63", self.patch));
         }
         if !(-1.0..=1.0).contains(&self.min_score) {
             return bad(format!("min_score = {} is not in [-1, 1]", self.min_score));
@@ -96,6 +95,6 @@ impl NccConfig {
 
     /// Descriptor row stride: w² padded with zeros to the score tile.
     pub(crate) fn stride(&self) -> u32 {
-        (self.window * self.window).next_multiple_of(NCC_TILE)
+        (self.patch * self.patch).next_multiple_of(NCC_TILE)
     }
 }

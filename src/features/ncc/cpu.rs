@@ -54,7 +54,7 @@ fn vectorize(
     cfg: &NccConfig,
     stride: usize,
 ) -> Option<Window> {
-    let win = cfg.window;
+    let win = cfg.patch;
     let half = (win / 2) as f32;
     let d = (win * win) as usize;
     let mut raw = vec![None; d];
@@ -152,7 +152,7 @@ pub fn ncc_match_cpu(
     // Windows with holes keep their raw samples; full windows that meet
     // one are re-sampled raw (the shader keeps every window's raw samples).
     let raw_full = |img: &GreyImage, p: [f32; 2]| -> Vec<Option<f32>> {
-        let win = cfg.window;
+        let win = cfg.patch;
         let half = (win / 2) as f32;
         (0..win * win)
             .map(|k| {

@@ -92,10 +92,10 @@ impl NccMatcher {
             ];
             self.bind = Some(ctx.bind_buffers("ncc", &self.layout, &bufs)?);
         }
-        self.refine_wide = refine.is_some_and(|r| 2 * (r.window / 2) + 1 > REFINE_LOCAL_WINDOW);
+        self.refine_wide = refine.is_some_and(|r| 2 * (r.patch / 2) + 1 > REFINE_LOCAL_WINDOW);
         let c = &self.config;
         let r = refine.unwrap_or(Refinement {
-            window: 1,
+            patch: 1,
             max_shift: 0,
             min_score: 0.0,
         });
@@ -103,7 +103,7 @@ impl NccMatcher {
             na: na as u32,
             nb: nb as u32,
             stride: stride as u32,
-            window: c.window,
+            window: c.patch,
             wa: wa as u32,
             ha: ha as u32,
             wb: wb as u32,
@@ -114,7 +114,7 @@ impl NccMatcher {
             min_valid: c.min_valid,
             min_score: c.min_score,
             refine_on: refine.is_some() as u32,
-            refine_half: r.window / 2,
+            refine_half: r.patch / 2,
             max_shift: r.max_shift,
             refine_min: r.min_score,
             shift_bx: shift_b[0] as f32,
@@ -143,7 +143,7 @@ impl NccMatcher {
         for ((pipeline, label), (gx, gy)) in self.passes.iter().zip(PASSES).zip(groups) {
             let pass = passes.stage(label, self.timer.as_mut());
             pass.set_bind_group(0, bind, &[]);
-            if label == "vectorize" && self.tiled && self.config.window <= VECTORIZE_GROUP_WINDOW {
+            if label == "vectorize" && self.tiled && self.config.patch <= VECTORIZE_GROUP_WINDOW {
                 pass.set_pipeline(&self.vectorize_group);
                 // A workgroup a window (they stride over any beyond).
                 pass.dispatch_workgroups(((na + nb) as u32).clamp(1, 65535), 1, 1);
