@@ -56,7 +56,7 @@ impl Default for NccConfig {
 }
 
 impl NccConfig {
-    /// Sets [`window`](Self::window) (pixels, odd).
+    /// Sets [`patch`](Self::patch) (pixels, odd).
     pub fn with_patch(mut self, w: u32) -> Self {
         self.patch = w;
         self
