@@ -141,6 +141,12 @@ class Crate:
                 if rel == root:
                     parts = []
                 self.files[tuple(parts)] = rel
+        # `#[path = "..."] mod name;` puts a file elsewhere at that module.
+        for mod, rel in list(self.files.items()):
+            text = open(os.path.join(src, rel), encoding="utf-8").read()
+            for m in re.finditer(r'#\[path\s*=\s*"([^"]+)"\]\s*(?:#\[[^\]]*\]\s*)*(?:pub(?:\([^)]*\))?\s+)?mod\s+(\w+)\s*;', text):
+                target = os.path.normpath(os.path.join(os.path.dirname(rel), m.group(1)))
+                self.files[mod + (m.group(2),)] = target
         for mod, rel in self.files.items():
             text = open(os.path.join(src, rel), encoding="utf-8").read()
             code = strip(text)

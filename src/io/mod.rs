@@ -15,7 +15,9 @@ pub mod npy;
 pub mod poses;
 pub mod sequence;
 pub mod source;
+// The real data for the readers' unit tests, as the integration tests find it.
 #[cfg(test)]
+#[path = "../../tests/data_common/mod.rs"]
 mod testing;
 pub mod video;
 

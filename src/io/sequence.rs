@@ -309,7 +309,7 @@ mod tests {
 
     #[test]
     fn shared_sequences_open() {
-        let Some(root) = crate::io::testing::test_data("") else {
+        let Some(root) = crate::io::testing::real_data("") else {
             return;
         };
         for name in ["visp_rbt_cube", "visp_rbt_dragon"] {

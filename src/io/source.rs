@@ -272,7 +272,7 @@ mod tests {
     /// turn, after the frames before it, and again when asked again.
     #[test]
     fn frames_read_ahead_are_the_sequences_in_order_with_errors_in_their_turn() {
-        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::real_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();
@@ -311,7 +311,7 @@ mod tests {
 
     #[test]
     fn sequence_frames_start_where_asked() {
-        let Some(root) = crate::io::testing::test_data("visp_rbt_cube") else {
+        let Some(root) = crate::io::testing::real_data("visp_rbt_cube") else {
             return;
         };
         let seq = Sequence::open(&root).unwrap();
