@@ -264,6 +264,7 @@ impl Tracker {
             check: GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
             outline: GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: Resident::new(resident),
+            detector: None,
         };
         tracker.check.set_resident(resident);
         tracker.outline.set_resident(resident);
@@ -299,6 +300,10 @@ impl Tracker {
             return Err(TrackError::NeedsKeyframes("search (no initial pose)"));
         }
         t.searching = true;
+        // The keyframes' features now, so the first search is a search.
+        if t.config.init.detect.enabled {
+            t.ensure_detector()?;
+        }
         Ok(t)
     }
 

@@ -73,6 +73,8 @@ pub struct InitConfig {
     /// After this many lost frames in a row, and every as many after,
     /// search the whole frame again (0: never).
     pub redetect_after_lost: usize,
+    /// The detection by features tried before the templates.
+    pub detect: super::detect::DetectConfig,
 }
 
 impl Default for InitConfig {
@@ -85,6 +87,7 @@ impl Default for InitConfig {
             candidates: 6,
             refine_steps: 3,
             redetect_after_lost: 5,
+            detect: super::detect::DetectConfig::default(),
         }
     }
 }

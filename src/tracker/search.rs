@@ -71,8 +71,19 @@ impl Tracker {
     /// found, checked against the image, or `None`.
     pub fn find(&mut self, frame: &image::RgbImage) -> Result<Option<Pose>, TrackError> {
         let mut grey_frame = Frame::new(frame.clone());
-        grey_frame.corners = self.harris.detect(grey_frame.grey(), None)?;
-        let found = self.find_in(&grey_frame, frame);
+        // Features first; the templates where they found nothing, on a
+        // textured object only now and then (they cost seconds).
+        let cfg = self.config.init.detect.clone();
+        let mut templates = true;
+        let mut found = Ok(None);
+        if cfg.enabled && self.store.is_some() {
+            found = self.detect_in(&mut grey_frame);
+            templates = self.detector.as_ref().is_none_or(|d| d.templates_now(&cfg));
+        }
+        if matches!(found, Ok(None)) && templates {
+            grey_frame.corners = self.harris.detect(grey_frame.grey(), None)?;
+            found = self.find_in(&grey_frame, frame);
+        }
         if self.config.modalities.contour {
             // The candidates' colours are not the object's: the first
             // tracked frame learns them afresh at its pose.

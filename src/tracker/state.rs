@@ -149,6 +149,8 @@ pub struct Tracker {
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
+    /// The search's detection by features, made at its first use.
+    pub(super) detector: Option<super::detect::Detector>,
 }
 
 impl Tracker {

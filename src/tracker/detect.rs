@@ -1,0 +1,453 @@
+//! Detection by features: the first path of the search for the object
+//! in a whole frame ([`super::search`]), for textured objects.
+//!
+//! 1. Once per tracker (at the first search): each keyframe's textured
+//!    view is splatted at its own pose; its Harris corners (never on
+//!    empty pixels, so on the object) are lifted to model points by the
+//!    splatted depth, as the KF step lifts its matches, and described
+//!    ([`features`]: patches turned to their dominant gradient
+//!    orientation, zero-mean and unit-norm) at several scales.
+//! 2. Per search: up to [`DetectConfig::frame_corners`] Harris corners
+//!    of the whole frame, described at one scale, matched to each
+//!    keyframe's ([`matching`]: mutual best, a lowest NCC, the ratio
+//!    test).
+//! 3. Per keyframe with enough matches: a pose by PnP in RANSAC
+//!    ([`crate::pose::solve_pnp_ransac`]), kept when it has
+//!    [`DetectConfig::min_inliers`] inliers spread over
+//!    [`DetectConfig::min_spread`] of the object's projected size.
+//! 4. The best [`DetectConfig::candidates`] poses (by inliers) are refined
+//!    by the KF step and judged by the check, as every candidate of the
+//!    search is; the first to pass is the answer.
+
+mod features;
+mod matching;
+#[cfg(test)]
+mod tests;
+
+use super::error::TrackError;
+use super::profile::Texture;
+use super::result::StepError;
+use super::state::{Frame, Tracker};
+use crate::features::{Harris, HarrisConfig};
+use crate::geometry::Pose;
+use crate::pose::{PnpRansacOptions, solve_pnp_ransac};
+use crate::splat::{Attribute, Attributes, GatherMode, Window};
+use features::{DescribeConfig, Descriptor, describe_all, smoothed};
+use matching::{MatchConfig, match_descriptors};
+use nalgebra::{Vector2, Vector3};
+use std::time::Instant;
+
+/// KF steps refining a candidate pose.
+const DETECT_REFINE_STEPS: usize = 2;
+
+/// Settings of the detection by features.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct DetectConfig {
+    /// Whether the search tries features first.
+    pub enabled: bool,
+    /// Most Harris corners of the whole frame.
+    pub frame_corners: usize,
+    /// Most corners per keyframe.
+    pub keyframe_corners: usize,
+    /// The Harris threshold of the detection's corners, relative to the
+    /// image's strongest response (lower than the tracker's: a keyframe's
+    /// splatted view is smoother than a camera frame, and clutter's
+    /// corners are stronger than the object's).
+    pub harris_threshold: f32,
+    /// Scales each keyframe corner is described at (a scale `s` matches
+    /// the object seen `1 / s` times as large as in the keyframe).
+    pub scales: Vec<f32>,
+    /// Descriptors turned to the dominant gradient orientation (tolerate
+    /// in-plane rotation); else upright patches.
+    pub oriented: bool,
+    /// Lowest NCC of a match.
+    pub min_score: f32,
+    /// Ratio test: largest ratio of the best to the second best
+    /// descriptor distance.
+    pub ratio: f32,
+    /// RANSAC inlier threshold, pixels.
+    pub inlier_px: f64,
+    /// Fewest PnP inliers of a candidate.
+    pub min_inliers: usize,
+    /// Smallest extent of the inliers (the larger side of their bounding
+    /// box) as a fraction of the object's projected diameter.
+    pub min_spread: f64,
+    /// Candidate poses (one per keyframe, most inliers first) refined and
+    /// checked.
+    pub candidates: usize,
+    /// With fewer described corners than this in every keyframe (an
+    /// object without texture), the template search runs whenever the
+    /// features find nothing.
+    pub min_keyframe_features: usize,
+    /// On a textured object, the template search (seconds at 640x480 on
+    /// lavapipe) runs after the first search the features fail, then
+    /// after every this many failed ones (0: never), so that a lost
+    /// object's searches do not stall the track.
+    pub templates_every: usize,
+}
+
+impl Default for DetectConfig {
+    fn default() -> Self {
+        Self {
+            enabled: true,
+            frame_corners: 1500,
+            keyframe_corners: 600,
+            harris_threshold: 0.0005,
+            scales: vec![0.7, 1.0, 1.4],
+            oriented: true,
+            min_score: 0.6,
+            ratio: 0.85,
+            inlier_px: 4.0,
+            min_inliers: 10,
+            min_spread: 0.25,
+            candidates: 3,
+            min_keyframe_features: 40,
+            templates_every: 4,
+        }
+    }
+}
+
+/// One keyframe's corners as model points, and their descriptors (one per
+/// scale where the patch allows; `owners[i]` is the point described by
+/// `descriptors[i]`, one point's adjacent).
+#[derive(Debug, Clone, Default)]
+pub(super) struct KeyframeFeatures {
+    pub(super) points: Vec<Vector3<f64>>,
+    /// Where each point's corner is in the keyframe's view, pixels.
+    pub(super) pixels: Vec<[f32; 2]>,
+    pub(super) descriptors: Vec<Descriptor>,
+    pub(super) owners: Vec<usize>,
+}
+
+/// What the detection keeps between searches: its Harris (more corners
+/// than the tracker's) and the keyframes' features.
+pub(super) struct Detector {
+    harris: Harris,
+    pub(super) keyframes: Vec<KeyframeFeatures>,
+    /// Searches in a row the features failed.
+    misses: usize,
+}
+
+impl Detector {
+    /// Whether some keyframe has features enough to detect by.
+    pub(super) fn textured(&self, cfg: &DetectConfig) -> bool {
+        self.keyframes
+            .iter()
+            .any(|k| k.points.len() >= cfg.min_keyframe_features.max(1))
+    }
+
+    /// Whether the template search should follow the features' failure
+    /// now ([`DetectConfig::templates_every`]).
+    pub(super) fn templates_now(&self, cfg: &DetectConfig) -> bool {
+        !self.textured(cfg)
+            || (cfg.templates_every > 0
+                && self.misses > 0
+                && (self.misses - 1).is_multiple_of(cfg.templates_every))
+    }
+}
+
+/// A candidate pose from one keyframe's matches.
+#[derive(Debug, Clone)]
+struct Candidate {
+    keyframe: usize,
+    pose: Pose,
+    inliers: usize,
+    spread: f64,
+}
+
+impl Tracker {
+    /// Makes the detector (its keyframe features) where not yet made.
+    pub(super) fn ensure_detector(&mut self) -> Result<(), TrackError> {
+        if self.detector.is_none() {
+            let t = Instant::now();
+            let d = self.make_detector()?;
+            log::debug!(
+                "detector: keyframe features {:?} in {:.0} ms",
+                d.keyframes
+                    .iter()
+                    .map(|k| k.points.len())
+                    .collect::<Vec<_>>(),
+                t.elapsed().as_secs_f64() * 1e3
+            );
+            self.detector = Some(d);
+        }
+        Ok(())
+    }
+
+    fn make_detector(&mut self) -> Result<Detector, TrackError> {
+        let cfg = self.config.init.detect.clone();
+        let hc = HarrisConfig {
+            max_corners: cfg.frame_corners.max(cfg.keyframe_corners).max(1),
+            relative_threshold: cfg.harris_threshold,
+            ..self.config.harris.clone()
+        };
+        let mut harris = Harris::new(&self.ctx, hc)?;
+        if self.harris.host() {
+            harris.set_options(self.harris.options());
+        }
+        let poses: Vec<Pose> = self
+            .store
+            .as_ref()
+            .map(|s| s.keyframes.iter().map(|k| k.pose).collect())
+            .unwrap_or_default();
+        let mut keyframes = Vec::with_capacity(poses.len());
+        for (k, pose) in poses.iter().enumerate() {
+            keyframes.push(self.keyframe_features(&mut harris, k, pose, &cfg)?);
+        }
+        Ok(Detector {
+            harris,
+            keyframes,
+            misses: 0,
+        })
+    }
+
+    /// Keyframe `k`'s features: its view at its own pose (the tracker's
+    /// camera, whole image), corners on it, lifted by the splatted depth.
+    fn keyframe_features(
+        &mut self,
+        harris: &mut Harris,
+        k: usize,
+        pose: &Pose,
+        cfg: &DetectConfig,
+    ) -> Result<KeyframeFeatures, TrackError> {
+        let full = Window::full(&self.cam);
+        let cam = self.use_window(full);
+        self.splat(
+            Texture::Keyframe(k),
+            &cam,
+            pose,
+            Attributes::MOTION,
+            "detect",
+        )?;
+        let c = self
+            .splatter
+            .read(&self.ctx, &self.targets, Attribute::Color)?;
+        let grey =
+            crate::features::GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)
+                .map_err(TrackError::from)?;
+        let mut corners = harris.detect(&grey, None)?;
+        corners.truncate(cfg.keyframe_corners);
+        // The depth at each corner and a little around it: a corner on a
+        // depth step (a fold, the outline) has no single model point. On
+        // a surface the depth varies about linearly across the corner.
+        const D: f32 = 1.5;
+        let offsets = [[0.0, 0.0], [D, 0.0], [-D, 0.0], [0.0, D], [0.0, -D]];
+        let pts: Vec<[f32; 2]> = corners
+            .iter()
+            .flat_map(|c| offsets.map(|o| [c.x + o[0], c.y + o[1]]))
+            .collect();
+        let samples = self
+            .splatter
+            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        let step = 0.02 * self.radius;
+        let inv = pose.inverse();
+        let mut kept = Vec::new();
+        let mut points = Vec::new();
+        for (c, s) in corners.iter().zip(samples.chunks_exact(offsets.len())) {
+            let d: Vec<f64> = s.iter().map(|x| x.depth as f64).collect();
+            let valid = s.iter().all(|x| x.valid && x.depth.is_finite());
+            let bend = (d[1] + d[2] - 2.0 * d[0])
+                .abs()
+                .max((d[3] + d[4] - 2.0 * d[0]).abs());
+            let d0 = d[0];
+            if valid && bend < step && d0 > 0.0 {
+                let from = Vector2::new(c.x as f64, c.y as f64);
+                points.push(inv.transform_point(&self.cam.unproject(&from, d0)));
+                kept.push([c.x, c.y]);
+            }
+        }
+        log::debug!(
+            "detect: keyframe {k}: {} corners, {} on one surface",
+            corners.len(),
+            kept.len()
+        );
+        let dcfg = self.describe_config();
+        let mut per_scale = Vec::new();
+        for &s in &cfg.scales {
+            let img = smoothed(&grey, dcfg.sigma_px * s);
+            let mut d: Vec<Option<Descriptor>> = vec![None; kept.len()];
+            for (i, x) in describe_all(&img, &kept, s, &dcfg) {
+                d[i] = Some(x);
+            }
+            per_scale.push(d);
+        }
+        let mut out = KeyframeFeatures::default();
+        for (i, p) in points.into_iter().enumerate() {
+            let ds: Vec<Descriptor> = per_scale.iter().filter_map(|d| d[i]).collect();
+            if ds.is_empty() {
+                continue;
+            }
+            let owner = out.points.len();
+            out.points.push(p);
+            out.pixels.push(kept[i]);
+            for d in ds {
+                out.descriptors.push(d);
+                out.owners.push(owner);
+            }
+        }
+        Ok(out)
+    }
+
+    fn describe_config(&self) -> DescribeConfig {
+        DescribeConfig {
+            oriented: self.config.init.detect.oriented,
+            ..DescribeConfig::default()
+        }
+    }
+
+    /// The feature path of the search: the pose found and checked, or
+    /// `None`. `frame.corners` become the detector's corners of the whole
+    /// frame (the refinement matches against them too).
+    pub(super) fn detect_in(&mut self, frame: &mut Frame) -> Result<Option<Pose>, TrackError> {
+        let cfg = self.config.init.detect.clone();
+        let t0 = Instant::now();
+        self.ensure_detector()?;
+        let Some(mut det) = self.detector.take() else {
+            return Ok(None);
+        };
+        let found = match det.harris.detect(frame.grey(), None) {
+            Ok(c) => {
+                log::debug!(
+                    "detect: {} frame corners in {:.0} ms",
+                    c.len(),
+                    t0.elapsed().as_secs_f64() * 1e3
+                );
+                frame.corners = c;
+                self.candidates(&det, frame, &cfg)
+            }
+            Err(e) => Err(e.into()),
+        };
+        self.detector = Some(det);
+        let candidates = found?;
+        let t_match = t0.elapsed();
+        let mut result = None;
+        for c in candidates.iter().take(cfg.candidates) {
+            let Some(refined) = self.refine_detected(frame, c.pose)? else {
+                log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
+                continue;
+            };
+            let s = self.verify_scores(frame, &refined)?;
+            let judged = super::verify::judge(&s, &self.config.verify);
+            log::debug!(
+                "detect: keyframe {} candidate ({} inliers, spread {:.2}): {s:?} {judged:?}",
+                c.keyframe,
+                c.inliers,
+                c.spread
+            );
+            if judged.is_ok() {
+                result = Some(refined);
+                break;
+            }
+        }
+        if let Some(d) = self.detector.as_mut() {
+            d.misses = if result.is_some() { 0 } else { d.misses + 1 };
+        }
+        log::debug!(
+            "detect: {} candidates; matching {:.0} ms, total {:.0} ms",
+            candidates.len(),
+            t_match.as_secs_f64() * 1e3,
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        Ok(result)
+    }
+
+    /// KF steps from a candidate's pose (close already: the short search
+    /// of a tracked frame), [`DETECT_REFINE_STEPS`] of them: the refined
+    /// pose, or `None` when a step fails.
+    fn refine_detected(&mut self, frame: &Frame, start: Pose) -> Result<Option<Pose>, TrackError> {
+        let mut pose = start;
+        for _ in 0..DETECT_REFINE_STEPS {
+            if self.roi(&pose).is_none() {
+                return Ok(None);
+            }
+            match self.kf_step(frame, &pose, super::kf::Search::Refine, &[]) {
+                Ok((step, _)) => pose = step.pose,
+                Err(StepError::Gpu(e)) => return Err(TrackError::Search(e)),
+                Err(_) => return Ok(None),
+            }
+        }
+        Ok(Some(pose))
+    }
+
+    /// The candidate poses of the frame's corners against each keyframe,
+    /// most inliers first.
+    fn candidates(
+        &self,
+        det: &Detector,
+        frame: &Frame,
+        cfg: &DetectConfig,
+    ) -> Result<Vec<Candidate>, TrackError> {
+        let dcfg = self.describe_config();
+        let img = smoothed(frame.grey(), dcfg.sigma_px);
+        let pts: Vec<[f32; 2]> = frame.corners.iter().map(|c| [c.x, c.y]).collect();
+        let described = describe_all(&img, &pts, 1.0, &dcfg);
+        let descs: Vec<Descriptor> = described.iter().map(|d| d.1).collect();
+        let t = Instant::now();
+        let mcfg = MatchConfig {
+            min_score: cfg.min_score,
+            ratio: cfg.ratio,
+        };
+        let opts = PnpRansacOptions {
+            threshold_px: cfg.inlier_px,
+            min_inliers: cfg.min_inliers.max(4),
+            ..PnpRansacOptions::default()
+        };
+        let mut out = Vec::new();
+        for (k, kf) in det.keyframes.iter().enumerate() {
+            let m = match_descriptors(&descs, &kf.descriptors, &kf.owners, kf.points.len(), &mcfg);
+            if m.len() < cfg.min_inliers.max(4) {
+                log::debug!("detect: keyframe {k}: {} matches", m.len());
+                continue;
+            }
+            let points: Vec<Vector3<f64>> = m.iter().map(|x| kf.points[x.corner]).collect();
+            let pixels: Vec<Vector2<f64>> = m
+                .iter()
+                .map(|x| {
+                    let p = pts[described[x.frame].0];
+                    Vector2::new(p[0] as f64, p[1] as f64)
+                })
+                .collect();
+            let Ok(sol) = solve_pnp_ransac(&points, &pixels, &self.cam, &opts) else {
+                log::debug!("detect: keyframe {k}: {} matches, no pose", m.len());
+                continue;
+            };
+            let spread = spread(&sol.inliers.iter().map(|&i| pixels[i]).collect::<Vec<_>>())
+                / (2.0 * self.radius_px(&sol.pose)).max(1.0);
+            log::debug!(
+                "detect: keyframe {k}: {} matches, {} inliers ({:.2} px), spread {spread:.2}, \
+                 {:.0} ms since described",
+                m.len(),
+                sol.inliers.len(),
+                sol.rms_px,
+                t.elapsed().as_secs_f64() * 1e3
+            );
+            if sol.inliers.len() >= cfg.min_inliers
+                && spread >= cfg.min_spread
+                && self.roi(&sol.pose).is_some()
+            {
+                out.push(Candidate {
+                    keyframe: k,
+                    pose: sol.pose,
+                    inliers: sol.inliers.len(),
+                    spread,
+                });
+            }
+        }
+        out.sort_by(|a, b| b.inliers.cmp(&a.inliers));
+        Ok(out)
+    }
+}
+
+/// The larger side of the bounding box of `pixels`.
+fn spread(pixels: &[Vector2<f64>]) -> f64 {
+    if pixels.is_empty() {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (pixels[0], pixels[0]);
+    for p in pixels {
+        lo = lo.inf(p);
+        hi = hi.sup(p);
+    }
+    (hi - lo).max()
+}
