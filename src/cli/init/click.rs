@@ -4,9 +4,10 @@
 //! [`splattrack::view::clicks`]'s (pure, unit-tested); this file only pumps
 //! the window.
 
-use super::solve::{Fit, ModelView, fit, pairs_from_clicks};
+use super::solve::{Fit, ModelView, fit};
 use anyhow::{Context, bail};
 use image::{RgbImage, RgbaImage};
+use nalgebra::Vector2;
 use splattrack::geometry::Intrinsics;
 use splattrack::io::correspondences::{NamedPoint, PointPair};
 use splattrack::view::DisplaySink;
@@ -112,4 +113,16 @@ fn session_frame(session: &ClickSession, frame: &RgbImage) -> RgbImage {
         splattrack::view::clicks::mark(&mut shown, p, [240, 40, 40], "");
     }
     shown
+}
+
+/// The clicked points as correspondences, for [`fit`].
+fn pairs_from_clicks(named: &[NamedPoint], clicked: &[(usize, Vector2<f64>)]) -> Vec<PointPair> {
+    clicked
+        .iter()
+        .map(|&(i, pixel)| PointPair {
+            name: named[i].name.clone(),
+            point: named[i].point,
+            pixel,
+        })
+        .collect()
 }

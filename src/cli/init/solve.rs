@@ -3,10 +3,9 @@
 
 use anyhow::{Context, bail};
 use image::RgbImage;
-use nalgebra::Vector2;
 use splattrack::draw;
 use splattrack::geometry::{Intrinsics, Undistorter};
-use splattrack::io::correspondences::{NamedPoint, PointPair};
+use splattrack::io::correspondences::PointPair;
 use splattrack::pose::{
     PnpRansacOptions, PnpSolution, reprojection_errors, solve_pnp, solve_pnp_ransac,
 };
@@ -126,6 +125,7 @@ impl<'a> ModelView<'a> {
     }
 
     /// The context, for the click window.
+    #[cfg(feature = "view")]
     pub fn context(&self) -> Option<&GpuContext> {
         self.gpu.as_ref().map(|g| &g.0)
     }
@@ -199,19 +199,4 @@ impl<'a> ModelView<'a> {
         draw::label(&mut img, 6, 6, &text, draw::WHITE, draw::BLACK, 1);
         Ok(img)
     }
-}
-
-/// Pixels of clicked points, for [`fit`].
-pub fn pairs_from_clicks(
-    named: &[NamedPoint],
-    clicked: &[(usize, Vector2<f64>)],
-) -> Vec<PointPair> {
-    clicked
-        .iter()
-        .map(|&(i, pixel)| PointPair {
-            name: named[i].name.clone(),
-            point: named[i].point,
-            pixel,
-        })
-        .collect()
 }
