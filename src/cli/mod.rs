@@ -7,6 +7,7 @@ mod demo;
 mod eval;
 mod features;
 mod info;
+mod init;
 mod keyframes;
 mod progress;
 mod render;
@@ -48,6 +49,9 @@ pub enum Command {
     Render(render::Args),
     /// Harris corners of one image, or mutual NCC matches between two.
     Features(features::Args),
+    /// The pose of one frame from at least 4 known model points, given in a
+    /// CSV or clicked in a window; writes init.csv and an overlay.
+    Init(init::Args),
     /// Build a keyframe store (per-point colours from keyframe images) once
     /// per object.
     Keyframes(keyframes::Args),
@@ -65,6 +69,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(a) => info::run(a, &cli.adapter),
         Command::Render(a) => render::run(a, &cli.adapter),
         Command::Features(a) => features::run(a, &cli.adapter),
+        Command::Init(a) => init::run(a, &cli.adapter),
         Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
         Command::Track(a) => track::run(*a, &cli.adapter),
         Command::Eval(a) => eval::run(a),
