@@ -19,6 +19,8 @@
 //!    by the KF step and judged by the check, as every candidate of the
 //!    search is; the first to pass is the answer.
 
+pub mod cache;
+pub mod config;
 mod features;
 mod matching;
 #[cfg(test)]
@@ -32,6 +34,8 @@ use crate::features::{Harris, HarrisConfig};
 use crate::geometry::Pose;
 use crate::pose::{PnpRansacOptions, solve_pnp_ransac};
 use crate::splat::{Attribute, Attributes, GatherMode, Window};
+use cache::{Detector, KeyframeFeatures};
+pub use config::DetectConfig;
 use features::{DescribeConfig, Descriptor, describe_all, smoothed};
 use matching::{MatchConfig, match_descriptors};
 use nalgebra::{Vector2, Vector3};
@@ -39,113 +43,6 @@ use std::time::Instant;
 
 /// KF steps refining a candidate pose.
 const DETECT_REFINE_STEPS: usize = 2;
-
-/// Settings of the detection by features.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default)]
-pub struct DetectConfig {
-    /// Whether the search tries features first.
-    pub enabled: bool,
-    /// Most Harris corners of the whole frame.
-    pub frame_corners: usize,
-    /// Most corners per keyframe.
-    pub keyframe_corners: usize,
-    /// The Harris threshold of the detection's corners, relative to the
-    /// image's strongest response (lower than the tracker's: a keyframe's
-    /// splatted view is smoother than a camera frame, and clutter's
-    /// corners are stronger than the object's).
-    pub harris_threshold: f32,
-    /// Scales each keyframe corner is described at (a scale `s` matches
-    /// the object seen `1 / s` times as large as in the keyframe).
-    pub scales: Vec<f32>,
-    /// Descriptors turned to the dominant gradient orientation (tolerate
-    /// in-plane rotation); else upright patches.
-    pub oriented: bool,
-    /// Lowest NCC of a match.
-    pub min_score: f32,
-    /// Ratio test: largest ratio of the best to the second best
-    /// descriptor distance.
-    pub ratio: f32,
-    /// RANSAC inlier threshold, pixels.
-    pub inlier_px: f64,
-    /// Fewest PnP inliers of a candidate.
-    pub min_inliers: usize,
-    /// Smallest extent of the inliers (the larger side of their bounding
-    /// box) as a fraction of the object's projected diameter.
-    pub min_spread: f64,
-    /// Candidate poses (one per keyframe, most inliers first) refined and
-    /// checked.
-    pub candidates: usize,
-    /// With fewer described corners than this in every keyframe (an
-    /// object without texture), the template search runs whenever the
-    /// features find nothing.
-    pub min_keyframe_features: usize,
-    /// On a textured object, the template search (seconds at 640x480 on
-    /// lavapipe) runs after the first search the features fail, then
-    /// after every this many failed ones (0: never), so that a lost
-    /// object's searches do not stall the track.
-    pub templates_every: usize,
-}
-
-impl Default for DetectConfig {
-    fn default() -> Self {
-        Self {
-            enabled: true,
-            frame_corners: 1500,
-            keyframe_corners: 600,
-            harris_threshold: 0.0005,
-            scales: vec![0.7, 1.0, 1.4],
-            oriented: true,
-            min_score: 0.6,
-            ratio: 0.85,
-            inlier_px: 4.0,
-            min_inliers: 10,
-            min_spread: 0.25,
-            candidates: 3,
-            min_keyframe_features: 40,
-            templates_every: 4,
-        }
-    }
-}
-
-/// One keyframe's corners as model points, and their descriptors (one per
-/// scale where the patch allows; `owners[i]` is the point described by
-/// `descriptors[i]`, one point's adjacent).
-#[derive(Debug, Clone, Default)]
-pub(super) struct KeyframeFeatures {
-    pub(super) points: Vec<Vector3<f64>>,
-    /// Where each point's corner is in the keyframe's view, pixels.
-    pub(super) pixels: Vec<[f32; 2]>,
-    pub(super) descriptors: Vec<Descriptor>,
-    pub(super) owners: Vec<usize>,
-}
-
-/// What the detection keeps between searches: its Harris (more corners
-/// than the tracker's) and the keyframes' features.
-pub(super) struct Detector {
-    harris: Harris,
-    pub(super) keyframes: Vec<KeyframeFeatures>,
-    /// Searches in a row the features failed.
-    misses: usize,
-}
-
-impl Detector {
-    /// Whether some keyframe has features enough to detect by.
-    pub(super) fn textured(&self, cfg: &DetectConfig) -> bool {
-        self.keyframes
-            .iter()
-            .any(|k| k.points.len() >= cfg.min_keyframe_features.max(1))
-    }
-
-    /// Whether the template search should follow the features' failure
-    /// now ([`DetectConfig::templates_every`]).
-    pub(super) fn templates_now(&self, cfg: &DetectConfig) -> bool {
-        !self.textured(cfg)
-            || (cfg.templates_every > 0
-                && self.misses > 0
-                && (self.misses - 1).is_multiple_of(cfg.templates_every))
-    }
-}
 
 /// A candidate pose from one keyframe's matches.
 #[derive(Debug, Clone)]
@@ -434,7 +331,7 @@ impl Tracker {
                 });
             }
         }
-        out.sort_by(|a, b| b.inliers.cmp(&a.inliers));
+        out.sort_by_key(|c| std::cmp::Reverse(c.inliers));
         Ok(out)
     }
 }

@@ -74,7 +74,7 @@ pub struct InitConfig {
     /// search the whole frame again (0: never).
     pub redetect_after_lost: usize,
     /// The detection by features tried before the templates.
-    pub detect: super::detect::DetectConfig,
+    pub detect: super::detect::config::DetectConfig,
 }
 
 impl Default for InitConfig {
@@ -87,7 +87,7 @@ impl Default for InitConfig {
             candidates: 6,
             refine_steps: 3,
             redetect_after_lost: 5,
-            detect: super::detect::DetectConfig::default(),
+            detect: super::detect::config::DetectConfig::default(),
         }
     }
 }

@@ -150,7 +150,7 @@ pub struct Tracker {
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
     /// The search's detection by features, made at its first use.
-    pub(super) detector: Option<super::detect::Detector>,
+    pub(super) detector: Option<super::detect::cache::Detector>,
 }
 
 impl Tracker {
