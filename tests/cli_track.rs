@@ -124,7 +124,7 @@ fn partial_files(dir: &Path) -> Vec<PathBuf> {
 }
 
 const HEADER: &str =
-    "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz,inliers,residual_px,status";
+    "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz,inliers,residual_px,status,cues";
 
 /// Checks a tracker output file against FORMATS.md and returns its rows.
 fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
@@ -135,7 +135,7 @@ fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
     assert_eq!(body.len(), FRAMES, "{text}");
     for (i, line) in body.iter().enumerate() {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 16, "{line}");
+        assert_eq!(f.len(), 17, "{line}");
         assert_eq!(f[0], i.to_string());
         for v in &f[1..13] {
             assert!(v.parse::<f64>().unwrap().is_finite(), "{line}");
@@ -144,6 +144,12 @@ fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
         let res: f64 = f[14].parse().unwrap();
         assert!(res.is_nan() || res >= 0.0, "{line}");
         assert!(f[15] == "tracking" || f[15] == "lost", "{line}");
+        // Which cues held: none exactly on a lost frame.
+        let cues = ["texture", "contour", "texture+contour"];
+        match f[15] {
+            "lost" => assert_eq!(f[16], "none", "{line}"),
+            _ => assert!(cues.contains(&f[16]) || f[16] == "none", "{line}"),
+        }
     }
     // The crate's reader agrees, and every pose is a rotation.
     let rows = read_poses(path).unwrap();

@@ -155,7 +155,7 @@ impl TrackInputs {
         keyframes: Option<&Path>,
         init: Option<&Path>,
     ) -> Result<Self, AppError> {
-        let model = PointModel::load_with(model, model_options)?;
+        let model = PointModel::load_any_with(model, 0, model_options)?;
         let sequence = Sequence::open(sequence)?;
         let init_path = init.map(Path::to_owned).or_else(|| {
             let p = sequence.init_path();
@@ -195,7 +195,7 @@ impl TrackInputs {
         keyframes: Option<&Path>,
         init: Option<&Path>,
     ) -> Result<Self, AppError> {
-        let model = PointModel::load_with(model, model_options)?;
+        let model = PointModel::load_any_with(model, 0, model_options)?;
         let cam = Intrinsics::load(camera)?;
         let init = match init {
             Some(p) => Some(read_poses(p)?[0].pose),
@@ -223,8 +223,8 @@ impl TrackInputs {
 }
 
 /// The columns the tracker output adds after the pose (FORMATS.md
-/// "Tracker output").
-pub const RESULT_COLUMNS: [&str; 3] = ["inliers", "residual_px", "status"];
+/// "Tracker output"; `cues`: [`cues_name`] of [`TrackResult::cues`]).
+pub const RESULT_COLUMNS: [&str; 4] = ["inliers", "residual_px", "status", "cues"];
 
 /// The column a run over a video or a camera adds after [`RESULT_COLUMNS`]:
 /// the frame's timestamp in seconds (FORMATS.md, `track --video`).
@@ -238,12 +238,23 @@ pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
     } else {
         "nan".into()
     };
-    row.extra = [r.inliers.to_string(), residual, r.status.name().into()]
-        .into_iter()
-        .zip(RESULT_COLUMNS)
-        .map(|(v, k)| (k.to_string(), v))
-        .collect();
+    row.extra = [
+        r.inliers.to_string(),
+        residual,
+        r.status.name().into(),
+        cues_name(r.cues),
+    ]
+    .into_iter()
+    .zip(RESULT_COLUMNS)
+    .map(|(v, k)| (k.to_string(), v))
+    .collect();
     row
+}
+
+/// The cues of a frame as the `cues` column writes them: `texture`,
+/// `contour`, `texture+contour` (no comma inside a CSV field) or `none`.
+pub fn cues_name(m: crate::tracker::Modalities) -> String {
+    m.name().replace(',', "+")
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -417,6 +428,11 @@ impl<'a> TrackRun<'a> {
                 sequence: source.name().to_owned(),
                 source: Box::new(e),
             })?;
+        let mut stats = RunStats {
+            modalities: Some(tracker.config().modalities),
+            cue_choice: tracker.cue_choice(),
+            ..Default::default()
+        };
         let timestamps = source.has_timestamps();
         let mut columns = RESULT_COLUMNS.to_vec();
         if timestamps {
@@ -445,7 +461,6 @@ impl<'a> TrackRun<'a> {
             }
         };
         report(0);
-        let mut stats = RunStats::default();
         let mut sum_stages = crate::tracker::StageTimes::default();
         let mut source_time = Duration::ZERO;
         let mut totals = Vec::with_capacity(n.unwrap_or(0).min(1 << 16));
@@ -473,6 +488,12 @@ impl<'a> TrackRun<'a> {
             if r.texture_set_aside {
                 stats.texture_set_aside += 1;
                 log::info!("frame {i}: texture set aside, the contour alone passed the check");
+            }
+            match (r.cues.texture, r.cues.contour) {
+                (true, false) => stats.held_by[0] += 1,
+                (false, true) => stats.held_by[1] += 1,
+                (true, true) => stats.held_by[2] += 1,
+                (false, false) => {}
             }
             if r.status == Status::Lost {
                 stats.lost += 1;

@@ -125,6 +125,9 @@ impl TrackerBuilder<'_> {
                 self.config,
             )?,
         };
+        if t.config.auto_modalities {
+            t.choose_modalities()?;
+        }
         t.apply(&self.execution);
         Ok(t)
     }
@@ -264,6 +267,7 @@ impl Tracker {
             check: GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
             outline: GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: Resident::new(resident),
+            cue_choice: None,
         };
         tracker.check.set_resident(resident);
         tracker.outline.set_resident(resident);

@@ -86,6 +86,11 @@ impl Modalities {
         texture: true,
         contour: true,
     };
+    /// Neither (what held a lost frame: [`super::TrackResult::cues`]).
+    pub const NONE: Self = Self {
+        texture: false,
+        contour: false,
+    };
 
     /// `texture`, `contour` or `texture,contour`.
     pub fn name(&self) -> &'static str {
@@ -214,8 +219,18 @@ pub struct TrackerConfig {
     /// Automatic initialisation and re-detection
     /// ([`crate::tracker::InitConfig`]).
     pub init: super::init::InitConfig,
-    /// The cues used (default: texture only).
+    /// The cues used (default: texture only; with
+    /// [`TrackerConfig::auto_modalities`], set when the tracker is built).
     pub modalities: Modalities,
+    /// Choose [`TrackerConfig::modalities`] per object when the tracker is
+    /// built, from how textured its keyframes' views are (`cues` module
+    /// docs, [`super::Tracker::choose_modalities`]): `contour` without
+    /// keyframes or model colours, `texture` for a textured object,
+    /// `texture,contour` for a weakly textured one. Default false in the
+    /// library (the modalities as given); `splattrack track`'s default
+    /// `--modalities auto` sets it.
+    #[serde(default)]
+    pub auto_modalities: bool,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
     /// Confine renders, reads, corner detection and NCC matching to the
@@ -287,6 +302,7 @@ impl Default for TrackerConfig {
             verify: Default::default(),
             init: Default::default(),
             modalities: Modalities::default(),
+            auto_modalities: false,
             contour: super::contour::ContourConfig::default(),
             windows: true,
             splatter: crate::splat::Backend::Auto,

@@ -1,6 +1,7 @@
 //! The per-frame step: [`Tracker::track`] runs the steps in turn and
 //! decides the frame.
 
+use super::config::Modalities;
 use super::decision::{Decision, FrameSteps, Rules, StepOutcome, decide, verified};
 use super::error::TrackError;
 use super::result::{LostReason, StageTimes, Status, TrackResult};
@@ -71,6 +72,7 @@ impl Tracker {
                         times,
                         verify: None,
                         texture_set_aside: false,
+                        cues: Modalities::NONE,
                     });
                 }
                 None => {}
@@ -172,6 +174,7 @@ impl Tracker {
 
         let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
             || it.estimate.is_some_and(|e| rules.trusted(&e));
+        let contour_held = contour.estimate.is_some_and(|e| rules.trusted(&e));
         let d = decide(
             &rules,
             &FrameSteps {
@@ -282,6 +285,14 @@ impl Tracker {
             times,
             verify: scores,
             texture_set_aside,
+            cues: match d.status {
+                Status::Tracking if texture_set_aside => Modalities::CONTOUR,
+                Status::Tracking => Modalities {
+                    texture: texture_held,
+                    contour: contour_held,
+                },
+                Status::Lost => Modalities::NONE,
+            },
         })
     }
 

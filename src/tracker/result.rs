@@ -2,6 +2,7 @@
 //! [`Status`] and [`LostReason`], where its time went ([`StageTimes`]),
 //! and the GPU memory the tracker holds ([`GpuMemoryUse`]).
 
+use super::config::Modalities;
 use super::verify::{Unverified, VerifyScores};
 use crate::geometry::Pose;
 use crate::pose::SolveError;
@@ -217,6 +218,17 @@ pub struct TrackResult {
     /// the keyframes do not show, such as an untextured object's shading.
     #[serde(default)]
     pub texture_set_aside: bool,
+    /// The cues that held this frame's pose: `texture` (a trusted IT or KF
+    /// step gave it), `contour` (the contour step alone), both (a trusted
+    /// texture step refined or started by the contour), or
+    /// [`Modalities::NONE`] on a lost frame and on a first frame kept at
+    /// the initial pose without any step.
+    #[serde(default = "no_cues")]
+    pub cues: Modalities,
+}
+
+fn no_cues() -> Modalities {
+    Modalities::NONE
 }
 
 /// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
@@ -437,6 +449,7 @@ mod tests {
             },
             verify: None,
             texture_set_aside: true,
+            cues: Modalities::CONTOUR,
         };
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains(r#""residual_px":null"#), "{json}");

@@ -149,6 +149,8 @@ pub struct Tracker {
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
+    /// What the automatic choice of cues measured and chose, when it ran.
+    pub(super) cue_choice: Option<super::CueChoice>,
 }
 
 impl Tracker {
@@ -157,6 +159,12 @@ impl Tracker {
     /// radii raised to `min_splat_radius_px` and grown to close gaps.
     pub fn model(&self) -> &Arc<PointModel> {
         &self.model
+    }
+
+    /// What [`TrackerConfig::auto_modalities`] measured and chose when the
+    /// tracker was built (`None` when the modalities were given).
+    pub fn cue_choice(&self) -> Option<super::CueChoice> {
+        self.cue_choice
     }
 
     /// Whether no pose has been found yet (no initial pose given to [`Tracker::builder`]).

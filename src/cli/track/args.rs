@@ -9,7 +9,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The object's point model (PLY).
+    /// The object's model: a point model (PLY), or a mesh (OBJ, STL, PLY
+    /// with faces) sampled into 100000 points (`splattrack model` writes
+    /// that sample out).
     #[arg(long)]
     pub model: PathBuf,
     /// The sequence directory (camera.json, frames/, init.csv, ...).
@@ -48,14 +50,19 @@ pub struct Args {
     /// the object is searched for in the frames (automatic initialisation).
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
-    #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
-    pub mode: Mode,
-    /// The cues tracked: texture (corners and NCC; the default), contour
-    /// (the splatted silhouette against the frame's colours: for weakly
-    /// textured objects), or both in one robust solve (texture,contour).
-    #[arg(long, default_value = "texture")]
-    pub modalities: Modalities,
+    /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes
+    /// only). Default: kf+it, or it when there are neither keyframes nor
+    /// model colours to build the KF step's views from.
+    #[arg(long, value_enum, ignore_case = true)]
+    pub mode: Option<Mode>,
+    /// The cues tracked: auto (the default: contour without keyframes or
+    /// model colours, else texture for a textured object and
+    /// texture,contour for a weakly textured one, from the keyframes'
+    /// views), texture (corners and NCC), contour (the splatted silhouette
+    /// against the frame's colours) or both in one robust solve
+    /// (texture,contour).
+    #[arg(long, default_value = "auto")]
+    pub modalities: Cues,
     /// Output pose CSV (docs/formats.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
@@ -276,6 +283,27 @@ impl Tuning {
     }
 }
 
+/// `--modalities`: `auto`, or the cues named.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cues {
+    /// Chosen per object ([`TrackerConfig::auto_modalities`]).
+    Auto,
+    /// As named.
+    Named(Modalities),
+}
+
+impl std::str::FromStr for Cues {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(Self::Auto);
+        }
+        s.parse()
+            .map(Self::Named)
+            .map_err(|e: String| e.replace("(use ", "(use auto, "))
+    }
+}
+
 /// A setting the adapter decides unless told.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OnOff {
@@ -323,9 +351,14 @@ impl Args {
     /// The tracker's settings: the defaults with the tuning flags' overrides, and
     /// the mode, cues and backends named.
     pub fn config(&self) -> anyhow::Result<TrackerConfig> {
+        let (modalities, auto_modalities) = match self.modalities {
+            Cues::Auto => (Modalities::default(), true),
+            Cues::Named(m) => (m, false),
+        };
         Ok(TrackerConfig {
-            mode: self.mode,
-            modalities: self.modalities,
+            mode: self.mode.unwrap_or_default(),
+            modalities,
+            auto_modalities,
             splatter: self.splatter,
             feature_backend: self.feature_backend,
             resident: self.resident.choice(),
