@@ -225,8 +225,9 @@ pub struct TrackerConfig {
     /// Choose [`TrackerConfig::modalities`] per object when the tracker is
     /// built, from how textured its keyframes' views are (`cues` module
     /// docs, [`super::Tracker::choose_modalities`]): `contour` without
-    /// keyframes or model colours, `texture` for a textured object,
-    /// `texture,contour` for a weakly textured one. Default false in the
+    /// keyframes or model colours and for an untextured object, `texture`
+    /// for a textured one, `texture,contour` for a weakly textured one
+    /// (the real dragon). Default false in the
     /// library (the modalities as given); `splattrack track`'s default
     /// `--modalities auto` sets it.
     #[serde(default)]

@@ -9,18 +9,24 @@
 //! Laplacian at the step the object's size sets). The median over the
 //! views decides ([`choose`]):
 //!
-//! - nothing to texture a view with (no keyframes, no model colours):
-//!   `contour`;
+//! - nothing to texture a view with (no keyframes, no model colours), or
+//!   views of shading only (under [`SHADING_ONLY_BELOW`]): `contour`;
 //! - a textured object (at least [`VerifyConfig::untextured_below`], the
 //!   check's own line between texture and shading): `texture`, the most
 //!   accurate there (the real cube: 0.35 degrees against 0.50 with the
 //!   contour fused in);
-//! - a weakly textured one (below it: its views show little more than
-//!   shading): `texture,contour`, where texture alone loses the track.
+//! - a weakly textured one (between the two): `texture,contour`, where
+//!   texture alone loses the track and the texture still helps the
+//!   contour (the real dragon: 2.07 degrees against 2.14 by the contour
+//!   alone).
 //!
-//! Measured by the check on every frame: textured objects 0.135-0.330
-//! (synthetic blob and box, real cube 0.153-0.192), untextured synthetic
-//! objects 0.023-0.114, the real dragon 0.077-0.098.
+//! The medians measured (synthetic sequences of `splattrack synth`, 640x480
+//! unless said, with their 12 keyframes; the real ones with their 3):
+//! textured: box 0.302, torus 0.240, blob 0.216, real cube 0.185; weakly
+//! textured: real dragon 0.081; untextured: plain 0.058 (0.055 at
+//! 320x240), plain box 0.050 (0.036). The check measures the same on every
+//! frame: textured objects 0.135-0.330, untextured synthetic ones
+//! 0.023-0.114, the real dragon 0.077-0.098.
 //!
 //! [`TrackerConfig::auto_modalities`]: super::TrackerConfig::auto_modalities
 //! [`VerifyConfig::untextured_below`]: super::VerifyConfig::untextured_below
@@ -34,10 +40,19 @@ use super::verify::{score, texture_step};
 use crate::features::GreyImage;
 use crate::splat::{Attribute, Attributes};
 
+/// Views whose texture ([`Tracker::view_texture`]) is under this show
+/// shading only: the contour alone tracks them (module docs). Between the
+/// untextured synthetic objects (at most 0.058) and the real dragon
+/// (0.081), whose texture still helps. On the synthetic plain object
+/// `texture,contour` measured 0.260 degrees (mean) against the contour's
+/// 0.244, at 1.4 times its time a frame.
+pub const SHADING_ONLY_BELOW: f64 = 0.07;
+
 /// The cues for an object: `contour` without anything to texture a view
-/// with (`textured_views` false), else `texture` when the views' texture
-/// (`view_texture`, [`Tracker::view_texture`]) reaches `untextured_below`
-/// and `texture,contour` when it does not or could not be measured.
+/// with (`textured_views` false) or with views of shading only (under
+/// [`SHADING_ONLY_BELOW`]); `texture` when the views' texture
+/// (`view_texture`, [`Tracker::view_texture`]) reaches `untextured_below`;
+/// `texture,contour` between the two or when it could not be measured.
 pub fn choose(
     textured_views: bool,
     view_texture: Option<f64>,
@@ -46,6 +61,7 @@ pub fn choose(
     match (textured_views, view_texture) {
         (false, _) => Modalities::CONTOUR,
         (true, Some(t)) if t >= untextured_below => Modalities::TEXTURE,
+        (true, Some(t)) if t < SHADING_ONLY_BELOW => Modalities::CONTOUR,
         (true, _) => Modalities::BOTH,
     }
 }
@@ -159,9 +175,12 @@ impl CueChoice {
             (true, Some(t)) if t >= line => {
                 format!("{m} (a textured object: its views' texture {t:.3} >= {line})")
             }
-            (true, Some(t)) => {
-                format!("{m} (a weakly textured object: its views' texture {t:.3} < {line})")
-            }
+            (true, Some(t)) if t < SHADING_ONLY_BELOW => format!(
+                "{m} (an untextured object: its views' texture {t:.3} < {SHADING_ONLY_BELOW}, shading only)"
+            ),
+            (true, Some(t)) => format!(
+                "{m} (a weakly textured object: its views' texture {t:.3} between {SHADING_ONLY_BELOW} and {line})"
+            ),
             (true, None) => format!("{m} (the views' texture could not be measured)"),
         }
     }
@@ -180,9 +199,13 @@ mod tests {
         for t in [0.135, 0.153, 0.192, 0.33] {
             assert_eq!(choose(true, Some(t), line), Modalities::TEXTURE, "{t}");
         }
-        // The real dragon's, the untextured synthetic objects'.
-        for t in [0.023, 0.077, 0.098, 0.114] {
+        // The real dragon's: weakly textured.
+        for t in [0.077, 0.081, 0.098, 0.114] {
             assert_eq!(choose(true, Some(t), line), Modalities::BOTH, "{t}");
+        }
+        // The untextured synthetic objects': shading only.
+        for t in [0.0, 0.023, 0.036, 0.058] {
+            assert_eq!(choose(true, Some(t), line), Modalities::CONTOUR, "{t}");
         }
         // Views too small to measure: both, the safe side.
         assert_eq!(choose(true, None, line), Modalities::BOTH);

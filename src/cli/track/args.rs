@@ -55,11 +55,11 @@ pub struct Args {
     /// model colours to build the KF step's views from.
     #[arg(long, value_enum, ignore_case = true)]
     pub mode: Option<Mode>,
-    /// The cues tracked: auto (the default: contour without keyframes or
-    /// model colours, else texture for a textured object and
-    /// texture,contour for a weakly textured one, from the keyframes'
-    /// views), texture (corners and NCC), contour (the splatted silhouette
-    /// against the frame's colours) or both in one robust solve
+    /// The cues tracked: auto (the default: measured on the keyframes'
+    /// views, texture for a textured object, texture,contour for a weakly
+    /// textured one, contour for an untextured one and without keyframes
+    /// or model colours), texture (corners and NCC), contour (the splatted
+    /// silhouette against the frame's colours) or both in one robust solve
     /// (texture,contour).
     #[arg(long, default_value = "auto")]
     pub modalities: Cues,
