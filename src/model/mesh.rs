@@ -215,11 +215,6 @@ impl TriangleMesh {
         load_mesh_ply(path)
     }
 
-    /// Reads an STL mesh, binary or ASCII; see [`load_stl`](super::load_stl).
-    pub fn load_stl(path: impl AsRef<Path>) -> Result<Self, ModelError> {
-        super::stl::load_stl(path)
-    }
-
     /// Total area of the triangles with finite vertices.
     pub fn area(&self) -> f64 {
         self.triangles

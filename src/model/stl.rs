@@ -41,6 +41,13 @@ pub fn load_stl(path: impl AsRef<Path>) -> Result<TriangleMesh, ModelError> {
     parse_stl(&bytes, path)
 }
 
+impl TriangleMesh {
+    /// Reads an STL mesh, binary or ASCII; see [`load_stl`].
+    pub fn load_stl(path: impl AsRef<Path>) -> Result<Self, ModelError> {
+        load_stl(path)
+    }
+}
+
 /// Parses the bytes of an STL file; `path` names it in errors and in the
 /// mesh.
 pub fn parse_stl(bytes: &[u8], path: &Path) -> Result<TriangleMesh, ModelError> {

@@ -141,6 +141,45 @@ impl std::str::FromStr for Modalities {
     }
 }
 
+/// What the automatic choice of cues measured and chose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CueChoice {
+    /// The modalities chosen.
+    pub modalities: Modalities,
+    /// Whether there was a texture for the views (keyframes or model
+    /// colours).
+    pub textured_views: bool,
+    /// The median texture of the views ([`super::Tracker::view_texture`]).
+    pub view_texture: Option<f64>,
+    /// The line between textured and weakly textured it was measured
+    /// against ([`super::VerifyConfig::untextured_below`]).
+    pub untextured_below: f64,
+    /// The line under which views show shading only
+    /// ([`super::cues::SHADING_ONLY_BELOW`]).
+    pub shading_only_below: f64,
+}
+
+impl CueChoice {
+    /// The modalities and why, in one line.
+    pub fn describe(&self) -> String {
+        let m = self.modalities.name();
+        let (line, shading) = (self.untextured_below, self.shading_only_below);
+        match (self.textured_views, self.view_texture) {
+            (false, _) => format!("{m} (no keyframes and no model colours: the outline only)"),
+            (true, Some(t)) if t >= line => {
+                format!("{m} (a textured object: its views' texture {t:.3} >= {line})")
+            }
+            (true, Some(t)) if t < shading => format!(
+                "{m} (an untextured object: its views' texture {t:.3} < {shading}, shading only)"
+            ),
+            (true, Some(t)) => format!(
+                "{m} (a weakly textured object: its views' texture {t:.3} between {shading} and {line})"
+            ),
+            (true, None) => format!("{m} (the views' texture could not be measured)"),
+        }
+    }
+}
+
 /// Tracker settings. Defaults follow the paper (900 corners, 9x9 NCC
 /// windows) and were tuned on the synthetic sequences. Serialised field by
 /// field; fields missing when read take their default.

@@ -32,7 +32,7 @@
 //! [`VerifyConfig::untextured_below`]: super::VerifyConfig::untextured_below
 //! [`VerifyScores::view_texture`]: super::VerifyScores::view_texture
 
-use super::config::Modalities;
+use super::config::{CueChoice, Modalities};
 use super::error::TrackError;
 use super::profile::Texture;
 use super::state::Tracker;
@@ -142,47 +142,12 @@ impl Tracker {
             textured_views,
             view_texture,
             untextured_below: self.config.verify.untextured_below,
+            shading_only_below: SHADING_ONLY_BELOW,
         };
         log::info!("cues: {}", c.describe());
         self.config.modalities = modalities;
         self.cue_choice = Some(c);
         Ok(c)
-    }
-}
-
-/// What the automatic choice of cues measured and chose.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CueChoice {
-    /// The modalities chosen.
-    pub modalities: Modalities,
-    /// Whether there was a texture for the views (keyframes or model
-    /// colours).
-    pub textured_views: bool,
-    /// The median texture of the views ([`Tracker::view_texture`]).
-    pub view_texture: Option<f64>,
-    /// The line between textured and weakly textured it was measured
-    /// against ([`VerifyConfig::untextured_below`]).
-    pub untextured_below: f64,
-}
-
-impl CueChoice {
-    /// The modalities and why, in one line.
-    pub fn describe(&self) -> String {
-        let m = self.modalities.name();
-        let line = self.untextured_below;
-        match (self.textured_views, self.view_texture) {
-            (false, _) => format!("{m} (no keyframes and no model colours: the outline only)"),
-            (true, Some(t)) if t >= line => {
-                format!("{m} (a textured object: its views' texture {t:.3} >= {line})")
-            }
-            (true, Some(t)) if t < SHADING_ONLY_BELOW => format!(
-                "{m} (an untextured object: its views' texture {t:.3} < {SHADING_ONLY_BELOW}, shading only)"
-            ),
-            (true, Some(t)) => format!(
-                "{m} (a weakly textured object: its views' texture {t:.3} between {SHADING_ONLY_BELOW} and {line})"
-            ),
-            (true, None) => format!("{m} (the views' texture could not be measured)"),
-        }
     }
 }
 

@@ -63,9 +63,8 @@ pub mod verify_gpu;
 mod workspace;
 
 pub use builder::TrackerBuilder;
-pub use config::{Modalities, Mode, TrackerConfig};
+pub use config::{CueChoice, Modalities, Mode, TrackerConfig};
 pub use contour::ContourConfig;
-pub use cues::CueChoice;
 pub use decision::{Decision, Estimate, FrameSteps, Rules, StepOutcome, decide, verified};
 pub use error::{CameraInvalid, ConfigError, TrackError};
 pub use execution::Execution;

@@ -150,7 +150,7 @@ pub struct Tracker {
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
     /// What the automatic choice of cues measured and chose, when it ran.
-    pub(super) cue_choice: Option<super::CueChoice>,
+    pub(super) cue_choice: Option<super::config::CueChoice>,
 }
 
 impl Tracker {
@@ -163,7 +163,7 @@ impl Tracker {
 
     /// What [`TrackerConfig::auto_modalities`] measured and chose when the
     /// tracker was built (`None` when the modalities were given).
-    pub fn cue_choice(&self) -> Option<super::CueChoice> {
+    pub fn cue_choice(&self) -> Option<super::config::CueChoice> {
         self.cue_choice
     }
 
