@@ -356,6 +356,52 @@ mod tests {
     }
 
     #[test]
+    fn mutated_files_are_read_or_refused_never_a_panic() {
+        // A small stand-in for the fuzz target: bytes flipped, inserted,
+        // cut and counts forged in binary and ASCII seeds.
+        let seeds = [
+            binary(&TRIS, b"bin"),
+            binary(&TRIS, b"solid x"),
+            ascii(&TRIS).into_bytes(),
+        ];
+        let mut rng = crate::rng::Rng::new(41);
+        for case in 0..6000u64 {
+            let mut b = seeds[(case % 3) as usize].clone();
+            for _ in 0..=rng.below(4) {
+                let at = rng.below(b.len() as u64) as usize;
+                match rng.below(4) {
+                    0 => b[at] ^= 1 << rng.below(8),
+                    1 => b.truncate(at),
+                    2 => {
+                        let bytes = b"\n -.e9solidvertexfacet";
+                        b.insert(at, bytes[rng.below(bytes.len() as u64) as usize]);
+                    }
+                    _ if b.len() >= HEADER + 4 => {
+                        let n = rng.below(u64::from(u32::MAX)) as u32;
+                        b[HEADER..HEADER + 4].copy_from_slice(&n.to_le_bytes());
+                    }
+                    _ => {}
+                }
+                if b.is_empty() {
+                    break;
+                }
+            }
+            match parse_stl(&b, p()) {
+                Ok(m) => {
+                    assert!(
+                        m.triangles
+                            .iter()
+                            .flatten()
+                            .all(|&i| (i as usize) < m.vertices.len())
+                    );
+                    let _ = m.sample(16, 0);
+                }
+                Err(e) => assert!(!e.to_string().contains('\n'), "{e}"),
+            }
+        }
+    }
+
+    #[test]
     fn trailing_bytes_after_the_binary_triangles_are_ignored() {
         let mut b = binary(&TRIS, b"bin");
         b.extend_from_slice(b"xyz");
