@@ -331,16 +331,18 @@ fn the_real_cube_from_its_cad_mesh_alone() {
         if r.extra[2].1 != "tracking" {
             continue;
         }
-        // Never wrong: every pose reported tracking is on the cube.
+        // Never wrong: every pose reported tracking is on the cube (the
+        // worst measured: 4.96 degrees, 17 mm).
         let (rot, tr) = errors(r, g);
         assert!(
-            rot < 5.0 && tr < 0.05,
+            rot < 8.0 && tr < 0.03,
             "frame {}: {rot} deg, {tr} m",
             r.frame
         );
-        within += 1;
+        within += usize::from(rot < 5.0 && tr < 0.05);
     }
-    // Measured 56 of 86 (65%): the check's fixed edge threshold refuses
-    // the white cube's low-contrast outline on the white table.
+    // Measured 56 of 86 (65%): from frame 62 on the check refuses the
+    // white cube's low-contrast outline on the white table, and the
+    // contour cannot catch up from the pose held since.
     assert!(within * 100 >= 55 * n, "{within} of {n} gt_ok frames");
 }
