@@ -141,7 +141,8 @@ pub struct TrackInputs {
 }
 
 impl TrackInputs {
-    /// Loads the model, opens the sequence, reads the initial pose (`init`,
+    /// Loads the model (a mesh sampled into one:
+    /// [`PointModel::load_any_with`]), opens the sequence, reads the initial pose (`init`,
     /// default `SEQUENCE/init.csv` when present: its first row; neither:
     /// none, the object is searched for) and loads or builds the
     /// keyframe store `keyframes` names ([`load_keyframes`]; default
@@ -182,7 +183,8 @@ impl TrackInputs {
         })
     }
 
-    /// For frames from a video or a camera: loads the model, the camera
+    /// For frames from a video or a camera: loads the model (a mesh
+    /// sampled into one), the camera
     /// file `camera` (camera.json or an OpenCV yaml), the initial pose
     /// (`init`: its first row is the pose of the first frame tracked;
     /// `None`: the object is searched for) and the keyframe store
