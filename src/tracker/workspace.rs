@@ -68,7 +68,7 @@ impl Tracker {
     pub(super) fn window_margin(&self) -> f64 {
         let h = &self.config.harris;
         (h.support_radius() + h.refine_radius as usize + 4) as f64
-            + self.config.verify.edge_search_px as f64
+            + self.config.verify.edge_reach_px() as f64
     }
 
     /// The margin of the NCC crops for a search radius `r` (`None`: no
