@@ -49,6 +49,7 @@ fn result(status: Status) -> TrackResult {
         },
         verify: None,
         texture_set_aside: false,
+        refused: None,
     }
 }
 
