@@ -442,8 +442,21 @@ mod tests {
         // A lost frame keeps its own reason, and its last estimate (KF's,
         // untrusted) as the one refused; a first frame has none.
         let lost = decide(&RULES, &steps(failed(3), est(2.0, 5, 0.8)));
-        assert_eq!(lost.estimate.map(|(s, e)| (s, e.inliers)), Some((Stage::Kf, 5)));
-        assert_eq!(decide(&RULES, &FrameSteps { first_frame: true, ..Default::default() }).estimate, None);
+        assert_eq!(
+            lost.estimate.map(|(s, e)| (s, e.inliers)),
+            Some((Stage::Kf, 5))
+        );
+        assert_eq!(
+            decide(
+                &RULES,
+                &FrameSteps {
+                    first_frame: true,
+                    ..Default::default()
+                }
+            )
+            .estimate,
+            None
+        );
         assert_eq!(verified(lost.clone(), Err(why)), lost);
     }
 

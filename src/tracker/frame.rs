@@ -284,15 +284,15 @@ impl Tracker {
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
         times.total = t0.elapsed();
-        let refused = proposed
-            .filter(|_| d.status == Status::Lost)
-            .map(|(source, pose, inliers, residual_px)| Refused {
+        let refused = proposed.filter(|_| d.status == Status::Lost).map(
+            |(source, pose, inliers, residual_px)| Refused {
                 pose,
                 source,
                 inliers,
                 residual_px,
                 scores,
-            });
+            },
+        );
         Ok(TrackResult {
             pose: self.pose,
             inliers: d.inliers,

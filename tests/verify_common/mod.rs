@@ -167,7 +167,12 @@ pub fn frame(w: usize, h: usize, bg: Background, objects: &[(At, Fill)], seed: u
             *v += rng.uniform(-noise, noise);
         }
     }
-    GreyImage::new(w, h, data.iter().map(|v| v.clamp(0.0, 1.0) as f32).collect()).unwrap()
+    GreyImage::new(
+        w,
+        h,
+        data.iter().map(|v| v.clamp(0.0, 1.0) as f32).collect(),
+    )
+    .unwrap()
 }
 
 /// The check's inputs at a hypothesised pose: the covered pixels (pixel
