@@ -256,7 +256,8 @@ pub enum Source {
     Contour,
     /// The whole-frame search (its best candidate).
     Search,
-    /// The initial pose of the first frame.
+    /// The pose a track starts from, checked at its first frame: the
+    /// initial pose, or where the search found the object.
     Initial,
 }
 
