@@ -910,4 +910,19 @@ fn refused_estimates_are_written_with_their_stage_reason_and_scores() {
         ],
         &["--refused"],
     );
+    let same = d.join("same.csv");
+    fails(
+        &[
+            "track",
+            "--model",
+            s(&f.model),
+            "--sequence",
+            s(&f.seq),
+            "--out",
+            s(&same),
+            "--refused",
+            s(&same),
+        ],
+        &["--refused and --out name the same file"],
+    );
 }
