@@ -9,6 +9,7 @@
 //! [`FrameSink`] (the live view).
 
 mod error;
+pub mod refused;
 mod stats;
 
 pub use error::AppError;

@@ -1,7 +1,7 @@
 //! `splattrack track --model M.ply (--sequence DIR | --video FILE |
 //! --device N|PATH --camera C) [--keyframes DIR|FILE] [--init init.csv]
 //! [--mode kf+it|it|kf] --out poses.csv [--overlay DIR] [--profile]
-//! [--bop FILE] [--start N|Ts] [--frames N]`: the flags ([`args`]), the
+//! [--bop FILE] [--refused FILE] [--start N|Ts] [--frames N]`: the flags ([`args`]), the
 //! input they name ([`input`]), then [`splattrack::app`] does the work and
 //! [`output`] prints what it did.
 
@@ -11,6 +11,7 @@ mod input;
 mod no_view;
 mod output;
 mod profile;
+mod refused;
 
 pub use args::{Args, MAX_CORNERS};
 
@@ -90,13 +91,20 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if let Some(w) = display.as_mut() {
         run = run.sink(w);
     }
+    let mut refused = refused::Refused::create(args.refused.as_deref())?;
     let wall = std::time::Instant::now();
-    let stats = match run.run(|_, _| {}) {
+    let stats = match run.run(|frame, r| refused.frame(frame, r)) {
         Err(AppError::NoFrames) if args.start.is_some() => {
+            refused.discard();
             bail!("{}", no_frame_at_start(&input, args.start))
         }
-        r => r?,
+        Err(e) => {
+            refused.discard();
+            return Err(e.into());
+        }
+        Ok(s) => s,
     };
+    refused.finish()?;
     let wall = wall.elapsed().as_secs_f64();
     output::print_summary(&args, mode, &ctx, &stats, &stop, live);
     if args.profile {

@@ -258,6 +258,7 @@ impl Tracker {
             lost_streak: 0,
             it_only_streak: 0,
             searching: false,
+            search_refused: None,
             ctx: ctx.clone(),
             contour: ContourState::new(config_colours.0, config_colours.1),
             kf_anchors: Vec::new(),

@@ -4,7 +4,7 @@
 use super::config::Modalities;
 use super::decision::{Decision, FrameSteps, Rules, StepOutcome, decide, verified};
 use super::error::TrackError;
-use super::result::{LostReason, StageTimes, Status, TrackResult};
+use super::result::{LostReason, Refused, Source, StageTimes, Status, TrackResult};
 use super::state::{Frame, Tracker};
 use super::verify::{self, Unverified, VerifyScores};
 use crate::pose::Anchor;
@@ -73,6 +73,7 @@ impl Tracker {
                         verify: None,
                         texture_set_aside: false,
                         cues: Modalities::NONE,
+                        refused: self.search_refused.take(),
                     });
                 }
                 None => {}
@@ -185,6 +186,17 @@ impl Tracker {
                 it_only_streak: self.it_only_streak,
             },
         );
+        // What a lost frame refuses: the decision's estimate, else (a
+        // first frame with nothing to track against) the initial pose.
+        let proposed = match d.estimate {
+            Some((stage, e)) => Some((Source::from(stage), e.pose, e.inliers, e.residual_px)),
+            None => (d.status == Status::Tracking).then_some((
+                Source::Initial,
+                d.pose.unwrap_or(start_pose),
+                0,
+                f64::NAN,
+            )),
+        };
         // Every pose reported `tracking` is checked against the image.
         let mut scores = None;
         let mut texture_set_aside = false;
@@ -275,6 +287,15 @@ impl Tracker {
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
         times.total = t0.elapsed();
+        let refused = proposed.filter(|_| d.status == Status::Lost).map(
+            |(source, pose, inliers, residual_px)| Refused {
+                pose,
+                source,
+                inliers,
+                residual_px,
+                scores,
+            },
+        );
         Ok(TrackResult {
             pose: self.pose,
             inliers: d.inliers,
@@ -293,6 +314,7 @@ impl Tracker {
                 },
                 Status::Lost => Modalities::NONE,
             },
+            refused,
         })
     }
 

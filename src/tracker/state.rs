@@ -129,6 +129,9 @@ pub struct Tracker {
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
     pub(super) searching: bool,
+    /// The last search's best candidate that failed the check (reported
+    /// as refused when the search finds nothing).
+    pub(super) search_refused: Option<super::result::Refused>,
     /// The tracker's own handle on the device (a cheap clone).
     pub(super) ctx: GpuContext,
     /// The contour step's colours, coverage, normals and counts.

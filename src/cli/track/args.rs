@@ -76,6 +76,11 @@ pub struct Args {
     /// Also write a BOP-style results CSV (t in mm, assuming metre models).
     #[arg(long)]
     pub bop: Option<PathBuf>,
+    /// Also write the refused estimates: for each lost frame with an
+    /// estimate, the pose refused, its stage, the reason and the check's
+    /// scores (docs/formats.md "Refused estimates").
+    #[arg(long, value_name = "FILE.csv")]
+    pub refused: Option<PathBuf>,
     /// BOP object id.
     #[arg(long, default_value_t = 1)]
     pub obj_id: u32,

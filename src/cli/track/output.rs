@@ -21,6 +21,17 @@ pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
     if let Some(bop) = &args.bop {
         check_output(bop, "--bop", &inputs)?;
     }
+    if let Some(refused) = &args.refused {
+        check_output(refused, "--refused", &inputs)?;
+        for (other, flag) in [(Some(&args.out), "--out"), (args.bop.as_ref(), "--bop")] {
+            if other == Some(refused) {
+                anyhow::bail!(
+                    "{}: --refused and {flag} name the same file; choose another path",
+                    refused.display()
+                );
+            }
+        }
+    }
     if let Some(dir) = &args.overlay {
         let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
