@@ -28,7 +28,7 @@ mod tests;
 
 use super::error::TrackError;
 use super::profile::Texture;
-use super::result::StepError;
+use super::result::{Refused, Source, StepError};
 use super::state::{Frame, Tracker};
 use crate::features::{Harris, HarrisConfig};
 use crate::geometry::Pose;
@@ -219,6 +219,8 @@ impl Tracker {
         let candidates = found?;
         let t_match = t0.elapsed();
         let mut result = None;
+        // The refused candidate the check scored best, for `--refused`.
+        let mut refused: Option<(f64, Refused)> = None;
         for c in candidates.iter().take(cfg.candidates) {
             let Some(refined) = self.refine_detected(frame, c.pose)? else {
                 log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
@@ -236,6 +238,20 @@ impl Tracker {
                 result = Some(refined);
                 break;
             }
+            let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
+            if refused.as_ref().is_none_or(|r| z > r.0) {
+                let r = Refused {
+                    pose: refined,
+                    source: Source::Search,
+                    inliers: c.inliers,
+                    residual_px: f64::NAN,
+                    scores: Some(s),
+                };
+                refused = Some((z, r));
+            }
+        }
+        if result.is_none() {
+            self.search_refused = refused.map(|r| r.1);
         }
         if let Some(d) = self.detector.as_mut() {
             d.misses = if result.is_some() { 0 } else { d.misses + 1 };
