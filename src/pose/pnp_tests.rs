@@ -264,14 +264,14 @@ fn arbitrary_input_never_panics() {
         let pix: Vec<Vector2<f64>> = (0..n)
             .map(|_| Vector2::new(rng.uniform(-1e4, 1e4), rng.uniform(-10.0, 500.0)))
             .collect();
-        for r in [
+        let results = [
             solve_pnp(&pts, &pix, &cam()),
             solve_pnp_ransac(&pts, &pix, &cam(), &opts),
-        ] {
-            if let Ok(s) = r {
-                assert!(s.pose.validate().is_ok() && s.rms_px.is_finite());
-                assert!(s.inliers.len() >= 4 && s.inliers.iter().all(|&i| i < n));
-            }
+        ];
+        // Errors are fine; a solution must be a real pose.
+        for s in results.into_iter().flatten() {
+            assert!(s.pose.validate().is_ok() && s.rms_px.is_finite());
+            assert!(s.inliers.len() >= 4 && s.inliers.iter().all(|&i| i < n));
         }
     }
 }
