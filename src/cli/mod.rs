@@ -9,6 +9,7 @@ mod features;
 mod info;
 mod init;
 mod keyframes;
+mod model;
 mod progress;
 mod render;
 mod synth;
@@ -55,6 +56,9 @@ pub enum Command {
     /// Build a keyframe store (per-point colours from keyframe images) once
     /// per object.
     Keyframes(keyframes::Args),
+    /// Sample a mesh (OBJ, STL, PLY with faces) into the point model
+    /// `track` makes of it, and write it (PLY).
+    Model(model::Args),
     /// Track an object through a sequence; writes one pose per frame.
     Track(Box<track::Args>),
     /// Errors of tracked poses against ground truth: table, success rates, plot.
@@ -71,6 +75,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Features(a) => features::run(a, &cli.adapter),
         Command::Init(a) => init::run(a, &cli.adapter),
         Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
+        Command::Model(a) => model::run(a),
         Command::Track(a) => track::run(*a, &cli.adapter),
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),

@@ -6,12 +6,13 @@
 use std::path::{Path, PathBuf};
 
 /// The readers fuzzed, by the name of their target and corpus folder.
-pub const TARGETS: [&str; 6] = [
+pub const TARGETS: [&str; 7] = [
     "ply",
     "camera_json",
     "camera_yaml",
     "poses_csv",
     "keyframe_store",
+    "stl",
     "correspondences_csv",
 ];
 
@@ -25,6 +26,7 @@ pub fn run(target: &str, data: &[u8]) -> bool {
         "camera_yaml" => camera(data, "camera.yaml"),
         "poses_csv" => poses(data),
         "keyframe_store" => keyframe_store(data),
+        "stl" => stl(data),
         "correspondences_csv" => correspondences(data),
         other => panic!("no fuzz target {other:?} (known: {TARGETS:?})"),
     }
@@ -74,6 +76,14 @@ pub fn correspondences(data: &[u8]) -> bool {
 /// The keyframe store reader.
 pub fn keyframe_store(data: &[u8]) -> bool {
     crate::keyframes::KeyframeStore::from_bytes(data, Path::new("store.stkf")).is_ok()
+}
+
+/// The STL reader (binary and ASCII), then the sampling of what it read.
+pub fn stl(data: &[u8]) -> bool {
+    match crate::model::parse_stl(data, Path::new("mesh.stl")) {
+        Ok(mesh) => mesh.sample(64, 0).is_ok(),
+        Err(_) => false,
+    }
 }
 
 /// A file of this process and thread for readers that read from disk.
