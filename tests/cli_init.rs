@@ -257,6 +257,37 @@ fn bad_input_is_refused_in_one_line_naming_the_file() {
         &init_args(sc, &small, &corr, &out),
         &["small.png", "32 x 24"],
     );
+    // --click needs a display (none here: DISPLAY and WAYLAND_DISPLAY unset).
+    let pts = sc.dir.join("pts-nodisplay.csv");
+    std::fs::write(
+        &pts,
+        "name,x,y,z\na,0,0,0\nb,0.01,0,0\nc,0,0.01,0\nd,0,0,0.01\n",
+    )
+    .unwrap();
+    let (model, cam) = (sc.model.clone(), sc.camera.clone());
+    cli_common::fails_env(
+        &[
+            "init",
+            "--model",
+            s(&model),
+            "--camera",
+            s(&cam),
+            "--image",
+            s(&f),
+            "--click",
+            "--model-points",
+            s(&pts),
+            "--out",
+            s(&out),
+        ],
+        &[
+            ("DISPLAY", ""),
+            ("WAYLAND_DISPLAY", ""),
+            ("WAYLAND_SOCKET", ""),
+        ],
+        &["--click needs a display", "--points"],
+    );
+    assert!(!out.exists());
     // --click needs its named points.
     let model = sc.dir.join("model.ply");
     let cam = sc.dir.join("camera.json");

@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The point model (PLY, or a mesh sampled into points).
+    /// The point model (PLY, or an OBJ mesh sampled into points).
     #[arg(long)]
     pub model: PathBuf,
     /// Camera intrinsics (camera.json or an OpenCV camera.yaml).
@@ -99,51 +99,66 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     }
     let cam = Intrinsics::load(&args.camera)?;
     let frame = read_frame(&args.image, &cam, &args.camera)?;
-    // The file's points first: bad input is refused before anything loads.
-    let named = match (&args.points, &args.model_points) {
-        (Some(p), _) => Err(read_point_pairs(p)?),
-        (None, Some(m)) => Ok(read_named_points(m)?),
-        (None, None) => bail!("give --points corr.csv, or --click with --model-points pts.csv"),
-    };
-    let (pairs, fit_result, source) = match named {
-        Err(pairs) => {
-            let source = args.points.as_ref().map(|p| p.display().to_string());
-            let source = source.unwrap_or_default();
-            let fit = fit(&pairs, &cam, args.max_rms, args.threshold, &source);
-            (pairs, fit, source)
+    // The points first: bad input is refused before the model loads.
+    match (&args.points, &args.model_points) {
+        (Some(corr), _) => {
+            let pairs = read_point_pairs(corr)?;
+            let source = corr.display().to_string();
+            let result = fit(&pairs, &cam, args.max_rms, args.threshold, &source);
+            let model = super::common::load_model(&args.model)?;
+            let view = ModelView::new(&model, adapter);
+            match result {
+                Ok(fit) => {
+                    let img = view.overlay(&frame, &cam, &pairs, &fit)?;
+                    finish(&args, &overlay_path, &pairs, &fit, &img)
+                }
+                Err(e) => Err(draw_refused(
+                    e,
+                    &view,
+                    &frame,
+                    &cam,
+                    &pairs,
+                    &overlay_path,
+                    &source,
+                )),
+            }
         }
-        Ok(named) => {
+        (None, Some(pts)) => {
+            let named = read_named_points(pts)?;
             let model = super::common::load_model(&args.model)?;
             let view = ModelView::new(&model, adapter);
             let (pairs, fit) = click_points(&args, &cam, &frame, &named, &view)?;
             let img = view.overlay(&frame, &cam, &pairs, &fit)?;
-            return finish(&args, &overlay_path, &pairs, &fit, &img);
-        }
-    };
-    let model = super::common::load_model(&args.model)?;
-    let view = ModelView::new(&model, adapter);
-    match fit_result {
-        Ok(fit) => {
-            let img = view.overlay(&frame, &cam, &pairs, &fit)?;
             finish(&args, &overlay_path, &pairs, &fit, &img)
         }
-        Err(e) => {
-            // Show what was refused when a pose exists at all.
-            let points: Vec<_> = pairs.iter().map(|p| p.point).collect();
-            let pixels: Vec<_> = pairs.iter().map(|p| p.pixel).collect();
-            let Ok(solution) = solve_pnp(&points, &pixels, &cam) else {
-                return Err(e);
-            };
-            let errors = reprojection_errors(&solution.pose, &points, &pixels, &cam);
-            let refused = Fit { solution, errors };
-            match view.overlay(&frame, &cam, &pairs, &refused) {
-                Ok(img) if img.save(&overlay_path).is_ok() => Err(e.context(format!(
-                    "{source}: refused (the pose is drawn in {})",
-                    overlay_path.display()
-                ))),
-                _ => Err(e),
-            }
-        }
+        (None, None) => bail!("give --points corr.csv, or --click with --model-points pts.csv"),
+    }
+}
+
+/// A refused fit's error, after drawing the least-squares pose of all the
+/// points (when one exists) in the overlay, to show which point is off.
+fn draw_refused(
+    e: anyhow::Error,
+    view: &ModelView<'_>,
+    frame: &RgbImage,
+    cam: &Intrinsics,
+    pairs: &[PointPair],
+    overlay_path: &Path,
+    source: &str,
+) -> anyhow::Error {
+    let points: Vec<_> = pairs.iter().map(|p| p.point).collect();
+    let pixels: Vec<_> = pairs.iter().map(|p| p.pixel).collect();
+    let Ok(solution) = solve_pnp(&points, &pixels, cam) else {
+        return e;
+    };
+    let errors = reprojection_errors(&solution.pose, &points, &pixels, cam);
+    let refused = Fit { solution, errors };
+    match view.overlay(frame, cam, pairs, &refused) {
+        Ok(img) if img.save(overlay_path).is_ok() => e.context(format!(
+            "{source}: refused (the pose is drawn in {})",
+            overlay_path.display()
+        )),
+        _ => e,
     }
 }
 

@@ -6,13 +6,14 @@
 use std::path::{Path, PathBuf};
 
 /// The readers fuzzed, by the name of their target and corpus folder.
-pub const TARGETS: [&str; 6] = [
+pub const TARGETS: [&str; 7] = [
     "ply",
     "camera_json",
     "camera_yaml",
     "poses_csv",
     "keyframe_store",
     "stl",
+    "correspondences_csv",
 ];
 
 /// Feeds `data` to the reader `target` names ([`TARGETS`]); true when it
@@ -26,6 +27,7 @@ pub fn run(target: &str, data: &[u8]) -> bool {
         "poses_csv" => poses(data),
         "keyframe_store" => keyframe_store(data),
         "stl" => stl(data),
+        "correspondences_csv" => correspondences(data),
         other => panic!("no fuzz target {other:?} (known: {TARGETS:?})"),
     }
 }
@@ -53,6 +55,20 @@ pub fn camera(data: &[u8], name: &str) -> bool {
 pub fn poses(data: &[u8]) -> bool {
     match std::str::from_utf8(data) {
         Ok(text) => crate::io::poses::parse_poses(text, Path::new("poses.csv")).is_ok(),
+        Err(_) => false,
+    }
+}
+
+/// The readers of `init`'s `corr.csv` and `pts.csv` (the same bytes to
+/// both; accepted when either accepts).
+pub fn correspondences(data: &[u8]) -> bool {
+    use crate::io::correspondences::{parse_named_points, parse_point_pairs};
+    match std::str::from_utf8(data) {
+        Ok(text) => {
+            let pairs = parse_point_pairs(text, Path::new("corr.csv")).is_ok();
+            let named = parse_named_points(text, Path::new("pts.csv")).is_ok();
+            pairs || named
+        }
         Err(_) => false,
     }
 }

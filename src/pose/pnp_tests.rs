@@ -239,3 +239,39 @@ fn bad_input_is_a_typed_error() {
         assert_eq!(e, Some(PnpError::Degenerate("collinear pixels")));
     }
 }
+
+#[test]
+fn arbitrary_input_never_panics() {
+    let mut rng = Rng::new(7);
+    let opts = PnpRansacOptions {
+        iterations: 200,
+        ..Default::default()
+    };
+    for trial in 0..150 {
+        let n = 4 + rng.below(12) as usize;
+        let scale = [1e-9, 1e-3, 1.0, 1e6][trial % 4];
+        let pts: Vec<Vector3<f64>> = (0..n)
+            .map(|_| {
+                let v = Vector3::new(rng.normal(), rng.normal(), rng.normal()) * scale;
+                // Some points repeated, some on a line.
+                if rng.below(4) == 0 {
+                    Vector3::zeros()
+                } else {
+                    v
+                }
+            })
+            .collect();
+        let pix: Vec<Vector2<f64>> = (0..n)
+            .map(|_| Vector2::new(rng.uniform(-1e4, 1e4), rng.uniform(-10.0, 500.0)))
+            .collect();
+        let results = [
+            solve_pnp(&pts, &pix, &cam()),
+            solve_pnp_ransac(&pts, &pix, &cam(), &opts),
+        ];
+        // Errors are fine; a solution must be a real pose.
+        for s in results.into_iter().flatten() {
+            assert!(s.pose.validate().is_ok() && s.rms_px.is_finite());
+            assert!(s.inliers.len() >= 4 && s.inliers.iter().all(|&i| i < n));
+        }
+    }
+}

@@ -10,8 +10,8 @@ use image::{RgbImage, RgbaImage};
 use nalgebra::Vector2;
 use splattrack::geometry::Intrinsics;
 use splattrack::io::correspondences::{NamedPoint, PointPair};
-use splattrack::view::DisplaySink;
 use splattrack::view::clicks::{ClickSession, Phase, compose_band, frame_pixel};
+use splattrack::view::{DisplaySink, ViewError};
 use std::time::Duration;
 
 /// How long one pump of the window waits for events.
@@ -30,7 +30,15 @@ pub fn collect(
     let ctx = view
         .context()
         .context("--click: the window needs a GPU adapter, and none opened")?;
-    let mut window = DisplaySink::open(ctx, "splattrack init").context("--click")?;
+    let mut window = match DisplaySink::open(ctx, "splattrack init") {
+        Ok(w) => w,
+        Err(ViewError::NoDisplay(reason)) => {
+            let reason = reason.split(" (run it").next().unwrap_or(&reason);
+            bail!("--click needs a display: {reason} (or give the pixels with --points corr.csv)")
+        }
+        Err(ViewError::Open(reason)) => bail!("--click: cannot open a window: {reason}"),
+        Err(e) => return Err(e).context("--click"),
+    };
     let source = "the clicked points";
     let mut session = ClickSession::new(named.iter().map(|p| p.name.clone()).collect());
     // The review picture and fit of the current clicks, once solved.

@@ -151,14 +151,12 @@ impl<'a> ModelView<'a> {
         const MODEL: draw::Colour = [40, 230, 60];
         match &self.gpu {
             Some((ctx, gm, splatter)) => {
-                let depth = splatter
-                    .render_image(ctx, gm, &ideal, pose, Attribute::Depth)
+                // Covered pixels, as the tracker's silhouette counts them.
+                let weight = splatter
+                    .render_image(ctx, gm, &ideal, pose, Attribute::Weight)
                     .context("splatting the model for the overlay")?;
-                let mask: Vec<bool> = depth
-                    .data
-                    .chunks(depth.channels)
-                    .map(|p| !p[0].is_nan())
-                    .collect();
+                let mut mask: Vec<bool> = weight.data.iter().map(|&w| w > 0.0).collect();
+                fill_pinholes(&mut mask, ideal.width as usize);
                 draw::silhouette(&mut img, &mask, MODEL);
             }
             None => {
@@ -198,5 +196,25 @@ impl<'a> ModelView<'a> {
         );
         draw::label(&mut img, 6, 6, &text, draw::WHITE, draw::BLACK, 1);
         Ok(img)
+    }
+}
+
+/// Covers the uncovered pixels that at least three of their four
+/// neighbours cover: the splatting's pinholes would each draw as a bit of
+/// outline inside the silhouette.
+fn fill_pinholes(mask: &mut [bool], w: usize) {
+    let h = mask.len() / w.max(1);
+    let src = mask.to_vec();
+    for y in 1..h.saturating_sub(1) {
+        for x in 1..w.saturating_sub(1) {
+            let i = y * w + x;
+            let around = [i - 1, i + 1, i - w, i + w]
+                .iter()
+                .filter(|&&j| src[j])
+                .count();
+            if !src[i] && around >= 3 {
+                mask[i] = true;
+            }
+        }
     }
 }
