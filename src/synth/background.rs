@@ -364,7 +364,13 @@ fn clutter(cam: &Intrinsics, object: &SynthObject, distance: f64, seed: u64) -> 
         draw_segment(&mut img, w, h, (a, b), rng.uniform(0.8, 2.5), c);
     }
     // Fine grain over everything flat: shapes look printed, not painted.
-    add_noise(&mut img, w, h, &[(5.0, 0.2), (2.0, 0.15)], &mut rng);
+    add_noise(
+        &mut img,
+        w,
+        h,
+        &[(5.0, 0.2), (2.0, 0.15), (1.0, 0.15)],
+        &mut rng,
+    );
     let at = Placement {
         count: 7,
         depth: (1.2, 2.2),

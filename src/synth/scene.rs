@@ -263,37 +263,25 @@ pub struct SynthScene {
     occluders: Vec<(SynthObject, Pose)>,
     /// The exit slide's peak, metres along camera x.
     exit_shift: f64,
+    /// The keyframes' background, where it differs from the frames'.
+    keyframe_background: Option<Vec<[f32; 3]>>,
 }
 
 impl SynthScene {
     /// The scene `config` describes for `object` (its background from
     /// [`SynthConfig::background`] and [`SynthConfig::low_contrast`]).
+    /// Over clutter, the keyframes are rendered over clutter of another
+    /// seed: the camera that took them saw other surroundings.
     pub fn new(config: SynthConfig, object: SynthObject) -> Self {
-        let cam = &config.camera;
-        let mut bg = make_background(
-            config.background,
-            cam,
-            &object,
-            config.distance,
-            config.seed,
-        );
-        if config.low_contrast {
-            // The object's mean grey as frame 0 shows it.
-            let pose = trajectory_pose(config.trajectory, config.distance, 0, config.frames);
-            let black = vec![[0.0; 3]; bg.len()];
-            let r = raster::render(&object, &pose, cam, &Light::moving(0.0), &black, 1);
-            let (sum, n) = r
-                .rgb
-                .iter()
-                .zip(&r.coverage)
-                .filter(|(_, c)| **c > 0.99)
-                .fold((0.0, 0usize), |(s, n), (c, _)| (s + luminance(*c), n + 1));
-            lower_contrast(&mut bg, if n > 0 { sum / n as f32 } else { 0.5 });
-        }
-        Self::with_background(config, object, bg)
+        let bg = scene_background(&config, &object, config.seed);
+        let kf_bg = (config.background == Background::Clutter)
+            .then(|| scene_background(&config, &object, config.seed ^ 0x4B46_4247));
+        let mut scene = Self::with_background(config, object, bg);
+        scene.keyframe_background = kf_bg;
+        scene
     }
 
-    /// The scene with `background` as given.
+    /// The scene with `background` as given (for the keyframes too).
     pub fn with_background(
         config: SynthConfig,
         object: SynthObject,
@@ -332,6 +320,7 @@ impl SynthScene {
             background,
             occluders,
             exit_shift,
+            keyframe_background: None,
         }
     }
 
@@ -394,8 +383,33 @@ impl SynthScene {
 
     /// The keyframe images ([`keyframe_images`]; no occluders).
     pub fn keyframe_images(&self) -> Vec<(String, image::RgbImage, Pose)> {
-        keyframe_images(&self.config, &self.object, &self.background)
+        let bg = self
+            .keyframe_background
+            .as_ref()
+            .unwrap_or(&self.background);
+        keyframe_images(&self.config, &self.object, bg)
     }
+}
+
+/// The background `config` asks for, from `seed`, its contrast lowered
+/// where asked.
+fn scene_background(config: &SynthConfig, object: &SynthObject, seed: u64) -> Vec<[f32; 3]> {
+    let cam = &config.camera;
+    let mut bg = make_background(config.background, cam, object, config.distance, seed);
+    if config.low_contrast {
+        // The object's mean grey as frame 0 shows it.
+        let pose = trajectory_pose(config.trajectory, config.distance, 0, config.frames);
+        let black = vec![[0.0; 3]; bg.len()];
+        let r = raster::render(object, &pose, cam, &Light::moving(0.0), &black, 1);
+        let (sum, n) = r
+            .rgb
+            .iter()
+            .zip(&r.coverage)
+            .filter(|(_, c)| **c > 0.99)
+            .fold((0.0, 0usize), |(s, n), (c, _)| (s + luminance(*c), n + 1));
+        lower_contrast(&mut bg, if n > 0 { sum / n as f32 } else { 0.5 });
+    }
+    bg
 }
 
 /// The frame the exit slide peaks at: the middle one.
