@@ -3,7 +3,8 @@
 //! frame, tracking three frames from there. Counted per scene:
 //!
 //! - found: some of the three frames `tracking` within 5 deg / 5 cm of the
-//!   ground truth (and whether the third frame still is);
+//!   ground truth; held: the third frame still is (of the starts whose
+//!   third frame has a trustworthy ground truth);
 //! - wrong: starts with a frame reported `tracking` more than 10 deg off
 //!   (this must be 0: a confident wrong pose is the worst failure).
 //!
@@ -12,7 +13,8 @@
 //! real cube and dragon are measured where `SPLATTRACK_DATA` is set.
 //! Minutes on lavapipe, so `#[ignore]`d:
 //! `cargo test --release --test start -- --ignored --nocapture`
-//! (`START_SCENES="blob clutter,visp_rbt_cube"` picks scenes by name).
+//! (`START_SCENES="blob clutter,visp_rbt_cube"` picks scenes by name,
+//! `START_MODALITIES=texture,contour` sets the modalities).
 
 mod tracking_common;
 
@@ -40,8 +42,9 @@ struct Start {
     /// The first of the tracked frames (1-based) `tracking` within 5 deg /
     /// 5 cm, if any.
     found_at: Option<usize>,
-    /// Whether the last tracked frame is `tracking` within 5 deg / 5 cm.
-    held: bool,
+    /// Whether the last tracked frame is `tracking` within 5 deg / 5 cm
+    /// (`None` where it has no ground truth to judge it by).
+    held: Option<bool>,
     /// Whether a frame was `tracking` more than 10 deg off.
     wrong: bool,
     /// The largest rotation error of a `tracking` frame, degrees.
@@ -50,6 +53,18 @@ struct Start {
     judged: bool,
     /// Seconds spent on the tracked frames.
     secs: f64,
+}
+
+/// The settings: the defaults, with `START_MODALITIES` (as
+/// `--modalities` takes them) where set.
+fn config() -> TrackerConfig {
+    let mut c = TrackerConfig::default();
+    if let Ok(m) = std::env::var("START_MODALITIES") {
+        c.modalities = m
+            .parse()
+            .expect("START_MODALITIES as --modalities takes it");
+    }
+    c
 }
 
 /// Tracks `frames` (image, ground truth if trustworthy) with a fresh
@@ -62,7 +77,7 @@ fn run_start(
 ) -> Start {
     let mut t = Tracker::builder(shared_test_context(), model.clone(), cam)
         .keyframes(store.clone())
-        .config(TrackerConfig::default())
+        .config(config())
         .build()
         .expect("a searching tracker");
     let mut s = Start::default();
@@ -85,7 +100,7 @@ fn run_start(
             s.wrong |= rot > 10.0;
         }
         if k + 1 == frames.len() {
-            s.held = good;
+            s.held = Some(good);
         }
     }
     s.secs = t0.elapsed().as_secs_f64();
@@ -103,7 +118,8 @@ impl Row {
         let judged: Vec<&Start> = self.starts.iter().filter(|s| s.judged).collect();
         let n = judged.len().max(1) as f64;
         let found = judged.iter().filter(|s| s.found_at.is_some()).count();
-        let held = judged.iter().filter(|s| s.held).count();
+        let held = judged.iter().filter(|s| s.held == Some(true)).count();
+        let held_of = judged.iter().filter(|s| s.held.is_some()).count();
         let wrong = judged.iter().filter(|s| s.wrong).count();
         let at: Vec<usize> = judged.iter().filter_map(|s| s.found_at).collect();
         let mean_at = if at.is_empty() {
@@ -118,14 +134,14 @@ impl Row {
         let secs = self.starts.iter().map(|s| s.secs).sum::<f64>()
             / (self.starts.len() * TRACKED).max(1) as f64;
         println!(
-            "| {:<28} | {:>2}/{:<2} ({:>3.0} %) | {:>8} | {:>2}/{:<2} | {:>5} | {:>8.1} | {:>6.2} |",
+            "| {:<28} | {:>2}/{:<2} ({:>3.0} %)   | {:>8} | {:>2}/{:<2}  | {:>5} | {:>9.1} | {:>7.2} |",
             self.name,
             found,
             judged.len(),
             100.0 * found as f64 / n,
             mean_at,
             held,
-            judged.len(),
+            held_of,
             wrong,
             worst,
             secs
@@ -135,10 +151,10 @@ impl Row {
 
 fn header() {
     println!(
-        "| scene                        | found by frame 3 | at frame | held 3 | wrong | worst tr | s/frame |"
+        "| scene                        | found by frame 3 | at frame | held 3 | wrong | worst deg | s/frame |"
     );
     println!(
-        "|------------------------------|------------------|----------|--------|-------|----------|---------|"
+        "|------------------------------|------------------|----------|--------|-------|-----------|---------|"
     );
 }
 
@@ -309,7 +325,10 @@ fn starts_from_every_tenth_frame() {
             rows.push(row);
         }
     }
-    println!("\nStarts from every 10th frame, 3 frames tracked from each, default settings:");
+    println!(
+        "\nStarts from every 10th frame, 3 frames tracked from each, modalities {}:",
+        config().modalities
+    );
     header();
     for row in &rows {
         row.print();
