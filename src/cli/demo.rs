@@ -47,6 +47,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         points: 60_000,
         noise: 0.01,
         seed: 1,
+        scene: synth::SceneArgs::default(),
         out: seq_dir.clone(),
         force: true,
     };

@@ -1,9 +1,10 @@
-//! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N] --out DIR`.
+//! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N]
+//! [--background plain|shapes|clutter] [--object-px PX] [--exit F] ... --out DIR`.
 
 use super::common::{Choice, choice_name};
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
-use splattrack::synth::{SynthConfig, Trajectory, sequence};
+use splattrack::synth::{Background, SynthConfig, SynthObject, Trajectory, sequence};
 use std::path::{Path, PathBuf};
 
 /// The built-in objects (`splattrack::synth::objects::OBJECT_NAMES`).
@@ -30,6 +31,48 @@ pub enum TrajectoryArg {
     Fast,
     /// A full turn about the vertical.
     Turn,
+}
+
+/// The backgrounds (`splattrack::synth::Background`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum BackgroundArg {
+    /// A smooth gradient only.
+    Plain,
+    /// Flat rectangles and discs over a gradient.
+    #[default]
+    Shapes,
+    /// Noise, lines, shapes and distractor objects in the object's colours.
+    Clutter,
+}
+
+/// `--background`.
+pub fn background_parser() -> Choice<BackgroundArg> {
+    Choice::new("background")
+}
+
+/// How the scene looks beyond the object and its motion.
+#[derive(clap::Args, Debug, Default)]
+pub struct SceneArgs {
+    /// What is behind the object.
+    #[arg(long, default_value = "shapes", value_parser = background_parser())]
+    pub background: BackgroundArg,
+    /// Lower the background's grey-level contrast to about the object's grey.
+    #[arg(long)]
+    pub low_contrast: bool,
+    /// The fraction (0..0.95) of the object's silhouette outside the image
+    /// at the middle frame: it slides out to the right and back.
+    #[arg(long, default_value_t = 0.0)]
+    pub exit: f64,
+    /// Distractor objects in front of the object that hide parts of it.
+    #[arg(long, default_value_t = 0)]
+    pub occluders: usize,
+    /// The object's size in the first frame, pixels across (sets its
+    /// distance; the trajectory's translations scale with it).
+    #[arg(long, conflicts_with = "distance")]
+    pub object_px: Option<f64>,
+    /// The object's distance from the camera, metres (default 0.55).
+    #[arg(long)]
+    pub distance: Option<f64>,
 }
 
 /// `--object`.
@@ -65,6 +108,8 @@ pub struct Args {
     pub noise: f64,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    #[command(flatten)]
+    pub scene: SceneArgs,
     /// The sequence directory to write (must be empty or absent).
     #[arg(long)]
     pub out: PathBuf,
@@ -148,9 +193,30 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
             args.points
         );
     }
+    let sc = &args.scene;
+    if !(sc.exit.is_finite() && (0.0..=0.95).contains(&sc.exit)) {
+        bail!("--exit {}: must be in 0..0.95", sc.exit);
+    }
+    if sc.occluders > 20 {
+        bail!("--occluders {}: at most 20", sc.occluders);
+    }
+    if let Some(d) = sc.distance
+        && !(d.is_finite() && (0.05..=100.0).contains(&d))
+    {
+        bail!("--distance {d}: must be in 0.05..100 metres");
+    }
+    let short = args.width.min(args.height) as f64;
+    if let Some(px) = sc.object_px
+        && !(px.is_finite() && px >= 8.0 && px <= 2.0 * short)
+    {
+        bail!("--object-px {px}: must be in 8..{}", 2.0 * short);
+    }
+    let background = Background::by_name(&choice_name(&sc.background))
+        .context("a background the library lacks")?;
     // Focal length scaled with the width: the same field of view (56 deg).
     let f = 600.0 * args.width as f64 / 640.0;
-    Ok(SynthConfig {
+    let defaults = SynthConfig::default();
+    let cfg = SynthConfig {
         object: choice_name(&args.object),
         trajectory,
         frames: args.frames,
@@ -164,7 +230,20 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
         ),
         noise: args.noise,
         seed: args.seed,
-        ..Default::default()
+        background,
+        low_contrast: sc.low_contrast,
+        exit: sc.exit,
+        occluders: sc.occluders,
+        distance: sc.distance.unwrap_or(defaults.distance),
+        ..defaults
+    };
+    Ok(match sc.object_px {
+        Some(px) => {
+            let object =
+                SynthObject::by_name(&cfg.object).context("an object the library lacks")?;
+            cfg.with_object_px(&object, px)
+        }
+        None => cfg,
     })
 }
 
@@ -183,10 +262,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     prepare_out(&args.out, args.force)?;
     let s = write(&cfg, &args.out, args.points)?;
     println!(
-        "wrote {} ({} object, {} trajectory): {} frames, {} keyframes, model.ply with {} points (diameter {:.3} m)",
+        "wrote {} ({} object, {} trajectory, {} background, {:.3} m away): {} frames, {} keyframes, model.ply with {} points (diameter {:.3} m)",
         s.dir.display(),
         cfg.object,
         cfg.trajectory.name(),
+        cfg.background.name(),
+        cfg.distance,
         s.frames,
         s.keyframes,
         s.model_points,
@@ -209,5 +290,14 @@ mod tests {
             .map(choice_name)
             .collect();
         assert_eq!(trajectories, Trajectory::NAMES);
+        let backgrounds: Vec<String> = BackgroundArg::value_variants()
+            .iter()
+            .map(choice_name)
+            .collect();
+        assert_eq!(backgrounds, Background::NAMES);
+        assert_eq!(
+            choice_name(&BackgroundArg::default()),
+            SynthConfig::default().background.name()
+        );
     }
 }

@@ -1,11 +1,13 @@
 //! A synthetic sequence's scene: the trajectory, the configuration, the
 //! background, the keyframes' viewpoints and the frames rendered from them.
 
+use super::background::{Background, distractors, lower_contrast, luminance, make_background};
+use super::framing::shift_for_exit;
 use super::objects::{Light, SynthObject};
 use super::raster;
 use crate::geometry::{Intrinsics, Pose, look_at, rotation_exp};
 use crate::rng::Rng;
-use nalgebra::{Vector3, Vector6};
+use nalgebra::{Vector2, Vector3, Vector6};
 
 /// How the object moves in front of the fixed camera.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -46,11 +48,11 @@ impl Trajectory {
 
     /// The offset from the base pose at `s` in [0, 1]: a camera-frame twist
     /// about the object's centre (translation in metres, rotation in
-    /// radians).
-    fn offset(&self, s: f64) -> Vector6<f64> {
+    /// radians), its translations scaled by `scale`.
+    fn offset(&self, s: f64, scale: f64) -> Vector6<f64> {
         let tau = std::f64::consts::TAU;
         // Amplitudes per generator: x, y (m), z (m), rotations (rad).
-        let amp = Vector6::new(0.04, 0.03, 0.08, 0.35, 0.35, 0.35);
+        let amp = Vector6::new(0.04 * scale, 0.03 * scale, 0.08 * scale, 0.35, 0.35, 0.35);
         match self {
             Self::Fig10 => {
                 // Six equal segments; each goes out and back smoothly.
@@ -90,6 +92,18 @@ pub struct SynthConfig {
     pub samples: usize,
     /// Seed of the background, the model sampling and the noise.
     pub seed: u64,
+    /// What is behind the object.
+    pub background: Background,
+    /// Lower the background's grey-level contrast until it is about the
+    /// object's own grey (hues kept).
+    pub low_contrast: bool,
+    /// The fraction (0..1) of the object's silhouette that the middle frame
+    /// puts outside the image's right edge: the object slides out and
+    /// back on top of its trajectory (0: it stays in view).
+    pub exit: f64,
+    /// Distractor objects in front of the object, near its path, that hide
+    /// parts of it in some frames (0: none).
+    pub occluders: usize,
 }
 
 impl Default for SynthConfig {
@@ -103,7 +117,23 @@ impl Default for SynthConfig {
             noise: 0.01,
             samples: 3,
             seed: 1,
+            background: Background::Shapes,
+            low_contrast: false,
+            exit: 0.0,
+            occluders: 0,
         }
+    }
+}
+
+impl SynthConfig {
+    /// These settings with the distance at which `object` appears `px`
+    /// pixels across at the base viewpoint (the larger side of its
+    /// silhouette's bounding box, [`framing::apparent_size_px`](super::framing::apparent_size_px)).
+    pub fn with_object_px(mut self, object: &SynthObject, px: f64) -> Self {
+        self.distance = super::framing::distance_for_size(&object.mesh, &self.camera, px, |d| {
+            base_pose(d, 30.0, 25.0)
+        });
+        self
     }
 }
 
@@ -115,7 +145,12 @@ pub fn base_pose(distance: f64, azimuth_deg: f64, elevation_deg: f64) -> Pose {
     look_at(&eye, &Vector3::zeros(), &Vector3::new(0.0, 0.0, 1.0))
 }
 
-/// The ground-truth pose of frame `i` of `n`.
+/// The distance the trajectories' translations are made for: at others
+/// they scale with it, so the motion in the image stays the same.
+const REFERENCE_DISTANCE: f64 = 0.55;
+
+/// The ground-truth pose of frame `i` of `n` (without
+/// [`SynthConfig::exit`]'s slide: [`SynthScene::pose`] adds it).
 pub fn trajectory_pose(traj: Trajectory, distance: f64, i: usize, n: usize) -> Pose {
     let s = if n > 1 {
         i as f64 / (n - 1) as f64
@@ -133,7 +168,7 @@ pub fn trajectory_pose(traj: Trajectory, distance: f64, i: usize, n: usize) -> P
             }
         }
         _ => {
-            let off = traj.offset(s);
+            let off = traj.offset(s, distance / REFERENCE_DISTANCE);
             let w = Vector3::new(off[3], off[4], off[5]);
             // Rotate about the object's centre (at base.translation in the
             // camera frame), then translate.
@@ -153,41 +188,6 @@ pub fn keyframe_poses(distance: f64) -> Vec<Pose> {
         .collect();
     v.extend((0..4).map(|k| base_pose(distance, 75.0 + 90.0 * k as f64, 60.0)));
     v
-}
-
-/// A cluttered static background: overlapping rectangles and discs of
-/// random colours at several scales over a smooth gradient (linear RGB).
-pub fn background(cam: &Intrinsics, seed: u64) -> Vec<[f32; 3]> {
-    let (w, h) = (cam.width as usize, cam.height as usize);
-    let mut rng = Rng::new(seed ^ 0xBAC6);
-    let mut img: Vec<[f32; 3]> = (0..w * h)
-        .map(|i| {
-            let (x, y) = ((i % w) as f32 / w as f32, (i / w) as f32 / h as f32);
-            [0.35 + 0.2 * x, 0.3 + 0.15 * y, 0.4 - 0.1 * x]
-        })
-        .collect();
-    for _ in 0..140 {
-        let size = w as f64 * rng.uniform(0.01, 0.12);
-        let (cx, cy) = (rng.uniform(0.0, w as f64), rng.uniform(0.0, h as f64));
-        let (sx, sy) = (size, size * rng.uniform(0.4, 1.6));
-        let c = [
-            rng.uniform(0.05, 0.95) as f32,
-            rng.uniform(0.05, 0.95) as f32,
-            rng.uniform(0.05, 0.95) as f32,
-        ];
-        let disc = rng.next_f64() < 0.4;
-        let (x0, x1) = ((cx - sx).max(0.0) as usize, ((cx + sx) as usize).min(w - 1));
-        let (y0, y1) = ((cy - sy).max(0.0) as usize, ((cy + sy) as usize).min(h - 1));
-        for y in y0..=y1 {
-            for x in x0..=x1 {
-                let (dx, dy) = ((x as f64 - cx) / sx, (y as f64 - cy) / sy);
-                if !disc || dx * dx + dy * dy < 1.0 {
-                    img[y * w + x] = c;
-                }
-            }
-        }
-    }
-    img
 }
 
 /// Converts a linear 0..1 rendering to an 8-bit image with Gaussian noise.
@@ -238,30 +238,183 @@ pub struct SynthFrame {
     pub depth: Vec<f32>,
 }
 
-/// Renders frame `i` of the sequence `cfg` describes.
+/// Renders frame `i` of the sequence `cfg` describes over `bg` (used as
+/// given). Each call prepares the scene anew ([`SynthScene`] prepares it
+/// once: the exit slide is solved for, which takes some rasterising).
 pub fn render_frame(
     cfg: &SynthConfig,
     object: &SynthObject,
     bg: &[[f32; 3]],
     i: usize,
 ) -> SynthFrame {
-    let pose = trajectory_pose(cfg.trajectory, cfg.distance, i, cfg.frames);
-    let phase = i as f64 / cfg.frames.max(1) as f64 * std::f64::consts::PI;
-    let r = raster::render(
-        object,
-        &pose,
-        &cfg.camera,
-        &Light::moving(phase),
-        bg,
-        cfg.samples,
-    );
-    let mut rng = Rng::new(cfg.seed.wrapping_mul(1_000_003).wrapping_add(i as u64));
-    SynthFrame {
-        image: to_image(&r.rgb, &cfg.camera, cfg.noise, &mut rng),
-        pose,
-        coverage: r.coverage,
-        depth: r.depth,
+    SynthScene::with_background(cfg.clone(), object.clone(), bg.to_vec()).frame(i)
+}
+
+/// A synthetic sequence ready to render: the configuration, the object,
+/// its background, the occluders in front and the exit slide.
+pub struct SynthScene {
+    /// The settings.
+    pub config: SynthConfig,
+    /// The object.
+    pub object: SynthObject,
+    /// The static background (linear RGB, the camera's size, row-major).
+    pub background: Vec<[f32; 3]>,
+    /// Distractors in front of the object ([`SynthConfig::occluders`]).
+    occluders: Vec<(SynthObject, Pose)>,
+    /// The exit slide's peak, metres along camera x.
+    exit_shift: f64,
+    /// The keyframes' background, where it differs from the frames'.
+    keyframe_background: Option<Vec<[f32; 3]>>,
+}
+
+impl SynthScene {
+    /// The scene `config` describes for `object` (its background from
+    /// [`SynthConfig::background`] and [`SynthConfig::low_contrast`]).
+    /// Over clutter, the keyframes are rendered over clutter of another
+    /// seed: the camera that took them saw other surroundings.
+    pub fn new(config: SynthConfig, object: SynthObject) -> Self {
+        let bg = scene_background(&config, &object, config.seed);
+        let kf_bg = (config.background == Background::Clutter)
+            .then(|| scene_background(&config, &object, config.seed ^ 0x4B46_4247));
+        let mut scene = Self::with_background(config, object, bg);
+        scene.keyframe_background = kf_bg;
+        scene
     }
+
+    /// The scene with `background` as given (for the keyframes too).
+    pub fn with_background(
+        config: SynthConfig,
+        object: SynthObject,
+        background: Vec<[f32; 3]>,
+    ) -> Self {
+        let n = config.frames;
+        let cam = config.camera;
+        let exit_shift = if config.exit > 0.0 {
+            let peak = trajectory_pose(config.trajectory, config.distance, peak_frame(n), n);
+            shift_for_exit(&object.mesh, &peak, &cam, config.exit.min(1.0))
+        } else {
+            0.0
+        };
+        let occluders = if config.occluders > 0 {
+            // Near where the object starts, well in front of it.
+            let p0 = trajectory_pose(config.trajectory, config.distance, 0, n);
+            let c = cam
+                .project(&p0.translation)
+                .unwrap_or(Vector2::new(cam.cx, cam.cy));
+            let r = cam.fx * object.mesh.diameter() / config.distance * 0.4;
+            let at = super::background::Placement {
+                count: config.occluders,
+                depth: (0.55, 0.75),
+                region: (c - Vector2::repeat(r), c + Vector2::repeat(r)),
+                size: (0.2, 0.35),
+                own: false,
+            };
+            let mut rng = Rng::new(config.seed ^ 0x0CC1);
+            distractors(&object, &cam, config.distance, &at, &mut rng)
+        } else {
+            Vec::new()
+        };
+        Self {
+            config,
+            object,
+            background,
+            occluders,
+            exit_shift,
+            keyframe_background: None,
+        }
+    }
+
+    /// The ground-truth pose of frame `i`: the trajectory's, plus the exit
+    /// slide (out to the right and back, farthest at the middle frame).
+    pub fn pose(&self, i: usize) -> Pose {
+        let cfg = &self.config;
+        let mut pose = trajectory_pose(cfg.trajectory, cfg.distance, i, cfg.frames);
+        if self.exit_shift != 0.0 {
+            let bump = |k: usize| {
+                let s = k as f64 / (cfg.frames.max(2) - 1) as f64;
+                (std::f64::consts::PI * s).sin().powi(2)
+            };
+            pose.translation.x += self.exit_shift * bump(i) / bump(peak_frame(cfg.frames));
+        }
+        pose
+    }
+
+    /// Renders frame `i`: the object over the background, then the
+    /// occluders over both (the coverage and depth are the object's
+    /// visible part).
+    pub fn frame(&self, i: usize) -> SynthFrame {
+        let cfg = &self.config;
+        let pose = self.pose(i);
+        let phase = i as f64 / cfg.frames.max(1) as f64 * std::f64::consts::PI;
+        let light = Light::moving(phase);
+        let r = raster::render(
+            &self.object,
+            &pose,
+            &cfg.camera,
+            &light,
+            &self.background,
+            cfg.samples,
+        );
+        let (mut rgb, mut coverage, mut depth) = (r.rgb, r.coverage, r.depth);
+        let black = vec![[0.0f32; 3]; rgb.len()];
+        for (occ, p) in &self.occluders {
+            // Over black, an occluder's colour comes premultiplied by its
+            // coverage.
+            let o = raster::render(occ, p, &cfg.camera, &light, &black, cfg.samples);
+            for k in 0..rgb.len() {
+                let a = o.coverage[k];
+                if a > 0.0 {
+                    rgb[k] = [0, 1, 2].map(|c| o.rgb[k][c] + (1.0 - a) * rgb[k][c]);
+                    coverage[k] *= 1.0 - a;
+                }
+                if o.depth[k].is_finite() {
+                    depth[k] = f32::NAN;
+                }
+            }
+        }
+        let mut rng = Rng::new(cfg.seed.wrapping_mul(1_000_003).wrapping_add(i as u64));
+        SynthFrame {
+            image: to_image(&rgb, &cfg.camera, cfg.noise, &mut rng),
+            pose,
+            coverage,
+            depth,
+        }
+    }
+
+    /// The keyframe images ([`keyframe_images`]; no occluders).
+    pub fn keyframe_images(&self) -> Vec<(String, image::RgbImage, Pose)> {
+        let bg = self
+            .keyframe_background
+            .as_ref()
+            .unwrap_or(&self.background);
+        keyframe_images(&self.config, &self.object, bg)
+    }
+}
+
+/// The background `config` asks for, from `seed`, its contrast lowered
+/// where asked.
+fn scene_background(config: &SynthConfig, object: &SynthObject, seed: u64) -> Vec<[f32; 3]> {
+    let cam = &config.camera;
+    let mut bg = make_background(config.background, cam, object, config.distance, seed);
+    if config.low_contrast {
+        // The object's mean grey as frame 0 shows it.
+        let pose = trajectory_pose(config.trajectory, config.distance, 0, config.frames);
+        let black = vec![[0.0; 3]; bg.len()];
+        let r = raster::render(object, &pose, cam, &Light::moving(0.0), &black, 1);
+        let (sum, n) = r
+            .rgb
+            .iter()
+            .zip(&r.coverage)
+            .filter(|(_, c)| **c > 0.99)
+            .fold((0.0, 0usize), |(s, n), (c, _)| (s + luminance(*c), n + 1));
+        lower_contrast(&mut bg, if n > 0 { sum / n as f32 } else { 0.5 });
+    }
+    bg
+}
+
+/// The frame the exit slide peaks at: the middle one.
+fn peak_frame(n: usize) -> usize {
+    n.saturating_sub(1) / 2
 }
 
 #[cfg(test)]

@@ -2,7 +2,7 @@
 //! ("Sequence directory"), so that `splattrack track` reads it like any
 //! recorded sequence.
 
-use super::{SynthConfig, SynthObject, background, keyframe_poses, render_frame};
+use super::{SynthConfig, SynthObject, SynthScene, keyframe_poses};
 use crate::geometry::Pose;
 use crate::io::{PoseRow, write_poses};
 use crate::model::{AttributeSource, PointModel};
@@ -134,7 +134,7 @@ pub fn write_sequence(
     let model = sample_model(&object, model_points, cfg.seed)?;
     model.save_ply(dir.join("model.ply"))?;
 
-    let bg = background(cam, cfg.seed);
+    let scene = SynthScene::new(cfg.clone(), object);
     let n_kf = keyframe_poses(cfg.distance).len();
     let total = cfg.frames + n_kf;
     let report = |done: usize| {
@@ -149,7 +149,7 @@ pub fn write_sequence(
     let mut rows = Vec::with_capacity(cfg.frames);
     let mut poses = Vec::with_capacity(cfg.frames);
     for i in 0..cfg.frames {
-        let f = render_frame(cfg, &object, &bg, i);
+        let f = scene.frame(i);
         save_png(&f.image, &frames_dir.join(format!("{i:06}.png")))?;
         rows.push(PoseRow::new(format!("{i:06}"), f.pose));
         poses.push(f.pose);
@@ -159,10 +159,7 @@ pub fn write_sequence(
     write_poses(&dir.join("init.csv"), &rows[..1])?;
 
     let mut kf_rows = Vec::new();
-    for (k, (name, img, pose)) in super::keyframe_images(cfg, &object, &bg)
-        .into_iter()
-        .enumerate()
-    {
+    for (k, (name, img, pose)) in scene.keyframe_images().into_iter().enumerate() {
         save_png(&img, &kf_dir.join(&name))?;
         kf_rows.push(PoseRow::new(name, pose));
         report(cfg.frames + k + 1);
@@ -173,7 +170,7 @@ pub fn write_sequence(
         frames: cfg.frames,
         keyframes: kf_rows.len(),
         model_points: model.len(),
-        diameter: object.mesh.diameter(),
+        diameter: scene.object.mesh.diameter(),
         poses,
     })
 }
