@@ -4,45 +4,14 @@
 //! there fails pointing to `--mode it`; `model` writes the sampled point
 //! model. With `SPLATTRACK_DATA`: the real cube from its mesh.obj alone.
 
+mod cli_common;
 mod data_common;
 
+use cli_common::{fails, ok, s};
 use splattrack::io::{PoseRow, read_poses};
 use splattrack::model::TriangleMesh;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 use std::sync::OnceLock;
-
-fn run(args: &[&str]) -> Output {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_splattrack"));
-    if std::env::var_os("SPLATTRACK_ADAPTER").is_none() {
-        c.env("SPLATTRACK_ADAPTER", "cpu");
-    }
-    c.args(args).output().expect("run splattrack")
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().expect("utf-8 path")
-}
-
-/// Runs and expects success; returns stdout.
-fn ok(args: &[&str]) -> String {
-    let o = run(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{args:?} failed: {err}");
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// Runs and expects a failure with one line on stderr holding every needle.
-fn fails(args: &[&str], needles: &[&str]) {
-    let o = run(args);
-    let err = String::from_utf8_lossy(&o.stderr).into_owned();
-    assert!(!o.status.success(), "{args:?} succeeded");
-    assert!(!err.contains("panicked"), "{args:?} panicked: {err}");
-    assert_eq!(err.trim_end().lines().count(), 1, "{args:?}: {err}");
-    for n in needles {
-        assert!(err.contains(n), "{args:?}: {err:?} lacks {n:?}");
-    }
-}
 
 const FRAMES: usize = 8;
 
