@@ -53,10 +53,9 @@ impl Default for DescribeConfig {
 /// of the support); a pixel stays invalid where it was.
 pub fn smoothed(img: &GreyImage, sigma: f32) -> GreyImage {
     let (w, h) = (img.width, img.height);
-    let r = (3.0 * sigma).ceil().max(1.0) as isize;
-    let taps: Vec<f32> = (-r..=r)
-        .map(|i| (-((i * i) as f32) / (2.0 * sigma * sigma)).exp())
-        .collect();
+    // Harris's taps; their scale cancels in the normalised convolution.
+    let (taps, _) = crate::features::harris::gaussian_taps(sigma);
+    let r = (taps.len() / 2) as isize;
     // (value sum, weight sum) per pixel, horizontally then vertically.
     let mut num = vec![0.0f32; w * h];
     let mut den = vec![0.0f32; w * h];
