@@ -36,7 +36,7 @@ use super::config::{CueChoice, Modalities};
 use super::error::TrackError;
 use super::profile::Texture;
 use super::state::Tracker;
-use super::verify::{score, texture_step};
+use super::verify::{texture_step, view_texture};
 use crate::features::GreyImage;
 use crate::splat::{Attribute, Attributes};
 
@@ -99,21 +99,14 @@ impl Tracker {
                 }
             }
             let step = texture_step(self.radius_px(&pose));
-            let s = score(
-                &view,
-                &covered,
-                Some(&view.data),
-                1.0,
-                step,
-                &self.config.verify,
-            );
+            let texture = view_texture(&view.data, &covered, w, h, step);
             log::debug!(
                 "cues: keyframe {} ({}): view texture {:?} at a step of {step} px",
                 k,
                 kf.name,
-                s.view_texture
+                texture
             );
-            values.extend(s.view_texture);
+            values.extend(texture);
         }
         if values.is_empty() {
             return Ok(None);

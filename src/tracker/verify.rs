@@ -199,17 +199,7 @@ pub fn score(
     let (w, h) = (frame.width, frame.height);
     debug_assert_eq!(covered.len(), w * h);
     let covered_px = covered.iter().filter(|c| **c).count();
-    let inner = |x: usize, y: usize| {
-        x > 0
-            && y > 0
-            && x + 1 < w
-            && y + 1 < h
-            && covered[y * w + x]
-            && covered[y * w + x - 1]
-            && covered[y * w + x + 1]
-            && covered[(y - 1) * w + x]
-            && covered[(y + 1) * w + x]
-    };
+    let inner = |x: usize, y: usize| inner_pixel(covered, w, h, x, y);
     let zncc = view.and_then(|v| {
         let pairs = (0..h).flat_map(|y| (0..w).map(move |x| (x, y)));
         zncc_of(
@@ -218,22 +208,7 @@ pub fn score(
                 .map(|(x, y)| (v[y * w + x] as f64, frame.data[y * w + x] as f64)),
         )
     });
-    let view_texture = view.and_then(|v| {
-        let d = texture_step.max(1);
-        let (mut n, mut sum) = (0usize, 0.0f64);
-        for y in d..h.saturating_sub(d) {
-            for x in d..w.saturating_sub(d) {
-                let i = y * w + x;
-                let around = [i - d, i + d, i - d * w, i + d * w];
-                if inner(x, y) && around.iter().all(|&j| covered[j]) {
-                    let lap = 4.0 * v[i] as f64 - around.iter().map(|&j| v[j] as f64).sum::<f64>();
-                    n += 1;
-                    sum += lap * lap;
-                }
-            }
-        }
-        laplacian_rms(n as f64, sum)
-    });
+    let view_texture = view.and_then(|v| view_texture(v, covered, w, h, texture_step));
     VerifyScores {
         visible,
         covered_px,
@@ -241,6 +216,47 @@ pub fn score(
         edge_support: edge_support(frame, covered, cfg),
         view_texture,
     }
+}
+
+/// Whether pixel `(x, y)` and its four neighbours are covered (inside
+/// the image).
+fn inner_pixel(covered: &[bool], w: usize, h: usize, x: usize, y: usize) -> bool {
+    x > 0
+        && y > 0
+        && x + 1 < w
+        && y + 1 < h
+        && covered[y * w + x]
+        && covered[y * w + x - 1]
+        && covered[y * w + x + 1]
+        && covered[(y - 1) * w + x]
+        && covered[(y + 1) * w + x]
+}
+
+/// [`VerifyScores::view_texture`] of a `w` x `h` view (grey levels) and
+/// its coverage, at a step of `texture_step` pixels; `None` under 50
+/// pixels.
+pub fn view_texture(
+    view: &[f32],
+    covered: &[bool],
+    w: usize,
+    h: usize,
+    texture_step: usize,
+) -> Option<f64> {
+    let d = texture_step.max(1);
+    let (mut n, mut sum) = (0usize, 0.0f64);
+    for y in d..h.saturating_sub(d) {
+        for x in d..w.saturating_sub(d) {
+            let i = y * w + x;
+            let around = [i - d, i + d, i - d * w, i + d * w];
+            if inner_pixel(covered, w, h, x, y) && around.iter().all(|&j| covered[j]) {
+                let lap =
+                    4.0 * view[i] as f64 - around.iter().map(|&j| view[j] as f64).sum::<f64>();
+                n += 1;
+                sum += lap * lap;
+            }
+        }
+    }
+    laplacian_rms(n as f64, sum)
 }
 
 /// The step of [`VerifyScores::view_texture`]'s Laplacian for an object
