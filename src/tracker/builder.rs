@@ -268,6 +268,7 @@ impl Tracker {
             check: GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
             outline: GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: Resident::new(resident),
+            lost: Default::default(),
             detector: None,
             cue_choice: None,
         };

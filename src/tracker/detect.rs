@@ -46,19 +46,24 @@ const DETECT_REFINE_STEPS: usize = 2;
 
 /// A candidate pose from one keyframe's matches.
 #[derive(Debug, Clone)]
-struct Candidate {
+pub(super) struct Candidate {
     keyframe: usize,
     pose: Pose,
-    inliers: usize,
+    pub(super) inliers: usize,
     spread: f64,
 }
 
 impl Tracker {
     /// Makes the detector (its keyframe features) where not yet made.
     pub(super) fn ensure_detector(&mut self) -> Result<(), TrackError> {
-        if self.detector.is_none() {
-            let t = Instant::now();
-            let d = self.make_detector()?;
+        let t = Instant::now();
+        self.start_detector()?;
+        let mut built = false;
+        while let Some(k) = self.detector.as_ref().and_then(|d| d.unbuilt().next()) {
+            self.build_detector_keyframe(k)?;
+            built = true;
+        }
+        if let Some(d) = self.detector.as_ref().filter(|_| built) {
             log::debug!(
                 "detector: keyframe features {:?} in {:.0} ms",
                 d.keyframes
@@ -67,13 +72,17 @@ impl Tracker {
                     .collect::<Vec<_>>(),
                 t.elapsed().as_secs_f64() * 1e3
             );
-            self.detector = Some(d);
         }
         Ok(())
     }
 
-    fn make_detector(&mut self) -> Result<Detector, TrackError> {
-        let cfg = self.config.init.detect.clone();
+    /// Makes the detector without its keyframes' features where not yet
+    /// made ([`Tracker::build_detector_keyframe`] adds them one by one).
+    pub(super) fn start_detector(&mut self) -> Result<(), TrackError> {
+        if self.detector.is_some() {
+            return Ok(());
+        }
+        let cfg = &self.config.init.detect;
         let hc = HarrisConfig {
             max_corners: cfg.frame_corners.max(cfg.keyframe_corners).max(1),
             relative_threshold: cfg.harris_threshold,
@@ -83,20 +92,34 @@ impl Tracker {
         if self.harris.host() {
             harris.set_options(self.harris.options());
         }
-        let poses: Vec<Pose> = self
+        let n = self.store.as_ref().map_or(0, |s| s.keyframes.len());
+        self.detector = Some(Detector {
+            harris,
+            keyframes: vec![KeyframeFeatures::default(); n],
+            built: vec![false; n],
+            misses: 0,
+        });
+        Ok(())
+    }
+
+    /// Adds keyframe `k`'s features to the detector (started).
+    pub(super) fn build_detector_keyframe(&mut self, k: usize) -> Result<(), TrackError> {
+        let cfg = self.config.init.detect.clone();
+        let pose = self
             .store
             .as_ref()
-            .map(|s| s.keyframes.iter().map(|k| k.pose).collect())
-            .unwrap_or_default();
-        let mut keyframes = Vec::with_capacity(poses.len());
-        for (k, pose) in poses.iter().enumerate() {
-            keyframes.push(self.keyframe_features(&mut harris, k, pose, &cfg)?);
+            .and_then(|s| s.keyframes.get(k))
+            .map(|kf| kf.pose);
+        let (Some(pose), Some(mut det)) = (pose, self.detector.take()) else {
+            return Ok(());
+        };
+        let features = self.keyframe_features(&mut det.harris, k, &pose, &cfg);
+        if let Ok(f) = &features {
+            det.keyframes[k] = f.clone();
+            det.built[k] = true;
         }
-        Ok(Detector {
-            harris,
-            keyframes,
-            misses: 0,
-        })
+        self.detector = Some(det);
+        features.map(|_| ())
     }
 
     /// Keyframe `k`'s features: its view at its own pose (the tracker's
@@ -200,62 +223,30 @@ impl Tracker {
         let cfg = self.config.init.detect.clone();
         let t0 = Instant::now();
         self.ensure_detector()?;
-        let Some(mut det) = self.detector.take() else {
+        let Some(described) = self.describe_frame(frame)? else {
             return Ok(None);
         };
-        let found = match det.harris.detect(frame.grey(), None) {
-            Ok(c) => {
-                log::debug!(
-                    "detect: {} frame corners in {:.0} ms",
-                    c.len(),
-                    t0.elapsed().as_secs_f64() * 1e3
-                );
-                frame.corners = c;
-                self.candidates(&det, frame, &cfg)
-            }
-            Err(e) => Err(e.into()),
-        };
-        self.detector = Some(det);
-        let candidates = found?;
+        let candidates = self.candidates(&described, &cfg);
         let t_match = t0.elapsed();
         let mut result = None;
         // The refused candidate the check scored best, for `--refused`.
         let mut refused: Option<(f64, Refused)> = None;
         for c in candidates.iter().take(cfg.candidates) {
-            let Some(refined) = self.refine_detected(frame, c.pose)? else {
-                log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
-                continue;
-            };
-            let s = self.verify_scores(frame, &refined)?;
-            let judged = super::verify::judge(&s, &self.config.verify);
-            log::debug!(
-                "detect: keyframe {} candidate ({} inliers, spread {:.2}): {s:?} {judged:?}",
-                c.keyframe,
-                c.inliers,
-                c.spread
-            );
-            if judged.is_ok() {
-                result = Some(refined);
-                break;
-            }
-            let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
-            if refused.as_ref().is_none_or(|r| z > r.0) {
-                let r = Refused {
-                    pose: refined,
-                    source: Source::Search,
-                    inliers: c.inliers,
-                    residual_px: f64::NAN,
-                    scores: Some(s),
-                };
-                refused = Some((z, r));
+            match self.judge_candidate(frame, c, false)? {
+                Ok(p) => {
+                    result = Some(p);
+                    break;
+                }
+                Err(Some((z, r))) if refused.as_ref().is_none_or(|b| z > b.0) => {
+                    refused = Some((z, r));
+                }
+                Err(_) => {}
             }
         }
         if result.is_none() {
             self.search_refused = refused.map(|r| r.1);
         }
-        if let Some(d) = self.detector.as_mut() {
-            d.misses = if result.is_some() { 0 } else { d.misses + 1 };
-        }
+        self.count_detection(result.is_some());
         log::debug!(
             "detect: {} candidates; matching {:.0} ms, total {:.0} ms",
             candidates.len(),
@@ -265,16 +256,101 @@ impl Tracker {
         Ok(result)
     }
 
+    /// Counts a detection that found the object or not
+    /// ([`Detector::templates_now`]).
+    pub(super) fn count_detection(&mut self, found: bool) {
+        if let Some(d) = self.detector.as_mut() {
+            d.misses = if found { 0 } else { d.misses + 1 };
+        }
+    }
+
+    /// The detector's corners of `frame` (they become `frame.corners`),
+    /// described; `None` without a detector.
+    pub(super) fn describe_frame(
+        &mut self,
+        frame: &mut Frame,
+    ) -> Result<Option<Described>, TrackError> {
+        let t0 = Instant::now();
+        let Some(det) = self.detector.as_mut() else {
+            return Ok(None);
+        };
+        let c = det.harris.detect(frame.grey(), None)?;
+        log::debug!(
+            "detect: {} frame corners in {:.0} ms",
+            c.len(),
+            t0.elapsed().as_secs_f64() * 1e3
+        );
+        frame.corners = c;
+        let dcfg = self.describe_config();
+        let img = smoothed(frame.grey(), dcfg.sigma_px);
+        let pts: Vec<[f32; 2]> = frame.corners.iter().map(|c| [c.x, c.y]).collect();
+        let described = describe_all(&img, &pts, 1.0, &dcfg);
+        let descs = described.iter().map(|d| d.1).collect();
+        Ok(Some(Described {
+            pts,
+            described,
+            descs,
+        }))
+    }
+
+    /// Refines candidate `c` on `frame` (KF steps, the first one searching
+    /// as far as after a loss where `moved`: the frame is later than the
+    /// one the candidate came from) and judges it: the pose where it
+    /// passes, else the refused pose with its score for ranking (`None`
+    /// where it was not refined).
+    pub(super) fn judge_candidate(
+        &mut self,
+        frame: &Frame,
+        c: &Candidate,
+        moved: bool,
+    ) -> Result<Result<Pose, Option<(f64, Refused)>>, TrackError> {
+        let Some(refined) = self.refine_detected(frame, c.pose, moved)? else {
+            log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
+            return Ok(Err(None));
+        };
+        let s = self.verify_scores(frame, &refined)?;
+        let judged = super::verify::judge(&s, &self.config.verify);
+        log::debug!(
+            "detect: keyframe {} candidate ({} inliers, spread {:.2}): {s:?} {judged:?}",
+            c.keyframe,
+            c.inliers,
+            c.spread
+        );
+        if judged.is_ok() {
+            return Ok(Ok(refined));
+        }
+        let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
+        let r = Refused {
+            pose: refined,
+            source: Source::Search,
+            inliers: c.inliers,
+            residual_px: f64::NAN,
+            scores: Some(s),
+        };
+        Ok(Err(Some((z, r))))
+    }
+
     /// KF steps from a candidate's pose (close already: the short search
-    /// of a tracked frame), [`DETECT_REFINE_STEPS`] of them: the refined
-    /// pose, or `None` when a step fails.
-    fn refine_detected(&mut self, frame: &Frame, start: Pose) -> Result<Option<Pose>, TrackError> {
+    /// of a tracked frame, unless the frame has `moved` on since the
+    /// candidate's), [`DETECT_REFINE_STEPS`] of them: the refined pose, or
+    /// `None` when a step fails.
+    fn refine_detected(
+        &mut self,
+        frame: &Frame,
+        start: Pose,
+        moved: bool,
+    ) -> Result<Option<Pose>, TrackError> {
         let mut pose = start;
-        for _ in 0..DETECT_REFINE_STEPS {
+        for i in 0..DETECT_REFINE_STEPS {
             if self.roi(&pose).is_none() {
                 return Ok(None);
             }
-            match self.kf_step(frame, &pose, super::kf::Search::Refine, &[]) {
+            let search = if moved && i == 0 {
+                super::kf::Search::Recover
+            } else {
+                super::kf::Search::Refine
+            };
+            match self.kf_step(frame, &pose, search, &[]) {
                 Ok((step, _)) => pose = step.pose,
                 Err(StepError::Gpu(e)) => return Err(TrackError::Search(e)),
                 Err(_) => return Ok(None),
@@ -285,17 +361,26 @@ impl Tracker {
 
     /// The candidate poses of the frame's corners against each keyframe,
     /// most inliers first.
-    fn candidates(
+    fn candidates(&self, described: &Described, cfg: &DetectConfig) -> Vec<Candidate> {
+        let Some(det) = self.detector.as_ref() else {
+            return Vec::new();
+        };
+        let mut out: Vec<Candidate> = (0..det.keyframes.len())
+            .filter_map(|k| self.keyframe_candidate(k, described, cfg))
+            .collect();
+        out.sort_by_key(|c| std::cmp::Reverse(c.inliers));
+        out
+    }
+
+    /// The candidate pose of the frame's described corners against
+    /// keyframe `k`'s features, if any.
+    pub(super) fn keyframe_candidate(
         &self,
-        det: &Detector,
-        frame: &Frame,
+        k: usize,
+        described: &Described,
         cfg: &DetectConfig,
-    ) -> Result<Vec<Candidate>, TrackError> {
-        let dcfg = self.describe_config();
-        let img = smoothed(frame.grey(), dcfg.sigma_px);
-        let pts: Vec<[f32; 2]> = frame.corners.iter().map(|c| [c.x, c.y]).collect();
-        let described = describe_all(&img, &pts, 1.0, &dcfg);
-        let descs: Vec<Descriptor> = described.iter().map(|d| d.1).collect();
+    ) -> Option<Candidate> {
+        let kf = self.detector.as_ref()?.keyframes.get(k)?;
         let t = Instant::now();
         let mcfg = MatchConfig {
             min_score: cfg.min_score,
@@ -306,50 +391,57 @@ impl Tracker {
             min_inliers: cfg.min_inliers.max(4),
             ..PnpRansacOptions::default()
         };
-        let mut out = Vec::new();
-        for (k, kf) in det.keyframes.iter().enumerate() {
-            let m = match_descriptors(&descs, &kf.descriptors, &kf.owners, kf.points.len(), &mcfg);
-            if m.len() < cfg.min_inliers.max(4) {
-                log::debug!("detect: keyframe {k}: {} matches", m.len());
-                continue;
-            }
-            let points: Vec<Vector3<f64>> = m.iter().map(|x| kf.points[x.corner]).collect();
-            let pixels: Vec<Vector2<f64>> = m
-                .iter()
-                .map(|x| {
-                    let p = pts[described[x.frame].0];
-                    Vector2::new(p[0] as f64, p[1] as f64)
-                })
-                .collect();
-            let Ok(sol) = solve_pnp_ransac(&points, &pixels, &self.cam, &opts) else {
-                log::debug!("detect: keyframe {k}: {} matches, no pose", m.len());
-                continue;
-            };
-            let spread = spread(&sol.inliers.iter().map(|&i| pixels[i]).collect::<Vec<_>>())
-                / (2.0 * self.radius_px(&sol.pose)).max(1.0);
-            log::debug!(
-                "detect: keyframe {k}: {} matches, {} inliers ({:.2} px), spread {spread:.2}, \
-                 {:.0} ms since described",
-                m.len(),
-                sol.inliers.len(),
-                sol.rms_px,
-                t.elapsed().as_secs_f64() * 1e3
-            );
-            if sol.inliers.len() >= cfg.min_inliers
-                && spread >= cfg.min_spread
-                && self.roi(&sol.pose).is_some()
-            {
-                out.push(Candidate {
-                    keyframe: k,
-                    pose: sol.pose,
-                    inliers: sol.inliers.len(),
-                    spread,
-                });
-            }
+        let m = match_descriptors(
+            &described.descs,
+            &kf.descriptors,
+            &kf.owners,
+            kf.points.len(),
+            &mcfg,
+        );
+        if m.len() < cfg.min_inliers.max(4) {
+            log::debug!("detect: keyframe {k}: {} matches", m.len());
+            return None;
         }
-        out.sort_by_key(|c| std::cmp::Reverse(c.inliers));
-        Ok(out)
+        let points: Vec<Vector3<f64>> = m.iter().map(|x| kf.points[x.corner]).collect();
+        let pixels: Vec<Vector2<f64>> = m
+            .iter()
+            .map(|x| {
+                let p = described.pts[described.described[x.frame].0];
+                Vector2::new(p[0] as f64, p[1] as f64)
+            })
+            .collect();
+        let Ok(sol) = solve_pnp_ransac(&points, &pixels, &self.cam, &opts) else {
+            log::debug!("detect: keyframe {k}: {} matches, no pose", m.len());
+            return None;
+        };
+        let spread = spread(&sol.inliers.iter().map(|&i| pixels[i]).collect::<Vec<_>>())
+            / (2.0 * self.radius_px(&sol.pose)).max(1.0);
+        log::debug!(
+            "detect: keyframe {k}: {} matches, {} inliers ({:.2} px), spread {spread:.2}, \
+             {:.0} ms",
+            m.len(),
+            sol.inliers.len(),
+            sol.rms_px,
+            t.elapsed().as_secs_f64() * 1e3
+        );
+        (sol.inliers.len() >= cfg.min_inliers
+            && spread >= cfg.min_spread
+            && self.roi(&sol.pose).is_some())
+        .then_some(Candidate {
+            keyframe: k,
+            pose: sol.pose,
+            inliers: sol.inliers.len(),
+            spread,
+        })
     }
+}
+
+/// A frame's corners (the detector's) and the descriptors of those that
+/// could be described (index into `pts`, descriptor).
+pub(super) struct Described {
+    pts: Vec<[f32; 2]>,
+    described: Vec<(usize, Descriptor)>,
+    descs: Vec<Descriptor>,
 }
 
 /// The larger side of the bounding box of `pixels`.

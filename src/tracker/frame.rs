@@ -10,6 +10,9 @@ use super::verify::{self, Unverified, VerifyScores};
 use crate::pose::Anchor;
 use std::time::{Duration, Instant};
 
+/// A lost frame's budget's measure before any frame was timed.
+const LOST_FALLBACK: Duration = Duration::from_millis(50);
+
 impl Tracker {
     /// Tracks one frame (RGB, undistorted, the camera's size): Harris
     /// corners, the IT step, the KF step(s), then [`decide`].
@@ -30,12 +33,20 @@ impl Tracker {
         self.contour.begin_frame();
         let mut times = StageTimes::default();
         self.stages = StageTimes::default();
-        // No pose yet, or lost for a while: search the whole frame.
+        // No pose yet: search the whole frame. Lost for a while: a slice
+        // of that search (its budget leaves room for the frame's steps).
         let every = self.config.init.redetect_after_lost;
-        if self.searching
-            || (every > 0 && self.lost_streak >= every && self.lost_streak.is_multiple_of(every))
-        {
-            let found = self.find(frame)?;
+        let lost_search = !self.searching && every > 0 && self.lost_streak >= every;
+        let target = self
+            .lost
+            .frame_target(self.config.init.lost_frame_budget, LOST_FALLBACK);
+        if self.searching || lost_search {
+            let found = if self.searching {
+                self.find(frame)?
+            } else {
+                let budget = target.saturating_sub(self.lost.steps_time());
+                self.lost_search_slice(frame, budget)?
+            };
             times.search = t0.elapsed();
             times.waits.search = self.ctx.stats().wait_time.saturating_sub(read0.wait_time);
             // The search's KF-like steps are its own time ("search"), not
@@ -51,6 +62,7 @@ impl Tracker {
             ] {
                 *part = Duration::ZERO;
             }
+            let no_time = lost_search && t0.elapsed() + self.lost.steps_time() > target;
             match found {
                 Some(p) => {
                     log::info!("object found by search");
@@ -59,8 +71,12 @@ impl Tracker {
                     self.lost_streak = 0;
                     self.it_only_streak = 0;
                     self.prev = None;
+                    self.lost.reset();
                 }
-                None if self.searching => {
+                None if self.searching || no_time => {
+                    if !self.searching {
+                        self.lost_streak += 1;
+                    }
                     times.total = t0.elapsed();
                     return Ok(TrackResult {
                         pose: self.pose,
@@ -250,6 +266,7 @@ impl Tracker {
         if d.status == Status::Tracking {
             self.pose = d.pose.unwrap_or(start_pose);
             self.lost_streak = 0;
+            self.lost.reset();
             if self.config.modalities.contour {
                 let pose = self.pose;
                 self.learn_colours(rgb, &pose);
@@ -287,6 +304,14 @@ impl Tracker {
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
         times.total = t0.elapsed();
+        // The lost frames' budget is measured in these times: a tracked
+        // frame's (not the first, which makes its buffers), and a lost
+        // frame's own steps.
+        if recovering {
+            self.lost.steps(times.total.saturating_sub(times.search));
+        } else if d.status == Status::Tracking && !first_frame && times.search.is_zero() {
+            self.lost.tracked(times.total);
+        }
         let refused = proposed.filter(|_| d.status == Status::Lost).map(
             |(source, pose, inliers, residual_px)| Refused {
                 pose,

@@ -70,9 +70,15 @@ pub struct InitConfig {
     pub candidates: usize,
     /// KF steps refining each candidate.
     pub refine_steps: usize,
-    /// After this many lost frames in a row, and every as many after,
-    /// search the whole frame again (0: never).
+    /// After this many lost frames in a row, search the whole frame
+    /// again, a slice each frame until found (0: never).
     pub redetect_after_lost: usize,
+    /// While lost, the time a frame aims at, search and steps together,
+    /// in tracked frames' times (measured on the sequence; before any
+    /// frame was tracked, in lost frames' own steps): the search's units
+    /// run until the next would pass it (at least one a frame), and the
+    /// frame skips its own steps where the search left them no time.
+    pub lost_frame_budget: f64,
     /// The detection by features tried before the templates.
     pub detect: super::detect::config::DetectConfig,
 }
@@ -86,7 +92,8 @@ impl Default for InitConfig {
             template_px: 24.0,
             candidates: 6,
             refine_steps: 3,
-            redetect_after_lost: 5,
+            redetect_after_lost: 1,
+            lost_frame_budget: 2.5,
             detect: super::detect::config::DetectConfig::default(),
         }
     }

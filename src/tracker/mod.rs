@@ -31,8 +31,9 @@
 //! `builder.rs` (making a tracker), `state.rs` (what it keeps),
 //! `frame.rs` ([`Tracker::track`] running the steps in turn), `it.rs` and
 //! `kf.rs` (the texture steps: each gathers correspondences on the GPU and
-//! solves them), `contour/` (the contour step), `search.rs` and `init.rs`
-//! (the search for the object), `check.rs` and `verify.rs` (the check of a
+//! solves them), `contour/` (the contour step), `search.rs`, `detect.rs`
+//! and `init.rs` (the search for the object), `lost.rs` (that search in
+//! slices while the track is lost), `check.rs` and `verify.rs` (the check of a
 //! pose against the image), `decision.rs` (the rules), `result.rs` (what a
 //! frame reports), `error.rs`, `region.rs` and `workspace.rs` (where the
 //! steps work: the object's region of the image, its renders and reads),
@@ -53,6 +54,7 @@ mod frame;
 pub mod init;
 mod it;
 mod kf;
+mod lost;
 pub mod outline_gpu;
 mod profile;
 mod region;

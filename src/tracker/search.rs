@@ -93,18 +93,34 @@ impl Tracker {
         found
     }
 
+    /// The template search (module docs of [`super::init`]) in one go:
+    /// the best candidate that passes the check, or `None`.
     pub(super) fn find_in(
         &mut self,
         frame: &Frame,
         rgb: &image::RgbImage,
     ) -> Result<Option<Pose>, TrackError> {
+        let mut ts = self.template_search(frame)?;
+        while !ts.views_done() {
+            self.template_hits(&mut ts)?;
+        }
+        while !ts.candidates_done() {
+            self.template_candidate(&mut ts, frame, rgb)?;
+        }
+        Ok(self.template_result(ts))
+    }
+
+    /// A template search of `frame` (hits are scored on it), its
+    /// viewpoints and candidates still to come ([`Tracker::template_hits`],
+    /// [`Tracker::template_candidate`]).
+    pub(super) fn template_search(&mut self, frame: &Frame) -> Result<TemplateSearch, TrackError> {
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let views = self.init_viewpoints();
         let d0 = views
             .first()
             .map_or(1.0, |p| p.transform_point(&self.center).z);
         let diam_px = self.cam.fx.max(self.cam.fy) * 2.0 * self.radius / d0;
-        let cfg = self.config.init.clone();
+        let cfg = &self.config.init;
         let f = ((diam_px / cfg.template_px).floor() as usize).clamp(1, 16);
         let (coarse, cw, ch) = shrink(&frame.grey().data, w, h, f);
         let edges = EdgeMap::new(&coarse, cw, ch);
@@ -112,101 +128,150 @@ impl Tracker {
         // pixel (i, j) of the result is centred where coarse pixel (i, j)
         // of the frame is ((u + 0.5) s - 0.5 with s = 1 / f).
         let small = self.cam.scaled(2.0 / f as f64);
-        let mut targets = SplatTargets::new(&self.ctx, small.width, small.height);
+        let targets = SplatTargets::new(&self.ctx, small.width, small.height);
         let (thin, idx) = thinned(&self.model, TEMPLATE_POINTS);
-        let mut models = TemplateModels {
+        let models = TemplateModels {
             geometry: GpuModel::new(&self.ctx, &thin)?,
             idx,
             textured: HashMap::new(),
         };
-        let mut hits: Vec<Hit> = Vec::new();
-        for (vi, pose) in views.iter().enumerate() {
-            let Some((view, cover)) =
-                self.template_view(pose, &small, &mut targets, &mut models)?
-            else {
+        Ok(TemplateSearch {
+            views,
+            f,
+            coarse,
+            cw,
+            ch,
+            edges,
+            small,
+            targets,
+            models,
+            hits: Vec::new(),
+            next_view: 0,
+            next_hit: None,
+            best: None,
+            refused: None,
+        })
+    }
+
+    /// Scores the next viewpoint's templates over the search's frame.
+    pub(super) fn template_hits(&mut self, ts: &mut TemplateSearch) -> Result<(), TrackError> {
+        let Some(pose) = ts.views.get(ts.next_view).copied() else {
+            return Ok(());
+        };
+        let vi = ts.next_view;
+        ts.next_view += 1;
+        let small = ts.small;
+        let Some((view, cover)) =
+            self.template_view(&pose, &small, &mut ts.targets, &mut ts.models)?
+        else {
+            return Ok(());
+        };
+        let (cw, ch) = (ts.cw, ts.ch);
+        let (sw, sh) = (small.width as usize, small.height as usize);
+        let (v, vw, vh) = shrink(&view, sw, sh, 2);
+        let (c, _, _) = shrink(&cover, sw, sh, 2);
+        for scale in [0.8, 1.0, 1.25] {
+            let Some((t, origin)) = Template::new(&v, &c, vw, vh, scale) else {
                 continue;
             };
-            let (sw, sh) = (small.width as usize, small.height as usize);
-            let (v, vw, vh) = shrink(&view, sw, sh, 2);
-            let (c, _, _) = shrink(&cover, sw, sh, 2);
-            for scale in [0.8, 1.0, 1.25] {
-                let Some((t, origin)) = Template::new(&v, &c, vw, vh, scale) else {
-                    continue;
-                };
-                for (x, y, score) in best_positions(&t, &coarse, &edges, cw, ch, 2) {
-                    hits.push(Hit {
-                        view: vi,
-                        scale,
-                        x,
-                        y,
-                        score,
-                        origin,
-                    });
-                }
+            for (x, y, score) in best_positions(&t, &ts.coarse, &ts.edges, cw, ch, 2) {
+                ts.hits.push(Hit {
+                    view: vi,
+                    scale,
+                    x,
+                    y,
+                    score,
+                    origin,
+                });
             }
         }
-        hits.sort_by(|a, b| b.score.total_cmp(&a.score));
-        let mut best: Option<(f64, Pose)> = None;
-        let mut refused: Option<(f64, Refused)> = None;
-        for hit in hits.iter().take(cfg.candidates) {
-            let pose = &views[hit.view];
-            let (x0, y0) = hit.origin;
-            // Where the template's centre (the principal point) lands, in
-            // coarse pixels, then full-size ones (a coarse pixel centre u
-            // is full-size (u + 0.5) f - 0.5).
-            let ff = f as f64;
-            let (pu, pv) = (
-                (self.cam.cx + 0.5) / ff - 0.5,
-                (self.cam.cy + 0.5) / ff - 0.5,
-            );
-            let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
-            let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
-            let ray = Vector3::new(
-                (u - self.cam.cx) / self.cam.fx,
-                (vv - self.cam.cy) / self.cam.fy,
-                1.0,
-            )
-            .normalize();
-            let r = axis_to(&ray);
-            let z = pose.transform_point(&self.center).z / hit.scale;
-            let rot = r * pose.rotation;
-            let start = Pose::new(rot, ray * z - rot * self.center)?;
-            let Some((refined, by_contour)) = self.refine_candidate(frame, rgb, start)? else {
-                continue;
-            };
-            let s = self.verify_scores(frame, &refined)?;
-            log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
-            // Refined by its outline (no texture step held), the edges
-            // decide as they do for a tracked frame.
-            let judged = if by_contour {
-                super::verify::judge_with_contour(&s, &self.config.verify)
-            } else {
-                super::verify::judge(&s, &self.config.verify)
-            };
-            let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
-            if judged.is_ok() {
-                if best.is_none_or(|b| z > b.0) {
-                    best = Some((z, refined));
-                }
-            } else if refused.as_ref().is_none_or(|b| z > b.0) {
-                let pose = refined;
-                refused = Some((
-                    z,
-                    Refused {
-                        pose,
-                        source: Source::Search,
-                        inliers: 0,
-                        residual_px: f64::NAN,
-                        scores: Some(s),
-                    },
-                ));
+        Ok(())
+    }
+
+    /// Refines and judges the next best hit on `frame` (the search's own
+    /// frame, or a later one of the same sequence: the refinement's wide
+    /// first step covers the object's motion since).
+    pub(super) fn template_candidate(
+        &mut self,
+        ts: &mut TemplateSearch,
+        frame: &Frame,
+        rgb: &image::RgbImage,
+    ) -> Result<(), TrackError> {
+        let next = match ts.next_hit {
+            Some(n) => n,
+            None => {
+                ts.hits.sort_by(|a, b| b.score.total_cmp(&a.score));
+                ts.hits.truncate(self.config.init.candidates);
+                0
             }
+        };
+        ts.next_hit = Some(next + 1);
+        let Some(hit) = ts.hits.get(next).copied() else {
+            return Ok(());
+        };
+        let pose = &ts.views[hit.view];
+        let (x0, y0) = hit.origin;
+        // Where the template's centre (the principal point) lands, in
+        // coarse pixels, then full-size ones (a coarse pixel centre u
+        // is full-size (u + 0.5) f - 0.5).
+        let ff = ts.f as f64;
+        let (pu, pv) = (
+            (self.cam.cx + 0.5) / ff - 0.5,
+            (self.cam.cy + 0.5) / ff - 0.5,
+        );
+        let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
+        let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
+        let ray = Vector3::new(
+            (u - self.cam.cx) / self.cam.fx,
+            (vv - self.cam.cy) / self.cam.fy,
+            1.0,
+        )
+        .normalize();
+        let r = axis_to(&ray);
+        let z = pose.transform_point(&self.center).z / hit.scale;
+        let rot = r * pose.rotation;
+        let start = Pose::new(rot, ray * z - rot * self.center)?;
+        let Some((refined, by_contour)) = self.refine_candidate(frame, rgb, start)? else {
+            return Ok(());
+        };
+        let s = self.verify_scores(frame, &refined)?;
+        log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
+        // Refined by its outline (no texture step held), the edges
+        // decide as they do for a tracked frame.
+        let judged = if by_contour {
+            super::verify::judge_with_contour(&s, &self.config.verify)
+        } else {
+            super::verify::judge(&s, &self.config.verify)
+        };
+        let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
+        if judged.is_ok() {
+            if ts.best.is_none_or(|b| z > b.0) {
+                ts.best = Some((z, refined));
+            }
+        } else if ts.refused.as_ref().is_none_or(|b| z > b.0) {
+            let pose = refined;
+            ts.refused = Some((
+                z,
+                Refused {
+                    pose,
+                    source: Source::Search,
+                    inliers: 0,
+                    residual_px: f64::NAN,
+                    scores: Some(s),
+                },
+            ));
         }
+        Ok(())
+    }
+
+    /// The template search's answer: its best candidate that passed, and
+    /// its best refused one kept for the report.
+    pub(super) fn template_result(&mut self, ts: TemplateSearch) -> Option<Pose> {
         // Kept where the templates refused nothing (the features may have).
-        if let Some(r) = refused {
+        if let Some(r) = ts.refused {
             self.search_refused = Some(r.1);
         }
-        Ok(best.map(|b| b.1))
+        ts.best.map(|b| b.1)
     }
 
     /// The KF step from `start`, wide search first: the refined pose, or
@@ -313,6 +378,40 @@ impl Tracker {
             .map(|(g, c)| if *c > 0.0 && g.is_finite() { *g } else { 0.0 })
             .collect();
         Ok(Some((view, cover)))
+    }
+}
+
+/// A template search under way ([`Tracker::template_search`]): the frame
+/// shrunk and its edges, the viewpoints, the hits so far and the
+/// candidates judged so far.
+pub(super) struct TemplateSearch {
+    views: Vec<Pose>,
+    /// The shrink factor of the frame.
+    f: usize,
+    coarse: Vec<f32>,
+    cw: usize,
+    ch: usize,
+    edges: EdgeMap,
+    small: crate::geometry::Intrinsics,
+    targets: SplatTargets,
+    models: TemplateModels,
+    hits: Vec<Hit>,
+    next_view: usize,
+    /// The next hit to refine (`None`: the hits are not ranked yet).
+    next_hit: Option<usize>,
+    best: Option<(f64, Pose)>,
+    refused: Option<(f64, Refused)>,
+}
+
+impl TemplateSearch {
+    /// Whether every viewpoint has been scored.
+    pub(super) fn views_done(&self) -> bool {
+        self.next_view >= self.views.len()
+    }
+
+    /// Whether every candidate has been judged (the viewpoints first).
+    pub(super) fn candidates_done(&self) -> bool {
+        self.views_done() && self.next_hit.is_some_and(|n| n >= self.hits.len())
     }
 }
 

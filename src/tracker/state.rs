@@ -152,6 +152,8 @@ pub struct Tracker {
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
+    /// The search while lost, between frames, and its budget's times.
+    pub(super) lost: super::lost::LostSearch,
     /// The search's detection by features, made at its first use.
     pub(super) detector: Option<super::detect::cache::Detector>,
     /// What the automatic choice of cues measured and chose, when it ran.

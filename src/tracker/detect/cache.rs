@@ -22,11 +22,19 @@ pub(in crate::tracker) struct KeyframeFeatures {
 pub(in crate::tracker) struct Detector {
     pub(in crate::tracker) harris: Harris,
     pub(in crate::tracker) keyframes: Vec<KeyframeFeatures>,
+    /// Whether each keyframe's features have been made (the search while
+    /// lost makes them a few at a time).
+    pub(in crate::tracker) built: Vec<bool>,
     /// Searches in a row the features failed.
     pub(in crate::tracker) misses: usize,
 }
 
 impl Detector {
+    /// The keyframes whose features are still to be made.
+    pub(in crate::tracker) fn unbuilt(&self) -> impl Iterator<Item = usize> + '_ {
+        self.built.iter().enumerate().filter(|b| !*b.1).map(|b| b.0)
+    }
+
     /// Whether some keyframe has features enough to detect by.
     pub(in crate::tracker) fn textured(&self, cfg: &DetectConfig) -> bool {
         self.keyframes
