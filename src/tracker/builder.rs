@@ -129,6 +129,11 @@ impl TrackerBuilder<'_> {
             t.choose_modalities()?;
         }
         t.apply(&self.execution);
+        // The detection's pipelines are made now: a lost frame that had
+        // to make them would stall (a tenth of a second on lavapipe).
+        if t.store.is_some() && t.config.init.detect.enabled {
+            t.start_detector()?;
+        }
         Ok(t)
     }
 }

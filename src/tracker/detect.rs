@@ -42,13 +42,13 @@ use nalgebra::{Vector2, Vector3};
 use std::time::Instant;
 
 /// KF steps refining a candidate pose.
-const DETECT_REFINE_STEPS: usize = 2;
+pub(super) const DETECT_REFINE_STEPS: usize = 2;
 
 /// A candidate pose from one keyframe's matches.
 #[derive(Debug, Clone)]
 pub(super) struct Candidate {
-    keyframe: usize,
-    pose: Pose,
+    pub(super) keyframe: usize,
+    pub(super) pose: Pose,
     pub(super) inliers: usize,
     spread: f64,
 }
@@ -232,7 +232,7 @@ impl Tracker {
         // The refused candidate the check scored best, for `--refused`.
         let mut refused: Option<(f64, Refused)> = None;
         for c in candidates.iter().take(cfg.candidates) {
-            match self.judge_candidate(frame, c, false)? {
+            match self.judge_candidate(frame, c)? {
                 Ok(p) => {
                     result = Some(p);
                     break;
@@ -293,21 +293,35 @@ impl Tracker {
         }))
     }
 
-    /// Refines candidate `c` on `frame` (KF steps, the first one searching
-    /// as far as after a loss where `moved`: the frame is later than the
-    /// one the candidate came from) and judges it: the pose where it
-    /// passes, else the refused pose with its score for ranking (`None`
-    /// where it was not refined).
+    /// Refines candidate `c` on `frame` (the frame it came from) by KF
+    /// steps and judges it: the pose where it passes, else the refused
+    /// pose with its score for ranking (`None` where it was not refined).
     pub(super) fn judge_candidate(
         &mut self,
         frame: &Frame,
         c: &Candidate,
-        moved: bool,
     ) -> Result<Result<Pose, Option<(f64, Refused)>>, TrackError> {
-        let Some(refined) = self.refine_detected(frame, c.pose, moved)? else {
-            log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
-            return Ok(Err(None));
-        };
+        let mut pose = c.pose;
+        for _ in 0..DETECT_REFINE_STEPS {
+            match self.refine_detected(frame, &pose)? {
+                Some(p) => pose = p,
+                None => {
+                    log::debug!("detect: keyframe {} candidate not refined", c.keyframe);
+                    return Ok(Err(None));
+                }
+            }
+        }
+        self.check_candidate(frame, c, pose)
+    }
+
+    /// Candidate `c`, refined to `refined`, checked on `frame`: the pose
+    /// where it passes, else the refused pose with its score for ranking.
+    pub(super) fn check_candidate(
+        &mut self,
+        frame: &Frame,
+        c: &Candidate,
+        refined: Pose,
+    ) -> Result<Result<Pose, Option<(f64, Refused)>>, TrackError> {
         let s = self.verify_scores(frame, &refined)?;
         let judged = super::verify::judge(&s, &self.config.verify);
         log::debug!(
@@ -330,33 +344,23 @@ impl Tracker {
         Ok(Err(Some((z, r))))
     }
 
-    /// KF steps from a candidate's pose (close already: the short search
-    /// of a tracked frame, unless the frame has `moved` on since the
-    /// candidate's), [`DETECT_REFINE_STEPS`] of them: the refined pose, or
-    /// `None` when a step fails.
-    fn refine_detected(
+    /// One KF step from a candidate's pose on its frame (close already:
+    /// the short search of a tracked frame): the refined pose, or `None`
+    /// when the step fails. A candidate takes [`DETECT_REFINE_STEPS`] of
+    /// them.
+    pub(super) fn refine_detected(
         &mut self,
         frame: &Frame,
-        start: Pose,
-        moved: bool,
+        pose: &Pose,
     ) -> Result<Option<Pose>, TrackError> {
-        let mut pose = start;
-        for i in 0..DETECT_REFINE_STEPS {
-            if self.roi(&pose).is_none() {
-                return Ok(None);
-            }
-            let search = if moved && i == 0 {
-                super::kf::Search::Recover
-            } else {
-                super::kf::Search::Refine
-            };
-            match self.kf_step(frame, &pose, search, &[]) {
-                Ok((step, _)) => pose = step.pose,
-                Err(StepError::Gpu(e)) => return Err(TrackError::Search(e)),
-                Err(_) => return Ok(None),
-            }
+        if self.roi(pose).is_none() {
+            return Ok(None);
         }
-        Ok(Some(pose))
+        match self.kf_step(frame, pose, super::kf::Search::Refine, &[]) {
+            Ok((step, _)) => Ok(Some(step.pose)),
+            Err(StepError::Gpu(e)) => Err(TrackError::Search(e)),
+            Err(_) => Ok(None),
+        }
     }
 
     /// The candidate poses of the frame's corners against each keyframe,

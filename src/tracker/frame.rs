@@ -36,7 +36,10 @@ impl Tracker {
         // No pose yet: search the whole frame. Lost for a while: a slice
         // of that search (its budget leaves room for the frame's steps).
         let every = self.config.init.redetect_after_lost;
-        let lost_search = !self.searching && every > 0 && self.lost_streak >= every;
+        let lost_search = !self.searching
+            && every > 0
+            && self.lost_streak >= every
+            && !std::mem::take(&mut self.lost.seeded);
         let target = self
             .lost
             .frame_target(self.config.init.lost_frame_budget, LOST_FALLBACK);
@@ -63,7 +66,23 @@ impl Tracker {
                 *part = Duration::ZERO;
             }
             let no_time = lost_search && t0.elapsed() + self.lost.steps_time() > target;
-            match found {
+            let stop = match found {
+                // Tracked from it on the next frame (a wide KF step).
+                Some(p) if no_time => {
+                    log::info!("object found by search (tracked from the next frame)");
+                    self.pose = p;
+                    self.lost.reset();
+                    self.lost.seeded = true;
+                    true
+                }
+                // Its frame is older than this one (the round's first): a
+                // wide KF step from it and the check on this frame.
+                Some(p) if lost_search => {
+                    log::info!("object found by search");
+                    self.pose = p;
+                    self.lost.reset();
+                    false
+                }
                 Some(p) => {
                     log::info!("object found by search");
                     self.pose = p;
@@ -71,28 +90,28 @@ impl Tracker {
                     self.lost_streak = 0;
                     self.it_only_streak = 0;
                     self.prev = None;
-                    self.lost.reset();
+                    false
                 }
-                None if self.searching || no_time => {
-                    if !self.searching {
-                        self.lost_streak += 1;
-                    }
-                    times.total = t0.elapsed();
-                    return Ok(TrackResult {
-                        pose: self.pose,
-                        inliers: 0,
-                        residual_px: f64::NAN,
-                        status: Status::Lost,
-                        reason: Some(LostReason::NotFound),
-                        keyframe: None,
-                        times,
-                        verify: None,
-                        texture_set_aside: false,
-                        cues: Modalities::NONE,
-                        refused: self.search_refused.take(),
-                    });
+                None => self.searching || no_time,
+            };
+            if stop {
+                if !self.searching {
+                    self.lost_streak += 1;
                 }
-                None => {}
+                times.total = t0.elapsed();
+                return Ok(TrackResult {
+                    pose: self.pose,
+                    inliers: 0,
+                    residual_px: f64::NAN,
+                    status: Status::Lost,
+                    reason: Some(LostReason::NotFound),
+                    keyframe: None,
+                    times,
+                    verify: None,
+                    texture_set_aside: false,
+                    cues: Modalities::NONE,
+                    refused: self.search_refused.take(),
+                });
             }
         }
         let t_features = Instant::now();

@@ -93,7 +93,7 @@ impl Default for InitConfig {
             candidates: 6,
             refine_steps: 3,
             redetect_after_lost: 1,
-            lost_frame_budget: 2.5,
+            lost_frame_budget: 2.0,
             detect: super::detect::config::DetectConfig::default(),
         }
     }

@@ -24,7 +24,7 @@
 //!
 //! [`InitConfig::lost_frame_budget`]: super::InitConfig::lost_frame_budget
 
-use super::detect::{Candidate, Described};
+use super::detect::{Candidate, DETECT_REFINE_STEPS, Described};
 use super::error::TrackError;
 use super::result::Refused;
 use super::search::TemplateSearch;
@@ -41,8 +41,12 @@ enum Unit {
     Describe,
     /// One keyframe's features matched to the frame's, a pose by PnP.
     Match,
-    /// A feature candidate refined and checked.
-    Candidate,
+    /// The detector made (its Harris, without keyframe features).
+    Detector,
+    /// One KF step refining a feature candidate.
+    Refine,
+    /// A refined feature candidate checked.
+    Check,
     /// The template search made ready (the frame shrunk, the model thinned).
     Templates,
     /// One viewpoint's templates scored over the frame.
@@ -54,7 +58,7 @@ enum Unit {
 }
 
 /// Unit kinds timed.
-const UNITS: usize = 8;
+const UNITS: usize = 10;
 
 /// Weight of the newest time in the running times.
 const RUNNING: f64 = 0.25;
@@ -64,8 +68,6 @@ const RUNNING: f64 = 0.25;
 #[derive(Default)]
 pub(super) struct LostSearch {
     round: Option<Round>,
-    /// Slices run (frames the search worked on).
-    slices: usize,
     /// Each unit kind's running time, seconds.
     costs: [Option<f64>; UNITS],
     /// A tracked frame's running time, seconds.
@@ -76,6 +78,9 @@ pub(super) struct LostSearch {
     /// Whether the last round was one of templates (a round of features
     /// comes next).
     after_templates: bool,
+    /// The search found a pose that its frame had no time left to track
+    /// from: the next frame tracks from it before the search goes on.
+    pub(super) seeded: bool,
 }
 
 /// A round of the search, on the frame it began on.
@@ -88,22 +93,28 @@ enum Round {
 struct FeatureRound {
     /// The frame matched (its corners the detector's).
     frame: Frame,
-    /// The slice it began in.
-    slice: usize,
     described: Option<Described>,
     /// Keyframes to match, the closest to the last pose first.
     order: Vec<usize>,
     next: usize,
     /// Candidates found and not yet tried, most inliers last.
     pending: Vec<Candidate>,
+    /// The candidate being refined.
+    active: Option<Active>,
     tried: usize,
     refused: Option<(f64, Refused)>,
+}
+
+/// A feature candidate being refined, a KF step a unit.
+struct Active {
+    candidate: Candidate,
+    pose: Pose,
+    steps: usize,
 }
 
 /// A round of templates under way.
 struct TemplateRound {
     frame: Frame,
-    slice: usize,
     search: Option<TemplateSearch>,
 }
 
@@ -166,8 +177,16 @@ impl LostSearch {
             None => Unit::End,
             Some(Round::Features(r)) => {
                 let cap = t.config.init.detect.candidates;
-                if !r.pending.is_empty() && r.tried < cap {
-                    Unit::Candidate
+                if let Some(a) = &r.active {
+                    if a.steps >= DETECT_REFINE_STEPS {
+                        Unit::Check
+                    } else {
+                        Unit::Refine
+                    }
+                } else if !r.pending.is_empty() && r.tried < cap {
+                    Unit::Refine
+                } else if t.detector.is_none() {
+                    Unit::Detector
                 } else if r.described.is_none() {
                     Unit::Describe
                 } else if r.tried >= cap {
@@ -202,11 +221,7 @@ impl Tracker {
     ) -> Result<Option<Pose>, TrackError> {
         let t0 = Instant::now();
         let mut ls = std::mem::take(&mut self.lost);
-        ls.slices += 1;
         let reference = ls.frame_target(1.0, budget).as_secs_f64();
-        // The frame being tracked, for candidates' refinement and check
-        // (made at the first unit that needs it).
-        let mut current: Option<Frame> = None;
         let mut started = false;
         let mut units = 0;
         let out = loop {
@@ -215,7 +230,7 @@ impl Tracker {
                     break Ok(None);
                 }
                 started = true;
-                ls.round = self.new_round(rgb, ls.slices, ls.after_templates);
+                ls.round = self.new_round(rgb, ls.after_templates);
                 ls.after_templates = matches!(ls.round, Some(Round::Templates(_)));
             }
             let unit = ls.next_unit(self);
@@ -224,7 +239,7 @@ impl Tracker {
                 break Ok(None);
             }
             let t = Instant::now();
-            let step = self.lost_unit(&mut ls, unit, rgb, &mut current);
+            let step = self.lost_unit(&mut ls, unit);
             ls.record(unit, t.elapsed().as_secs_f64());
             log::trace!(
                 "search unit {unit:?}: {:.1} ms",
@@ -258,12 +273,7 @@ impl Tracker {
     /// [`super::detect::DetectConfig::templates_every`] asks for them (or
     /// without features), never two rounds of templates in a row where
     /// features run; `None` without keyframes to search with.
-    fn new_round(
-        &mut self,
-        rgb: &image::RgbImage,
-        slice: usize,
-        after_templates: bool,
-    ) -> Option<Round> {
+    fn new_round(&mut self, rgb: &image::RgbImage, after_templates: bool) -> Option<Round> {
         let store = self.store.as_ref()?;
         let cfg = &self.config.init.detect;
         let templates = !cfg.enabled
@@ -275,7 +285,6 @@ impl Tracker {
         if templates {
             return Some(Round::Templates(Box::new(TemplateRound {
                 frame,
-                slice,
                 search: None,
             })));
         }
@@ -287,25 +296,18 @@ impl Tracker {
         });
         Some(Round::Features(Box::new(FeatureRound {
             frame,
-            slice,
             described: None,
             order,
             next: 0,
             pending: Vec::new(),
+            active: None,
             tried: 0,
             refused: None,
         })))
     }
 
     /// Runs unit `unit` of the round under way.
-    fn lost_unit(
-        &mut self,
-        ls: &mut LostSearch,
-        unit: Unit,
-        rgb: &image::RgbImage,
-        current: &mut Option<Frame>,
-    ) -> Result<Step, TrackError> {
-        let slice = ls.slices;
+    fn lost_unit(&mut self, ls: &mut LostSearch, unit: Unit) -> Result<Step, TrackError> {
         match (unit, ls.round.as_mut()) {
             (Unit::End, Some(Round::Features(r))) => {
                 self.count_detection(false);
@@ -318,13 +320,11 @@ impl Tracker {
                 let found = r.search.take().and_then(|s| self.template_result(s));
                 Ok(found.map_or(Step::RoundOver, Step::Found))
             }
-            (Unit::Describe, Some(Round::Features(r))) => {
-                let t = Instant::now();
+            (Unit::Detector, Some(Round::Features(_))) => {
                 self.start_detector()?;
-                log::trace!(
-                    "detector started in {:.1} ms",
-                    t.elapsed().as_secs_f64() * 1e3
-                );
+                Ok(Step::More)
+            }
+            (Unit::Describe, Some(Round::Features(r))) => {
                 r.described = self.describe_frame(&mut r.frame)?;
                 Ok(if r.described.is_some() {
                     Step::More
@@ -353,22 +353,41 @@ impl Tracker {
                 }
                 Ok(Step::More)
             }
-            (Unit::Candidate, Some(Round::Features(r))) => {
-                let Some(c) = r.pending.pop() else {
-                    return Ok(Step::More);
-                };
-                r.tried += 1;
-                let moved = r.slice != slice;
-                let judged = if moved {
-                    self.current_frame(current, rgb, true)?;
-                    let Some(frame) = current.as_ref() else {
+            (Unit::Refine, Some(Round::Features(r))) => {
+                if r.active.is_none() {
+                    let Some(c) = r.pending.pop() else {
                         return Ok(Step::More);
                     };
-                    self.judge_candidate(frame, &c, true)?
-                } else {
-                    self.judge_candidate(&r.frame, &c, false)?
+                    r.tried += 1;
+                    r.active = Some(Active {
+                        pose: c.pose,
+                        candidate: c,
+                        steps: 0,
+                    });
+                }
+                let Some(a) = r.active.as_mut() else {
+                    return Ok(Step::More);
                 };
-                match judged {
+                match self.refine_detected(&r.frame, &a.pose)? {
+                    Some(p) => {
+                        a.pose = p;
+                        a.steps += 1;
+                    }
+                    None => {
+                        log::debug!(
+                            "detect: keyframe {} candidate not refined",
+                            a.candidate.keyframe
+                        );
+                        r.active = None;
+                    }
+                }
+                Ok(Step::More)
+            }
+            (Unit::Check, Some(Round::Features(r))) => {
+                let Some(a) = r.active.take() else {
+                    return Ok(Step::More);
+                };
+                match self.check_candidate(&r.frame, &a.candidate, a.pose)? {
                     Ok(p) => {
                         self.count_detection(true);
                         Ok(Step::Found(p))
@@ -399,38 +418,11 @@ impl Tracker {
                 let Some(mut s) = r.search.take() else {
                     return Ok(Step::More);
                 };
-                let res = if r.slice != slice {
-                    self.current_frame(current, rgb, false)?;
-                    match current.as_ref() {
-                        Some(frame) => self.template_candidate(&mut s, frame, rgb),
-                        None => Ok(()),
-                    }
-                } else {
-                    self.template_candidate(&mut s, &r.frame, &r.frame.rgb)
-                };
+                let res = self.template_candidate(&mut s, &r.frame, &r.frame.rgb);
                 r.search = Some(s);
                 res.map(|_| Step::More)
             }
             _ => Ok(Step::RoundOver),
         }
-    }
-
-    /// Makes `current` the frame `rgb` with its corners (the detector's
-    /// where `detector`, else the tracker's), where not yet made.
-    fn current_frame(
-        &mut self,
-        current: &mut Option<Frame>,
-        rgb: &image::RgbImage,
-        detector: bool,
-    ) -> Result<(), TrackError> {
-        if current.is_none() {
-            let mut f = Frame::new(rgb.clone());
-            f.corners = match self.detector.as_mut().filter(|_| detector) {
-                Some(d) => d.harris.detect(f.grey(), None)?,
-                None => self.harris.detect(f.grey(), None)?,
-            };
-            *current = Some(f);
-        }
-        Ok(())
     }
 }

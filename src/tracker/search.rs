@@ -188,9 +188,7 @@ impl Tracker {
         Ok(())
     }
 
-    /// Refines and judges the next best hit on `frame` (the search's own
-    /// frame, or a later one of the same sequence: the refinement's wide
-    /// first step covers the object's motion since).
+    /// Refines and judges the next best hit on `frame`, the search's own.
     pub(super) fn template_candidate(
         &mut self,
         ts: &mut TemplateSearch,
