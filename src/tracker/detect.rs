@@ -20,6 +20,7 @@
 //!    search is; the first to pass is the answer.
 
 pub mod cache;
+mod candidate;
 pub mod config;
 mod features;
 mod matching;
@@ -35,23 +36,12 @@ use crate::geometry::Pose;
 use crate::pose::{PnpRansacOptions, solve_pnp_ransac};
 use crate::splat::{Attribute, Attributes, GatherMode, Window};
 use cache::{Detector, KeyframeFeatures};
+pub(super) use candidate::{Candidate, DETECT_REFINE_STEPS, Described};
 pub use config::DetectConfig;
 use features::{DescribeConfig, Descriptor, describe_all, smoothed};
 use matching::{MatchConfig, match_descriptors};
 use nalgebra::{Vector2, Vector3};
 use std::time::Instant;
-
-/// KF steps refining a candidate pose.
-pub(super) const DETECT_REFINE_STEPS: usize = 2;
-
-/// A candidate pose from one keyframe's matches.
-#[derive(Debug, Clone)]
-pub(super) struct Candidate {
-    pub(super) keyframe: usize,
-    pub(super) pose: Pose,
-    pub(super) inliers: usize,
-    spread: f64,
-}
 
 impl Tracker {
     /// Makes the detector (its keyframe features) where not yet made.
@@ -438,14 +428,6 @@ impl Tracker {
             spread,
         })
     }
-}
-
-/// A frame's corners (the detector's) and the descriptors of those that
-/// could be described (index into `pts`, descriptor).
-pub(super) struct Described {
-    pts: Vec<[f32; 2]>,
-    described: Vec<(usize, Descriptor)>,
-    descs: Vec<Descriptor>,
 }
 
 /// The larger side of the bounding box of `pixels`.

@@ -31,9 +31,10 @@
 //! `builder.rs` (making a tracker), `state.rs` (what it keeps),
 //! `frame.rs` ([`Tracker::track`] running the steps in turn), `it.rs` and
 //! `kf.rs` (the texture steps: each gathers correspondences on the GPU and
-//! solves them), `contour/` (the contour step), `search.rs`, `detect.rs`
-//! and `init.rs` (the search for the object), `lost.rs` (that search in
-//! slices while the track is lost), `check.rs` and `verify.rs` (the check of a
+//! solves them), `contour/` (the contour step), `search.rs`,
+//! `templates.rs`, `detect/` and `init.rs` (the search for the object),
+//! `lost/` (that search in slices while the track is lost), `frames.rs`
+//! (a frame as the steps see it), `check.rs` and `verify.rs` (the check of a
 //! pose against the image), `decision.rs` (the rules), `result.rs` (what a
 //! frame reports), `error.rs`, `region.rs` and `workspace.rs` (where the
 //! steps work: the object's region of the image, its renders and reads),
@@ -51,6 +52,7 @@ mod detect;
 mod error;
 mod execution;
 mod frame;
+mod frames;
 pub mod init;
 mod it;
 mod kf;
@@ -61,6 +63,7 @@ mod region;
 mod result;
 mod search;
 mod state;
+mod templates;
 pub mod verify;
 pub mod verify_gpu;
 mod workspace;

@@ -8,18 +8,12 @@ use super::init::{
 };
 use super::result::{Refused, Source, StepError};
 use super::state::{Frame, Tracker};
+use super::templates::{TemplateModels, TemplateSearch, ViewAndCover};
 use crate::features::GreyImage;
 use crate::geometry::{Pose, look_at, rotation_exp};
 use crate::splat::{Attribute, Attributes, GpuModel, SplatTargets};
 use nalgebra::{Matrix3, Vector3};
 use std::collections::HashMap;
-
-/// The thinned model on the GPU and its copies textured by keyframes.
-struct TemplateModels {
-    geometry: GpuModel,
-    idx: Vec<usize>,
-    textured: HashMap<usize, GpuModel>,
-}
 
 impl Tracker {
     /// The viewpoints of the search, the object's centre on the optical
@@ -378,43 +372,6 @@ impl Tracker {
         Ok(Some((view, cover)))
     }
 }
-
-/// A template search under way ([`Tracker::template_search`]): the frame
-/// shrunk and its edges, the viewpoints, the hits so far and the
-/// candidates judged so far.
-pub(super) struct TemplateSearch {
-    views: Vec<Pose>,
-    /// The shrink factor of the frame.
-    f: usize,
-    coarse: Vec<f32>,
-    cw: usize,
-    ch: usize,
-    edges: EdgeMap,
-    small: crate::geometry::Intrinsics,
-    targets: SplatTargets,
-    models: TemplateModels,
-    hits: Vec<Hit>,
-    next_view: usize,
-    /// The next hit to refine (`None`: the hits are not ranked yet).
-    next_hit: Option<usize>,
-    best: Option<(f64, Pose)>,
-    refused: Option<(f64, Refused)>,
-}
-
-impl TemplateSearch {
-    /// Whether every viewpoint has been scored.
-    pub(super) fn views_done(&self) -> bool {
-        self.next_view >= self.views.len()
-    }
-
-    /// Whether every candidate has been judged (the viewpoints first).
-    pub(super) fn candidates_done(&self) -> bool {
-        self.views_done() && self.next_hit.is_some_and(|n| n >= self.hits.len())
-    }
-}
-
-/// A view's grey levels and coverage (0/1).
-type ViewAndCover = (Vec<f32>, Vec<f32>);
 
 /// The pose with rotation `r` and the object's centre `c` at distance `d`
 /// on the optical axis.

@@ -24,192 +24,14 @@
 //!
 //! [`InitConfig::lost_frame_budget`]: super::InitConfig::lost_frame_budget
 
-use super::detect::{Candidate, DETECT_REFINE_STEPS, Described};
+mod rounds;
+
 use super::error::TrackError;
-use super::result::Refused;
-use super::search::TemplateSearch;
 use super::state::{Frame, Tracker};
 use crate::geometry::Pose;
+pub(super) use rounds::LostSearch;
+use rounds::{Active, FeatureRound, Round, Step, TemplateRound, Unit};
 use std::time::{Duration, Instant};
-
-/// The kinds of the search's units, each timed on its own.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Unit {
-    /// One keyframe's features made (the first round only).
-    Keyframe,
-    /// The round's frame: the detector's corners, described.
-    Describe,
-    /// One keyframe's features matched to the frame's, a pose by PnP.
-    Match,
-    /// The detector made (its Harris, without keyframe features).
-    Detector,
-    /// One KF step refining a feature candidate.
-    Refine,
-    /// A refined feature candidate checked.
-    Check,
-    /// The template search made ready (the frame shrunk, the model thinned).
-    Templates,
-    /// One viewpoint's templates scored over the frame.
-    View,
-    /// A template candidate refined and checked.
-    TemplateCandidate,
-    /// The round is over (no work).
-    End,
-}
-
-/// Unit kinds timed.
-const UNITS: usize = 10;
-
-/// Weight of the newest time in the running times.
-const RUNNING: f64 = 0.25;
-
-/// The search while lost, between frames, with the times its budget is
-/// measured by.
-#[derive(Default)]
-pub(super) struct LostSearch {
-    round: Option<Round>,
-    /// Each unit kind's running time, seconds.
-    costs: [Option<f64>; UNITS],
-    /// A tracked frame's running time, seconds.
-    tracked: Option<f64>,
-    /// The running time of a lost frame's own steps (besides the search),
-    /// seconds.
-    steps: Option<f64>,
-    /// Whether the last round was one of templates (a round of features
-    /// comes next).
-    after_templates: bool,
-    /// The search found a pose that its frame had no time left to track
-    /// from: the next frame tracks from it before the search goes on.
-    pub(super) seeded: bool,
-}
-
-/// A round of the search, on the frame it began on.
-enum Round {
-    Features(Box<FeatureRound>),
-    Templates(Box<TemplateRound>),
-}
-
-/// A round of features under way.
-struct FeatureRound {
-    /// The frame matched (its corners the detector's).
-    frame: Frame,
-    described: Option<Described>,
-    /// Keyframes to match, the closest to the last pose first.
-    order: Vec<usize>,
-    next: usize,
-    /// Candidates found and not yet tried, most inliers last.
-    pending: Vec<Candidate>,
-    /// The candidate being refined.
-    active: Option<Active>,
-    tried: usize,
-    refused: Option<(f64, Refused)>,
-}
-
-/// A feature candidate being refined, a KF step a unit.
-struct Active {
-    candidate: Candidate,
-    pose: Pose,
-    steps: usize,
-}
-
-/// A round of templates under way.
-struct TemplateRound {
-    frame: Frame,
-    search: Option<TemplateSearch>,
-}
-
-/// What a unit came to.
-enum Step {
-    More,
-    Found(Pose),
-    RoundOver,
-}
-
-impl LostSearch {
-    /// A unit's running time, seconds; one not yet timed is taken as
-    /// long as a tracked frame.
-    fn cost(&self, u: Unit, reference: f64) -> f64 {
-        self.costs[u as usize].unwrap_or(reference)
-    }
-
-    fn record(&mut self, u: Unit, secs: f64) {
-        let c = &mut self.costs[u as usize];
-        *c = Some(c.map_or(secs, |c| c + RUNNING * (secs - c)));
-    }
-
-    /// Counts a tracked frame's time.
-    pub(super) fn tracked(&mut self, total: Duration) {
-        let s = total.as_secs_f64();
-        self.tracked = Some(self.tracked.map_or(s, |t| t + RUNNING * (s - t)));
-    }
-
-    /// Counts the time of a lost frame's own steps.
-    pub(super) fn steps(&mut self, d: Duration) {
-        let s = d.as_secs_f64();
-        self.steps = Some(self.steps.map_or(s, |t| t + RUNNING * (s - t)));
-    }
-
-    /// The time a lost frame aims at: `budget` times a tracked frame's,
-    /// or before any frame was tracked, times a lost frame's own steps
-    /// (or `fallback`, before those were timed either).
-    pub(super) fn frame_target(&self, budget: f64, fallback: Duration) -> Duration {
-        let reference = self
-            .tracked
-            .or(self.steps)
-            .unwrap_or(fallback.as_secs_f64());
-        Duration::from_secs_f64((budget * reference).max(0.0))
-    }
-
-    /// The expected time of a lost frame's own steps.
-    pub(super) fn steps_time(&self) -> Duration {
-        Duration::from_secs_f64(self.steps.unwrap_or(0.0))
-    }
-
-    /// Forgets the round under way (the object was found, by the search
-    /// or by the steps).
-    pub(super) fn reset(&mut self) {
-        self.round = None;
-        self.after_templates = false;
-    }
-
-    fn next_unit(&self, t: &Tracker) -> Unit {
-        match &self.round {
-            None => Unit::End,
-            Some(Round::Features(r)) => {
-                let cap = t.config.init.detect.candidates;
-                if let Some(a) = &r.active {
-                    if a.steps >= DETECT_REFINE_STEPS {
-                        Unit::Check
-                    } else {
-                        Unit::Refine
-                    }
-                } else if !r.pending.is_empty() && r.tried < cap {
-                    Unit::Refine
-                } else if t.detector.is_none() {
-                    Unit::Detector
-                } else if r.described.is_none() {
-                    Unit::Describe
-                } else if r.tried >= cap {
-                    Unit::End
-                } else if let Some(&k) = r.order.get(r.next) {
-                    let built = t
-                        .detector
-                        .as_ref()
-                        .is_some_and(|d| d.built.get(k).copied().unwrap_or(true));
-                    if built { Unit::Match } else { Unit::Keyframe }
-                } else {
-                    Unit::End
-                }
-            }
-            Some(Round::Templates(r)) => match &r.search {
-                None => Unit::Templates,
-                Some(s) if !s.views_done() => Unit::View,
-                Some(s) if !s.candidates_done() => Unit::TemplateCandidate,
-                Some(_) => Unit::End,
-            },
-        }
-    }
-}
 
 impl Tracker {
     /// One slice of the search while lost, on frame `rgb`, in `budget`
@@ -233,7 +55,7 @@ impl Tracker {
                 ls.round = self.new_round(rgb, ls.after_templates);
                 ls.after_templates = matches!(ls.round, Some(Round::Templates(_)));
             }
-            let unit = ls.next_unit(self);
+            let unit = ls.next_unit(self.config.init.detect.candidates, self.detector.as_ref());
             let cost = Duration::from_secs_f64(ls.cost(unit, reference));
             if units > 0 && t0.elapsed() + cost > budget {
                 break Ok(None);
