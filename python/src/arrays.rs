@@ -13,11 +13,7 @@ use splattrack::geometry::Pose;
 /// The frame `obj` (`what` names it in errors) copied into `buf` (the
 /// camera's size): HxWx3 `uint8` RGB, or HxW `uint8` grey (each level
 /// copied into the three channels).
-pub fn fill_frame(
-    obj: &Bound<'_, PyAny>,
-    what: &str,
-    buf: &mut image::RgbImage,
-) -> PyResult<()> {
+pub fn fill_frame(obj: &Bound<'_, PyAny>, what: &str, buf: &mut image::RgbImage) -> PyResult<()> {
     let (w, h) = (buf.width() as usize, buf.height() as usize);
     let arr = uint8_array(obj, what)?;
     let shape = arr.shape().to_vec();
@@ -138,7 +134,9 @@ pub fn pose_from(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Pose> {
 /// A pose as a 4x4 `float64` array.
 pub fn pose_array<'py>(py: Python<'py>, pose: &Pose) -> Bound<'py, PyArray2<f64>> {
     let m = pose.to_matrix4();
-    let rows: Vec<Vec<f64>> = (0..4).map(|i| (0..4).map(|j| m[(i, j)]).collect()).collect();
+    let rows: Vec<Vec<f64>> = (0..4)
+        .map(|i| (0..4).map(|j| m[(i, j)]).collect())
+        .collect();
     PyArray2::from_vec2(py, &rows).expect("4x4")
 }
 

@@ -87,7 +87,9 @@ impl Camera {
     /// The 3x3 intrinsic matrix K.
     fn matrix<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         let k = self.cam.matrix();
-        let rows: Vec<Vec<f64>> = (0..3).map(|i| (0..3).map(|j| k[(i, j)]).collect()).collect();
+        let rows: Vec<Vec<f64>> = (0..3)
+            .map(|i| (0..3).map(|j| k[(i, j)]).collect())
+            .collect();
         PyArray2::from_vec2(py, &rows).expect("3x3")
     }
 

@@ -96,8 +96,3 @@ pub fn track(e: LibTrackError) -> PyErr {
         _ => TrackError::new_err(msg),
     }
 }
-
-/// A keyframe error: the GPU's as `GpuError`, the rest as `InputError`.
-pub fn input_from(e: splattrack::keyframes::KeyframeError) -> PyErr {
-    input(e)
-}

@@ -57,9 +57,9 @@ pub fn parse(
     let (modalities, auto_modalities) = if modalities.trim().eq_ignore_ascii_case("auto") {
         (Modalities::default(), true)
     } else {
-        let m: Modalities = modalities.parse().map_err(|e: String| {
-            value_error("modalities", e.replace("(use ", "(use auto, "))
-        })?;
+        let m: Modalities = modalities
+            .parse()
+            .map_err(|e: String| value_error("modalities", e.replace("(use ", "(use auto, ")))?;
         (m, false)
     };
     let mut t = Tuning::default();

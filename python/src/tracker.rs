@@ -12,12 +12,12 @@ use numpy::{PyArray2, PyArray3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
+use splattrack::PointModel;
 use splattrack::geometry::{Intrinsics, Pose, Undistorter};
 use splattrack::gpu::GpuContext;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::tracker::{self as lib, Mode, TrackerConfig};
-use splattrack::PointModel;
 use std::sync::Arc;
 
 /// Tracks a rigid object through the frames of one camera.
@@ -146,7 +146,8 @@ impl Tracker {
         let v = py.detach(|| t.novel_view(&pose)).map_err(errors::track)?;
         let (w, h) = (v.width as usize, v.height as usize);
         let shape_err = |e: numpy::ndarray::ShapeError| PyValueError::new_err(e.to_string());
-        let colour = numpy::ndarray::Array3::from_shape_vec((h, w, 3), v.color).map_err(shape_err)?;
+        let colour =
+            numpy::ndarray::Array3::from_shape_vec((h, w, 3), v.color).map_err(shape_err)?;
         let depth = numpy::ndarray::Array2::from_shape_vec((h, w), v.depth).map_err(shape_err)?;
         let mask = numpy::ndarray::Array2::from_shape_vec((h, w), v.mask).map_err(shape_err)?;
         Ok((
@@ -274,9 +275,16 @@ fn load_keyframes(
     }
     let cam = camera.undistorted();
     py.detach(|| {
-        let splatter = Splatter::new(ctx).map_err(|e| errors::gpu(e))?;
-        KeyframeStore::build(ctx, &splatter, model, &cam, &frames, &KeyframeConfig::default())
-            .map_err(errors::input_from)
+        let splatter = Splatter::new(ctx).map_err(errors::gpu)?;
+        KeyframeStore::build(
+            ctx,
+            &splatter,
+            model,
+            &cam,
+            &frames,
+            &KeyframeConfig::default(),
+        )
+        .map_err(errors::input)
     })
 }
 
