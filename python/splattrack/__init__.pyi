@@ -1,13 +1,32 @@
 """Type stubs of splattrack (the native module and the frame readers)."""
 
 import os
-from typing import Iterator, List, Optional, Sequence, Tuple, Union
+import pathlib
+from typing import Iterator, List, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
 
-PathLike = Union[str, os.PathLike[str]]
-ArrayLike4x4 = Union[npt.NDArray[np.floating], Sequence[Sequence[float]]]
+_PathLike = Union[str, os.PathLike[str]]
+_Pose = Union[npt.NDArray[np.floating], Sequence[Sequence[float]]]
+
+__all__ = [
+    "Camera",
+    "Error",
+    "GpuError",
+    "InputError",
+    "Model",
+    "ModelError",
+    "Tracker",
+    "TrackError",
+    "TrackResult",
+    "__version__",
+    "device",
+    "iter_frames",
+    "list_images",
+    "read_image",
+    "track_frames",
+]
 
 __version__: str
 
@@ -26,11 +45,12 @@ class GpuError(Error):
 class TrackError(Error):
     """The tracker cannot start or go on (a lost frame is not an error)."""
 
+@final
 class Camera:
     """A calibrated pinhole camera with OpenCV's distortion (k1, k2, p1, p2, k3)."""
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         fx: float,
         fy: float,
         cx: float,
@@ -38,9 +58,9 @@ class Camera:
         width: int,
         height: int,
         distortion: Optional[Sequence[float]] = None,
-    ) -> None: ...
+    ) -> "Camera": ...
     @staticmethod
-    def from_file(path: PathLike) -> "Camera":
+    def from_file(path: _PathLike) -> "Camera":
         """Reads camera.json or an OpenCV calibration YAML (InputError if it cannot)."""
     @property
     def fx(self) -> float: ...
@@ -59,11 +79,12 @@ class Camera:
     def matrix(self) -> npt.NDArray[np.float64]:
         """The 3x3 intrinsic matrix K."""
 
+@final
 class Model:
     """The object's point model."""
 
     @staticmethod
-    def load(path: PathLike, points: int = 0) -> "Model":
+    def load(path: _PathLike, points: int = 0) -> "Model":
         """A point PLY, or a mesh (OBJ, STL, PLY with faces) sampled into
         ``points`` points (0: 100,000). ModelError if it cannot be read."""
     def __len__(self) -> int: ...
@@ -73,12 +94,13 @@ class Model:
     def positions(self) -> npt.NDArray[np.float32]:
         """Nx3 positions, model units."""
 
+@final
 class TrackResult:
     """What Tracker.track says about a frame."""
 
     @property
     def pose(self) -> npt.NDArray[np.float64]:
-        """4x4 object-to-camera pose; the last good pose on a lost frame."""
+        """4x4 object-to-camera pose; the last good pose on a lost frame (NaN before the object was first found)."""
     @property
     def status(self) -> str:
         """"tracking" or "lost"."""
@@ -98,6 +120,7 @@ class TrackResult:
     def cues(self) -> str:
         """The cues that held the pose: texture, contour, texture+contour or none."""
 
+@final
 class Tracker:
     """Tracks a rigid object through the frames of one camera.
 
@@ -110,11 +133,11 @@ class Tracker:
     ``--kf-search``).
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         model: Model,
         camera: Camera,
-        keyframes: Union[None, PathLike, Sequence[Tuple[npt.NDArray[np.uint8], ArrayLike4x4]]] = None,
+        keyframes: Union[None, _PathLike, Sequence[Tuple[npt.NDArray[np.uint8], _Pose]]] = None,
         *,
         mode: Optional[str] = None,
         modalities: str = "auto",
@@ -147,14 +170,14 @@ class Tracker:
         contour_sectors: Optional[int] = None,
         contour_no_seed: bool = False,
         full_frame: bool = False,
-    ) -> None: ...
-    def start(self, pose: ArrayLike4x4) -> None:
+    ) -> "Tracker": ...
+    def start(self, pose: _Pose) -> None:
         """Starts (or restarts) the track at the next frame's pose (4x4, object-to-camera)."""
     def track(self, frame: npt.NDArray[np.uint8]) -> TrackResult:
         """Tracks the next frame (HxWx3 uint8 RGB or HxW grey, the camera's size).
         Without start(), the first frames search for the object."""
     def render(
-        self, pose: ArrayLike4x4
+        self, pose: _Pose
     ) -> Tuple[npt.NDArray[np.uint8], npt.NDArray[np.float32], npt.NDArray[np.bool_]]:
         """The novel view at pose: (colour HxWx3 uint8, depth HxW float32 NaN where empty, mask HxW bool)."""
     @property
@@ -171,14 +194,14 @@ class Tracker:
 def device() -> str:
     """The GPU adapter in use (GpuError when there is none)."""
 
-def read_image(path: PathLike) -> npt.NDArray[np.uint8]:
+def read_image(path: _PathLike) -> npt.NDArray[np.uint8]:
     """A PNG or JPEG as HxWx3 uint8 RGB (InputError if it cannot be read)."""
 
-def list_images(dir: PathLike) -> List[str]:
+def list_images(dir: _PathLike) -> List[pathlib.Path]:
     """The images of a folder in natural order of their names."""
 
-def iter_frames(source: PathLike) -> Iterator[npt.NDArray[np.uint8]]:
+def iter_frames(source: _PathLike) -> Iterator[npt.NDArray[np.uint8]]:
     """The frames of a frames folder, a sequence folder or a video file."""
 
-def track_frames(tracker: Tracker, source: PathLike) -> Iterator[Tuple[int, TrackResult]]:
+def track_frames(tracker: Tracker, source: _PathLike) -> Iterator[Tuple[int, TrackResult]]:
     """Tracks every frame of source in order, yielding (index, result)."""

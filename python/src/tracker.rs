@@ -113,7 +113,12 @@ impl Tracker {
                 inner.track_owned(img)
             })
             .map_err(errors::track)?;
-        Ok(TrackResult::of(&r))
+        let mut result = TrackResult::of(&r);
+        if inner.searching() {
+            // No pose yet: nothing good to report.
+            result.pose = [[f64::NAN; 4]; 4];
+        }
+        Ok(result)
     }
 
     /// The novel view at `pose` (4x4): the model textured by the closest
@@ -334,7 +339,7 @@ impl TrackResult {
 #[pymethods]
 impl TrackResult {
     /// The object-to-camera pose (4x4 `float64`); the last good pose on a
-    /// lost frame.
+    /// lost frame, NaN before the object was first found.
     #[getter]
     fn pose<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
         let rows: Vec<Vec<f64>> = self.pose.iter().map(|r| r.to_vec()).collect();

@@ -35,3 +35,13 @@ def test_track_video_example(sequence, tmp_path):
     while cap.read()[0]:
         n += 1
     assert n == 12
+    # The package's own reader of the same video: OpenCV, and the ffmpeg
+    # program where OpenCV is missing.
+    import splattrack as st
+
+    frames = list(st.iter_frames(video))
+    assert len(frames) == 12 and frames[0].shape == (240, 320, 3)
+    piped = list(st._frames_ffmpeg(video))
+    assert len(piped) == 12 and piped[0].shape == (240, 320, 3)
+
+    assert abs(frames[5].astype(int) - piped[5]).mean() < 3
