@@ -97,7 +97,9 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
     }
 
     // Re-detection: tracking, five frames without the object, then the
-    // object far from where it was lost.
+    // object far from where it was lost. The search runs in slices over
+    // the lost frames: it comes back within a few frames (each frame's
+    // own noise, so that none is a frozen feed), never wrong on the way.
     let mut t = Tracker::builder(ctx, scene.model.clone(), cam)
         .keyframes(store)
         .config(TrackerConfig::default())
@@ -113,12 +115,21 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
         frames[1].pose.translation + Vector3::new(0.12, 0.05, 0.0),
     )
     .unwrap();
-    let img = scene.image(&scene.render(&moved, 0.2), 0.01, 6);
-    let r = t.track(&img).unwrap();
-    let (rot, tr, ok) = within(&r.pose, &moved, scene.diameter);
-    eprintln!("re-detected: {} {rot:.2} deg, {tr:.4}", r.status);
-    assert_eq!(r.status, Status::Tracking, "{:?}", r.reason);
-    assert!(ok, "{rot:.2} deg, {tr:.4}");
+    let rendering = scene.render(&moved, 0.2);
+    let mut back = None;
+    for k in 0..10 {
+        let r = t.track(&scene.image(&rendering, 0.01, 6 + k)).unwrap();
+        let (rot, tr, ok) = within(&r.pose, &moved, scene.diameter);
+        eprintln!(
+            "after the loss, frame {k}: {} {rot:.2} deg, {tr:.4}",
+            r.status
+        );
+        if r.status == Status::Tracking {
+            assert!(ok, "tracking off: {rot:.2} deg, {tr:.4}");
+            back = back.or(Some(k));
+        }
+    }
+    assert!(back.is_some(), "not re-detected within 10 frames");
 }
 
 #[test]

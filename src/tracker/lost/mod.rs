@@ -30,8 +30,12 @@ use super::error::TrackError;
 use super::state::{Frame, Tracker};
 use crate::geometry::Pose;
 pub(super) use rounds::LostSearch;
-use rounds::{Active, FeatureRound, Round, Step, TemplateRound, Unit};
+use rounds::{Active, FeatureRound, Round, Step, TemplateRound, Unit, next_unit};
 use std::time::{Duration, Instant};
+
+/// Slices a round of features may run before it starts again on a newer
+/// frame.
+const MAX_AGE: usize = 3;
 
 impl Tracker {
     /// One slice of the search while lost, on frame `rgb`, in `budget`
@@ -44,24 +48,53 @@ impl Tracker {
         let t0 = Instant::now();
         let mut ls = std::mem::take(&mut self.lost);
         let reference = ls.frame_target(1.0, budget).as_secs_f64();
+        // A round of features on a frame a few frames old starts again on
+        // this one (the keyframes' features made so far are kept): the
+        // object may have come back since (the first round makes the
+        // features, a frame or so each).
+        if let Some(Round::Features(r)) = ls.round.as_mut() {
+            r.age += 1;
+            if r.age > MAX_AGE && r.active.is_none() {
+                ls.round = None;
+            }
+        }
         let mut started = false;
         let mut units = 0;
         let out = loop {
-            if ls.round.is_none() {
+            // The templates' units take turns with the features'.
+            let templates_turn =
+                ls.templates.is_some() && (units % 2 == 1 || (ls.round.is_none() && started));
+            if !templates_turn && ls.round.is_none() {
                 if started {
                     break Ok(None);
                 }
                 started = true;
-                ls.round = self.new_round(rgb, ls.after_templates);
-                ls.after_templates = matches!(ls.round, Some(Round::Templates(_)));
+                ls.round = self.new_round(rgb);
+                if ls.round.is_none() {
+                    break Ok(None);
+                }
             }
-            let unit = ls.next_unit(self.config.init.detect.candidates, self.detector.as_ref());
+            let slot = if templates_turn {
+                &mut ls.templates
+            } else {
+                &mut ls.round
+            };
+            let unit = next_unit(
+                slot.as_ref(),
+                self.config.init.detect.candidates,
+                self.detector.as_ref(),
+            );
             let cost = Duration::from_secs_f64(ls.cost(unit, reference));
             if units > 0 && t0.elapsed() + cost > budget {
                 break Ok(None);
             }
             let t = Instant::now();
-            let step = self.lost_unit(&mut ls, unit);
+            let slot = if templates_turn {
+                &mut ls.templates
+            } else {
+                &mut ls.round
+            };
+            let step = self.lost_unit(slot, unit);
             ls.record(unit, t.elapsed().as_secs_f64());
             log::trace!(
                 "search unit {unit:?}: {:.1} ms",
@@ -70,15 +103,25 @@ impl Tracker {
             units += 1;
             match step {
                 Err(e) => {
-                    ls.round = None;
+                    ls.reset();
                     break Err(e);
                 }
                 Ok(Step::More) => {}
                 Ok(Step::Found(p)) => {
-                    ls.round = None;
+                    ls.reset();
                     break Ok(Some(p));
                 }
-                Ok(Step::RoundOver) => ls.round = None,
+                Ok(Step::RoundOver) if templates_turn => ls.templates = None,
+                Ok(Step::RoundOver) => {
+                    let features = matches!(ls.round, Some(Round::Features(_)));
+                    ls.round = None;
+                    if features && ls.templates.is_none() && self.templates_wanted() {
+                        ls.templates = Some(Round::Templates(Box::new(TemplateRound {
+                            frame: Frame::new(rgb.clone()),
+                            search: None,
+                        })));
+                    }
+                }
             }
         };
         log::debug!(
@@ -90,21 +133,13 @@ impl Tracker {
         out
     }
 
-    /// A new round on frame `rgb`: features where the detector may find
-    /// the object, templates where the features failed and
-    /// [`super::detect::DetectConfig::templates_every`] asks for them (or
-    /// without features), never two rounds of templates in a row where
-    /// features run; `None` without keyframes to search with.
-    fn new_round(&mut self, rgb: &image::RgbImage, after_templates: bool) -> Option<Round> {
+    /// A new round on frame `rgb`: features, or templates where the
+    /// detection by features is off; `None` without keyframes to search
+    /// with.
+    fn new_round(&mut self, rgb: &image::RgbImage) -> Option<Round> {
         let store = self.store.as_ref()?;
-        let cfg = &self.config.init.detect;
-        let templates = !cfg.enabled
-            || (!after_templates
-                && self.detector.as_ref().is_some_and(|d| {
-                    d.unbuilt().next().is_none() && d.misses > 0 && d.templates_now(cfg)
-                }));
         let frame = Frame::new(rgb.clone());
-        if templates {
+        if !self.config.init.detect.enabled {
             return Some(Round::Templates(Box::new(TemplateRound {
                 frame,
                 search: None,
@@ -118,6 +153,7 @@ impl Tracker {
         });
         Some(Round::Features(Box::new(FeatureRound {
             frame,
+            age: 0,
             described: None,
             order,
             next: 0,
@@ -128,9 +164,19 @@ impl Tracker {
         })))
     }
 
+    /// Whether a round of templates should follow the features' failure
+    /// ([`super::detect::DetectConfig::templates_every`]; every keyframe's
+    /// features made).
+    fn templates_wanted(&self) -> bool {
+        let cfg = &self.config.init.detect;
+        self.detector
+            .as_ref()
+            .is_some_and(|d| d.unbuilt().next().is_none() && d.misses > 0 && d.templates_now(cfg))
+    }
+
     /// Runs unit `unit` of the round under way.
-    fn lost_unit(&mut self, ls: &mut LostSearch, unit: Unit) -> Result<Step, TrackError> {
-        match (unit, ls.round.as_mut()) {
+    fn lost_unit(&mut self, round: &mut Option<Round>, unit: Unit) -> Result<Step, TrackError> {
+        match (unit, round.as_mut()) {
             (Unit::End, Some(Round::Features(r))) => {
                 self.count_detection(false);
                 if let Some(refused) = r.refused.take() {

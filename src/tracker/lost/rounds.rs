@@ -52,9 +52,9 @@ pub(in crate::tracker) struct LostSearch {
     /// The running time of a lost frame's own steps (besides the search),
     /// seconds.
     pub(super) steps: Option<f64>,
-    /// Whether the last round was one of templates (a round of features
-    /// comes next).
-    pub(super) after_templates: bool,
+    /// A round of templates beside the rounds of features (their units
+    /// take turns), where the features failed.
+    pub(super) templates: Option<Round>,
     /// The search found a pose that its frame had no time left to track
     /// from: the next frame tracks from it before the search goes on.
     pub(in crate::tracker) seeded: bool,
@@ -70,6 +70,8 @@ pub(super) enum Round {
 pub(super) struct FeatureRound {
     /// The frame matched (its corners the detector's).
     pub(super) frame: Frame,
+    /// Slices since it began.
+    pub(super) age: usize,
     pub(super) described: Option<Described>,
     /// Keyframes to match, the closest to the last pose first.
     pub(super) order: Vec<usize>,
@@ -146,42 +148,42 @@ impl LostSearch {
     /// or by the steps).
     pub(in crate::tracker) fn reset(&mut self) {
         self.round = None;
-        self.after_templates = false;
+        self.templates = None;
     }
+}
 
-    /// The next unit of the round under way (`cap`: candidates a round
-    /// of features tries).
-    pub(super) fn next_unit(&self, cap: usize, detector: Option<&Detector>) -> Unit {
-        match &self.round {
-            None => Unit::End,
-            Some(Round::Features(r)) => {
-                if let Some(a) = &r.active {
-                    if a.steps >= DETECT_REFINE_STEPS {
-                        Unit::Check
-                    } else {
-                        Unit::Refine
-                    }
-                } else if !r.pending.is_empty() && r.tried < cap {
-                    Unit::Refine
-                } else if detector.is_none() {
-                    Unit::Detector
-                } else if r.described.is_none() {
-                    Unit::Describe
-                } else if r.tried >= cap {
-                    Unit::End
-                } else if let Some(&k) = r.order.get(r.next) {
-                    let built = detector.is_some_and(|d| d.built.get(k).copied().unwrap_or(true));
-                    if built { Unit::Match } else { Unit::Keyframe }
+/// The next unit of `round` (`cap`: candidates a round of features
+/// tries).
+pub(super) fn next_unit(round: Option<&Round>, cap: usize, detector: Option<&Detector>) -> Unit {
+    match round {
+        None => Unit::End,
+        Some(Round::Features(r)) => {
+            if let Some(a) = &r.active {
+                if a.steps >= DETECT_REFINE_STEPS {
+                    Unit::Check
                 } else {
-                    Unit::End
+                    Unit::Refine
                 }
+            } else if !r.pending.is_empty() && r.tried < cap {
+                Unit::Refine
+            } else if detector.is_none() {
+                Unit::Detector
+            } else if r.described.is_none() {
+                Unit::Describe
+            } else if r.tried >= cap {
+                Unit::End
+            } else if let Some(&k) = r.order.get(r.next) {
+                let built = detector.is_some_and(|d| d.built.get(k).copied().unwrap_or(true));
+                if built { Unit::Match } else { Unit::Keyframe }
+            } else {
+                Unit::End
             }
-            Some(Round::Templates(r)) => match &r.search {
-                None => Unit::Templates,
-                Some(s) if !s.views_done() => Unit::View,
-                Some(s) if !s.candidates_done() => Unit::TemplateCandidate,
-                Some(_) => Unit::End,
-            },
         }
+        Some(Round::Templates(r)) => match &r.search {
+            None => Unit::Templates,
+            Some(s) if !s.views_done() => Unit::View,
+            Some(s) if !s.candidates_done() => Unit::TemplateCandidate,
+            Some(_) => Unit::End,
+        },
     }
 }
