@@ -5,22 +5,22 @@
 //! to seconds on a CPU adapter, while a tracked frame costs tens of
 //! milliseconds. Run in one go it stalls the frame it runs on, so while the
 //! track is lost it runs in units, each small (a keyframe's features, the
-//! frame's corners described, one keyframe matched, one candidate refined
-//! and checked, one viewpoint's templates scored), as many a frame as the
+//! frame's corners described, one keyframe matched, one KF step of a
+//! candidate, its check, one viewpoint's templates scored), as many a frame as the
 //! frame's budget allows ([`InitConfig::lost_frame_budget`] times a
 //! tracked frame's time, as measured on this sequence), resumed on the
 //! next frame where it stopped.
 //!
 //! A round of features matches the corners of the frame it began on
 //! against each keyframe, the keyframe closest to the last pose first,
-//! each match's candidate tried as soon as it is found; a round of
-//! templates scores the viewpoints on the frame it began on. Candidates are
-//! refined and checked on the frame being tracked when their unit runs
-//! (from a frame before it, the refinement's first step searches as far
-//! as after a loss), so the pose the search finds has passed the check on
-//! the current frame, as every pose of a whole search does. The tracker
-//! then tracks that frame from it, where the frame's budget still allows,
-//! else the next frame.
+//! each match's candidate tried as soon as it is found; one still running
+//! after a few frames starts again on the newest. A round of templates
+//! scores the viewpoints on the frame it began on, beside the rounds of
+//! features (their units take turns). Candidates are refined and checked
+//! on their round's frame, as in a whole search; the pose found seeds the
+//! frame being tracked, which starts from it with the recovery's wide KF
+//! step and the check, in the same frame where its budget allows, else in
+//! the next.
 //!
 //! [`InitConfig::lost_frame_budget`]: super::InitConfig::lost_frame_budget
 
