@@ -95,6 +95,7 @@ impl Tracker {
                 // Tracked from it on the next frame (a wide KF step).
                 Some(p) if no_time => {
                     log::info!("object found by search (tracked from the next frame)");
+                    self.hold_outline_start();
                     self.pose = p;
                     self.lost.reset();
                     self.lost.seeded = true;
@@ -104,12 +105,14 @@ impl Tracker {
                 // wide KF step from it and the check on this frame.
                 Some(p) if lost_search => {
                     log::info!("object found by search");
+                    self.hold_outline_start();
                     self.pose = p;
                     self.lost.reset();
                     false
                 }
                 Some(p) => {
                     log::info!("object found by search");
+                    self.hold_outline_start();
                     self.pose = p;
                     self.searching = false;
                     self.lost_streak = 0;
@@ -307,6 +310,11 @@ impl Tracker {
         }
         times.verify = t_verify.elapsed();
         times.waits.verify = self.ctx.stats().wait_time.saturating_sub(w_verify);
+        let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
+        let (status, reason) = match held {
+            Some(why) => (Status::Lost, Some(why)),
+            None => (d.status, d.reason.clone()),
+        };
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -357,10 +365,10 @@ impl Tracker {
         // frame's own steps.
         if recovering {
             self.lost.steps(times.total.saturating_sub(times.search));
-        } else if d.status == Status::Tracking && !first_frame && times.search.is_zero() {
+        } else if status == Status::Tracking && !first_frame && times.search.is_zero() {
             self.lost.tracked(times.total);
         }
-        let refused = proposed.filter(|_| d.status == Status::Lost).map(
+        let refused = proposed.filter(|_| status == Status::Lost).map(
             |(source, pose, inliers, residual_px)| Refused {
                 pose,
                 source,
@@ -370,16 +378,20 @@ impl Tracker {
             },
         );
         Ok(TrackResult {
-            pose: self.pose,
+            pose: if self.confirm_left > 0 {
+                self.confirm_report
+            } else {
+                self.pose
+            },
             inliers: d.inliers,
             residual_px: d.residual_px,
-            status: d.status,
-            reason: d.reason,
+            status,
+            reason,
             keyframe,
             times,
             verify: scores,
             texture_set_aside,
-            cues: match d.status {
+            cues: match status {
                 Status::Tracking if texture_set_aside => Modalities::CONTOUR,
                 Status::Tracking => Modalities {
                     texture: texture_held,
@@ -389,6 +401,16 @@ impl Tracker {
             },
             refused,
         })
+    }
+
+    /// A start found by the outline alone is held until confirmed
+    /// ([`Tracker::confirm_start`]); call before the pose found replaces
+    /// the one to report meanwhile.
+    fn hold_outline_start(&mut self) {
+        if self.found_by_outline && self.config.init.confirm_frames > 0 {
+            self.confirm_left = self.config.init.confirm_frames + 1;
+            self.confirm_report = self.pose;
+        }
     }
 
     /// The contour alone from the pose of decision `d` (whose texture

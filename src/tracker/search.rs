@@ -1,14 +1,16 @@
 //! The search for the object in a whole frame ([`super::init`]) by the
 //! tracker: its viewpoints, templates, candidates and their refinement.
 
+use super::decision::Decision;
 use super::error::TrackError;
 use super::init::{
     EdgeMap, Hit, TEMPLATE_POINTS, Template, axis_to, best_positions, shrink, sphere_directions,
     thinned,
 };
-use super::result::{Refused, Source, StepError};
+use super::result::{LostReason, Refused, Source, Status, StepError};
 use super::state::{Frame, Tracker};
 use super::templates::{TemplateModels, TemplateSearch, ViewAndCover};
+use super::verify::VerifyScores;
 use crate::features::GreyImage;
 use crate::geometry::{Pose, look_at, rotation_exp};
 use crate::splat::{Attribute, Attributes, GpuModel, SplatTargets};
@@ -108,6 +110,7 @@ impl Tracker {
     /// viewpoints and candidates still to come ([`Tracker::template_hits`],
     /// [`Tracker::template_candidate`]).
     pub(super) fn template_search(&mut self, frame: &Frame) -> Result<TemplateSearch, TrackError> {
+        let shading_only = self.shading_only()?;
         let (w, h) = (self.cam.width as usize, self.cam.height as usize);
         let views = self.init_viewpoints();
         let d0 = views
@@ -130,6 +133,10 @@ impl Tracker {
             textured: HashMap::new(),
         };
         Ok(TemplateSearch {
+            shading_only,
+            near: 0.25 * diam_px,
+            places: Vec::new(),
+            cap: cfg.candidates,
             views,
             f,
             coarse,
@@ -189,30 +196,44 @@ impl Tracker {
         frame: &Frame,
         rgb: &image::RgbImage,
     ) -> Result<(), TrackError> {
-        let next = match ts.next_hit {
-            Some(n) => n,
-            None => {
-                ts.hits.sort_by(|a, b| b.score.total_cmp(&a.score));
-                ts.hits.truncate(self.config.init.candidates);
-                0
-            }
-        };
-        ts.next_hit = Some(next + 1);
-        let Some(hit) = ts.hits.get(next).copied() else {
-            return Ok(());
-        };
-        let pose = &ts.views[hit.view];
-        let (x0, y0) = hit.origin;
-        // Where the template's centre (the principal point) lands, in
-        // coarse pixels, then full-size ones (a coarse pixel centre u
-        // is full-size (u + 0.5) f - 0.5).
+        if ts.next_hit.is_none() {
+            ts.hits.sort_by(|a, b| b.score.total_cmp(&a.score));
+        }
+        // The next hit at a place refined at most once before: a place is
+        // refined at most twice, so that a distractor whose look matches
+        // many views does not take every candidate.
         let ff = ts.f as f64;
         let (pu, pv) = (
             (self.cam.cx + 0.5) / ff - 0.5,
             (self.cam.cy + 0.5) / ff - 0.5,
         );
-        let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
-        let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
+        let mut next = ts.next_hit.unwrap_or(0);
+        let found = loop {
+            let Some(hit) = ts.hits.get(next).copied() else {
+                break None;
+            };
+            next += 1;
+            let (x0, y0) = hit.origin;
+            // Where the template's centre (the principal point) lands, in
+            // coarse pixels, then full-size ones (a coarse pixel centre u
+            // is full-size (u + 0.5) f - 0.5).
+            let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
+            let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
+            let seen = ts
+                .places
+                .iter()
+                .filter(|p| (p.0 - u).hypot(p.1 - vv) < ts.near)
+                .count();
+            if seen < 2 {
+                ts.places.push((u, vv));
+                break Some((hit, u, vv));
+            }
+        };
+        ts.next_hit = Some(next);
+        let Some((hit, u, vv)) = found else {
+            return Ok(());
+        };
+        let pose = &ts.views[hit.view];
         let ray = Vector3::new(
             (u - self.cam.cx) / self.cam.fx,
             (vv - self.cam.cy) / self.cam.fy,
@@ -229,8 +250,11 @@ impl Tracker {
         let s = self.verify_scores(frame, &refined)?;
         log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
         // Refined by its outline (no texture step held), the edges
-        // decide as they do for a tracked frame.
-        let judged = if by_contour {
+        // decide; on an object of shading only, strictly (distractors
+        // of its colour and other shapes pass the plain rule).
+        let judged = if by_contour && ts.shading_only {
+            super::verify::judge_outline_candidate(&s, &self.config.verify)
+        } else if by_contour {
             super::verify::judge_with_contour(&s, &self.config.verify)
         } else {
             super::verify::judge(&s, &self.config.verify)
@@ -238,7 +262,7 @@ impl Tracker {
         let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
         if judged.is_ok() {
             if ts.best.is_none_or(|b| z > b.0) {
-                ts.best = Some((z, refined));
+                ts.best = Some((z, refined, by_contour));
             }
         } else if ts.refused.as_ref().is_none_or(|b| z > b.0) {
             let pose = refined;
@@ -263,7 +287,58 @@ impl Tracker {
         if let Some(r) = ts.refused {
             self.search_refused = Some(r.1);
         }
+        self.found_by_outline = ts.shading_only && ts.best.is_some_and(|b| b.2);
         ts.best.map(|b| b.1)
+    }
+
+    /// Holds a start found by the outline alone (module docs of
+    /// [`super::init`]): `d`, the frame's decision from `from` with the
+    /// check's `scores`, unless a start is being confirmed. While one is,
+    /// a frame that tracks within [`super::InitConfig::confirm_max_turn_deg`]
+    /// of `from` and passes the search's check
+    /// ([`super::verify::judge_outline_candidate`]) counts towards it and
+    /// is reported `lost` (`confirming`) until the last; one that does not
+    /// ends it (`unconfirmed`) and the search runs again. Returns the
+    /// decision the tracker keeps and, for a held frame, the reason it is
+    /// reported `lost`.
+    pub(super) fn confirm_start(
+        &mut self,
+        d: Decision,
+        scores: Option<&VerifyScores>,
+        from: &Pose,
+    ) -> (Decision, Option<LostReason>) {
+        if self.confirm_left == 0 {
+            return (d, None);
+        }
+        if d.status != Status::Tracking {
+            self.confirm_left = 0;
+            self.searching = true;
+            self.pose = self.confirm_report;
+            return (d, None);
+        }
+        let pose = d.pose.unwrap_or(*from);
+        let turn_deg = pose.rotation_error_deg(from);
+        let check = scores
+            .and_then(|s| super::verify::judge_outline_candidate(s, &self.config.verify).err());
+        if turn_deg > self.config.init.confirm_max_turn_deg || check.is_some() {
+            log::debug!("start not confirmed: turned {turn_deg:.1} deg, check {check:?}");
+            self.confirm_left = 0;
+            self.searching = true;
+            self.pose = self.confirm_report;
+            let lost = Decision {
+                status: Status::Lost,
+                pose: None,
+                reason: Some(LostReason::Unconfirmed { turn_deg, check }),
+                it_only_streak: 0,
+                ..d
+            };
+            return (lost, None);
+        }
+        self.confirm_left -= 1;
+        let held = (self.confirm_left > 0).then_some(LostReason::Confirming {
+            left: self.confirm_left,
+        });
+        (d, held)
     }
 
     /// The KF step from `start`, wide search first: the refined pose, or

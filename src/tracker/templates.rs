@@ -18,6 +18,15 @@ pub(super) struct TemplateModels {
 /// shrunk and its edges, the viewpoints, the hits so far and the
 /// candidates judged so far.
 pub(super) struct TemplateSearch {
+    /// Whether the object shows shading only (its candidates refined by
+    /// the outline are judged strictly).
+    pub(super) shading_only: bool,
+    /// Hits closer than this (full-size pixels) are at one place.
+    pub(super) near: f64,
+    /// Where candidates were refined (full-size pixels).
+    pub(super) places: Vec<(f64, f64)>,
+    /// Candidates refined at most.
+    pub(super) cap: usize,
     pub(super) views: Vec<Pose>,
     /// The shrink factor of the frame.
     pub(super) f: usize,
@@ -32,7 +41,8 @@ pub(super) struct TemplateSearch {
     pub(super) next_view: usize,
     /// The next hit to refine (`None`: the hits are not ranked yet).
     pub(super) next_hit: Option<usize>,
-    pub(super) best: Option<(f64, Pose)>,
+    /// The best candidate that passed: score, pose, refined by the outline.
+    pub(super) best: Option<(f64, Pose, bool)>,
     pub(super) refused: Option<(f64, Refused)>,
 }
 
@@ -44,7 +54,9 @@ impl TemplateSearch {
 
     /// Whether every candidate has been judged (the viewpoints first).
     pub(super) fn candidates_done(&self) -> bool {
-        self.views_done() && self.next_hit.is_some_and(|n| n >= self.hits.len())
+        self.views_done()
+            && (self.places.len() >= self.cap
+                || self.next_hit.is_some_and(|n| n >= self.hits.len()))
     }
 }
 
