@@ -27,7 +27,19 @@ impl Tracker {
         long: bool,
         anchors: &[Anchor],
     ) -> StepOutcome {
-        StepOutcome::from_result(self.contour_step(frame, pose, long, anchors))
+        StepOutcome::from_result(self.contour_step(frame, pose, long, anchors, None))
+    }
+
+    /// [`Self::contour_stage`] alone (no texture matches), every solve
+    /// damped by `damping` (a fraction of the normal matrix's diagonal).
+    pub(in crate::tracker) fn contour_stage_damped(
+        &mut self,
+        frame: &image::RgbImage,
+        pose: &Pose,
+        long: bool,
+        damping: f64,
+    ) -> StepOutcome {
+        StepOutcome::from_result(self.contour_step(frame, pose, long, &[], Some(damping)))
     }
 
     fn contour_step(
@@ -36,12 +48,15 @@ impl Tracker {
         start: &Pose,
         long: bool,
         anchors: &[Anchor],
+        damping: Option<f64>,
     ) -> Result<Estimate, StepError> {
         let cfg = self.config.contour.clone();
         // Fused with a trusted KF step's matches, damping holds the solve
         // near that estimate (the prior the contour refines); from IT's
         // estimate (which drifts) or alone, nothing should hold it back.
-        let damping = if anchors.is_empty() {
+        let damping = if let Some(d) = damping {
+            d
+        } else if anchors.is_empty() {
             cfg.damping
         } else {
             cfg.fused_damping
