@@ -23,7 +23,10 @@ pub struct ContourConfig {
     pub learn_margin_px: usize,
     /// The splatted silhouette is this much wider than the object, pixels
     /// (the splatter's 0.75 px low-pass disc around each splat): contour
-    /// points are moved this far inward.
+    /// points are moved this far inward. On limbs (a surface seen edge-on
+    /// at the outline) and where the surface normal is unknown; on creases
+    /// (a face that ends at the outline) the inset follows from the
+    /// splats' size there ([`super::crease_inset`]).
     pub inset_px: f64,
     /// Width of the smooth step of the line model, pixels.
     pub slope_px: f32,

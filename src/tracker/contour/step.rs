@@ -4,7 +4,10 @@
 use super::learner::Lesson;
 use super::line::search_lines;
 use super::normals::ModelNormals;
-use super::outline::{ContourPoint, extract_contour, inset, limb_normals, limb_normals_with};
+use super::outline::{
+    ContourPoint, extract_contour, inset_each, insets, limb_normals, limb_normals_with,
+    straight_edge,
+};
 use super::rows::{GROUP_CONTOUR, GROUP_TEXTURE, Lifted, contour_predictors_at};
 use crate::geometry::{Intrinsics, Pose};
 use crate::pose::{Anchor, Observation, SolveError, irls_grouped};
@@ -219,7 +222,7 @@ impl Tracker {
         // here. The same points either way.
         let resident =
             depth_only && self.outline.resident() && self.outline.fits(window.width, window.height);
-        let (mut points, depths, depth) = if resident {
+        let (points, depths, depth) = if resident {
             let _batch = self.ctx.batch();
             let target = self.outline.depth_target(window.width, window.height);
             self.splatter
@@ -247,6 +250,24 @@ impl Tracker {
                 .collect();
             (points, depths, Some(depth))
         };
+        // Points near a corner of the outline out (both ways alike, from
+        // the coverage kept in the mask), with their depths.
+        let (mut points, depths) = {
+            let mask = &self.contour.mask;
+            let at = |x: i64, y: i64| {
+                let (fx, fy) = (x + x0 as i64, y + y0 as i64);
+                x < 0
+                    || y < 0
+                    || x >= ww as i64
+                    || y >= wh as i64
+                    || mask[fy as usize * w + fx as usize]
+            };
+            points
+                .into_iter()
+                .zip(depths)
+                .filter(|(p, _)| straight_edge(p, at))
+                .unzip::<_, _, Vec<_>, Vec<_>>()
+        };
         let cfg = &self.config.contour;
         if !self.contour.colours.model().is_learned()
             && let Some(rect) = self.roi(pose)
@@ -263,6 +284,7 @@ impl Tracker {
                 .colours
                 .learn_here(frame, &self.contour.mask, lesson);
         }
+        let mut creases = Vec::new();
         if depth_only {
             if self.contour.normals.is_none() {
                 self.contour.normals = ModelNormals::new(&self.model);
@@ -293,7 +315,7 @@ impl Tracker {
                         .collect()
                 });
                 let mut normals = normals.into_iter();
-                limb_normals_with(cam, &mut points, true, |_| {
+                creases = limb_normals_with(cam, &mut points, true, |_| {
                     normals.next().expect("a normal a point")
                 });
             }
@@ -301,10 +323,43 @@ impl Tracker {
             let normals = self
                 .splatter
                 .read(&self.ctx, &self.targets, Attribute::Normal)?;
-            limb_normals(cam, &normals, &mut points);
+            creases = limb_normals(cam, &normals, &mut points);
         }
         drop(depth);
-        inset(&mut points, cfg.inset_px);
+        // Limbs by the configured inset, creases by what their splats'
+        // size in pixels (the radius at the point's depth) gives.
+        let radius = *self.contour.splat_radius.get_or_insert_with(|| {
+            let mut r: Vec<f32> = self
+                .model
+                .radii
+                .iter()
+                .copied()
+                .filter(|r| *r > 0.0)
+                .collect();
+            if r.is_empty() {
+                return 0.0;
+            }
+            let mid = r.len() / 2;
+            *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+        });
+        let lowpass = self.splatter.params().lowpass_px as f64;
+        let tmp = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
+        let insets: Vec<f64> = match (tmp("ST_CD"), tmp("ST_CG")) {
+            (Some(a), Some(b)) => depths
+                .iter()
+                .enumerate()
+                .map(|(i, &z)| {
+                    if creases.get(i).copied().unwrap_or(false) && z > 0.0 {
+                        let r = radius * cam.fx / z as f64;
+                        (lowpass - b * r).max(a * r)
+                    } else {
+                        cfg.inset_px
+                    }
+                })
+                .collect(),
+            _ => insets(&creases, &depths, radius, cam.fx, cfg.inset_px, lowpass),
+        };
+        inset_each(&mut points, &insets);
         let rows = contour_predictors_at(cam, &points, &depths);
         let origin = Vector2::new(x0 as f64, y0 as f64);
         let lifted = points
