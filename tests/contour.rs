@@ -862,7 +862,17 @@ fn the_splatted_outline_lies_on_the_exact_outline_on_creases_and_limbs() {
                 .collect();
             let lowpass = splattrack::splat::SplatParams::default().lowpass_px as f64;
             let radius = s.model.radii[0] as f64;
-            let by = insets(&creases, &depths, radius, cam.fx, c.inset_px, lowpass);
+            let sampling = ModelNormals::new(&s.model)
+                .and_then(|g| g.sampling_radius())
+                .map_or(radius, |s| s as f64);
+            let by = insets(
+                &creases,
+                &depths,
+                (radius, sampling),
+                cam.fx,
+                c.inset_px,
+                lowpass,
+            );
             inset_each(&mut points, &by);
             now.extend(offsets(&points));
         }

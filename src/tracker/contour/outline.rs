@@ -158,29 +158,43 @@ pub fn inset_each(points: &mut [ContourPoint], px: &[f64]) {
 
 /// How far the splatted coverage reaches past a crease (a face that ends
 /// at the outline, facing the camera there), pixels, for splats of radius
-/// `radius_px` pixels there and the splatter's low-pass radius
-/// `lowpass_px`. Each splat covers its disc and the low-pass disc round
-/// its centre. Small splats: the low-pass discs reach past the edge, less
-/// the outermost centres' depth inside it, a share of their spacing
-/// (`lowpass - CREASE_GAP r`). Large ones: their discs reach past it by a
-/// share of their radius (`CREASE_DISC r`). Fitted to the untextured box
-/// sampled with 12k to 800k points at 0.55 m (0.3 to 2.5 px radii) so that
-/// the contour tracks it without a bias along the viewing ray
-/// (docs/contour.md, "Depth"); a limb (the surface folding away at the
-/// outline, its splats seen edge-on and crowding there) takes the low-pass
-/// radius nearly whole instead ([`ContourConfig::inset_px`](super::ContourConfig::inset_px)).
-pub fn crease_inset(radius_px: f64, lowpass_px: f64) -> f64 {
-    (lowpass_px - CREASE_GAP * radius_px).max(CREASE_DISC * radius_px)
+/// `radius_px` pixels there, points as dense as `sampling_px` says (the
+/// radius of their density, [`super::ModelNormals::sampling_radius`], in
+/// pixels) and the splatter's low-pass radius `lowpass_px`. Each splat
+/// covers its disc and the low-pass disc round its centre. Dense points:
+/// the low-pass discs reach past the edge, less what the outermost
+/// centres' places inside it and the dips between their discs take, which
+/// grows as the square of their spacing (`lowpass - CREASE_DIP s^2 /
+/// lowpass`). Large splats: their discs reach past the edge by a share of
+/// their radius (`CREASE_DISC r`). Fitted to the untextured box sampled
+/// with 12k to 800k points at 0.55 m (0.3 to 2.5 px), the tracker's splat
+/// radii raised to 1 px, so that the contour tracks it without a bias
+/// along the viewing ray (docs/contour.md, "Depth"). A limb (the surface
+/// folding away at the outline, its splats seen edge-on and crowding
+/// there) takes nearly the whole low-pass radius instead
+/// ([`ContourConfig::inset_px`](super::ContourConfig::inset_px)).
+pub fn crease_inset(radius_px: f64, sampling_px: f64, lowpass_px: f64) -> f64 {
+    let s = sampling_px.max(0.0);
+    (lowpass_px - CREASE_DIP * s * s / lowpass_px.max(1e-6)).max(CREASE_DISC * radius_px.max(0.0))
 }
+
+/// What the gaps between the outermost splats of a crease take off the
+/// low-pass radius, per squared sampling radius over the low-pass radius
+/// ([`crease_inset`]).
+const CREASE_DIP: f64 = 0.17;
+
+/// How far a large splat's coverage reaches past a crease, in splat radii
+/// ([`crease_inset`]).
+const CREASE_DISC: f64 = 0.38;
 
 /// Each point's inset, pixels: `limb_px` on limbs (and where `creases`
 /// says nothing), [`crease_inset`] on creases, for splats of radius
-/// `radius` (model units) at the point's camera depth `depths[i]` seen
-/// with focal length `fx` pixels.
+/// `radius` and points of sampling radius `sampling` (model units) at the
+/// point's camera depth `depths[i]` seen with focal length `fx` pixels.
 pub fn insets(
     creases: &[bool],
     depths: &[f32],
-    radius: f64,
+    (radius, sampling): (f64, f64),
     fx: f64,
     limb_px: f64,
     lowpass_px: f64,
@@ -190,21 +204,14 @@ pub fn insets(
         .enumerate()
         .map(|(i, &z)| {
             if creases.get(i).copied().unwrap_or(false) && z > 0.0 {
-                crease_inset(radius * fx / z as f64, lowpass_px)
+                let px = fx / z as f64;
+                crease_inset(radius * px, sampling * px, lowpass_px)
             } else {
                 limb_px
             }
         })
         .collect()
 }
-
-/// The outermost splat centres' depth inside a crease, in splat radii
-/// ([`crease_inset`]).
-const CREASE_GAP: f64 = 0.15;
-
-/// How far a large splat's coverage reaches past a crease, in splat radii
-/// ([`crease_inset`]).
-const CREASE_DISC: f64 = 0.38;
 
 /// Replaces the coverage-gradient normal of each point on an occluding
 /// contour (a limb: the splatted surface normal `N` there is nearly
@@ -331,8 +338,8 @@ mod tests {
         (m, w, h, edges)
     }
 
-    /// Squares turned by 0 to 45 degrees at three sub-pixel places, every
-    /// silhouette pixel a point: before, the points near the corners lie up
+    /// Squares turned by 0 to 45 degrees at three sub-pixel places, a
+    /// point per 2x2 cell: before, the points near the corners lie up
     /// to 2 px inside and pull the mean 0.17 px inside; kept, the points lie
     /// on the edges (mean -0.01 px; at most 0.45 px off, the quantisation
     /// of an axis-aligned edge's pixel centres), and 84% are kept.
@@ -350,7 +357,7 @@ mod tests {
                         .min_by(|a, b| a.abs().total_cmp(&b.abs()))
                         .expect("four edges")
                 };
-                let mut pts = extract_contour(&m, w, h, 1);
+                let mut pts = extract_contour(&m, w, h, 2);
                 before.extend(pts.iter().map(off));
                 straight_edges(&mut pts, |x, y| {
                     x < 0

@@ -328,7 +328,7 @@ impl Tracker {
         drop(depth);
         // Limbs by the configured inset, creases by what their splats'
         // size in pixels (the radius at the point's depth) gives.
-        let radius = *self.contour.splat_radius.get_or_insert_with(|| {
+        if self.contour.crease_radii.is_none() {
             let mut r: Vec<f32> = self
                 .model
                 .radii
@@ -336,30 +336,27 @@ impl Tracker {
                 .copied()
                 .filter(|r| *r > 0.0)
                 .collect();
-            if r.is_empty() {
-                return 0.0;
+            let radius = if r.is_empty() {
+                0.0
+            } else {
+                let mid = r.len() / 2;
+                *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+            };
+            if self.contour.normals.is_none() {
+                self.contour.normals = ModelNormals::new(&self.model);
             }
-            let mid = r.len() / 2;
-            *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
-        });
+            let sampling = self
+                .contour
+                .normals
+                .as_ref()
+                .and_then(|g| g.sampling_radius())
+                .map_or(radius, |s| s as f64);
+            self.contour.crease_radii = Some((radius, sampling));
+        }
+        let radii = self.contour.crease_radii.expect("set above");
         let lowpass = self.splatter.params().lowpass_px as f64;
-        let tmp = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<f64>().ok());
-        let insets: Vec<f64> = match (tmp("ST_CD"), tmp("ST_CG")) {
-            (Some(a), Some(b)) => depths
-                .iter()
-                .enumerate()
-                .map(|(i, &z)| {
-                    if creases.get(i).copied().unwrap_or(false) && z > 0.0 {
-                        let r = radius * cam.fx / z as f64;
-                        (lowpass - b * r).max(a * r)
-                    } else {
-                        cfg.inset_px
-                    }
-                })
-                .collect(),
-            _ => insets(&creases, &depths, radius, cam.fx, cfg.inset_px, lowpass),
-        };
-        inset_each(&mut points, &insets);
+        let by = insets(&creases, &depths, radii, cam.fx, cfg.inset_px, lowpass);
+        inset_each(&mut points, &by);
         let rows = contour_predictors_at(cam, &points, &depths);
         let origin = Vector2::new(x0 as f64, y0 as f64);
         let lifted = points
