@@ -316,13 +316,16 @@ mod tests {
         assert!(worst_angle < 0.2, "normal off by {worst_angle:.3} rad");
     }
 
+    /// An edge: its unit outward normal `n` and offset `o` (`n . x = o`).
+    type Edge = (Vector2<f64>, f64);
+
     /// A square of side 60 turned by `turn` radians about (64, 50) +
     /// `shift` in a 128x100 mask, and its four edges as (unit outward
     /// normal, offset: the edge is `n . x = offset`).
-    fn square(turn: f64, shift: (f64, f64)) -> (Vec<bool>, usize, usize, Vec<(Vector2<f64>, f64)>) {
+    fn square(turn: f64, shift: (f64, f64)) -> (Vec<bool>, usize, usize, Vec<Edge>) {
         let (w, h) = (128, 100);
         let c = Vector2::new(64.0 + shift.0, 50.0 + shift.1);
-        let edges: Vec<(Vector2<f64>, f64)> = (0..4)
+        let edges: Vec<Edge> = (0..4)
             .map(|k| {
                 let a = turn + k as f64 * std::f64::consts::FRAC_PI_2;
                 let n = Vector2::new(a.cos(), a.sin());
