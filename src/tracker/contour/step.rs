@@ -250,8 +250,9 @@ impl Tracker {
                 .collect();
             (points, depths, Some(depth))
         };
-        // Points near a corner of the outline out (both ways alike, from
-        // the coverage kept in the mask), with their depths.
+        // Points near a corner of the outline out, when asked (both ways
+        // alike, from the coverage kept in the mask), with their depths.
+        let drop_corners = self.config.contour.drop_corners;
         let (mut points, depths) = {
             let mask = &self.contour.mask;
             let at = |x: i64, y: i64| {
@@ -265,7 +266,7 @@ impl Tracker {
             points
                 .into_iter()
                 .zip(depths)
-                .filter(|(p, _)| straight_edge(p, at))
+                .filter(|(p, _)| !drop_corners || straight_edge(p, at))
                 .unzip::<_, _, Vec<_>, Vec<_>>()
         };
         let cfg = &self.config.contour;
