@@ -12,11 +12,20 @@
 //! contour step uses (ids `contour_lines/HALF`; one thread), and the
 //! learning of its colour statistics from a 320 x 320 frame
 //! (`contour_lines/learn_320x320_8_sectors`).
+//!
+//! And PnP (`pose::solve_pnp_ransac`): 50, 200 and 1000 correspondences of
+//! a non-planar object at about 0.5 m with 0.5 px noise and half of them
+//! outliers, RANSAC to 0.999 confidence then the refinement (ids
+//! `pnp_ransac/N`); `pnp/8` is `solve_pnp` on 8 exact-ish points (the
+//! `init` command's case).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use nalgebra::{Vector2, Vector3, Vector6};
 use splattrack::geometry::Intrinsics;
-use splattrack::pose::{IrlsConfig, Observation, irls};
+use splattrack::geometry::{Pose, rotation_exp};
+use splattrack::pose::{
+    IrlsConfig, Observation, PnpRansacOptions, irls, solve_pnp, solve_pnp_ransac,
+};
 use splattrack::rng::Rng;
 use splattrack::tracker::contour::{ColourModel, search_line};
 use std::hint::black_box;
@@ -169,5 +178,63 @@ fn bench_lines(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench, bench_lines);
+/// `n` model points in a 0.2 m cube, their pixels at a fixed pose with
+/// 0.5 px noise, every other one replaced by a random pixel.
+fn pnp_problem(n: usize, outliers: bool) -> (Vec<Vector3<f64>>, Vec<Vector2<f64>>, Intrinsics) {
+    let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
+    let pose = Pose {
+        rotation: rotation_exp(&Vector3::new(0.4, -0.3, 0.2)),
+        translation: Vector3::new(0.01, -0.02, 0.5),
+    };
+    let mut rng = Rng::new(n as u64);
+    let mut pts = Vec::new();
+    let mut pix = Vec::new();
+    for i in 0..n {
+        let p = Vector3::new(
+            rng.uniform(-0.1, 0.1),
+            rng.uniform(-0.1, 0.1),
+            rng.uniform(-0.1, 0.1),
+        );
+        let q = cam.project(&pose.transform_point(&p)).unwrap()
+            + Vector2::new(rng.normal(), rng.normal()) * 0.5;
+        let q = if outliers && i % 2 == 0 {
+            Vector2::new(rng.uniform(0.0, 640.0), rng.uniform(0.0, 480.0))
+        } else {
+            q
+        };
+        pts.push(p);
+        pix.push(q);
+    }
+    (pts, pix, cam)
+}
+
+fn bench_pnp(c: &mut Criterion) {
+    let mut group = c.benchmark_group("pnp_ransac");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(2));
+    let opts = PnpRansacOptions::default();
+    for n in [50usize, 200, 1000] {
+        let (pts, pix, cam) = pnp_problem(n, true);
+        let s = solve_pnp_ransac(&pts, &pix, &cam, &opts).expect("the problem must solve");
+        assert!(s.inliers.len() >= n / 2 - 2, "{}", s.inliers.len());
+        group.bench_function(format!("{n}"), |b| {
+            b.iter(|| black_box(solve_pnp_ransac(black_box(&pts), &pix, &cam, &opts).unwrap()))
+        });
+    }
+    group.finish();
+    let mut group = c.benchmark_group("pnp");
+    group
+        .sample_size(20)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(1));
+    let (pts, pix, cam) = pnp_problem(8, false);
+    group.bench_function("8", |b| {
+        b.iter(|| black_box(solve_pnp(black_box(&pts), &pix, &cam).unwrap()))
+    });
+    group.finish();
+}
+
+criterion_group!(benches, bench, bench_lines, bench_pnp);
 criterion_main!(benches);

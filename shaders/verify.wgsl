@@ -27,8 +27,10 @@ struct CheckParams {
     centre: f32,
     // verify::texture_step of the object's projected size.
     texture_step: u32,
-    pad1: u32,
-    pad2: u32,
+    // VerifyConfig::edge_contrast.
+    contrast: f32,
+    // VerifyConfig::edge_band_px.
+    band: u32,
 }
 
 @group(0) @binding(0) var<uniform> params: CheckParams;
@@ -78,27 +80,57 @@ fn mask_sobel(x: u32, y: u32) -> vec2<f32> {
     return vec2<f32>(gx, gy) / 8.0;
 }
 
-// Whether a contour pixel (x, y) with unit normal n has a frame edge along
-// n within `search` pixels (the rule of `verify::edge_support`).
-fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
-    let steps = i32(params.search);
-    let r = f32(params.search);
-    let w = f32(params.width);
-    let h = f32(params.height);
-    for (var s = -steps; s <= steps; s++) {
-        let d = f32(s) / f32(max(steps, 1)) * r;
-        // Rounding half away from zero, as Rust's f64::round, for the
-        // values that can pass the bounds below.
-        let q = floor(vec2<f32>(f32(x), f32(y)) + d * n + 0.5);
-        if q.x < 1.0 || q.y < 1.0 || q.x >= w - 1.0 || q.y >= h - 1.0 {
-            continue;
-        }
-        let g = frame_sobel(u32(q.x), u32(q.y));
-        if abs(g.x * n.x + g.y * n.y) >= params.gradient {
-            return true;
+// The frame's gradient along the unit normal n at `s` whole pixels along
+// it from (x, y), rounded to the nearest pixel; negative where outside
+// the image (the sample `verify::edge_support` leaves out).
+fn along(x: u32, y: u32, n: vec2<f32>, s: i32) -> f32 {
+    // Rounding half away from zero, as Rust's f64::round, for the values
+    // that can pass the bounds below.
+    let q = floor(vec2<f32>(f32(x), f32(y)) + f32(s) * n + 0.5);
+    if q.x < 1.0 || q.y < 1.0 || q.x >= f32(params.width) - 1.0
+        || q.y >= f32(params.height) - 1.0 {
+        return -1.0;
+    }
+    let g = frame_sobel(u32(q.x), u32(q.y));
+    return abs(g.x * n.x + g.y * n.y);
+}
+
+// The mean gradient along n from search + 2 to band pixels on the side
+// `sign`, negative where no sample is in the image.
+fn side_level(x: u32, y: u32, n: vec2<f32>, sign: i32) -> f32 {
+    var count = 0.0;
+    var sum = 0.0;
+    for (var s = i32(params.search) + 2; s <= i32(params.band); s++) {
+        let g = along(x, y, n, sign * s);
+        if g >= 0.0 {
+            count += 1.0;
+            sum += g;
         }
     }
-    return false;
+    return select(-1.0, sum / max(count, 1.0), count > 0.0);
+}
+
+// Whether a contour pixel (x, y) with unit normal n is on a frame edge (the
+// rule of `verify::edge_hit`): the peak within `search` pixels at least
+// `gradient` and `contrast` times the quieter side's level beyond.
+fn supported(x: u32, y: u32, n: vec2<f32>) -> bool {
+    let r = i32(params.search);
+    var peak = 0.0;
+    for (var s = -r; s <= r; s++) {
+        peak = max(peak, along(x, y, n, s));
+    }
+    if peak < params.gradient {
+        return false;
+    }
+    let a = side_level(x, y, n, -1);
+    let b = side_level(x, y, n, 1);
+    var level = 0.0;
+    if a >= 0.0 && b >= 0.0 {
+        level = min(a, b);
+    } else {
+        level = max(max(a, b), 0.0);
+    }
+    return peak >= params.contrast * level;
 }
 
 // A pixel's share of the sums (CHECK_SUMS of them, in the order above).

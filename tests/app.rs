@@ -118,7 +118,7 @@ fn a_run_writes_every_output_reports_progress_and_each_frame() {
             .lines()
             .next()
             .unwrap()
-            .ends_with(",inliers,residual_px,status")
+            .ends_with(",inliers,residual_px,status,cues")
     );
     for (row, (i, _, status)) in rows.iter().zip(&seen) {
         assert_eq!(row.frame, i.to_string());

@@ -124,7 +124,7 @@ fn partial_files(dir: &Path) -> Vec<PathBuf> {
 }
 
 const HEADER: &str =
-    "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz,inliers,residual_px,status";
+    "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz,inliers,residual_px,status,cues";
 
 /// Checks a tracker output file against FORMATS.md and returns its rows.
 fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
@@ -135,7 +135,7 @@ fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
     assert_eq!(body.len(), FRAMES, "{text}");
     for (i, line) in body.iter().enumerate() {
         let f: Vec<&str> = line.split(',').collect();
-        assert_eq!(f.len(), 16, "{line}");
+        assert_eq!(f.len(), 17, "{line}");
         assert_eq!(f[0], i.to_string());
         for v in &f[1..13] {
             assert!(v.parse::<f64>().unwrap().is_finite(), "{line}");
@@ -144,6 +144,12 @@ fn check_tracker_csv(path: &Path) -> Vec<PoseRow> {
         let res: f64 = f[14].parse().unwrap();
         assert!(res.is_nan() || res >= 0.0, "{line}");
         assert!(f[15] == "tracking" || f[15] == "lost", "{line}");
+        // Which cues held: none exactly on a lost frame.
+        let cues = ["texture", "contour", "texture+contour"];
+        match f[15] {
+            "lost" => assert_eq!(f[16], "none", "{line}"),
+            _ => assert!(cues.contains(&f[16]) || f[16] == "none", "{line}"),
+        }
     }
     // The crate's reader agrees, and every pose is a rotation.
     let rows = read_poses(path).unwrap();
@@ -804,4 +810,127 @@ fn info_describes_shared_and_synthetic_models() {
     for attr in ["normals:   from the file", "colours:   from the file"] {
         assert!(out.contains(attr), "{out}");
     }
+}
+
+#[test]
+fn refused_estimates_are_written_with_their_stage_reason_and_scores() {
+    let f = fixture();
+    let d = workdir("refused");
+    let truth = ground_truth();
+    // Started 60 degrees off (turned about the camera's y axis), in IT
+    // mode: frame 0's initial pose fails the check on appearance, and the
+    // frames after it refuse whatever IT makes of it.
+    let r =
+        splattrack::geometry::rotation_exp(&nalgebra::Vector3::new(0.0, 60f64.to_radians(), 0.0));
+    let off = Pose::new(r * truth[0].rotation, truth[0].translation).unwrap();
+    let init = d.join("off.csv");
+    splattrack::io::write_poses(&init, &[PoseRow::new("0", off)]).unwrap();
+    let (out, refused) = (d.join("poses.csv"), d.join("refused.csv"));
+    let stdout = ok(&[
+        "track",
+        "--model",
+        s(&f.model),
+        "--sequence",
+        s(&f.seq),
+        "--mode",
+        "it",
+        "--init",
+        s(&init),
+        "--out",
+        s(&out),
+        "--refused",
+        s(&refused),
+    ]);
+    let poses = check_tracker_csv(&out);
+    let text = std::fs::read_to_string(&refused).unwrap();
+    assert_eq!(
+        text.lines().next(),
+        Some(
+            "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz,stage,reason,zncc,edge_support,inliers,residual_px"
+        )
+    );
+    eprintln!("{text}");
+    let rows = read_poses(&refused).unwrap();
+    assert!(
+        stdout.contains(&format!("{} refused estimates in", rows.len())),
+        "{stdout}"
+    );
+    let value = |row: &PoseRow, k: &str| {
+        row.extra
+            .iter()
+            .find(|(name, _)| name == k)
+            .map(|(_, v)| v.clone())
+            .unwrap()
+    };
+    // Each row is a lost frame's, with a known stage and reason.
+    for row in &rows {
+        let i: usize = row.frame.parse().unwrap();
+        assert_eq!(value(&poses[i], "status"), "lost", "{row:?}");
+        row.pose.validate().unwrap();
+        assert!(
+            ["it", "kf", "contour", "search", "initial"].contains(&value(row, "stage").as_str()),
+            "{row:?}"
+        );
+        assert!(!value(row, "reason").is_empty(), "{row:?}");
+    }
+    // Frame 0: the initial pose itself, refused by the check on
+    // appearance, with the check's scores (ZNCC under 0.4).
+    let first = &rows[0];
+    assert_eq!(first.frame, "0");
+    assert!(first.pose.rotation_error_deg(&off) < 1e-4, "{first:?}");
+    assert_eq!(value(first, "stage"), "initial");
+    assert_eq!(value(first, "reason"), "appearance");
+    let zncc: f64 = value(first, "zncc").parse().unwrap();
+    assert!(zncc < 0.4, "{first:?}");
+    let edges: f64 = value(first, "edge_support").parse().unwrap();
+    assert!((0.0..=1.0).contains(&edges), "{first:?}");
+    // From the right pose nothing is refused: a header alone.
+    let (out, refused) = (d.join("right.csv"), d.join("right_refused.csv"));
+    let stdout = ok(&[
+        "track",
+        "--model",
+        s(&f.model),
+        "--sequence",
+        s(&f.seq),
+        "--keyframes",
+        s(&f.store),
+        "--out",
+        s(&out),
+        "--refused",
+        s(&refused),
+    ]);
+    assert!(stdout.contains("0 refused estimates in"), "{stdout}");
+    let text = std::fs::read_to_string(&refused).unwrap();
+    assert_eq!(text.lines().count(), 1, "{text}");
+    assert!(partial_files(&d).is_empty());
+    // The refused file is an output like the others: never an input.
+    fails(
+        &[
+            "track",
+            "--model",
+            s(&f.model),
+            "--sequence",
+            s(&f.seq),
+            "--out",
+            s(&d.join("x.csv")),
+            "--refused",
+            s(&f.model),
+        ],
+        &["--refused"],
+    );
+    let same = d.join("same.csv");
+    fails(
+        &[
+            "track",
+            "--model",
+            s(&f.model),
+            "--sequence",
+            s(&f.seq),
+            "--out",
+            s(&same),
+            "--refused",
+            s(&same),
+        ],
+        &["--refused and --out name the same file"],
+    );
 }

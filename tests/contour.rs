@@ -811,11 +811,11 @@ fn boundaries_found_at_the_true_pose_lie_on_the_exact_outline() {
 /// rasterised at 8x, independent of the splatter), at the true poses of
 /// two frames of the untextured box (its outline all creases) and of
 /// `plain` (mostly limbs), 640x480, 100k points: the contour points, with
-/// those near a corner dropped and the rest moved inward by the limb or
+/// those near a corner dropped (as `contour.drop_corners` does) and the rest moved inward by the limb or
 /// the crease inset, lie on the outline on average within 0.1 px
 /// (measured: the box +0.067 px inside). One 0.65 px inset for every point
 /// with the corners kept left the box's points 0.21 px inside, and the box
-/// tracked 0.64 mm too near the camera at 0.55 m (0.11 mm too far now).
+/// tracked 0.64 mm too near the camera at 0.55 m (0.01 mm now).
 #[test]
 fn the_splatted_outline_lies_on_the_exact_outline_on_creases_and_limbs() {
     use splattrack::synth::raster;

@@ -14,7 +14,9 @@ use splattrack::gpu::shared_test_context;
 use splattrack::keyframes::KeyframeStore;
 use splattrack::model::PointModel;
 use splattrack::synth::{SynthConfig, Trajectory, render_frame};
-use splattrack::tracker::{LostReason, Status, Tracker, TrackerConfig};
+use splattrack::tracker::{
+    LostReason, Source, Status, Tracker, TrackerConfig, VerifyConfig, verify,
+};
 use std::time::Instant;
 use tracking_common::{Fig10, RealSequence, Scene};
 
@@ -82,6 +84,17 @@ fn the_object_is_found_without_an_initial_pose_and_after_a_loss() {
         (Status::Lost, Some(LostReason::NotFound))
     );
     assert!(t.searching());
+    // What the search refused, where it scored a candidate: one that
+    // fails the check.
+    eprintln!("refused by the search: {:?}", r.refused);
+    if let Some(x) = &r.refused {
+        assert_eq!(x.source, Source::Search);
+        let s = x.scores.expect("a candidate's scores");
+        assert!(
+            verify::judge(&s, &VerifyConfig::default()).is_err(),
+            "{s:?}"
+        );
+    }
 
     // Re-detection: tracking, five frames without the object, then the
     // object far from where it was lost.

@@ -1,4 +1,4 @@
-//! Mesh loading (OBJ, PLY with faces) and sampling into point models.
+//! Mesh loading (OBJ, PLY with faces, STL) and sampling into point models.
 
 mod data_common;
 mod model_common;
@@ -281,4 +281,60 @@ fn ply_meshes_with_quads_and_colours() {
                 .all(|c| (c[0] - 1.0).abs() < 1e-5 && c[1] == 0.0)
         );
     }
+}
+
+#[test]
+fn load_any_samples_every_mesh_and_loads_clouds_as_points() {
+    // An ASCII STL of the unit square in z = 0 (two triangles, counter-
+    // clockwise from +z), and the same square as a PLY with faces.
+    let stl = "solid sq\n\
+        facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 0 0\n  vertex 1 1 0\n endloop\nendfacet\n\
+        facet normal 0 0 1\n outer loop\n  vertex 0 0 0\n  vertex 1 1 0\n  vertex 0 1 0\n endloop\nendfacet\n\
+        endsolid sq\n";
+    let f = TempFile::with_bytes("square", "STL", stl.as_bytes());
+    let mesh = TriangleMesh::load_stl(f.path()).expect("stl");
+    assert!((mesh.area() - 1.0).abs() < 1e-12);
+    let opts = LoadOptions::default();
+    let m = PointModel::load_any_with(f.path(), 2000, &opts).expect("sampled stl");
+    assert_eq!(m.len(), 2000);
+    assert_eq!(m.provenance.normals, AttributeSource::FromMesh);
+    assert!(m.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+    assert!(
+        m.positions
+            .iter()
+            .all(|p| p.z == 0.0 && (0.0..=1.0).contains(&p.x) && (0.0..=1.0).contains(&p.y))
+    );
+    // 0 points: the default count, as `track` samples.
+    let m = PointModel::load_any_with(f.path(), 0, &opts).expect("default count");
+    assert_eq!(m.len(), splattrack::model::DEFAULT_MESH_POINTS);
+
+    let mut vertex = El::new("vertex", &[("float", "x"), ("float", "y"), ("float", "z")]);
+    for p in [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.0, 0.0],
+        [1.0, 1.0, 0.0],
+        [0.0, 1.0, 0.0],
+    ] {
+        vertex.rows.push(p.iter().map(|&v| Val::S(v)).collect());
+    }
+    let face = El::new("face", &[("list uchar int", "vertex_indices")])
+        .row(vec![Val::L(vec![0.0, 1.0, 2.0, 3.0])]);
+    let mesh_ply = TempFile::with_bytes(
+        "squareply",
+        "ply",
+        &ply_bytes("ascii", &[vertex.clone(), face]),
+    );
+    // Its 4 vertices alone are no surface: sampled even when asked for 0.
+    let m = PointModel::load_any_with(mesh_ply.path(), 0, &opts).expect("ply mesh");
+    assert_eq!(m.len(), splattrack::model::DEFAULT_MESH_POINTS);
+    // load_auto keeps loading it as its vertices.
+    assert_eq!(PointModel::load_auto(mesh_ply.path(), 0).unwrap().len(), 4);
+    // A PLY without faces is a point model.
+    for y in [0.5, 0.25] {
+        vertex.rows.push(vec![Val::S(0.5), Val::S(y), Val::S(0.0)]);
+    }
+    let cloud = TempFile::with_bytes("cloud", "ply", &ply_bytes("ascii", &[vertex]));
+    let m = PointModel::load_any_with(cloud.path(), 0, &opts).expect("cloud");
+    assert_eq!(m.len(), 6);
+    assert_eq!(m.provenance.normals, AttributeSource::Estimated);
 }

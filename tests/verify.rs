@@ -19,6 +19,7 @@ use splattrack::synth::raster;
 use splattrack::synth::{Light, SynthFrame, SynthObject};
 use splattrack::tracker::{
     LostReason, Modalities, Mode, Status, TrackResult, Tracker, TrackerConfig, Unverified,
+    VerifyConfig, verify,
 };
 use std::sync::OnceLock;
 use tracking_common::{Fig10, RealSequence};
@@ -96,9 +97,38 @@ fn track_safely(
                     "{what} frame {i}: tracking {err:.1} deg off"
                 );
             }
+            check_refused(what, i, &r);
             r
         })
         .collect()
+}
+
+/// What a frame says it refused: nothing when tracking; where the check
+/// refused a pose, that pose with scores that fail the check (none for a
+/// frozen frame, which is not scored).
+fn check_refused(what: &str, i: usize, r: &TrackResult) {
+    let refused = r.refused.as_ref();
+    if r.status == Status::Tracking {
+        assert!(refused.is_none(), "{what} frame {i}: {refused:?}");
+        return;
+    }
+    let Some(LostReason::Unverified(why)) = &r.reason else {
+        return;
+    };
+    let refused = refused.unwrap_or_else(|| panic!("{what} frame {i}: {why} but nothing refused"));
+    refused.pose.validate().unwrap();
+    match why {
+        Unverified::FrozenFrame => assert_eq!(refused.scores, None, "{what} frame {i}"),
+        _ => {
+            let s = refused
+                .scores
+                .unwrap_or_else(|| panic!("{what} frame {i}: {why} without scores"));
+            assert!(
+                verify::judge(&s, &VerifyConfig::default()).is_err(),
+                "{what} frame {i}: {s:?}"
+            );
+        }
+    }
 }
 
 fn plain(frames: &[SynthFrame]) -> Vec<(image::RgbImage, Option<Pose>)> {

@@ -49,6 +49,8 @@ fn result(status: Status) -> TrackResult {
         },
         verify: None,
         texture_set_aside: false,
+        cues: splattrack::tracker::Modalities::TEXTURE,
+        refused: None,
     }
 }
 

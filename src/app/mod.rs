@@ -9,6 +9,7 @@
 //! [`FrameSink`] (the live view).
 
 mod error;
+pub mod refused;
 mod stats;
 
 pub use error::AppError;
@@ -141,7 +142,8 @@ pub struct TrackInputs {
 }
 
 impl TrackInputs {
-    /// Loads the model, opens the sequence, reads the initial pose (`init`,
+    /// Loads the model (a mesh sampled into one:
+    /// [`PointModel::load_any_with`]), opens the sequence, reads the initial pose (`init`,
     /// default `SEQUENCE/init.csv` when present: its first row; neither:
     /// none, the object is searched for) and loads or builds the
     /// keyframe store `keyframes` names ([`load_keyframes`]; default
@@ -155,7 +157,7 @@ impl TrackInputs {
         keyframes: Option<&Path>,
         init: Option<&Path>,
     ) -> Result<Self, AppError> {
-        let model = PointModel::load_with(model, model_options)?;
+        let model = PointModel::load_any_with(model, 0, model_options)?;
         let sequence = Sequence::open(sequence)?;
         let init_path = init.map(Path::to_owned).or_else(|| {
             let p = sequence.init_path();
@@ -182,7 +184,8 @@ impl TrackInputs {
         })
     }
 
-    /// For frames from a video or a camera: loads the model, the camera
+    /// For frames from a video or a camera: loads the model (a mesh
+    /// sampled into one), the camera
     /// file `camera` (camera.json or an OpenCV yaml), the initial pose
     /// (`init`: its first row is the pose of the first frame tracked;
     /// `None`: the object is searched for) and the keyframe store
@@ -195,7 +198,7 @@ impl TrackInputs {
         keyframes: Option<&Path>,
         init: Option<&Path>,
     ) -> Result<Self, AppError> {
-        let model = PointModel::load_with(model, model_options)?;
+        let model = PointModel::load_any_with(model, 0, model_options)?;
         let cam = Intrinsics::load(camera)?;
         let init = match init {
             Some(p) => Some(read_poses(p)?[0].pose),
@@ -223,8 +226,8 @@ impl TrackInputs {
 }
 
 /// The columns the tracker output adds after the pose (FORMATS.md
-/// "Tracker output").
-pub const RESULT_COLUMNS: [&str; 3] = ["inliers", "residual_px", "status"];
+/// "Tracker output"; `cues`: [`cues_name`] of [`TrackResult::cues`]).
+pub const RESULT_COLUMNS: [&str; 4] = ["inliers", "residual_px", "status", "cues"];
 
 /// The column a run over a video or a camera adds after [`RESULT_COLUMNS`]:
 /// the frame's timestamp in seconds (FORMATS.md, `track --video`).
@@ -238,12 +241,23 @@ pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
     } else {
         "nan".into()
     };
-    row.extra = [r.inliers.to_string(), residual, r.status.name().into()]
-        .into_iter()
-        .zip(RESULT_COLUMNS)
-        .map(|(v, k)| (k.to_string(), v))
-        .collect();
+    row.extra = [
+        r.inliers.to_string(),
+        residual,
+        r.status.name().into(),
+        cues_name(r.cues),
+    ]
+    .into_iter()
+    .zip(RESULT_COLUMNS)
+    .map(|(v, k)| (k.to_string(), v))
+    .collect();
     row
+}
+
+/// The cues of a frame as the `cues` column writes them: `texture`,
+/// `contour`, `texture+contour` (no comma inside a CSV field) or `none`.
+pub fn cues_name(m: crate::tracker::Modalities) -> String {
+    m.name().replace(',', "+")
 }
 
 /// The progress stage a [`TrackRun`] reports, in frames.
@@ -417,6 +431,11 @@ impl<'a> TrackRun<'a> {
                 sequence: source.name().to_owned(),
                 source: Box::new(e),
             })?;
+        let mut stats = RunStats {
+            modalities: Some(tracker.config().modalities),
+            cue_choice: tracker.cue_choice(),
+            ..Default::default()
+        };
         let timestamps = source.has_timestamps();
         let mut columns = RESULT_COLUMNS.to_vec();
         if timestamps {
@@ -445,7 +464,6 @@ impl<'a> TrackRun<'a> {
             }
         };
         report(0);
-        let mut stats = RunStats::default();
         let mut sum_stages = crate::tracker::StageTimes::default();
         let mut source_time = Duration::ZERO;
         let mut totals = Vec::with_capacity(n.unwrap_or(0).min(1 << 16));
@@ -473,6 +491,12 @@ impl<'a> TrackRun<'a> {
             if r.texture_set_aside {
                 stats.texture_set_aside += 1;
                 log::info!("frame {i}: texture set aside, the contour alone passed the check");
+            }
+            match (r.cues.texture, r.cues.contour) {
+                (true, false) => stats.held_by[0] += 1,
+                (false, true) => stats.held_by[1] += 1,
+                (true, true) => stats.held_by[2] += 1,
+                (false, false) => {}
             }
             if r.status == Status::Lost {
                 stats.lost += 1;

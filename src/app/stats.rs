@@ -47,4 +47,12 @@ pub struct RunStats {
     /// GPU memory of the tracker's splatting at the end of the run
     /// ([`crate::tracker::Tracker::gpu_memory`]).
     pub gpu_memory: Option<crate::tracker::GpuMemoryUse>,
+    /// The cues the run tracked with: as configured, or as the automatic
+    /// choice set them ([`crate::tracker::TrackerConfig::auto_modalities`]).
+    pub modalities: Option<crate::tracker::Modalities>,
+    /// What the automatic choice measured, when it ran.
+    pub cue_choice: Option<crate::tracker::CueChoice>,
+    /// Frames tracked by each cue: `texture` alone, `contour` alone, and
+    /// both ([`crate::tracker::TrackResult::cues`]).
+    pub held_by: [usize; 3],
 }

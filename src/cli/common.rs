@@ -119,7 +119,8 @@ pub fn model_options() -> LoadOptions {
     }
 }
 
-/// Loads a point model with [`model_options`].
+/// Loads a point model with [`model_options`]; a mesh (OBJ, STL, PLY
+/// with faces) is sampled into one ([`PointModel::load_any_with`]).
 pub fn load_model(path: &std::path::Path) -> anyhow::Result<PointModel> {
-    Ok(PointModel::load_with(path, &model_options())?)
+    Ok(PointModel::load_any_with(path, 0, &model_options())?)
 }

@@ -7,7 +7,9 @@ mod demo;
 mod eval;
 mod features;
 mod info;
+mod init;
 mod keyframes;
+mod model;
 mod progress;
 mod render;
 mod synth;
@@ -48,9 +50,15 @@ pub enum Command {
     Render(render::Args),
     /// Harris corners of one image, or mutual NCC matches between two.
     Features(features::Args),
+    /// The pose of one frame from at least 4 known model points, given in a
+    /// CSV or clicked in a window; writes init.csv and an overlay.
+    Init(init::Args),
     /// Build a keyframe store (per-point colours from keyframe images) once
     /// per object.
     Keyframes(keyframes::Args),
+    /// Sample a mesh (OBJ, STL, PLY with faces) into the point model
+    /// `track` makes of it, and write it (PLY).
+    Model(model::Args),
     /// Track an object through a sequence; writes one pose per frame.
     Track(Box<track::Args>),
     /// Errors of tracked poses against ground truth: table, success rates, plot.
@@ -65,7 +73,9 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Info(a) => info::run(a, &cli.adapter),
         Command::Render(a) => render::run(a, &cli.adapter),
         Command::Features(a) => features::run(a, &cli.adapter),
+        Command::Init(a) => init::run(a, &cli.adapter),
         Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
+        Command::Model(a) => model::run(a),
         Command::Track(a) => track::run(*a, &cli.adapter),
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),

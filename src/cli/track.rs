@@ -1,7 +1,7 @@
 //! `splattrack track --model M.ply (--sequence DIR | --video FILE |
 //! --device N|PATH --camera C) [--keyframes DIR|FILE] [--init init.csv]
 //! [--mode kf+it|it|kf] --out poses.csv [--overlay DIR] [--profile]
-//! [--bop FILE] [--start N|Ts] [--frames N]`: the flags ([`args`]), the
+//! [--bop FILE] [--refused FILE] [--start N|Ts] [--frames N]`: the flags ([`args`]), the
 //! input they name ([`input`]), then [`splattrack::app`] does the work and
 //! [`output`] prints what it did.
 
@@ -11,14 +11,16 @@ mod input;
 mod no_view;
 mod output;
 mod profile;
+mod refused;
 
 pub use args::{Args, MAX_CORNERS};
 
 use anyhow::{Context, bail};
 use input::Input;
-use splattrack::app::{AppError, TrackRun};
+use splattrack::app::{AppError, TrackInputs, TrackRun};
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::Start;
+use splattrack::tracker::Mode;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -28,7 +30,7 @@ use no_view::DisplaySink;
 use splattrack::view::DisplaySink;
 
 pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let config = args.config()?;
+    let mut config = args.config()?;
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
     }
@@ -49,15 +51,17 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         false => None,
     };
     let inputs = input.load(&ctx, &args)?;
+    config.mode = mode_for(&args, &inputs)?;
     let live = matches!(input, Input::Device { .. }) || args.realtime;
     if live {
         catch_ctrl_c(&stop)?;
     }
+    let mode = config.mode;
     let mut run = TrackRun::new(&ctx, &inputs, config)
         .limit(args.frames)
         .poses(&args.out)
         .progress(Some(crate::cli::progress::bars(
-            format!("{} ", args.mode.name()),
+            format!("{} ", mode.name()),
             1,
         )));
     if let Some(dir) = &args.overlay {
@@ -87,15 +91,22 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     if let Some(w) = display.as_mut() {
         run = run.sink(w);
     }
+    let mut refused = refused::Refused::create(args.refused.as_deref())?;
     let wall = std::time::Instant::now();
-    let stats = match run.run(|_, _| {}) {
+    let stats = match run.run(|frame, r| refused.frame(frame, r)) {
         Err(AppError::NoFrames) if args.start.is_some() => {
+            refused.discard();
             bail!("{}", no_frame_at_start(&input, args.start))
         }
-        r => r?,
+        Err(e) => {
+            refused.discard();
+            return Err(e.into());
+        }
+        Ok(s) => s,
     };
+    refused.finish()?;
     let wall = wall.elapsed().as_secs_f64();
-    output::print_summary(&args, &ctx, &stats, &stop, live);
+    output::print_summary(&args, mode, &ctx, &stats, &stop, live);
     if args.profile {
         output::print_profile(&ctx, &stats, wall, display.is_some());
         if let Some(w) = &display {
@@ -109,6 +120,31 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The mode of the run: `--mode`, else kf+it where there is a texture
+/// for the KF step's views (keyframes or model colours) and it (frame to
+/// frame) where there is none, said once. A KF mode asked for without a
+/// texture, or no first pose and nothing to search for the object with,
+/// fails naming what would help.
+fn mode_for(args: &Args, inputs: &TrackInputs) -> anyhow::Result<Mode> {
+    let textured = inputs.keyframes.is_some() || inputs.model.colors.is_some();
+    if !textured && inputs.init.is_none() {
+        bail!(
+            "no first pose (init.csv or --init) and nothing to search for the object with (keyframes or model colours): give the pose of the first frame with --init"
+        );
+    }
+    Ok(match args.mode {
+        Some(m) if m != Mode::It && !textured => bail!(
+            "--mode {m} needs keyframes (--keyframes DIR or SEQUENCE/keyframes) or a model with colours for the KF step's views; without them use --mode it (frame to frame)"
+        ),
+        Some(m) => m,
+        None if textured => Mode::KfIt,
+        None => {
+            log::info!("no keyframes and no model colours: tracking frame to frame (mode it)");
+            Mode::It
+        }
+    })
 }
 
 /// Ctrl-C: the run ends after the frame being tracked, its outputs

@@ -6,12 +6,14 @@
 use std::path::{Path, PathBuf};
 
 /// The readers fuzzed, by the name of their target and corpus folder.
-pub const TARGETS: [&str; 5] = [
+pub const TARGETS: [&str; 7] = [
     "ply",
     "camera_json",
     "camera_yaml",
     "poses_csv",
     "keyframe_store",
+    "stl",
+    "correspondences_csv",
 ];
 
 /// Feeds `data` to the reader `target` names ([`TARGETS`]); true when it
@@ -24,6 +26,8 @@ pub fn run(target: &str, data: &[u8]) -> bool {
         "camera_yaml" => camera(data, "camera.yaml"),
         "poses_csv" => poses(data),
         "keyframe_store" => keyframe_store(data),
+        "stl" => stl(data),
+        "correspondences_csv" => correspondences(data),
         other => panic!("no fuzz target {other:?} (known: {TARGETS:?})"),
     }
 }
@@ -55,9 +59,31 @@ pub fn poses(data: &[u8]) -> bool {
     }
 }
 
+/// The readers of `init`'s `corr.csv` and `pts.csv` (the same bytes to
+/// both; accepted when either accepts).
+pub fn correspondences(data: &[u8]) -> bool {
+    use crate::io::correspondences::{parse_named_points, parse_point_pairs};
+    match std::str::from_utf8(data) {
+        Ok(text) => {
+            let pairs = parse_point_pairs(text, Path::new("corr.csv")).is_ok();
+            let named = parse_named_points(text, Path::new("pts.csv")).is_ok();
+            pairs || named
+        }
+        Err(_) => false,
+    }
+}
+
 /// The keyframe store reader.
 pub fn keyframe_store(data: &[u8]) -> bool {
     crate::keyframes::KeyframeStore::from_bytes(data, Path::new("store.stkf")).is_ok()
+}
+
+/// The STL reader (binary and ASCII), then the sampling of what it read.
+pub fn stl(data: &[u8]) -> bool {
+    match crate::model::parse_stl(data, Path::new("mesh.stl")) {
+        Ok(mesh) => mesh.sample(64, 0).is_ok(),
+        Err(_) => false,
+    }
 }
 
 /// A file of this process and thread for readers that read from disk.

@@ -6,6 +6,7 @@
 pub mod atomic;
 pub mod bop;
 pub mod camera;
+pub mod correspondences;
 pub mod ffmpeg;
 #[doc(hidden)]
 pub mod fuzz_entry;

@@ -8,6 +8,7 @@ use super::mesh::{DEFAULT_MESH_POINTS, TriangleMesh, load_mesh_ply, load_obj};
 use super::ply;
 use super::schema;
 use super::stage::Stage;
+use super::stl::load_stl;
 use super::types::{AttributeSource, LoadOptions, PointModel, Provenance};
 use glam::Vec3;
 use std::path::Path;
@@ -36,10 +37,11 @@ impl PointModel {
         Self::from_contents(contents, path, opts)
     }
 
-    /// Loads whatever `path` is: a `.obj` mesh is sampled with `mesh_points`
-    /// points ([`DEFAULT_MESH_POINTS`] when 0); a PLY with faces is sampled
-    /// when `mesh_points > 0` and loaded as its vertices otherwise; any other
-    /// PLY is loaded as points. Sampling uses seed 0, so it is reproducible.
+    /// Loads whatever `path` is: a `.obj` or `.stl` mesh is sampled with
+    /// `mesh_points` points ([`DEFAULT_MESH_POINTS`] when 0); a PLY with
+    /// faces is sampled when `mesh_points > 0` and loaded as its vertices
+    /// otherwise; any other PLY is loaded as points. Sampling uses seed 0,
+    /// so it is reproducible.
     pub fn load_auto(path: impl AsRef<Path>, mesh_points: usize) -> Result<Self, ModelError> {
         Self::load_auto_with(path, mesh_points, &LoadOptions::default())
     }
@@ -51,24 +53,48 @@ impl PointModel {
         opts: &LoadOptions,
     ) -> Result<Self, ModelError> {
         let path = path.as_ref();
-        let is_obj = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
-        if is_obj {
-            let n = if mesh_points == 0 {
-                DEFAULT_MESH_POINTS
-            } else {
-                mesh_points
-            };
-            return load_obj(path)?.sample(n, 0);
+        if mesh_points == 0 && !is_ext(path, "obj") && !is_ext(path, "stl") {
+            return Self::load_with(path, opts);
         }
-        if mesh_points > 0 {
+        Self::load_any_with(path, mesh_points, opts)
+    }
+
+    /// Loads a model as the tracker takes it: any mesh (`.obj`, `.stl`, or
+    /// a PLY with faces, whose vertices alone are not a surface) sampled
+    /// with `mesh_points` points ([`DEFAULT_MESH_POINTS`] when 0, seed 0:
+    /// reproducible), a PLY without faces as its points. A sampled mesh is
+    /// logged (info) with its triangle and point counts; its points have
+    /// [`AttributeSource::FromMesh`] normals.
+    pub fn load_any_with(
+        path: impl AsRef<Path>,
+        mesh_points: usize,
+        opts: &LoadOptions,
+    ) -> Result<Self, ModelError> {
+        let path = path.as_ref();
+        let mesh = if is_ext(path, "obj") {
+            load_obj(path)?
+        } else if is_ext(path, "stl") {
+            load_stl(path)?
+        } else {
             let (header, _, _) = ply::open(path)?;
-            if header.has_faces() {
-                return load_mesh_ply(path)?.sample(mesh_points, 0);
+            if !header.has_faces() {
+                return Self::load_with(path, opts);
             }
-        }
-        Self::load_with(path, opts)
+            load_mesh_ply(path)?
+        };
+        let n = if mesh_points == 0 {
+            DEFAULT_MESH_POINTS
+        } else {
+            mesh_points
+        };
+        let model = mesh.sample(n, 0)?;
+        log::info!(
+            "{}: a mesh of {} triangles, sampled into {} points",
+            path.display(),
+            mesh.triangles.len(),
+            model.len()
+        );
+        Ok(model)
     }
 
     /// Samples `n_points` points over a triangle mesh (counter-clockwise
@@ -271,6 +297,11 @@ impl PointModel {
         })?;
         Ok(model)
     }
+}
+
+fn is_ext(path: &Path, ext: &str) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case(ext))
 }
 
 fn retain<T: Copy>(v: &mut Vec<T>, keep: &[bool]) {

@@ -23,7 +23,9 @@
 //!
 //! A PLY with faces loads as its vertices under [`PointModel::load`]; to sample
 //! the surface instead, use [`load_mesh_ply`] and [`TriangleMesh::sample`], or
-//! [`PointModel::load_auto`] with a point count.
+//! [`PointModel::load_auto`] with a point count. [`PointModel::load_any_with`]
+//! (what the commands use) samples every mesh: OBJ, STL ([`load_stl`]) and
+//! PLY with faces.
 
 mod eigen;
 mod error;
@@ -37,9 +39,11 @@ mod pointwise;
 mod schema;
 pub mod shapes;
 mod stage;
+mod stl;
 mod types;
 
 pub use error::ModelError;
 pub use gaps::{GAP_MODEL_FRACTION, GAP_NEIGHBOURS, GapClosure};
 pub use mesh::{DEFAULT_MESH_POINTS, MESH_RADIUS_FACTOR, TriangleMesh, load_mesh_ply, load_obj};
+pub use stl::{load_stl, parse_stl};
 pub use types::{AttributeSource, LoadOptions, PointModel, Provenance};

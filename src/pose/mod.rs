@@ -22,7 +22,12 @@
 #![warn(missing_docs)]
 
 mod irls;
+mod p3p;
+mod pnp;
 mod refine;
 
 pub use irls::{IrlsConfig, IrlsResult, Loss, Observation, SolveError, irls, irls_grouped};
+pub use pnp::{
+    PnpError, PnpRansacOptions, PnpSolution, reprojection_errors, solve_pnp, solve_pnp_ransac,
+};
 pub use refine::{Anchor, Correspondence, Refined, Refiner};

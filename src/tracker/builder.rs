@@ -125,6 +125,9 @@ impl TrackerBuilder<'_> {
                 self.config,
             )?,
         };
+        if t.config.auto_modalities {
+            t.choose_modalities()?;
+        }
         t.apply(&self.execution);
         Ok(t)
     }
@@ -255,6 +258,7 @@ impl Tracker {
             lost_streak: 0,
             it_only_streak: 0,
             searching: false,
+            search_refused: None,
             ctx: ctx.clone(),
             contour: ContourState::new(config_colours.0, config_colours.1),
             kf_anchors: Vec::new(),
@@ -264,6 +268,7 @@ impl Tracker {
             check: GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
             outline: GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
             resident: Resident::new(resident),
+            cue_choice: None,
         };
         tracker.check.set_resident(resident);
         tracker.outline.set_resident(resident);

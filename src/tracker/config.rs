@@ -86,6 +86,11 @@ impl Modalities {
         texture: true,
         contour: true,
     };
+    /// Neither (what held a lost frame: [`super::TrackResult::cues`]).
+    pub const NONE: Self = Self {
+        texture: false,
+        contour: false,
+    };
 
     /// `texture`, `contour` or `texture,contour`.
     pub fn name(&self) -> &'static str {
@@ -133,6 +138,45 @@ impl std::str::FromStr for Modalities {
             }
         }
         Ok(m)
+    }
+}
+
+/// What the automatic choice of cues measured and chose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CueChoice {
+    /// The modalities chosen.
+    pub modalities: Modalities,
+    /// Whether there was a texture for the views (keyframes or model
+    /// colours).
+    pub textured_views: bool,
+    /// The median texture of the views ([`super::Tracker::view_texture`]).
+    pub view_texture: Option<f64>,
+    /// The line between textured and weakly textured it was measured
+    /// against ([`super::VerifyConfig::untextured_below`]).
+    pub untextured_below: f64,
+    /// The line under which views show shading only
+    /// ([`super::cues::SHADING_ONLY_BELOW`]).
+    pub shading_only_below: f64,
+}
+
+impl CueChoice {
+    /// The modalities and why, in one line.
+    pub fn describe(&self) -> String {
+        let m = self.modalities.name();
+        let (line, shading) = (self.untextured_below, self.shading_only_below);
+        match (self.textured_views, self.view_texture) {
+            (false, _) => format!("{m} (no keyframes and no model colours: the outline only)"),
+            (true, Some(t)) if t >= line => {
+                format!("{m} (a textured object: its views' texture {t:.3} >= {line})")
+            }
+            (true, Some(t)) if t < shading => format!(
+                "{m} (an untextured object: its views' texture {t:.3} < {shading}, shading only)"
+            ),
+            (true, Some(t)) => format!(
+                "{m} (a weakly textured object: its views' texture {t:.3} between {shading} and {line})"
+            ),
+            (true, None) => format!("{m} (the views' texture could not be measured)"),
+        }
     }
 }
 
@@ -214,8 +258,19 @@ pub struct TrackerConfig {
     /// Automatic initialisation and re-detection
     /// ([`crate::tracker::InitConfig`]).
     pub init: super::init::InitConfig,
-    /// The cues used (default: texture only).
+    /// The cues used (default: texture only; with
+    /// [`TrackerConfig::auto_modalities`], set when the tracker is built).
     pub modalities: Modalities,
+    /// Choose [`TrackerConfig::modalities`] per object when the tracker is
+    /// built, from how textured its keyframes' views are (`cues` module
+    /// docs, [`super::Tracker::choose_modalities`]): `contour` without
+    /// keyframes or model colours and for an untextured object, `texture`
+    /// for a textured one, `texture,contour` for a weakly textured one
+    /// (the real dragon). Default false in the
+    /// library (the modalities as given); `splattrack track`'s default
+    /// `--modalities auto` sets it.
+    #[serde(default)]
+    pub auto_modalities: bool,
     /// The contour modality's settings.
     pub contour: super::contour::ContourConfig,
     /// Confine renders, reads, corner detection and NCC matching to the
@@ -287,6 +342,7 @@ impl Default for TrackerConfig {
             verify: Default::default(),
             init: Default::default(),
             modalities: Modalities::default(),
+            auto_modalities: false,
             contour: super::contour::ContourConfig::default(),
             windows: true,
             splatter: crate::splat::Backend::Auto,

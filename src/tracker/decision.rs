@@ -140,6 +140,11 @@ pub struct Decision {
     pub kf_passed_over: Option<LostReason>,
     /// The IT-only streak after this frame.
     pub it_only_streak: usize,
+    /// The estimate the verdict is about and its step: the one kept when
+    /// tracking, else the last one (the contour's, KF's, IT's), which a
+    /// lost frame refuses; `None` without any (a first frame tracking at
+    /// its initial pose).
+    pub estimate: Option<(Stage, Estimate)>,
 }
 
 /// Applies the rules (module docs) to the steps of a frame.
@@ -152,16 +157,16 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let chosen = if let Some(e) = trusted(&steps.contour) {
         // Drift-free like KF: against the model's silhouette.
         it_only_streak = 0;
-        Some(e)
+        Some((Stage::Contour, e))
     } else if let Some(e) = trusted(&steps.kf) {
         it_only_streak = 0;
-        Some(e)
+        Some((Stage::Kf, e))
     } else if let Some(e) = trusted(&steps.it).filter(|_| it_may_stand) {
         if rules.mode == Mode::KfIt {
             it_only_streak += 1;
         }
         kf_passed_over = rules.why_not(Stage::Kf, &steps.kf);
-        Some(e)
+        Some((Stage::It, e))
     } else {
         reason = rules
             .why_not(Stage::Contour, &steps.contour)
@@ -181,16 +186,18 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
     let first_it_frame = matches!(rules.mode, Mode::It | Mode::KfIt)
         && steps.it == StepOutcome::default()
         && steps.first_frame;
-    let last = steps
-        .contour
-        .estimate
-        .or(steps.kf.estimate)
-        .or(steps.it.estimate);
+    let last = (steps.contour.estimate.map(|e| (Stage::Contour, e)))
+        .or(steps.kf.estimate.map(|e| (Stage::Kf, e)))
+        .or(steps.it.estimate.map(|e| (Stage::It, e)));
     let (status, pose, inliers, residual_px) = match (chosen, last) {
-        (Some(e), _) => (Status::Tracking, Some(e.pose), e.inliers, e.residual_px),
+        (Some((_, e)), _) => (Status::Tracking, Some(e.pose), e.inliers, e.residual_px),
         (None, _) if first_it_frame => (Status::Tracking, None, 0, 0.0),
-        (None, Some(e)) => (Status::Lost, None, e.inliers, e.residual_px),
+        (None, Some((_, e))) => (Status::Lost, None, e.inliers, e.residual_px),
         (None, None) => (Status::Lost, None, 0, f64::NAN),
+    };
+    let estimate = match status {
+        Status::Tracking => chosen,
+        Status::Lost => last,
     };
     let reason =
         (status == Status::Lost).then(|| reason.unwrap_or(LostReason::NothingToTrackAgainst));
@@ -202,6 +209,7 @@ pub fn decide(rules: &Rules, steps: &FrameSteps) -> Decision {
         reason,
         kf_passed_over,
         it_only_streak,
+        estimate,
     }
 }
 
@@ -411,6 +419,9 @@ mod tests {
         };
         let v = verified(d.clone(), Err(why.clone()));
         assert_eq!((v.status, v.pose, v.inliers), (Status::Lost, None, 20));
+        // The refused estimate stays: KF's, at z = 2.
+        let (stage, e) = v.estimate.unwrap();
+        assert_eq!((stage, e.pose, e.inliers), (Stage::Kf, pose(2.0), 20));
         assert_eq!(
             v.reason.unwrap().to_string(),
             "verification: model does not match the image: ZNCC 0.05, contour edge support 0.20"
@@ -428,8 +439,24 @@ mod tests {
             verified(first, Err(Unverified::FrozenFrame)).status,
             Status::Lost
         );
-        // A lost frame keeps its own reason.
+        // A lost frame keeps its own reason, and its last estimate (KF's,
+        // untrusted) as the one refused; a first frame has none.
         let lost = decide(&RULES, &steps(failed(3), est(2.0, 5, 0.8)));
+        assert_eq!(
+            lost.estimate.map(|(s, e)| (s, e.inliers)),
+            Some((Stage::Kf, 5))
+        );
+        assert_eq!(
+            decide(
+                &RULES,
+                &FrameSteps {
+                    first_frame: true,
+                    ..Default::default()
+                }
+            )
+            .estimate,
+            None
+        );
         assert_eq!(verified(lost.clone(), Err(why)), lost);
     }
 

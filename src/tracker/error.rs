@@ -40,7 +40,7 @@ pub enum TrackError {
     },
     /// The KF and KF+IT modes (named) need a texture for the novel views:
     /// a keyframe store, or colours in the model.
-    #[error("mode {0} needs keyframes or a model with colours")]
+    #[error("{}", needs_keyframes(.0))]
     NeedsKeyframes(&'static str),
     /// The initial pose puts the object behind the camera or wholly
     /// outside the image.
@@ -74,6 +74,17 @@ pub enum TrackError {
 impl From<crate::gpu::GpuError> for TrackError {
     fn from(e: crate::gpu::GpuError) -> Self {
         TrackError::Splat(crate::splat::SplatError::from(e))
+    }
+}
+
+/// The text of [`TrackError::NeedsKeyframes`]: a KF mode is pointed to
+/// the IT mode, which needs no texture.
+fn needs_keyframes(what: &str) -> String {
+    match what {
+        "kf" | "kf+it" => format!(
+            "mode {what} needs keyframes or a model with colours (mode it tracks frame to frame without them)"
+        ),
+        _ => format!("{what} needs keyframes or a model with colours"),
     }
 }
 

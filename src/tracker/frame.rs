@@ -1,9 +1,10 @@
 //! The per-frame step: [`Tracker::track`] runs the steps in turn and
 //! decides the frame.
 
+use super::config::Modalities;
 use super::decision::{Decision, FrameSteps, Rules, StepOutcome, decide, verified};
 use super::error::TrackError;
-use super::result::{LostReason, StageTimes, Status, TrackResult};
+use super::result::{LostReason, Refused, Source, StageTimes, Status, TrackResult};
 use super::state::{Frame, Tracker};
 use super::verify::{self, Unverified, VerifyScores};
 use crate::pose::Anchor;
@@ -71,6 +72,8 @@ impl Tracker {
                         times,
                         verify: None,
                         texture_set_aside: false,
+                        cues: Modalities::NONE,
+                        refused: self.search_refused.take(),
                     });
                 }
                 None => {}
@@ -172,6 +175,7 @@ impl Tracker {
 
         let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
             || it.estimate.is_some_and(|e| rules.trusted(&e));
+        let contour_held = contour.estimate.is_some_and(|e| rules.trusted(&e));
         let d = decide(
             &rules,
             &FrameSteps {
@@ -182,6 +186,17 @@ impl Tracker {
                 it_only_streak: self.it_only_streak,
             },
         );
+        // What a lost frame refuses: the decision's estimate, else (a
+        // first frame with nothing to track against) the initial pose.
+        let proposed = match d.estimate {
+            Some((stage, e)) => Some((Source::from(stage), e.pose, e.inliers, e.residual_px)),
+            None => (d.status == Status::Tracking).then_some((
+                Source::Initial,
+                d.pose.unwrap_or(start_pose),
+                0,
+                f64::NAN,
+            )),
+        };
         // Every pose reported `tracking` is checked against the image.
         let mut scores = None;
         let mut texture_set_aside = false;
@@ -272,6 +287,15 @@ impl Tracker {
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
         times.total = t0.elapsed();
+        let refused = proposed.filter(|_| d.status == Status::Lost).map(
+            |(source, pose, inliers, residual_px)| Refused {
+                pose,
+                source,
+                inliers,
+                residual_px,
+                scores,
+            },
+        );
         Ok(TrackResult {
             pose: self.pose,
             inliers: d.inliers,
@@ -282,6 +306,15 @@ impl Tracker {
             times,
             verify: scores,
             texture_set_aside,
+            cues: match d.status {
+                Status::Tracking if texture_set_aside => Modalities::CONTOUR,
+                Status::Tracking => Modalities {
+                    texture: texture_held,
+                    contour: contour_held,
+                },
+                Status::Lost => Modalities::NONE,
+            },
+            refused,
         })
     }
 

@@ -44,6 +44,7 @@ mod builder;
 mod check;
 mod config;
 pub mod contour;
+pub mod cues;
 mod decision;
 mod error;
 mod execution;
@@ -62,14 +63,15 @@ pub mod verify_gpu;
 mod workspace;
 
 pub use builder::TrackerBuilder;
-pub use config::{Modalities, Mode, TrackerConfig};
+pub use config::{CueChoice, Modalities, Mode, TrackerConfig};
 pub use contour::ContourConfig;
 pub use decision::{Decision, Estimate, FrameSteps, Rules, StepOutcome, decide, verified};
 pub use error::{CameraInvalid, ConfigError, TrackError};
 pub use execution::Execution;
 pub use init::InitConfig;
 pub use result::{
-    GpuMemoryUse, LostReason, Stage, StageTimes, StageWaits, Status, StepError, TrackResult,
+    GpuMemoryUse, LostReason, Refused, Source, Stage, StageTimes, StageWaits, Status, StepError,
+    TrackResult,
 };
 pub use state::Tracker;
 pub use verify::{Unverified, VerifyConfig, VerifyScores};

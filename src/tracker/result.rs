@@ -2,6 +2,7 @@
 //! [`Status`] and [`LostReason`], where its time went ([`StageTimes`]),
 //! and the GPU memory the tracker holds ([`GpuMemoryUse`]).
 
+use super::config::Modalities;
 use super::verify::{Unverified, VerifyScores};
 use crate::geometry::Pose;
 use crate::pose::SolveError;
@@ -217,6 +218,82 @@ pub struct TrackResult {
     /// the keyframes do not show, such as an untextured object's shading.
     #[serde(default)]
     pub texture_set_aside: bool,
+    /// The cues that held this frame's pose: `texture` (a trusted IT or KF
+    /// step gave it), `contour` (the contour step alone), both (a trusted
+    /// texture step refined or started by the contour), or
+    /// [`Modalities::NONE`] on a lost frame and on a first frame kept at
+    /// the initial pose without any step.
+    #[serde(default = "no_cues")]
+    pub cues: Modalities,
+    /// On a `lost` frame, the estimate that was not reported (the frame's
+    /// `reason` says why): a step's pose that the decision rules or the
+    /// check refused, the initial pose that failed the check, or the
+    /// search's best candidate. `None` on a `tracking` frame and where no
+    /// step gave a pose.
+    #[serde(default)]
+    pub refused: Option<Refused>,
+}
+
+/// An estimate a `lost` frame did not report ([`TrackResult::refused`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Refused {
+    /// The pose refused.
+    pub pose: Pose,
+    /// Where it came from.
+    pub source: Source,
+    /// Inliers of the solve that gave it (0 for the initial pose or a
+    /// search candidate).
+    pub inliers: usize,
+    /// Their RMS residual, pixels (NaN without a solve).
+    #[serde(with = "nan_as_null")]
+    pub residual_px: f64,
+    /// The check's scores at that pose, when the check ran on it (not
+    /// where the decision rules refused it first).
+    pub scores: Option<VerifyScores>,
+}
+
+/// Where a [`Refused`] estimate came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Source {
+    /// The frame-to-frame step.
+    It,
+    /// The keyframe step.
+    Kf,
+    /// The contour step.
+    Contour,
+    /// The whole-frame search (its best candidate).
+    Search,
+    /// The pose a track starts from, checked at its first frame: the
+    /// initial pose, or where the search found the object.
+    Initial,
+}
+
+impl Source {
+    /// The name in the refused file's `stage` column.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Source::It => "it",
+            Source::Kf => "kf",
+            Source::Contour => "contour",
+            Source::Search => "search",
+            Source::Initial => "initial",
+        }
+    }
+}
+
+impl From<Stage> for Source {
+    fn from(s: Stage) -> Self {
+        match s {
+            Stage::It => Source::It,
+            Stage::Kf => Source::Kf,
+            Stage::Contour => Source::Contour,
+        }
+    }
+}
+
+fn no_cues() -> Modalities {
+    Modalities::NONE
 }
 
 /// serde of an `f64` that may be NaN, which JSON cannot write: NaN as
@@ -354,6 +431,26 @@ pub enum LostReason {
     NotFound,
 }
 
+impl LostReason {
+    /// A short name of the reason (the refused file's `reason` column):
+    /// the check's failure (`not_in_view`, `too_small`, `appearance`,
+    /// `frozen_frame`) or the decision rule (`failed`, `untrusted`,
+    /// `it_only_too_long`, `nothing_to_track_against`, `not_found`).
+    pub fn code(&self) -> &'static str {
+        match self {
+            LostReason::Failed { .. } => "failed",
+            LostReason::Untrusted { .. } => "untrusted",
+            LostReason::ItOnlyTooLong { .. } => "it_only_too_long",
+            LostReason::NothingToTrackAgainst => "nothing_to_track_against",
+            LostReason::Unverified(Unverified::NotInView { .. }) => "not_in_view",
+            LostReason::Unverified(Unverified::TooSmall { .. }) => "too_small",
+            LostReason::Unverified(Unverified::Appearance { .. }) => "appearance",
+            LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
+            LostReason::NotFound => "not_found",
+        }
+    }
+}
+
 impl fmt::Display for LostReason {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
@@ -437,6 +534,14 @@ mod tests {
             },
             verify: None,
             texture_set_aside: true,
+            cues: Modalities::CONTOUR,
+            refused: Some(Refused {
+                pose: Pose::identity(),
+                source: Source::Search,
+                inliers: 0,
+                residual_px: f64::NAN,
+                scores: None,
+            }),
         };
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains(r#""residual_px":null"#), "{json}");
@@ -446,6 +551,9 @@ mod tests {
         assert!((back.pose.to_matrix4() - r.pose.to_matrix4()).amax() < 1e-15);
         assert_eq!((back.inliers, back.keyframe), (r.inliers, r.keyframe));
         assert!(back.texture_set_aside);
+        let refused = back.refused.unwrap();
+        assert_eq!(refused.source, Source::Search);
+        assert!(refused.residual_px.is_nan());
         assert_eq!(
             (back.status, back.reason, back.times),
             (r.status, r.reason, r.times)

@@ -6,7 +6,7 @@ use super::init::{
     EdgeMap, Hit, TEMPLATE_POINTS, Template, axis_to, best_positions, shrink, sphere_directions,
     thinned,
 };
-use super::result::StepError;
+use super::result::{Refused, Source, StepError};
 use super::state::{Frame, Tracker};
 use crate::features::GreyImage;
 use crate::geometry::{Pose, look_at, rotation_exp};
@@ -70,6 +70,7 @@ impl Tracker {
     /// Searches the whole frame for the object (module docs): the pose
     /// found, checked against the image, or `None`.
     pub fn find(&mut self, frame: &image::RgbImage) -> Result<Option<Pose>, TrackError> {
+        self.search_refused = None;
         let mut grey_frame = Frame::new(frame.clone());
         grey_frame.corners = self.harris.detect(grey_frame.grey(), None)?;
         let found = self.find_in(&grey_frame, frame);
@@ -135,6 +136,7 @@ impl Tracker {
         }
         hits.sort_by(|a, b| b.score.total_cmp(&a.score));
         let mut best: Option<(f64, Pose)> = None;
+        let mut refused: Option<(f64, Refused)> = None;
         for hit in hits.iter().take(cfg.candidates) {
             let pose = &views[hit.view];
             let (x0, y0) = hit.origin;
@@ -170,13 +172,26 @@ impl Tracker {
             } else {
                 super::verify::judge(&s, &self.config.verify)
             };
+            let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
             if judged.is_ok() {
-                let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
                 if best.is_none_or(|b| z > b.0) {
                     best = Some((z, refined));
                 }
+            } else if refused.as_ref().is_none_or(|b| z > b.0) {
+                let pose = refined;
+                refused = Some((
+                    z,
+                    Refused {
+                        pose,
+                        source: Source::Search,
+                        inliers: 0,
+                        residual_px: f64::NAN,
+                        scores: Some(s),
+                    },
+                ));
             }
         }
+        self.search_refused = refused.map(|r| r.1);
         Ok(best.map(|b| b.1))
     }
 

@@ -129,6 +129,9 @@ pub struct Tracker {
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
     pub(super) searching: bool,
+    /// The last search's best candidate that failed the check (reported
+    /// as refused when the search finds nothing).
+    pub(super) search_refused: Option<super::result::Refused>,
     /// The tracker's own handle on the device (a cheap clone).
     pub(super) ctx: GpuContext,
     /// The contour step's colours, coverage, normals and counts.
@@ -149,6 +152,8 @@ pub struct Tracker {
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
+    /// What the automatic choice of cues measured and chose, when it ran.
+    pub(super) cue_choice: Option<super::config::CueChoice>,
 }
 
 impl Tracker {
@@ -157,6 +162,12 @@ impl Tracker {
     /// radii raised to `min_splat_radius_px` and grown to close gaps.
     pub fn model(&self) -> &Arc<PointModel> {
         &self.model
+    }
+
+    /// What [`TrackerConfig::auto_modalities`] measured and chose when the
+    /// tracker was built (`None` when the modalities were given).
+    pub fn cue_choice(&self) -> Option<super::config::CueChoice> {
+        self.cue_choice
     }
 
     /// Whether no pose has been found yet (no initial pose given to [`Tracker::builder`]).

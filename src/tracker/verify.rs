@@ -6,13 +6,15 @@
 //!   and inside the image: [`VerifyConfig::min_visible`]) and covers
 //!   enough pixels ([`VerifyConfig::min_covered_px`]);
 //! - its appearance agrees: the silhouette's contour is supported by
-//!   edges of the frame (the fraction of contour pixels with a frame
-//!   gradient along the contour's normal within a few pixels), and the
-//!   textured novel view correlates with the frame over the object's
-//!   pixels (dense ZNCC, blind to gain and offset). Both must hold where
-//!   there is a texture (keyframes or model colours): a near-symmetric
-//!   silhouette turned by 30 degrees keeps 84% of its contour on edges of
-//!   a cluttered background, but its ZNCC falls to 0. Without any texture
+//!   edges of the frame (the fraction of contour pixels whose frame
+//!   gradient along the contour's normal peaks within a few pixels and
+//!   stands out from the level around it: [`edge_support`], adapted to
+//!   the outline's contrast), and the textured novel view correlates with
+//!   the frame over the object's pixels (dense ZNCC, blind to gain and
+//!   offset). Both must hold where there is a texture (keyframes or model
+//!   colours): a near-symmetric silhouette turned by 30 degrees keeps
+//!   much of its contour on edges of a cluttered background, but its ZNCC
+//!   falls to 0. Without any texture
 //!   (IT mode, a model without colours) the contour alone decides, at a
 //!   higher level ([`VerifyConfig::strong_edge_support`]): a weaker check.
 //!   With the contour modality the same level passes a low ZNCC where the
@@ -20,9 +22,10 @@
 //!   [`judge_with_contour`]): an untextured object's keyframes carry only
 //!   shading, lit otherwise than the frame.
 //!
-//! Measured at the right pose: ZNCC 0.87-0.99 and edge support 0.84-1.0
-//! on the synthetic blob, the real cube and the (weakly textured) real
-//! dragon, whose keyframe texture still carries its shading.
+//! Measured at the right pose: ZNCC 0.87-0.99 on the synthetic blob, the
+//! real cube and the (weakly textured) real dragon, whose keyframe
+//! texture still carries its shading; edge support 0.76-0.97 on the real
+//! cube, 0.63-0.84 on the dragon (docs/trust.md).
 //!
 //! This file holds the pure scoring ([`score`], testable without a GPU,
 //! from a view, its coverage and the frame) and the rule ([`judge`]); the
@@ -60,10 +63,29 @@ pub struct VerifyConfig {
     /// its ZNCC is high anyway).
     pub untextured_below: f64,
     /// Least frame gradient along the contour normal (grey levels 0..1 per
-    /// pixel, Sobel / 8) that counts as an edge.
+    /// pixel, Sobel / 8) that counts as an edge, however quiet the
+    /// surroundings: the floor under [`VerifyConfig::edge_contrast`]'s
+    /// local level (camera noise alone stays under it).
     pub edge_gradient: f32,
     /// How far along the normal an edge may lie from the contour, pixels.
     pub edge_search_px: usize,
+    /// How many times the local level of the frame's gradient (along the
+    /// normal, beyond the search: [`VerifyConfig::edge_band_px`]) an edge
+    /// must stand out by: a faint outline on a plain surface counts, a
+    /// random gradient in clutter does not ([`edge_support`]).
+    pub edge_contrast: f32,
+    /// The farthest the local level is sampled along the normal, pixels
+    /// (from `edge_search_px + 2` on either side; no further than the
+    /// search: a fixed threshold at [`VerifyConfig::edge_gradient`]).
+    pub edge_band_px: usize,
+}
+
+impl VerifyConfig {
+    /// How far from the contour the edge test reads the frame, pixels
+    /// (a window of the frame this much wider than the view scores alike).
+    pub fn edge_reach_px(&self) -> usize {
+        self.edge_search_px.max(self.edge_band_px) + 1
+    }
 }
 
 impl Default for VerifyConfig {
@@ -76,8 +98,10 @@ impl Default for VerifyConfig {
             min_edge_support: 0.4,
             strong_edge_support: 0.7,
             untextured_below: 0.125,
-            edge_gradient: 0.02,
+            edge_gradient: 0.008,
             edge_search_px: 2,
+            edge_contrast: 3.0,
+            edge_band_px: 8,
         }
     }
 }
@@ -250,7 +274,7 @@ pub fn laplacian_rms(n: f64, sum_sq: f64) -> Option<f64> {
     (n >= 50.0).then(|| (sum_sq / n).sqrt())
 }
 
-/// ZNCC of paired samples; `None` under 50 pairs or without contrast.
+/// ZNCC of paired samples ([`zncc_of_sums`]'s rules).
 pub fn zncc_of(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
     let (mut n, mut sa, mut sb, mut saa, mut sbb, mut sab) = (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
     for (a, b) in pairs {
@@ -265,8 +289,10 @@ pub fn zncc_of(pairs: impl Iterator<Item = (f64, f64)>) -> Option<f64> {
 }
 
 /// ZNCC of paired samples from their sums `[n, Σa, Σb, Σa², Σb², Σab]`
-/// (the GPU check reduces to these); `None` under 50 pairs or without
-/// contrast.
+/// (the GPU check reduces to these); `None` under 50 pairs or where `a`
+/// (the view) has no contrast, 0 where only `b` (the frame) has none: a
+/// frame that shows nothing of the view's texture does not match it (an
+/// outline alone would otherwise decide, as for an untextured view).
 pub fn zncc_of_sums([n, sa, sb, saa, sbb, sab]: [f64; 6]) -> Option<f64> {
     if n < 50.0 {
         return None;
@@ -276,13 +302,28 @@ pub fn zncc_of_sums([n, sa, sb, saa, sbb, sab]: [f64; 6]) -> Option<f64> {
     let cov = sab - sa * sb / n;
     // Below 1e-4 grey levels of standard deviation there is no texture.
     let floor = n * 1e-8;
-    (va > floor && vb > floor).then(|| cov / (va * vb).sqrt())
+    match (va > floor, vb > floor) {
+        (true, true) => Some(cov / (va * vb).sqrt()),
+        (true, false) => Some(0.0),
+        (false, _) => None,
+    }
 }
 
 /// The fraction of the silhouette's contour pixels (covered, with an
-/// uncovered 4-neighbour inside the image) that have a frame gradient of at
-/// least [`VerifyConfig::edge_gradient`] along the contour's normal within
-/// [`VerifyConfig::edge_search_px`]; `None` under 20 contour pixels.
+/// uncovered 4-neighbour inside the image) on an edge of the frame; `None`
+/// under 20 contour pixels. Along the contour's normal (the mask's Sobel
+/// direction), at whole-pixel steps rounded to the nearest pixel, the
+/// frame's gradient along that normal (|Sobel / 8|, grey levels per
+/// pixel) is read within [`VerifyConfig::edge_search_px`] of the contour
+/// (the peak) and, from `edge_search_px + 2` to
+/// [`VerifyConfig::edge_band_px`] on either side, the local level: the
+/// mean on each side, the quieter side's (an outline separates its
+/// object's texture from a plain background, or the reverse). A pixel is
+/// supported when its peak is at least [`VerifyConfig::edge_gradient`]
+/// and [`VerifyConfig::edge_contrast`] times that level ([`edge_hit`]):
+/// an outline of little contrast on a plain surface (a white box on a
+/// white table) counts, while in clutter only an edge that stands out
+/// from its surroundings does.
 pub fn edge_support(frame: &GreyImage, covered: &[bool], cfg: &VerifyConfig) -> Option<f64> {
     let (w, h) = (frame.width, frame.height);
     if w < 3 || h < 3 {
@@ -298,7 +339,6 @@ pub fn edge_support(frame: &GreyImage, covered: &[bool], cfg: &VerifyConfig) -> 
         (gx / 8.0, gy / 8.0)
     };
     let (mut contour, mut supported) = (0usize, 0usize);
-    let r = cfg.edge_search_px as f64;
     for y in 1..h - 1 {
         for x in 1..w - 1 {
             if !covered[y * w + x]
@@ -316,20 +356,43 @@ pub fn edge_support(frame: &GreyImage, covered: &[bool], cfg: &VerifyConfig) -> 
             }
             let (nx, ny) = (nx / norm, ny / norm);
             contour += 1;
-            let steps = cfg.edge_search_px as i64;
-            let hit = (-steps..=steps).any(|s| {
-                let s = s as f64 / steps.max(1) as f64 * r;
+            let along = |s: i64| {
+                let s = s as f64;
                 let (qx, qy) = ((x as f64 + s * nx).round(), (y as f64 + s * ny).round());
                 if qx < 1.0 || qy < 1.0 || qx >= (w - 1) as f64 || qy >= (h - 1) as f64 {
-                    return false;
+                    return None;
                 }
                 let (gx, gy) = sobel(&p, qx as usize, qy as usize);
-                (gx * nx + gy * ny).abs() >= cfg.edge_gradient as f64
-            });
-            supported += usize::from(hit);
+                Some((gx * nx + gy * ny).abs())
+            };
+            supported += usize::from(edge_hit(along, cfg));
         }
     }
     (contour >= 20).then(|| supported as f64 / contour as f64)
+}
+
+/// The rule of [`edge_support`] for one contour pixel, given the frame's
+/// gradient along its normal at `s` whole pixels along it (`None` outside
+/// the image): the peak within the search against the floor and against
+/// the quieter side's mean level beyond it (0 where neither side has a
+/// sample in the image).
+pub fn edge_hit(along: impl Fn(i64) -> Option<f64>, cfg: &VerifyConfig) -> bool {
+    let r = cfg.edge_search_px as i64;
+    let peak = (-r..=r).filter_map(&along).fold(0.0f64, f64::max);
+    if peak < cfg.edge_gradient as f64 {
+        return false;
+    }
+    let side = |sign: i64| {
+        let (n, sum) = (r + 2..=cfg.edge_band_px as i64)
+            .filter_map(|s| along(sign * s))
+            .fold((0usize, 0.0f64), |(n, sum), g| (n + 1, sum + g));
+        (n > 0).then(|| sum / n as f64)
+    };
+    let level = match (side(-1), side(1)) {
+        (Some(a), Some(b)) => a.min(b),
+        (a, b) => a.or(b).unwrap_or(0.0),
+    };
+    peak >= cfg.edge_contrast as f64 * level
 }
 
 /// [`judge`] for a frame that the contour modality tracked while no
@@ -598,10 +661,51 @@ mod tests {
         assert_eq!(texture_step(f64::INFINITY), 1);
     }
 
+    /// Known answers of one contour pixel's rule, the gradient along the
+    /// normal given at each offset (search 2, band 8: the level from 4 to
+    /// 8 px on either side).
+    #[test]
+    fn an_edge_must_pass_the_floor_and_stand_out_from_the_quieter_side() {
+        let cfg = VerifyConfig::default();
+        let profile = |peak: f64, left: f64, right: f64| {
+            move |s: i64| {
+                Some(match s {
+                    1 => peak,
+                    -8..=-3 => left,
+                    3..=8 => right,
+                    _ => 0.001,
+                })
+            }
+        };
+        // 0.015 (under the old fixed 0.02) on a quiet surface: an edge.
+        assert!(edge_hit(profile(0.015, 0.004, 0.003), &cfg));
+        // The same where one side is busy: the quieter side decides.
+        assert!(edge_hit(profile(0.015, 0.004, 0.05), &cfg));
+        // Not 3 times the level of either side: clutter, no edge.
+        assert!(!edge_hit(profile(0.05, 0.02, 0.03), &cfg));
+        assert!(edge_hit(profile(0.061, 0.02, 0.03), &cfg));
+        // Under the floor, however quiet.
+        assert!(!edge_hit(profile(0.007, 0.0, 0.0), &cfg));
+        // A side outside the image: the other one's level.
+        let half = |s: i64| (s > -3).then_some(if s == 0 { 0.03 } else { 0.011 });
+        assert!(!edge_hit(half, &cfg));
+        let half = |s: i64| (s > -3).then_some(if s == 0 { 0.034 } else { 0.011 });
+        assert!(edge_hit(half, &cfg));
+        // No level beyond the search: the floor alone (the fixed rule).
+        let fixed = VerifyConfig {
+            edge_band_px: 3,
+            ..cfg.clone()
+        };
+        assert!(edge_hit(profile(0.009, 0.5, 0.5), &fixed));
+        assert!(!edge_hit(profile(0.009, 0.5, 0.5), &cfg));
+    }
+
     #[test]
     fn zncc_is_none_without_contrast_or_samples() {
         assert_eq!(zncc_of((0..100).map(|i| (1.0, i as f64))), None);
         assert_eq!(zncc_of((0..10).map(|i| (i as f64, i as f64))), None);
+        // A textured view against a flat frame: no match.
+        assert_eq!(zncc_of((0..100).map(|i| (i as f64, 0.5))), Some(0.0));
         let anti = zncc_of((0..100).map(|i| (i as f64, -2.0 * i as f64 + 3.0))).unwrap();
         assert!((anti + 1.0).abs() < 1e-9);
     }

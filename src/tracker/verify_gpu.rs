@@ -48,8 +48,8 @@ wgsl_struct! {
         gradient: f32,
         centre: f32,
         texture_step: u32,
-        _pad1: u32,
-        _pad2: u32,
+        contrast: f32,
+        band: u32,
     }
 }
 
@@ -267,8 +267,8 @@ impl GpuCheck {
             gradient: cfg.edge_gradient,
             centre: CENTRE,
             texture_step: texture_step as u32,
-            _pad1: 0,
-            _pad2: 0,
+            contrast: cfg.edge_contrast,
+            band: cfg.edge_band_px as u32,
         };
         self.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self

@@ -64,11 +64,13 @@ impl Tracker {
     }
 
     /// The margin around what a step looks at that keeps Harris supports,
-    /// sub-pixel refinements and the check's edge search inside a window.
+    /// sub-pixel refinements and the check's edge test (its search and
+    /// the level beyond it) inside a window.
     pub(super) fn window_margin(&self) -> f64 {
         let h = &self.config.harris;
-        (h.support_radius() + h.refine_radius as usize + 4) as f64
-            + self.config.verify.edge_search_px as f64
+        let v = &self.config.verify;
+        (h.support_radius() + h.refine_radius as usize + 4 + v.edge_search_px)
+            .max(v.edge_reach_px()) as f64
     }
 
     /// The margin of the NCC crops for a search radius `r` (`None`: no

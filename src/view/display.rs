@@ -13,6 +13,7 @@
 //! or `q` answer [`Flow::Stop`]: the run ends there as at the end of the
 //! sequence.
 
+use super::clicks::{ClickKey, RawEvent};
 use super::picture::compose;
 use super::present::Presenter;
 use super::sink::{Flow, FrameSink, ViewError, ViewFrame};
@@ -21,7 +22,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
-use winit::event::{ElementState, KeyEvent, WindowEvent};
+use winit::event::{ElementState, KeyEvent, MouseButton, WindowEvent};
 use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{Key, NamedKey};
 use winit::platform::pump_events::EventLoopExtPumpEvents;
@@ -38,6 +39,10 @@ struct Handler {
     error: Option<String>,
     close: bool,
     resized: bool,
+    /// The pointer's last position, window pixels.
+    cursor: (f64, f64),
+    /// Clicks and keys since they were last taken ([`DisplaySink::show`]).
+    events: Vec<RawEvent>,
 }
 
 impl ApplicationHandler for Handler {
@@ -52,7 +57,10 @@ impl ApplicationHandler for Handler {
 
     fn window_event(&mut self, _: &ActiveEventLoop, _: WindowId, event: WindowEvent) {
         match event {
-            WindowEvent::CloseRequested | WindowEvent::Destroyed => self.close = true,
+            WindowEvent::CloseRequested | WindowEvent::Destroyed => {
+                self.close = true;
+                self.events.push(RawEvent::Close);
+            }
             WindowEvent::KeyboardInput {
                 event:
                     KeyEvent {
@@ -62,8 +70,30 @@ impl ApplicationHandler for Handler {
                     },
                 ..
             } => match logical_key.as_ref() {
-                Key::Named(NamedKey::Escape) => self.close = true,
-                Key::Character(c) if c.eq_ignore_ascii_case("q") => self.close = true,
+                Key::Named(NamedKey::Escape) => {
+                    self.close = true;
+                    self.events.push(RawEvent::Key(ClickKey::Escape));
+                }
+                Key::Character(c) if c.eq_ignore_ascii_case("q") => {
+                    self.close = true;
+                    self.events.push(RawEvent::Key(ClickKey::Q));
+                }
+                Key::Named(NamedKey::Enter) => self.events.push(RawEvent::Key(ClickKey::Enter)),
+                Key::Named(NamedKey::Backspace) => {
+                    self.events.push(RawEvent::Key(ClickKey::Backspace))
+                }
+                _ => {}
+            },
+            WindowEvent::CursorMoved { position, .. } => self.cursor = (position.x, position.y),
+            WindowEvent::MouseInput {
+                state: ElementState::Pressed,
+                button,
+                ..
+            } => match button {
+                MouseButton::Left => self
+                    .events
+                    .push(RawEvent::LeftClick(self.cursor.0, self.cursor.1)),
+                MouseButton::Right => self.events.push(RawEvent::RightClick),
                 _ => {}
             },
             WindowEvent::Resized(_) | WindowEvent::ScaleFactorChanged { .. } => self.resized = true,
@@ -115,6 +145,8 @@ impl DisplaySink {
             error: None,
             close: false,
             resized: false,
+            cursor: (0.0, 0.0),
+            events: Vec::new(),
         };
         let start = Instant::now();
         let os_window = loop {
@@ -204,6 +236,44 @@ impl DisplaySink {
         self.stats
     }
 
+    /// Shows `picture` (the window takes its size the first time), waits up
+    /// to `wait` for the window's events and returns the clicks and keys
+    /// since the last call (`splattrack init --click`). A picture the
+    /// surface had no image for is skipped; the next call draws again.
+    pub fn show(
+        &mut self,
+        picture: &image::RgbaImage,
+        wait: Duration,
+    ) -> Result<Vec<RawEvent>, ViewError> {
+        self.size_to(picture);
+        if self.draw(picture)? {
+            self.stats.shown += 1;
+        } else {
+            self.stats.skipped += 1;
+        }
+        self.event_loop
+            .pump_app_events(Some(wait), &mut self.handler);
+        Ok(std::mem::take(&mut self.handler.events))
+    }
+
+    /// The window's inner size, pixels.
+    pub fn inner_size(&self) -> (u32, u32) {
+        let s = self.os_window.inner_size();
+        (s.width, s.height)
+    }
+
+    /// The window takes the first picture's size; after that the user's
+    /// size holds and pictures are scaled to fit.
+    fn size_to(&mut self, picture: &image::RgbaImage) {
+        if !self.sized {
+            self.sized = true;
+            let _ = self
+                .os_window
+                .request_inner_size(PhysicalSize::new(picture.width(), picture.height()));
+            self.pump();
+        }
+    }
+
     /// Handles the window's pending events without waiting; true when the
     /// user asked to stop (window closed, `Esc`, `q`).
     fn pump(&mut self) -> bool {
@@ -272,21 +342,15 @@ impl FrameSink for DisplaySink {
             return Ok(Flow::Stop);
         }
         let picture = compose(frame);
-        if !self.sized {
-            // The window takes the picture's size once; after that the
-            // user's size holds and the picture is scaled to fit.
-            self.sized = true;
-            let _ = self
-                .os_window
-                .request_inner_size(PhysicalSize::new(picture.width(), picture.height()));
-            self.pump();
-        }
+        self.size_to(&picture);
         if self.draw(&picture)? {
             self.stats.shown += 1;
         } else {
             self.stats.skipped += 1;
         }
         let stop = self.pump();
+        // Clicks mean nothing while tracking.
+        self.handler.events.clear();
         self.stats.busy += t0.elapsed();
         Ok(if stop { Flow::Stop } else { Flow::Continue })
     }

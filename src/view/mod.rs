@@ -19,7 +19,12 @@
 //! tracker's own wgpu device ([`present`]: a letterboxing blit with a CPU
 //! reference); tests feed [`compose`] and fake sinks directly, without a
 //! display.
+//!
+//! The same window collects clicks for `splattrack init --click`
+//! ([`DisplaySink::show`]); what the clicks mean and what the window shows
+//! meanwhile are pure functions of the events ([`clicks`]).
 
+pub mod clicks;
 #[cfg(feature = "view")]
 pub mod display;
 mod picture;

@@ -9,7 +9,9 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The object's point model (PLY).
+    /// The object's model: a point model (PLY), or a mesh (OBJ, STL, PLY
+    /// with faces) sampled into 100000 points (`splattrack model` writes
+    /// that sample out).
     #[arg(long)]
     pub model: PathBuf,
     /// The sequence directory (camera.json, frames/, init.csv, ...).
@@ -48,14 +50,19 @@ pub struct Args {
     /// the object is searched for in the frames (automatic initialisation).
     #[arg(long)]
     pub init: Option<PathBuf>,
-    /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes only).
-    #[arg(long, value_enum, default_value_t = Mode::KfIt, ignore_case = true)]
-    pub mode: Mode,
-    /// The cues tracked: texture (corners and NCC; the default), contour
-    /// (the splatted silhouette against the frame's colours: for weakly
-    /// textured objects), or both in one robust solve (texture,contour).
-    #[arg(long, default_value = "texture")]
-    pub modalities: Modalities,
+    /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes
+    /// only). Default: kf+it, or it when there are neither keyframes nor
+    /// model colours to build the KF step's views from.
+    #[arg(long, value_enum, ignore_case = true)]
+    pub mode: Option<Mode>,
+    /// The cues tracked: auto (the default: measured on the keyframes'
+    /// views, texture for a textured object, texture,contour for a weakly
+    /// textured one, contour for an untextured one and without keyframes
+    /// or model colours), texture (corners and NCC), contour (the splatted
+    /// silhouette against the frame's colours) or both in one robust solve
+    /// (texture,contour).
+    #[arg(long, default_value = "auto")]
+    pub modalities: Cues,
     /// Output pose CSV (docs/formats.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
@@ -69,6 +76,11 @@ pub struct Args {
     /// Also write a BOP-style results CSV (t in mm, assuming metre models).
     #[arg(long)]
     pub bop: Option<PathBuf>,
+    /// Also write the refused estimates: for each lost frame with an
+    /// estimate, the pose refused, its stage, the reason and the check's
+    /// scores (docs/formats.md "Refused estimates").
+    #[arg(long, value_name = "FILE.csv")]
+    pub refused: Option<PathBuf>,
     /// BOP object id.
     #[arg(long, default_value_t = 1)]
     pub obj_id: u32,
@@ -276,6 +288,27 @@ impl Tuning {
     }
 }
 
+/// `--modalities`: `auto`, or the cues named.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cues {
+    /// Chosen per object ([`TrackerConfig::auto_modalities`]).
+    Auto,
+    /// As named.
+    Named(Modalities),
+}
+
+impl std::str::FromStr for Cues {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        if s.trim().eq_ignore_ascii_case("auto") {
+            return Ok(Self::Auto);
+        }
+        s.parse()
+            .map(Self::Named)
+            .map_err(|e: String| e.replace("(use ", "(use auto, "))
+    }
+}
+
 /// A setting the adapter decides unless told.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OnOff {
@@ -323,9 +356,14 @@ impl Args {
     /// The tracker's settings: the defaults with the tuning flags' overrides, and
     /// the mode, cues and backends named.
     pub fn config(&self) -> anyhow::Result<TrackerConfig> {
+        let (modalities, auto_modalities) = match self.modalities {
+            Cues::Auto => (Modalities::default(), true),
+            Cues::Named(m) => (m, false),
+        };
         Ok(TrackerConfig {
-            mode: self.mode,
-            modalities: self.modalities,
+            mode: self.mode.unwrap_or_default(),
+            modalities,
+            auto_modalities,
             splatter: self.splatter,
             feature_backend: self.feature_backend,
             resident: self.resident.choice(),

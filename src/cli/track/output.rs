@@ -6,6 +6,7 @@ use super::profile::profile_table;
 use splattrack::GpuContext;
 use splattrack::app::RunStats;
 use splattrack::io::guard::{check_output, check_output_dir};
+use splattrack::tracker::Mode;
 use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Refuses outputs that are this run's other inputs (the sequence's own
@@ -20,6 +21,17 @@ pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
     if let Some(bop) = &args.bop {
         check_output(bop, "--bop", &inputs)?;
     }
+    if let Some(refused) = &args.refused {
+        check_output(refused, "--refused", &inputs)?;
+        for (other, flag) in [(Some(&args.out), "--out"), (args.bop.as_ref(), "--bop")] {
+            if other == Some(refused) {
+                anyhow::bail!(
+                    "{}: --refused and {flag} name the same file; choose another path",
+                    refused.display()
+                );
+            }
+        }
+    }
     if let Some(dir) = &args.overlay {
         let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
@@ -31,6 +43,7 @@ pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
 /// live source, and how the run ended when it was stopped.
 pub fn print_summary(
     args: &Args,
+    mode: Mode,
     ctx: &GpuContext,
     stats: &RunStats,
     stop: &AtomicBool,
@@ -43,13 +56,14 @@ pub fn print_summary(
     println!(
         "tracked {} frames ({} mode, {}): {} lost{aside}; {:.1} ms per frame (median {:.1}); poses in {}",
         stats.frames,
-        args.mode.name(),
+        mode.name(),
         ctx.describe(),
         stats.lost,
         stats.mean.total,
         stats.median_ms,
         args.out.display()
     );
+    print_cues(args, mode, stats);
     let ctrl_c = stop.load(Ordering::SeqCst);
     if live {
         println!(
@@ -64,6 +78,26 @@ pub fn print_summary(
             stats.frames
         );
     }
+}
+
+/// The line on the cues: which the run used and why (the automatic choice,
+/// frame to frame for want of keyframes), and how many frames each held.
+fn print_cues(args: &Args, mode: Mode, stats: &RunStats) {
+    let Some(m) = stats.modalities else {
+        return;
+    };
+    let why = match &stats.cue_choice {
+        Some(c) => c.describe(),
+        None => format!("{} (as given)", m.name()),
+    };
+    let fallback = match (args.mode, mode) {
+        (None, Mode::It) => "; mode it: no keyframes and no model colours for the KF step",
+        _ => "",
+    };
+    let [t, c, b] = stats.held_by;
+    println!(
+        "cues: {why}{fallback}; frames held by texture {t}, contour {c}, both {b} (the poses' cues column)"
+    );
 }
 
 /// `--profile`'s report: the frame source's time, the stage table, the
