@@ -23,8 +23,18 @@ pub struct ContourConfig {
     pub learn_margin_px: usize,
     /// The splatted silhouette is this much wider than the object, pixels
     /// (the splatter's 0.75 px low-pass disc around each splat): contour
-    /// points are moved this far inward.
+    /// points are moved this far inward. On limbs (a surface seen edge-on
+    /// at the outline) and where the surface normal is unknown; on creases
+    /// (a face that ends at the outline) the inset follows from the
+    /// splats' size there ([`super::crease_inset`]).
     pub inset_px: f64,
+    /// Drop the contour points whose window is not one straight edge (a
+    /// corner of the outline, which the covered fraction places inside
+    /// it: [`super::straight_edges`]). Off by default: on the untextured
+    /// box it moved the depth by 0.14 mm (of a 0.64 mm bias), but on the
+    /// real dragon's detailed outline it dropped points the fit needed
+    /// (2.51 against 1.89 degrees mean, fused with texture).
+    pub drop_corners: bool,
     /// Width of the smooth step of the line model, pixels.
     pub slope_px: f32,
     /// Fewer usable contour points than this: the step fails.
@@ -110,6 +120,7 @@ impl Default for ContourConfig {
             learning_rate: 0.2,
             learn_margin_px: 2,
             inset_px: 0.65,
+            drop_corners: false,
             slope_px: 1.0,
             min_points: 24,
             rounds: 4,
