@@ -227,20 +227,29 @@ impl Tracker {
             // texture aside and let the contour alone solve from that
             // pose, checked as when no texture step is trusted.
             // Without a trusted texture step the contour alone made the
-            // pose: its second step from the previous pose is damped
-            // ([`ContourConfig::retry_damping`]).
+            // pose: where it failed, or passed without converging (still
+            // drifting after its last round), a second step from the
+            // previous pose is damped ([`ContourConfig::retry_damping`]);
+            // the check takes it where it passes, and over a pose that
+            // passed where its edges support it better.
             let retry = self.config.contour.retry_damping;
+            let again = self.config.modalities.contour && !texture_held && retry > 0.0;
+            let edges = |s: &VerifyScores| s.edge_support.unwrap_or(0.0);
             let aside = match (&check, d.pose) {
                 (Err(Unverified::Appearance { .. }), Some(from))
                     if self.config.modalities.contour && texture_held =>
                 {
                     self.contour_alone(&rules, &frame, rgb, (from, false, None), first_frame)?
                 }
-                (Err(Unverified::Appearance { .. }), _)
-                    if self.config.modalities.contour && retry > 0.0 =>
-                {
+                (Err(Unverified::Appearance { .. }), _) if again => {
                     let from = (start_pose, true, Some(retry));
                     self.contour_alone(&rules, &frame, rgb, from, first_frame)?
+                }
+                (Ok(()), _) if again && contour_held && !self.contour.converged => {
+                    let first = scores.as_ref().map_or(0.0, edges);
+                    let from = (start_pose, true, Some(retry));
+                    self.contour_alone(&rules, &frame, rgb, from, first_frame)?
+                        .filter(|(_, s)| edges(s) > first)
                 }
                 _ => None,
             };

@@ -84,6 +84,7 @@ impl Tracker {
         }
         let mut moved: Vec<Lifted> = Vec::new();
         let mut last = None;
+        self.contour.converged = false;
         for round in 0..cfg.rounds.max(1) {
             // The first round goes coarse to fine; later ones (at the
             // newest estimate) use the finest lines only.
@@ -132,6 +133,7 @@ impl Tracker {
             pose = step.pose;
             last = Some(step);
             if round >= 1 && moved < cfg.converged_px {
+                self.contour.converged = true;
                 break;
             }
         }
