@@ -11,9 +11,11 @@
 mod error;
 pub mod refused;
 mod stats;
+mod tuning;
 
 pub use error::AppError;
 pub use stats::{FrameMs, RunStats};
+pub use tuning::{MAX_CORNERS, Tuning, TuningError, run_mode};
 
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
@@ -216,6 +218,12 @@ impl TrackInputs {
             init,
             keyframes: keyframes.map(Arc::new),
         })
+    }
+
+    /// Whether the KF step's views have a texture: keyframes, or colours
+    /// in the model ([`run_mode`]).
+    pub fn textured(&self) -> bool {
+        self.keyframes.is_some() || self.model.colors.is_some()
     }
 
     /// The camera of the frames the tracker sees: the calibrated one

@@ -88,10 +88,10 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         splattrack::io::guard::check_output(csv, "--csv", &inputs)?;
     }
     ensure!(
-        (1..=super::track::MAX_CORNERS).contains(&args.max),
+        (1..=splattrack::app::MAX_CORNERS).contains(&args.max),
         "--max {}: must be 1..={}",
         args.max,
-        super::track::MAX_CORNERS
+        splattrack::app::MAX_CORNERS
     );
     let ext = args
         .out

@@ -13,7 +13,7 @@ mod output;
 mod profile;
 mod refused;
 
-pub use args::{Args, MAX_CORNERS};
+pub use args::Args;
 
 use anyhow::{Context, bail};
 use input::Input;
@@ -128,23 +128,23 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
 /// texture, or no first pose and nothing to search for the object with,
 /// fails naming what would help.
 fn mode_for(args: &Args, inputs: &TrackInputs) -> anyhow::Result<Mode> {
-    let textured = inputs.keyframes.is_some() || inputs.model.colors.is_some();
+    let textured = inputs.textured();
     if !textured && inputs.init.is_none() {
         bail!(
             "no first pose (init.csv or --init) and nothing to search for the object with (keyframes or model colours): give the pose of the first frame with --init"
         );
     }
-    Ok(match args.mode {
-        Some(m) if m != Mode::It && !textured => bail!(
+    match splattrack::app::run_mode(args.mode, textured) {
+        Err(m) => bail!(
             "--mode {m} needs keyframes (--keyframes DIR or SEQUENCE/keyframes) or a model with colours for the KF step's views; without them use --mode it (frame to frame)"
         ),
-        Some(m) => m,
-        None if textured => Mode::KfIt,
-        None => {
-            log::info!("no keyframes and no model colours: tracking frame to frame (mode it)");
-            Mode::It
+        Ok(m) => {
+            if args.mode.is_none() && m == Mode::It {
+                log::info!("no keyframes and no model colours: tracking frame to frame (mode it)");
+            }
+            Ok(m)
         }
-    })
+    }
 }
 
 /// Ctrl-C: the run ends after the frame being tracked, its outputs

@@ -13,9 +13,34 @@ use std::time::{Duration, Instant};
 
 impl Tracker {
     /// Tracks one frame (RGB, undistorted, the camera's size): Harris
-    /// corners, the IT step, the KF step(s), then [`decide`].
+    /// corners, the IT step, the KF step(s), then [`decide`]. The tracker
+    /// keeps a copy of the frame for the next one (in a buffer of its
+    /// own); [`Tracker::track_owned`] keeps the frame itself instead.
     pub fn track(&mut self, frame: &image::RgbImage) -> Result<TrackResult, TrackError> {
-        let rgb = frame;
+        self.track_input(FrameInput::Borrowed(frame))
+    }
+
+    /// [`Tracker::track`] on a frame handed over: the tracker keeps it for
+    /// the next frame instead of copying it (the same poses). A caller
+    /// that fills a buffer itself (a decoder, a binding) takes it from
+    /// [`Tracker::frame_buffer`], so that a frame is copied once on its
+    /// way to the GPU.
+    pub fn track_owned(&mut self, frame: image::RgbImage) -> Result<TrackResult, TrackError> {
+        self.track_input(FrameInput::Owned(frame))
+    }
+
+    /// A buffer of the camera's size for the next frame of
+    /// [`Tracker::track_owned`]: the one of a frame the tracker no longer
+    /// needs where there is one (its bytes are stale), else a new one.
+    pub fn frame_buffer(&mut self) -> image::RgbImage {
+        match self.spare_frame.take() {
+            Some(b) if b.dimensions() == (self.cam.width, self.cam.height) => b,
+            _ => image::RgbImage::new(self.cam.width, self.cam.height),
+        }
+    }
+
+    fn track_input(&mut self, input: FrameInput<'_>) -> Result<TrackResult, TrackError> {
+        let frame = input.image();
         if frame.width() != self.cam.width || frame.height() != self.cam.height {
             return Err(TrackError::FrameSize {
                 got_w: frame.width(),
@@ -84,14 +109,18 @@ impl Tracker {
         let w_features = self.ctx.stats().wait_time;
         // The frame kept for the next one, in the buffer of the frame
         // before the last where it fits.
-        let kept = match self.spare_frame.take() {
-            Some(mut b) if b.dimensions() == rgb.dimensions() => {
-                b.copy_from_slice(rgb);
-                b
-            }
-            _ => rgb.clone(),
+        let kept = match input {
+            FrameInput::Owned(img) => img,
+            FrameInput::Borrowed(rgb) => match self.spare_frame.take() {
+                Some(mut b) if b.dimensions() == rgb.dimensions() => {
+                    b.copy_from_slice(rgb);
+                    b
+                }
+                _ => rgb.clone(),
+            },
         };
         let mut frame = Frame::new(kept);
+        let rgb = &frame.rgb;
         let frozen = self
             .prev
             .as_ref()
@@ -387,6 +416,21 @@ impl Tracker {
                 log::debug!("the contour alone does not pass either: {why}");
                 Ok(None)
             }
+        }
+    }
+}
+
+/// The frame [`Tracker::track`] or [`Tracker::track_owned`] was given.
+enum FrameInput<'a> {
+    Borrowed(&'a image::RgbImage),
+    Owned(image::RgbImage),
+}
+
+impl FrameInput<'_> {
+    fn image(&self) -> &image::RgbImage {
+        match self {
+            FrameInput::Borrowed(img) => img,
+            FrameInput::Owned(img) => img,
         }
     }
 }

@@ -72,8 +72,8 @@ pub use error::{CameraInvalid, ConfigError, TrackError};
 pub use execution::Execution;
 pub use init::InitConfig;
 pub use result::{
-    GpuMemoryUse, LostReason, Refused, Source, Stage, StageTimes, StageWaits, Status, StepError,
-    TrackResult,
+    GpuMemoryUse, LostReason, NovelView, Refused, Source, Stage, StageTimes, StageWaits, Status,
+    StepError, TrackResult,
 };
 pub use state::Tracker;
 pub use verify::{Unverified, VerifyConfig, VerifyScores};

@@ -234,6 +234,25 @@ pub struct TrackResult {
     pub refused: Option<Refused>,
 }
 
+/// A novel view of the model at a pose ([`super::Tracker::novel_view`]),
+/// row-major over the camera's image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NovelView {
+    /// Width, pixels.
+    pub width: u32,
+    /// Height, pixels.
+    pub height: u32,
+    /// RGB bytes, 3 a pixel (the keyframes' own scale; 0 where empty).
+    pub color: Vec<u8>,
+    /// Camera-space depth, model units (NaN where empty).
+    pub depth: Vec<f32>,
+    /// Whether the model covers each pixel.
+    pub mask: Vec<bool>,
+    /// The keyframe that textured the view (`None`: the model's colours,
+    /// or none).
+    pub keyframe: Option<usize>,
+}
+
 /// An estimate a `lost` frame did not report ([`TrackResult::refused`]).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Refused {

@@ -295,6 +295,50 @@ impl Tracker {
     }
 }
 
+impl Tracker {
+    /// The novel view at `pose` over the whole frame: the model textured
+    /// by the keyframe closest to `pose` (by the model's colours without
+    /// keyframes), as the KF step sees it, with its depth and coverage.
+    pub fn novel_view(&mut self, pose: &Pose) -> Result<super::result::NovelView, TrackError> {
+        pose.validate()?;
+        let window = Window::full(&self.cam);
+        let keyframe = self.render_view_in(pose, Attributes::GEOMETRY, window, "view")?;
+        let read = |t: &mut Self, a| t.splatter.read(&t.ctx, &t.targets, a);
+        let color = read(self, Attribute::Color)?;
+        let depth = read(self, Attribute::Depth)?;
+        let weight = read(self, Attribute::Weight)?;
+        let mask: Vec<bool> = weight.data.iter().map(|v| *v > 0.0).collect();
+        let color = color
+            .data
+            .chunks_exact(3)
+            .zip(&mask)
+            .flat_map(|(c, &m)| {
+                c.iter().map(move |v| {
+                    if m {
+                        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+                    } else {
+                        0
+                    }
+                })
+            })
+            .collect();
+        let depth = depth
+            .data
+            .iter()
+            .zip(&mask)
+            .map(|(&d, &m)| if m { d } else { f32::NAN })
+            .collect();
+        Ok(super::result::NovelView {
+            width: self.cam.width,
+            height: self.cam.height,
+            color,
+            depth,
+            mask,
+            keyframe,
+        })
+    }
+}
+
 /// What the steps share: the view of the model at a pose, turning a match
 /// into a correspondence, and the robust solve.
 impl Tracker {

@@ -1,0 +1,54 @@
+//! The Python package's native module, `splattrack._splattrack`: a thin
+//! binding over the library the `splattrack` command runs (camera, model,
+//! tracker, novel views), its errors mapped onto a Python hierarchy
+//! ([`errors`]). The GIL is released around every load, build, track and
+//! render, which run on the library's own threads and the GPU.
+
+mod arrays;
+mod camera;
+mod errors;
+mod model;
+mod settings;
+mod tracker;
+
+use pyo3::prelude::*;
+use splattrack::gpu::{AdapterChoice, GpuContext};
+use std::sync::Mutex;
+
+/// The process's GPU context: made once, at the first use, on the adapter
+/// `$SPLATTRACK_ADAPTER` names (as the command line), then shared by every
+/// tracker (a cheap clone).
+fn context(py: Python<'_>) -> PyResult<GpuContext> {
+    static CTX: Mutex<Option<GpuContext>> = Mutex::new(None);
+    py.detach(|| {
+        let mut slot = CTX.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(ctx) = slot.as_ref() {
+            return Ok::<_, splattrack::gpu::GpuError>(ctx.clone());
+        }
+        let ctx = GpuContext::new(&AdapterChoice::from_env()?)?;
+        *slot = Some(ctx.clone());
+        Ok(ctx)
+    })
+    .map_err(errors::gpu)
+}
+
+/// The GPU adapter the package runs on, as the command line names it
+/// (`llvmpipe (...) (Cpu, Vulkan)`); makes the GPU context when needed.
+#[pyfunction]
+fn device(py: Python<'_>) -> PyResult<String> {
+    Ok(context(py)?.describe())
+}
+
+#[pymodule]
+fn _splattrack(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    errors::register(m)?;
+    m.add_class::<camera::Camera>()?;
+    m.add_class::<model::Model>()?;
+    m.add_class::<tracker::Tracker>()?;
+    m.add_class::<tracker::TrackResult>()?;
+    m.add_function(wrap_pyfunction!(device, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::read_image, m)?)?;
+    m.add_function(wrap_pyfunction!(arrays::list_images, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
