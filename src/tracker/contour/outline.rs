@@ -253,7 +253,7 @@ pub fn limb_normals(
 /// limb ([`super::ModelNormals`]) leans towards the camera, which would tilt the
 /// image normal towards or away from the principal point. Returns, per
 /// point, whether it takes the crease inset (`|N . ray|` over
-/// [`CREASE_FACING`]; `false` where `N` is unknown). Points with
+/// `CREASE_FACING`; `false` where `N` is unknown). Points with
 /// `|N . ray|` over 0.3 keep their coverage normal either way.
 pub fn limb_normals_with(
     cam: &crate::geometry::Intrinsics,
