@@ -415,6 +415,12 @@ impl TrackerConfig {
             "a finite size >= 4",
         )?;
         check(
+            "init.confirm_max_turn_deg",
+            self.init.confirm_max_turn_deg,
+            |v| (0.0..=180.0).contains(&v),
+            "in [0, 180]",
+        )?;
+        check(
             "init.keyframe_tilt_deg",
             self.init.keyframe_tilt_deg,
             |v| (0.0..=90.0).contains(&v),

@@ -120,6 +120,25 @@ impl Tracker {
         }))
     }
 
+    /// Whether the object's views show shading only (its texture, as
+    /// [`Tracker::view_texture`] measures it, under [`SHADING_ONLY_BELOW`]:
+    /// the objects the automatic choice tracks by the contour alone), taken
+    /// from the automatic choice where it ran, else measured once. The
+    /// search judges such an object's outline candidates strictly and
+    /// holds its starts (`Tracker::confirm_start`).
+    pub(super) fn shading_only(&mut self) -> Result<bool, TrackError> {
+        if let Some(s) = self.shading_only {
+            return Ok(s);
+        }
+        let texture = match &self.cue_choice {
+            Some(c) => c.view_texture,
+            None => self.view_texture()?,
+        };
+        let s = texture.is_some_and(|t| t < SHADING_ONLY_BELOW);
+        self.shading_only = Some(s);
+        Ok(s)
+    }
+
     /// Measures the object's texture and sets the modalities [`choose`]
     /// picks (logged at info level; kept for [`Tracker::cue_choice`]).
     pub fn choose_modalities(&mut self) -> Result<CueChoice, TrackError> {

@@ -485,6 +485,14 @@ mod tests {
             },
             LostReason::NothingToTrackAgainst,
             LostReason::NotFound,
+            LostReason::Confirming { left: 2 },
+            LostReason::Unconfirmed {
+                turn_deg: 19.5,
+                check: Some(Unverified::Appearance {
+                    zncc: Some(0.7),
+                    edge_support: Some(0.5),
+                }),
+            },
             LostReason::Unverified(Unverified::NotInView {
                 visible: 0.25,
                 min: 0.5,

@@ -80,6 +80,11 @@ impl Tracker {
             match found {
                 Some(p) => {
                     log::info!("object found by search");
+                    if self.found_by_outline && self.config.init.confirm_frames > 0 {
+                        // Held until confirmed ([`Tracker::confirm_start`]).
+                        self.confirm_left = self.config.init.confirm_frames + 1;
+                        self.confirm_report = self.pose;
+                    }
                     self.pose = p;
                     self.searching = false;
                     self.lost_streak = 0;
@@ -294,6 +299,11 @@ impl Tracker {
         }
         times.verify = t_verify.elapsed();
         times.waits.verify = self.ctx.stats().wait_time.saturating_sub(w_verify);
+        let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
+        let (status, reason) = match held {
+            Some(why) => (Status::Lost, Some(why)),
+            None => (d.status, d.reason.clone()),
+        };
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }
@@ -338,7 +348,7 @@ impl Tracker {
         times.contour_renders = self.contour.renders as f64;
         (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
         times.total = t0.elapsed();
-        let refused = proposed.filter(|_| d.status == Status::Lost).map(
+        let refused = proposed.filter(|_| status == Status::Lost).map(
             |(source, pose, inliers, residual_px)| Refused {
                 pose,
                 source,
@@ -348,16 +358,20 @@ impl Tracker {
             },
         );
         Ok(TrackResult {
-            pose: self.pose,
+            pose: if self.confirm_left > 0 {
+                self.confirm_report
+            } else {
+                self.pose
+            },
             inliers: d.inliers,
             residual_px: d.residual_px,
-            status: d.status,
-            reason: d.reason,
+            status,
+            reason,
             keyframe,
             times,
             verify: scores,
             texture_set_aside,
-            cues: match d.status {
+            cues: match status {
                 Status::Tracking if contour_again => Modalities::CONTOUR,
                 Status::Tracking => Modalities {
                     texture: texture_held,

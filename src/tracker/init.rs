@@ -22,9 +22,14 @@
 //!    the frame's edges ([`EdgeMap`]).
 //! 4. The best [`InitConfig::candidates`] hits become poses (the template's
 //!    pose turned so its centre lies on the hit's line of sight, at the
-//!    distance the scale gives), are refined by the tracker's own KF step
-//!    (wide search first), and the first to pass [`super::verify`] (by
-//!    ZNCC, best first) is the answer; none: not found.
+//!    distance the scale gives; a place refined at most twice), are
+//!    refined by the tracker's own KF step (wide search first), else by
+//!    the outline where the contour modality is on, and the best to pass
+//!    [`super::verify`] (by ZNCC) is the answer; none: not found. On an
+//!    object whose views show shading only, a candidate refined by the
+//!    outline alone passes [`super::verify::judge_outline_candidate`], and
+//!    its start is held for [`InitConfig::confirm_frames`] frames that
+//!    must track consistently before it is reported.
 
 use crate::geometry::rotation_exp;
 use crate::model::PointModel;
@@ -75,6 +80,16 @@ pub struct InitConfig {
     pub redetect_after_lost: usize,
     /// The detection by features tried before the templates.
     pub detect: super::detect::config::DetectConfig,
+    /// Frames a start found by the outline alone, of an object whose
+    /// views show shading only, is held: tracked but
+    /// reported `lost` (`confirming`), each turning at most
+    /// [`InitConfig::confirm_max_turn_deg`] from the last and passing the
+    /// search's check, before the next is reported `tracking`. 0: none.
+    pub confirm_frames: usize,
+    /// The most a held start may turn from one frame to the next, degrees
+    /// (the synthetic Fig. 10 trajectory turns up to 7.5 a frame; the
+    /// outline slipping onto clutter turned 16-26).
+    pub confirm_max_turn_deg: f64,
 }
 
 impl Default for InitConfig {
@@ -88,6 +103,8 @@ impl Default for InitConfig {
             refine_steps: 3,
             redetect_after_lost: 5,
             detect: super::detect::config::DetectConfig::default(),
+            confirm_frames: 2,
+            confirm_max_turn_deg: 12.0,
         }
     }
 }

@@ -448,13 +448,31 @@ pub enum LostReason {
     /// Automatic initialisation or re-detection found no candidate pose
     /// that passes the check.
     NotFound,
+    /// The search found an object whose views show shading only by its
+    /// outline alone: the start is held
+    /// (tracked, not reported) until it has tracked consistently for
+    /// [`super::InitConfig::confirm_frames`] frames.
+    Confirming {
+        /// Frames still to track before the start is reported.
+        left: usize,
+    },
+    /// A start held for confirmation did not track consistently (its pose
+    /// turned too far in a frame, or failed the search's check): the search
+    /// runs again.
+    Unconfirmed {
+        /// How far the pose turned from the previous frame's, degrees.
+        turn_deg: f64,
+        /// The search's check's verdict, where it failed.
+        check: Option<Unverified>,
+    },
 }
 
 impl LostReason {
     /// A short name of the reason (the refused file's `reason` column):
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
     /// `frozen_frame`) or the decision rule (`failed`, `untrusted`,
-    /// `it_only_too_long`, `nothing_to_track_against`, `not_found`).
+    /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
+    /// `confirming`, `unconfirmed`).
     pub fn code(&self) -> &'static str {
         match self {
             LostReason::Failed { .. } => "failed",
@@ -466,6 +484,8 @@ impl LostReason {
             LostReason::Unverified(Unverified::Appearance { .. }) => "appearance",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
             LostReason::NotFound => "not_found",
+            LostReason::Confirming { .. } => "confirming",
+            LostReason::Unconfirmed { .. } => "unconfirmed",
         }
     }
 }
@@ -493,6 +513,20 @@ impl fmt::Display for LostReason {
             LostReason::NothingToTrackAgainst => f.write_str("nothing to track against"),
             LostReason::Unverified(why) => write!(f, "verification: {why}"),
             LostReason::NotFound => f.write_str("object not found in the image"),
+            LostReason::Confirming { left } => write!(
+                f,
+                "found by its outline alone: confirming over {left} more frame(s)"
+            ),
+            LostReason::Unconfirmed { turn_deg, check } => {
+                write!(
+                    f,
+                    "start not confirmed: turned {turn_deg:.1} deg in a frame"
+                )?;
+                match check {
+                    Some(why) => write!(f, "; {why}"),
+                    None => Ok(()),
+                }
+            }
         }
     }
 }

@@ -1,13 +1,15 @@
 //! The search for the object in a whole frame ([`super::init`]) by the
 //! tracker: its viewpoints, templates, candidates and their refinement.
 
+use super::decision::Decision;
 use super::error::TrackError;
 use super::init::{
     EdgeMap, Hit, TEMPLATE_POINTS, Template, axis_to, best_positions, shrink, sphere_directions,
     thinned,
 };
-use super::result::{Refused, Source, StepError};
+use super::result::{LostReason, Refused, Source, Status, StepError};
 use super::state::{Frame, Tracker};
+use super::verify::VerifyScores;
 use crate::features::GreyImage;
 use crate::geometry::{Pose, look_at, rotation_exp};
 use crate::splat::{Attribute, Attributes, GpuModel, SplatTargets};
@@ -146,9 +148,18 @@ impl Tracker {
             }
         }
         hits.sort_by(|a, b| b.score.total_cmp(&a.score));
-        let mut best: Option<(f64, Pose)> = None;
+        let mut best: Option<(f64, Pose, bool)> = None;
         let mut refused: Option<(f64, Refused)> = None;
-        for hit in hits.iter().take(cfg.candidates) {
+        // Where candidates were refined (full-size pixels): a place is
+        // refined at most twice, so that a distractor whose look matches
+        // many views does not take every candidate.
+        let mut places: Vec<(f64, f64)> = Vec::new();
+        let shading_only = self.shading_only()?;
+        let near = 0.25 * diam_px;
+        for hit in &hits {
+            if places.len() >= cfg.candidates {
+                break;
+            }
             let pose = &views[hit.view];
             let (x0, y0) = hit.origin;
             // Where the template's centre (the principal point) lands, in
@@ -161,6 +172,14 @@ impl Tracker {
             );
             let u = (hit.x as f64 + (pu - x0 as f64) * hit.scale + 0.5) * ff - 0.5;
             let vv = (hit.y as f64 + (pv - y0 as f64) * hit.scale + 0.5) * ff - 0.5;
+            let seen = places
+                .iter()
+                .filter(|p| (p.0 - u).hypot(p.1 - vv) < near)
+                .count();
+            if seen >= 2 {
+                continue;
+            }
+            places.push((u, vv));
             let ray = Vector3::new(
                 (u - self.cam.cx) / self.cam.fx,
                 (vv - self.cam.cy) / self.cam.fy,
@@ -177,8 +196,11 @@ impl Tracker {
             let s = self.verify_scores(frame, &refined)?;
             log::debug!("init candidate {hit:?} (contour: {by_contour}): {s:?}");
             // Refined by its outline (no texture step held), the edges
-            // decide as they do for a tracked frame.
-            let judged = if by_contour {
+            // decide; on an object of shading only, strictly (distractors
+            // of its colour and other shapes pass the plain rule).
+            let judged = if by_contour && shading_only {
+                super::verify::judge_outline_candidate(&s, &self.config.verify)
+            } else if by_contour {
                 super::verify::judge_with_contour(&s, &self.config.verify)
             } else {
                 super::verify::judge(&s, &self.config.verify)
@@ -186,7 +208,7 @@ impl Tracker {
             let z = s.zncc.unwrap_or(s.edge_support.unwrap_or(0.0));
             if judged.is_ok() {
                 if best.is_none_or(|b| z > b.0) {
-                    best = Some((z, refined));
+                    best = Some((z, refined, by_contour));
                 }
             } else if refused.as_ref().is_none_or(|b| z > b.0) {
                 let pose = refined;
@@ -206,7 +228,58 @@ impl Tracker {
         if let Some(r) = refused {
             self.search_refused = Some(r.1);
         }
+        self.found_by_outline = shading_only && best.is_some_and(|b| b.2);
         Ok(best.map(|b| b.1))
+    }
+
+    /// Holds a start found by the outline alone (module docs of
+    /// [`super::init`]): `d`, the frame's decision from `from` with the
+    /// check's `scores`, unless a start is being confirmed. While one is,
+    /// a frame that tracks within [`super::InitConfig::confirm_max_turn_deg`]
+    /// of `from` and passes the search's check
+    /// ([`super::verify::judge_outline_candidate`]) counts towards it and
+    /// is reported `lost` (`confirming`) until the last; one that does not
+    /// ends it (`unconfirmed`) and the search runs again. Returns the
+    /// decision the tracker keeps and, for a held frame, the reason it is
+    /// reported `lost`.
+    pub(super) fn confirm_start(
+        &mut self,
+        d: Decision,
+        scores: Option<&VerifyScores>,
+        from: &Pose,
+    ) -> (Decision, Option<LostReason>) {
+        if self.confirm_left == 0 {
+            return (d, None);
+        }
+        if d.status != Status::Tracking {
+            self.confirm_left = 0;
+            self.searching = true;
+            self.pose = self.confirm_report;
+            return (d, None);
+        }
+        let pose = d.pose.unwrap_or(*from);
+        let turn_deg = pose.rotation_error_deg(from);
+        let check = scores
+            .and_then(|s| super::verify::judge_outline_candidate(s, &self.config.verify).err());
+        if turn_deg > self.config.init.confirm_max_turn_deg || check.is_some() {
+            log::debug!("start not confirmed: turned {turn_deg:.1} deg, check {check:?}");
+            self.confirm_left = 0;
+            self.searching = true;
+            self.pose = self.confirm_report;
+            let lost = Decision {
+                status: Status::Lost,
+                pose: None,
+                reason: Some(LostReason::Unconfirmed { turn_deg, check }),
+                it_only_streak: 0,
+                ..d
+            };
+            return (lost, None);
+        }
+        self.confirm_left -= 1;
+        let held = (self.confirm_left > 0).then_some(LostReason::Confirming {
+            left: self.confirm_left,
+        });
+        (d, held)
     }
 
     /// The KF step from `start`, wide search first: the refined pose, or

@@ -132,6 +132,17 @@ pub struct Tracker {
     /// The last search's best candidate that failed the check (reported
     /// as refused when the search finds nothing).
     pub(super) search_refused: Option<super::result::Refused>,
+    /// Whether the object's views show shading only (measured at the
+    /// first search: `Tracker::shading_only`).
+    pub(super) shading_only: Option<bool>,
+    /// Whether the last search's answer was refined by the outline alone,
+    /// on an object whose views show shading only.
+    pub(super) found_by_outline: bool,
+    /// Frames a start found by the outline alone must still track
+    /// consistently before it is reported (0: none held).
+    pub(super) confirm_left: usize,
+    /// The pose reported while a start is held (the last good one).
+    pub(super) confirm_report: Pose,
     /// The tracker's own handle on the device (a cheap clone).
     pub(super) ctx: GpuContext,
     /// The contour step's colours, coverage, normals and counts.

@@ -434,6 +434,35 @@ pub fn judge_with_contour(s: &VerifyScores, cfg: &VerifyConfig) -> Result<(), Un
     })
 }
 
+/// The least ZNCC by which a novel view without texture of its own vouches
+/// for a search candidate whose outline is not strongly supported
+/// ([`judge_outline_candidate`]). Measured over clutter: distractors of
+/// the object's colour at most 0.79; the real dragon at its pose 0.87-0.99.
+pub const SHADING_ZNCC: f64 = 0.85;
+
+/// [`judge_with_contour`] for a pose the search (or the frames that
+/// confirm its start) found by the outline alone, on an object whose views
+/// show shading only (`cues::SHADING_ONLY_BELOW`). Where the view has no
+/// texture of its own its ZNCC correlates shading only, and over clutter
+/// the object's own colours shaded on a distractor of another shape pass
+/// [`judge`]'s levels (the untextured `plain` and `plainbox` over
+/// `--background clutter`: ZNCC 0.36-0.79, edge support 0.39-0.65, 40-150
+/// degrees off): such a pose needs the strong edge support, or a ZNCC of
+/// [`SHADING_ZNCC`]. Textured views keep [`judge`].
+pub fn judge_outline_candidate(s: &VerifyScores, cfg: &VerifyConfig) -> Result<(), Unverified> {
+    judge_with_contour(s, cfg)?;
+    let untextured = s.view_texture.is_none_or(|t| t < cfg.untextured_below);
+    let strong = s.edge_support.unwrap_or(0.0) >= cfg.strong_edge_support;
+    let shading = s.zncc.unwrap_or(0.0) >= SHADING_ZNCC;
+    if untextured && !strong && !shading {
+        return Err(Unverified::Appearance {
+            zncc: s.zncc,
+            edge_support: s.edge_support,
+        });
+    }
+    Ok(())
+}
+
 /// The rule: in view, large enough, and looking like the frame (module
 /// docs). `Ok` when the pose passes.
 pub fn judge(s: &VerifyScores, cfg: &VerifyConfig) -> Result<(), Unverified> {
@@ -615,6 +644,28 @@ mod tests {
         };
         judge_with_contour(&shaded, &cfg).unwrap();
         assert!(judge(&shaded, &cfg).is_err());
+    }
+
+    #[test]
+    fn an_outline_candidate_without_texture_needs_strong_edges_or_shading() {
+        let cfg = VerifyConfig::default();
+        let flat = |zncc, edge| VerifyScores {
+            view_texture: Some(0.05),
+            ..s(Some(zncc), edge)
+        };
+        // A distractor of the object's colour over clutter (plainbox, 49
+        // degrees off): passes the plain rule, not the candidate's.
+        judge(&flat(0.77, 0.57), &cfg).unwrap();
+        assert!(judge_outline_candidate(&flat(0.77, 0.57), &cfg).is_err());
+        judge_outline_candidate(&flat(0.74, 0.86), &cfg).unwrap();
+        judge_outline_candidate(&flat(0.9, 0.6), &cfg).unwrap();
+        assert!(judge_outline_candidate(&flat(0.9, 0.3), &cfg).is_err());
+        // A textured view keeps the plain rule.
+        let textured = VerifyScores {
+            view_texture: Some(0.3),
+            ..s(Some(0.5), 0.45)
+        };
+        judge_outline_candidate(&textured, &cfg).unwrap();
     }
 
     /// Known answers of the view's texture: zero on a linear ramp (any
