@@ -16,14 +16,25 @@ use splattrack::splat::{Attribute, Attributes, GpuModel, SplatTargets, Splatter}
 use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, raster, render_frame};
 use splattrack::tracker::ContourConfig;
 use splattrack::tracker::contour::{
-    ColourModel, extract_contour, inset, limb_normals, search_line,
+    ColourModel, extract_contour, inset_each, insets, limb_normals, search_line, straight_edges,
 };
 use std::io::Write;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let args: Vec<String> = std::env::args().collect();
+    let mut args: Vec<String> = std::env::args().collect();
+    let mut option = |name: &str| -> Option<String> {
+        let i = args.iter().position(|a| a == name)?;
+        let v = args.get(i + 1).cloned();
+        args.drain(i..(i + 2).min(args.len()));
+        v
+    };
+    let n_points: usize = option("--points").map_or(Ok(100_000), |v| v.parse())?;
+    let distance: Option<f64> = option("--distance").map(|v| v.parse()).transpose()?;
     if !(3..=4).contains(&args.len()) {
-        return Err("usage: outline_error OBJECT FRAME[,FRAME...] [OUT_DIR]".into());
+        return Err(
+            "usage: outline_error OBJECT FRAME[,FRAME...] [OUT_DIR] [--points N] [--distance M]"
+                .into(),
+        );
     }
     let obj = &args[1];
     let frames = args[2]
@@ -38,9 +49,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         frames: 200,
         ..Default::default()
     };
+    let cfg = SynthConfig {
+        distance: distance.unwrap_or(cfg.distance),
+        ..cfg
+    };
     let cam = cfg.camera;
     let object = SynthObject::by_name(&cfg.object).ok_or("unknown object")?;
-    let model = splattrack::synth::sequence::sample_model(&object, 100_000, cfg.seed)?;
+    let model = splattrack::synth::sequence::sample_model(&object, n_points, cfg.seed)?;
     let splatter = Splatter::new(&ctx)?;
     let gm = GpuModel::new(&ctx, &model)?;
     let mut t = SplatTargets::new(&ctx, cam.width, cam.height);
@@ -53,8 +68,29 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let normals = splatter.read(&ctx, &t, Attribute::Normal)?;
         let mask: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
         let mut points = extract_contour(&mask, cam.width as usize, cam.height as usize, 4);
-        limb_normals(&cam, &normals, &mut points);
-        inset(&mut points, c.inset_px);
+        let (w, h) = (cam.width as i64, cam.height as i64);
+        straight_edges(&mut points, |x, y| {
+            x < 0 || y < 0 || x >= w || y >= h || mask[(y * w + x) as usize]
+        });
+        let creases = limb_normals(&cam, &normals, &mut points);
+        let depths: Vec<f32> = points
+            .iter()
+            .map(|p| depth.pixel(p.pixel[0], p.pixel[1])[0])
+            .collect();
+        let lowpass = splattrack::splat::SplatParams::default().lowpass_px as f64;
+        let radius = model.radii[0] as f64;
+        let sampling = splattrack::tracker::contour::ModelNormals::new(&model)
+            .and_then(|g| g.sampling_radius())
+            .map_or(radius, |s| s as f64);
+        let by = insets(
+            &creases,
+            &depths,
+            (radius, sampling),
+            cam.fx,
+            c.inset_px,
+            lowpass,
+        );
+        inset_each(&mut points, &by);
         let mut colours = ColourModel::new(c.bins);
         colours.learn(
             &f.image,
@@ -73,6 +109,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             None => None,
         };
         let (mut bs, mut ds) = (Vec::new(), Vec::new());
+        // The model side apart on limbs (the surface normal across the ray)
+        // and on creases (a face ending at an edge), and the splats' radius
+        // in pixels there.
+        let (mut limb, mut crease, mut r_px) = (Vec::new(), Vec::new(), Vec::new());
         for p in &points {
             let boundary = exact.boundary_along(p.position, p.normal, 4.0);
             let found = search_line(&f.image, &colours, p.position, p.normal, 5.0, c.slope_px);
@@ -92,6 +132,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                     )?;
                 }
                 bs.push(b);
+                let nv = normals.pixel(p.pixel[0], p.pixel[1]);
+                let n3 = nalgebra::Vector3::new(nv[0] as f64, nv[1] as f64, nv[2] as f64);
+                let ray = cam
+                    .unproject(
+                        &nalgebra::Vector2::new(p.pixel[0] as f64, p.pixel[1] as f64),
+                        1.0,
+                    )
+                    .normalize();
+                if n3.norm() > 0.5 && n3.normalize().dot(&ray).abs() > 0.3 {
+                    crease.push(b);
+                } else {
+                    limb.push(b);
+                }
+                let z = depth.pixel(p.pixel[0], p.pixel[1])[0] as f64;
+                r_px.push(model.radii[0] as f64 * cam.fx / z);
                 ds.push(d - b);
             }
         }
@@ -106,6 +161,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 v[v.len() * 9 / 10].abs()
             )
         };
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        println!(
+            "{obj} {k}: model side on limbs {:+.3} ({} pts), on creases {:+.3} ({} pts); splat radius {:.2} px",
+            mean(&limb),
+            limb.len(),
+            mean(&crease),
+            crease.len(),
+            mean(&r_px)
+        );
         println!(
             "{obj} {k}: {} pts; model side (exact - model) {}; frame side (found - exact) {}",
             bs.len(),

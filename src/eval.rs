@@ -19,6 +19,12 @@ pub struct FrameError {
     pub translation: f64,
     /// `translation` as a percentage of the model's diameter.
     pub translation_pct: Option<f64>,
+    /// The translation error's part along the viewing ray to the true
+    /// position (the camera-frame ground truth's translation), model units:
+    /// negative when the estimate is nearer the camera.
+    pub along_ray: f64,
+    /// The length of its part across that ray, model units.
+    pub across_ray: f64,
     /// The tracker reported this frame `lost`.
     pub lost: bool,
     /// Left out of the statistics (e.g. unreliable ground truth).
@@ -53,6 +59,11 @@ pub struct Summary {
     pub translation_max: f64,
     /// Mean translation error as a percentage of the diameter.
     pub translation_mean_pct: Option<f64>,
+    /// Mean of [`FrameError::along_ray`] (signed: negative when the
+    /// estimates lie nearer the camera on average), model units.
+    pub along_ray_mean: f64,
+    /// Mean of [`FrameError::across_ray`], model units.
+    pub across_ray_mean: f64,
     /// Fraction of frames within 5 degrees and 5 cm (RBOT), 0..1.
     pub success_5deg_5cm: f64,
     /// Fraction within 2 degrees and 2% of the diameter.
@@ -158,11 +169,14 @@ pub fn evaluate(
             continue;
         };
         let t = e.pose.translation_error(&g.pose);
+        let (along_ray, across_ray) = along_and_across(&e.pose, &g.pose);
         frames.push(FrameError {
             frame: g.frame.clone(),
             rotation_deg: e.pose.rotation_error_deg(&g.pose),
             translation: t,
             translation_pct: opts.diameter.map(|d| 100.0 * t / d),
+            along_ray,
+            across_ray,
             lost: e
                 .extra
                 .iter()
@@ -206,12 +220,47 @@ pub fn evaluate(
         translation_median: median(&tr),
         translation_max: max(&tr),
         translation_mean_pct: opts.diameter.map(|d| 100.0 * mean(&tr) / d),
+        along_ray_mean: mean(&used.iter().map(|f| f.along_ray).collect::<Vec<_>>()),
+        across_ray_mean: mean(&used.iter().map(|f| f.across_ray).collect::<Vec<_>>()),
         success_5deg_5cm: rate(&|f| f.rotation_deg < 5.0 && f.translation < five_cm),
         success_2deg_2pct: opts
             .diameter
             .map(|d| rate(&|f| f.rotation_deg < 2.0 && f.translation < 0.02 * d)),
     };
     Ok(Evaluation { frames, summary })
+}
+
+/// The translation error of `estimate` against `truth` split along the
+/// viewing ray to the true position (signed, negative: nearer the camera)
+/// and across it (its length). Camera-frame poses (object to camera).
+pub fn along_and_across(
+    estimate: &crate::geometry::Pose,
+    truth: &crate::geometry::Pose,
+) -> (f64, f64) {
+    let d = estimate.translation - truth.translation;
+    let Some(ray) = truth.translation.try_normalize(1e-12) else {
+        return (0.0, d.norm());
+    };
+    let along = d.dot(&ray);
+    (along, (d - ray * along).norm())
+}
+
+/// The translation errors along and across the viewing ray, one row per
+/// evaluation, as printed by `eval` below [`table`].
+pub fn ray_table(summaries: &[Summary], unit: &str) -> String {
+    let mut s = format!(
+        "{:<16} {:>16} {:>17}\n",
+        "run",
+        format!("along ray {unit}"),
+        format!("across ray {unit}")
+    );
+    for m in summaries {
+        s.push_str(&format!(
+            "{:<16} {:>+16.5} {:>17.5}\n",
+            m.name, m.along_ray_mean, m.across_ray_mean
+        ));
+    }
+    s
 }
 
 /// The summary table (one row per evaluation), as printed by `eval`.
@@ -354,6 +403,25 @@ mod tests {
         assert_eq!(s.success_2deg_2pct, Some(0.0));
         let table = table(std::slice::from_ref(s), "m");
         assert!(table.contains("50.0%"), "{table}");
+    }
+
+    #[test]
+    fn translation_errors_split_along_and_across_the_ray() {
+        let pose = |t: Vector3<f64>| Pose::new(rotation_exp(&Vector3::zeros()), t).unwrap();
+        // The truth 0.5 m away along (3, 0, 4) / 5; the estimate 2 mm
+        // nearer along the ray and 1 mm across it (along y).
+        let ray = Vector3::new(0.3, 0.0, 0.4);
+        let truth = pose(ray);
+        let est = pose(ray - ray.normalize() * 0.002 + Vector3::new(0.0, 0.001, 0.0));
+        let (along, across) = along_and_across(&est, &truth);
+        assert!((along + 0.002).abs() < 1e-12, "{along}");
+        assert!((across - 0.001).abs() < 1e-12, "{across}");
+        let gt = vec![PoseRow::new("0", truth)];
+        let e = evaluate("t", &[PoseRow::new("0", est)], &gt, &EvalOptions::default()).unwrap();
+        assert!((e.summary.along_ray_mean + 0.002).abs() < 1e-12);
+        assert!((e.summary.across_ray_mean - 0.001).abs() < 1e-12);
+        let t = ray_table(std::slice::from_ref(&e.summary), "m");
+        assert!(t.contains("-0.00200") && t.contains("0.00100"), "{t}");
     }
 
     #[test]

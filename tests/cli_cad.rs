@@ -301,7 +301,7 @@ fn the_real_cube_from_its_cad_mesh_alone() {
             continue;
         }
         // Never wrong: every pose reported tracking is on the cube (the
-        // worst measured: 4.96 degrees, 17 mm).
+        // worst measured: 7.11 degrees, 22 mm, while a hand holds it).
         let (rot, tr) = errors(r, g);
         assert!(
             rot < 8.0 && tr < 0.03,
@@ -310,8 +310,9 @@ fn the_real_cube_from_its_cad_mesh_alone() {
         );
         within += usize::from(rot < 5.0 && tr < 0.05);
     }
-    // Measured 56 of 86 (65%): from frame 62 on the check refuses the
-    // white cube's low-contrast outline on the white table, and the
-    // contour cannot catch up from the pose held since.
-    assert!(within * 100 >= 55 * n, "{within} of {n} gt_ok frames");
+    // Measured 83 of 86 (96.5%). From frame 62 a hand holds the cube's
+    // top right corner and the undamped contour drifts (a turn about the
+    // vertical with a move along the ray) until the check refuses it; the
+    // damped second step from the previous pose passes. Without it: 56.
+    assert!(within * 100 >= 93 * n, "{within} of {n} gt_ok frames");
 }

@@ -452,7 +452,9 @@ fn track_without_a_store_uses_the_sequence_keyframes_and_eval_reports() {
     let mut l = text.lines();
     assert_eq!(
         l.next(),
-        Some("run,frame,rotation_deg,translation,translation_pct,lost,excluded")
+        Some(
+            "run,frame,rotation_deg,translation,translation_pct,lost,excluded,along_ray,across_ray"
+        )
     );
     let body: Vec<Vec<&str>> = l.map(|x| x.split(',').collect()).collect();
     assert_eq!(body.len(), 2 * FRAMES);

@@ -123,6 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let summaries: Vec<_> = evals.iter().map(|e| e.summary.clone()).collect();
     print!("{}", eval::table(&summaries, "units"));
+    print!("{}", eval::ray_table(&summaries, "units"));
     if !opts.exclude.is_empty() {
         println!(
             "({} frames with gt_ok = 0 left out of the statistics)",
@@ -142,12 +143,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("plot: {}", path.display());
     }
     if let Some(path) = &args.csv {
-        let mut s =
-            String::from("run,frame,rotation_deg,translation,translation_pct,lost,excluded\n");
+        let mut s = String::from(
+            "run,frame,rotation_deg,translation,translation_pct,lost,excluded,along_ray,across_ray\n",
+        );
         for e in &evals {
             for f in &e.frames {
                 s.push_str(&format!(
-                    "{},{},{:.6},{:.7},{},{},{}\n",
+                    "{},{},{:.6},{:.7},{},{},{},{:.7},{:.7}\n",
                     e.summary.name,
                     f.frame,
                     f.rotation_deg,
@@ -155,7 +157,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     f.translation_pct
                         .map_or(String::new(), |v| format!("{v:.4}")),
                     f.lost as u8,
-                    f.excluded as u8
+                    f.excluded as u8,
+                    f.along_ray,
+                    f.across_ray
                 ));
             }
         }

@@ -7,6 +7,7 @@ use super::error::TrackError;
 use super::result::{LostReason, Refused, Source, StageTimes, Status, TrackResult};
 use super::state::{Frame, Tracker};
 use super::verify::{self, Unverified, VerifyScores};
+use crate::geometry::Pose;
 use crate::pose::Anchor;
 use std::time::{Duration, Instant};
 
@@ -267,6 +268,7 @@ impl Tracker {
         // Every pose reported `tracking` is checked against the image.
         let mut scores = None;
         let mut texture_set_aside = false;
+        let mut contour_again = false;
         let t_verify = Instant::now();
         let w_verify = self.ctx.stats().wait_time;
         let mut d = d;
@@ -291,18 +293,38 @@ impl Tracker {
             // untextured object, the shading of a moving light): set the
             // texture aside and let the contour alone solve from that
             // pose, checked as when no texture step is trusted.
-            let aside = match &check {
-                Err(Unverified::Appearance { .. })
+            // Without a trusted texture step the contour alone made the
+            // pose: where it failed, or passed without converging (still
+            // drifting after its last round), a second step from the
+            // previous pose is damped ([`ContourConfig::retry_damping`]);
+            // the check takes it where it passes, and over a pose that
+            // passed where its edges support it better.
+            let retry = self.config.contour.retry_damping;
+            let again = self.config.modalities.contour && !texture_held && retry > 0.0;
+            let edges = |s: &VerifyScores| s.edge_support.unwrap_or(0.0);
+            let aside = match (&check, d.pose) {
+                (Err(Unverified::Appearance { .. }), Some(from))
                     if self.config.modalities.contour && texture_held =>
                 {
-                    self.contour_alone(&rules, &frame, rgb, &d, first_frame)?
+                    self.contour_alone(&rules, &frame, rgb, (from, false, None), first_frame)?
+                }
+                (Err(Unverified::Appearance { .. }), _) if again => {
+                    let from = (start_pose, true, Some(retry));
+                    self.contour_alone(&rules, &frame, rgb, from, first_frame)?
+                }
+                (Ok(()), _) if again && contour_held && !self.contour.converged => {
+                    let first = scores.as_ref().map_or(0.0, edges);
+                    let from = (start_pose, true, Some(retry));
+                    self.contour_alone(&rules, &frame, rgb, from, first_frame)?
+                        .filter(|(_, s)| edges(s) > first)
                 }
                 _ => None,
             };
             match aside {
                 Some((alone, s)) => {
                     scores = Some(s);
-                    texture_set_aside = true;
+                    texture_set_aside = texture_held;
+                    contour_again = true;
                     d = alone;
                 }
                 None => d = verified(d, check),
@@ -392,7 +414,7 @@ impl Tracker {
             verify: scores,
             texture_set_aside,
             cues: match status {
-                Status::Tracking if texture_set_aside => Modalities::CONTOUR,
+                Status::Tracking if contour_again => Modalities::CONTOUR,
                 Status::Tracking => Modalities {
                     texture: texture_held,
                     contour: contour_held,
@@ -413,23 +435,26 @@ impl Tracker {
         }
     }
 
-    /// The contour alone from the pose of decision `d` (whose texture
-    /// steps were trusted but whose check failed on appearance), decided
-    /// as if no texture step had run and checked by the contour's edges
-    /// ([`verify::judge_with_contour`]): the decision and its scores when
-    /// that pose passes, `None` when it does not (the frame stays lost).
+    /// The contour alone from `from` (the pose of a decision whose
+    /// texture steps were trusted but whose check failed on appearance; or
+    /// the previous pose, when the contour alone made that decision), with
+    /// long lines or not and damped as given (`None`: as configured),
+    /// decided as if no texture step had run and checked by the contour's
+    /// edges ([`verify::judge_with_contour`]): the decision and its scores
+    /// when that pose passes, `None` when it does not (the frame stays
+    /// lost).
     fn contour_alone(
         &mut self,
         rules: &Rules,
         frame: &Frame,
         rgb: &image::RgbImage,
-        d: &Decision,
+        (from, long, damping): (Pose, bool, Option<f64>),
         first_frame: bool,
     ) -> Result<Option<(Decision, VerifyScores)>, TrackError> {
-        let Some(from) = d.pose else {
-            return Ok(None);
+        let contour = match damping {
+            Some(damping) => self.contour_stage_damped(rgb, &from, long, damping),
+            None => self.contour_stage(rgb, &from, long, &[]),
         };
-        let contour = self.contour_stage(rgb, &from, false, &[]);
         let alone = decide(
             rules,
             &FrameSteps {
@@ -448,7 +473,7 @@ impl Tracker {
         match verify::judge_with_contour(&s, &self.config.verify) {
             Ok(()) => {
                 log::debug!(
-                    "texture set aside (its pose did not look like the frame); the contour alone: {:.2} deg from it",
+                    "the contour alone passes: {:.2} deg from where it started",
                     pose.rotation_error_deg(&from)
                 );
                 Ok(Some((alone, s)))

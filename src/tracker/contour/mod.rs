@@ -65,8 +65,9 @@ pub use line::{search_line, search_line_toward};
 pub use normals::ModelNormals;
 pub(crate) use outline::contour_point;
 pub use outline::{
-    ContourPoint, OUTLINE_MIN_GRADIENT, OUTLINE_WINDOW, extract_contour, inset, limb_normals,
-    limb_normals_with,
+    ContourPoint, OUTLINE_MAX_MISMATCH, OUTLINE_MIN_GRADIENT, OUTLINE_WINDOW, crease_inset,
+    extract_contour, inset, inset_each, insets, limb_normals, limb_normals_with, straight_edge,
+    straight_edges,
 };
 pub use rows::{contour_predictors, contour_row};
 pub use sectors::{SECTOR_LEAST_PX, turn_of};

@@ -18,6 +18,14 @@ pub(crate) struct ContourState {
     /// The model's normals for limbs of depth-only renders (made on first
     /// use).
     pub(crate) normals: Option<ModelNormals>,
+    /// The model's median splat radius and its sampling radius
+    /// ([`ModelNormals::sampling_radius`]), model units (found on first
+    /// use): how far the coverage reaches past a crease depends on them.
+    pub(crate) crease_radii: Option<(f64, f64)>,
+    /// Whether the last contour step converged (a round moved its outline
+    /// less than [`super::ContourConfig::converged_px`]) before its last
+    /// round.
+    pub(crate) converged: bool,
     /// The rounds of the frame being tracked.
     pub(crate) rounds: usize,
     /// The renders of the frame being tracked.
@@ -33,6 +41,8 @@ impl ContourState {
             mask: Vec::new(),
             mask_fresh: false,
             normals: None,
+            crease_radii: None,
+            converged: false,
             rounds: 0,
             renders: 0,
         }

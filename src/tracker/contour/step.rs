@@ -4,7 +4,10 @@
 use super::learner::Lesson;
 use super::line::search_lines;
 use super::normals::ModelNormals;
-use super::outline::{ContourPoint, extract_contour, inset, limb_normals, limb_normals_with};
+use super::outline::{
+    ContourPoint, extract_contour, inset_each, insets, limb_normals, limb_normals_with,
+    straight_edge,
+};
 use super::rows::{GROUP_CONTOUR, GROUP_TEXTURE, Lifted, contour_predictors_at};
 use crate::geometry::{Intrinsics, Pose};
 use crate::pose::{Anchor, Observation, SolveError, irls_grouped};
@@ -27,7 +30,19 @@ impl Tracker {
         long: bool,
         anchors: &[Anchor],
     ) -> StepOutcome {
-        StepOutcome::from_result(self.contour_step(frame, pose, long, anchors))
+        StepOutcome::from_result(self.contour_step(frame, pose, long, anchors, None))
+    }
+
+    /// [`Self::contour_stage`] alone (no texture matches), every solve
+    /// damped by `damping` (a fraction of the normal matrix's diagonal).
+    pub(in crate::tracker) fn contour_stage_damped(
+        &mut self,
+        frame: &image::RgbImage,
+        pose: &Pose,
+        long: bool,
+        damping: f64,
+    ) -> StepOutcome {
+        StepOutcome::from_result(self.contour_step(frame, pose, long, &[], Some(damping)))
     }
 
     fn contour_step(
@@ -36,12 +51,15 @@ impl Tracker {
         start: &Pose,
         long: bool,
         anchors: &[Anchor],
+        damping: Option<f64>,
     ) -> Result<Estimate, StepError> {
         let cfg = self.config.contour.clone();
         // Fused with a trusted KF step's matches, damping holds the solve
         // near that estimate (the prior the contour refines); from IT's
         // estimate (which drifts) or alone, nothing should hold it back.
-        let damping = if anchors.is_empty() {
+        let damping = if let Some(d) = damping {
+            d
+        } else if anchors.is_empty() {
             cfg.damping
         } else {
             cfg.fused_damping
@@ -66,6 +84,7 @@ impl Tracker {
         }
         let mut moved: Vec<Lifted> = Vec::new();
         let mut last = None;
+        self.contour.converged = false;
         for round in 0..cfg.rounds.max(1) {
             // The first round goes coarse to fine; later ones (at the
             // newest estimate) use the finest lines only.
@@ -114,6 +133,7 @@ impl Tracker {
             pose = step.pose;
             last = Some(step);
             if round >= 1 && moved < cfg.converged_px {
+                self.contour.converged = true;
                 break;
             }
         }
@@ -219,7 +239,7 @@ impl Tracker {
         // here. The same points either way.
         let resident =
             depth_only && self.outline.resident() && self.outline.fits(window.width, window.height);
-        let (mut points, depths, depth) = if resident {
+        let (points, depths, depth) = if resident {
             let _batch = self.ctx.batch();
             let target = self.outline.depth_target(window.width, window.height);
             self.splatter
@@ -247,6 +267,25 @@ impl Tracker {
                 .collect();
             (points, depths, Some(depth))
         };
+        // Points near a corner of the outline out, when asked (both ways
+        // alike, from the coverage kept in the mask), with their depths.
+        let drop_corners = self.config.contour.drop_corners;
+        let (mut points, depths) = {
+            let mask = &self.contour.mask;
+            let at = |x: i64, y: i64| {
+                let (fx, fy) = (x + x0 as i64, y + y0 as i64);
+                x < 0
+                    || y < 0
+                    || x >= ww as i64
+                    || y >= wh as i64
+                    || mask[fy as usize * w + fx as usize]
+            };
+            points
+                .into_iter()
+                .zip(depths)
+                .filter(|(p, _)| !drop_corners || straight_edge(p, at))
+                .unzip::<_, _, Vec<_>, Vec<_>>()
+        };
         let cfg = &self.config.contour;
         if !self.contour.colours.model().is_learned()
             && let Some(rect) = self.roi(pose)
@@ -263,6 +302,7 @@ impl Tracker {
                 .colours
                 .learn_here(frame, &self.contour.mask, lesson);
         }
+        let mut creases = Vec::new();
         if depth_only {
             if self.contour.normals.is_none() {
                 self.contour.normals = ModelNormals::new(&self.model);
@@ -293,7 +333,7 @@ impl Tracker {
                         .collect()
                 });
                 let mut normals = normals.into_iter();
-                limb_normals_with(cam, &mut points, true, |_| {
+                creases = limb_normals_with(cam, &mut points, true, |_| {
                     normals.next().expect("a normal a point")
                 });
             }
@@ -301,10 +341,40 @@ impl Tracker {
             let normals = self
                 .splatter
                 .read(&self.ctx, &self.targets, Attribute::Normal)?;
-            limb_normals(cam, &normals, &mut points);
+            creases = limb_normals(cam, &normals, &mut points);
         }
         drop(depth);
-        inset(&mut points, cfg.inset_px);
+        // Limbs by the configured inset, creases by what their splats'
+        // size in pixels (the radius at the point's depth) gives.
+        if self.contour.crease_radii.is_none() {
+            let mut r: Vec<f32> = self
+                .model
+                .radii
+                .iter()
+                .copied()
+                .filter(|r| *r > 0.0)
+                .collect();
+            let radius = if r.is_empty() {
+                0.0
+            } else {
+                let mid = r.len() / 2;
+                *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+            };
+            if self.contour.normals.is_none() {
+                self.contour.normals = ModelNormals::new(&self.model);
+            }
+            let sampling = self
+                .contour
+                .normals
+                .as_ref()
+                .and_then(|g| g.sampling_radius())
+                .map_or(radius, |s| s as f64);
+            self.contour.crease_radii = Some((radius, sampling));
+        }
+        let radii = self.contour.crease_radii.expect("set above");
+        let lowpass = self.splatter.params().lowpass_px as f64;
+        let by = insets(&creases, &depths, radii, cam.fx, cfg.inset_px, lowpass);
+        inset_each(&mut points, &by);
         let rows = contour_predictors_at(cam, &points, &depths);
         let origin = Vector2::new(x0 as f64, y0 as f64);
         let lifted = points
