@@ -78,10 +78,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             .map(|p| depth.pixel(p.pixel[0], p.pixel[1])[0])
             .collect();
         let lowpass = splattrack::splat::SplatParams::default().lowpass_px as f64;
-        let radius = model.radii[0] as f64;
-        let sampling = splattrack::tracker::contour::ModelNormals::new(&model)
-            .and_then(|g| g.sampling_radius())
-            .map_or(radius, |s| s as f64);
+        let (radius, sampling) = splattrack::tracker::contour::crease_radii(
+            &model,
+            splattrack::tracker::contour::ModelNormals::new(&model).as_ref(),
+        );
         let by = insets(
             &creases,
             &depths,

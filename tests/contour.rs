@@ -861,10 +861,10 @@ fn the_splatted_outline_lies_on_the_exact_outline_on_creases_and_limbs() {
                 .map(|p| depth.pixel(p.pixel[0], p.pixel[1])[0])
                 .collect();
             let lowpass = splattrack::splat::SplatParams::default().lowpass_px as f64;
-            let radius = s.model.radii[0] as f64;
-            let sampling = ModelNormals::new(&s.model)
-                .and_then(|g| g.sampling_radius())
-                .map_or(radius, |s| s as f64);
+            let (radius, sampling) = splattrack::tracker::contour::crease_radii(
+                &s.model,
+                splattrack::tracker::contour::ModelNormals::new(&s.model).as_ref(),
+            );
             let by = insets(
                 &creases,
                 &depths,

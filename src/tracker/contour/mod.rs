@@ -62,7 +62,7 @@ pub use colour::ColourModel;
 pub use config::ContourConfig;
 pub use histograms::Histograms;
 pub use line::{search_line, search_line_toward};
-pub use normals::ModelNormals;
+pub use normals::{ModelNormals, crease_radii};
 pub(crate) use outline::contour_point;
 pub use outline::{
     ContourPoint, OUTLINE_MAX_MISMATCH, OUTLINE_MIN_GRADIENT, OUTLINE_WINDOW, crease_inset,

@@ -110,38 +110,24 @@ impl ModelNormals {
     /// order, skipping the cells too far to hold a point within twice its
     /// radius (which would add nothing).
     pub fn normal_at(&self, x: glam::Vec3, eye: glam::Vec3) -> Option<glam::Vec3> {
-        let c = ((x - self.lo) / self.cell).floor();
         let mut sum = glam::Vec3::ZERO;
         let mut wsum = 0.0f32;
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    let q = c + glam::Vec3::new(dx as f32, dy as f32, dz as f32);
-                    if q.min_element() < 0.0 {
-                        continue;
-                    }
-                    let q = [q.x as usize, q.y as usize, q.z as usize];
-                    if (0..3).any(|k| q[k] >= self.dims[k]) {
-                        continue;
-                    }
-                    let k = (q[2] * self.dims[1] + q[1]) * self.dims[0] + q[0];
-                    if self.beyond_reach(k, q, x) {
-                        continue;
-                    }
-                    for g in &self.points[self.start[k] as usize..self.start[k + 1] as usize] {
-                        let (p, n, r) = (g.position, g.normal, g.radius);
-                        if n.dot(eye - p) <= 0.0 {
-                            continue;
-                        }
-                        let d2 = (x - p).length_squared() / (r * r);
-                        if d2 > 4.0 {
-                            continue;
-                        }
-                        let w = (-2.0 * d2).exp();
-                        sum += n * w;
-                        wsum += w;
-                    }
+        for (k, q) in self.cells_around(x) {
+            if self.beyond_reach(k, q, x) {
+                continue;
+            }
+            for g in self.cell(k) {
+                let (p, n, r) = (g.position, g.normal, g.radius);
+                if n.dot(eye - p) <= 0.0 {
+                    continue;
                 }
+                let d2 = (x - p).length_squared() / (r * r);
+                if d2 > 4.0 {
+                    continue;
+                }
+                let w = (-2.0 * d2).exp();
+                sum += n * w;
+                wsum += w;
             }
         }
         (wsum > 0.0).then_some(sum)
@@ -162,26 +148,12 @@ impl ModelNormals {
         let mut near: Vec<f32> = Vec::new();
         for g in self.points.iter().step_by(step) {
             let x = g.position;
-            let c = ((x - self.lo) / self.cell).floor();
             near.clear();
-            for dz in -1..=1 {
-                for dy in -1..=1 {
-                    for dx in -1..=1 {
-                        let q = c + glam::Vec3::new(dx as f32, dy as f32, dz as f32);
-                        if q.min_element() < 0.0 {
-                            continue;
-                        }
-                        let q = [q.x as usize, q.y as usize, q.z as usize];
-                        if (0..3).any(|k| q[k] >= self.dims[k]) {
-                            continue;
-                        }
-                        let k = (q[2] * self.dims[1] + q[1]) * self.dims[0] + q[0];
-                        for p in &self.points[self.start[k] as usize..self.start[k + 1] as usize] {
-                            let d2 = (p.position - x).length_squared();
-                            if d2 > 0.0 {
-                                near.push(d2);
-                            }
-                        }
+            for (k, _) in self.cells_around(x) {
+                for p in self.cell(k) {
+                    let d2 = (p.position - x).length_squared();
+                    if d2 > 0.0 {
+                        near.push(d2);
                     }
                 }
             }
@@ -195,6 +167,30 @@ impl ModelNormals {
         }
         let mid = found.len() / 2;
         Some(*found.select_nth_unstable_by(mid, f32::total_cmp).1)
+    }
+
+    /// The cells of the 27 around `x`'s that lie in the grid, in a fixed
+    /// order (z outermost, x innermost): each one's index and coordinates.
+    fn cells_around(&self, x: glam::Vec3) -> impl Iterator<Item = (usize, [usize; 3])> + '_ {
+        let c = ((x - self.lo) / self.cell).floor();
+        (-1..=1)
+            .flat_map(|dz| (-1..=1).flat_map(move |dy| (-1..=1).map(move |dx| (dx, dy, dz))))
+            .filter_map(move |(dx, dy, dz)| {
+                let q = c + glam::Vec3::new(dx as f32, dy as f32, dz as f32);
+                if q.min_element() < 0.0 {
+                    return None;
+                }
+                let q = [q.x as usize, q.y as usize, q.z as usize];
+                if (0..3).any(|k| q[k] >= self.dims[k]) {
+                    return None;
+                }
+                Some(((q[2] * self.dims[1] + q[1]) * self.dims[0] + q[0], q))
+            })
+    }
+
+    /// The points of cell `k`.
+    fn cell(&self, k: usize) -> &[GridPoint] {
+        &self.points[self.start[k] as usize..self.start[k + 1] as usize]
     }
 
     /// Whether cell `k` (at `q`) lies farther from `x` than twice its
@@ -214,6 +210,24 @@ impl ModelNormals {
         let reach = 2.0 * self.reach[k] * 1.001;
         d2 > reach * reach
     }
+}
+
+/// The splat radius and the sampling radius (model units) that set a
+/// crease's inset ([`super::insets`]): the median of the model's positive
+/// radii, and `grid`'s [`ModelNormals::sampling_radius`] (the splat
+/// radius where there is no grid or too few points).
+pub fn crease_radii(model: &crate::model::PointModel, grid: Option<&ModelNormals>) -> (f64, f64) {
+    let mut r: Vec<f32> = model.radii.iter().copied().filter(|r| *r > 0.0).collect();
+    let radius = if r.is_empty() {
+        0.0
+    } else {
+        let mid = r.len() / 2;
+        *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
+    };
+    let sampling = grid
+        .and_then(|g| g.sampling_radius())
+        .map_or(radius, |s| s as f64);
+    (radius, sampling)
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use super::learner::Lesson;
 use super::line::search_lines;
-use super::normals::ModelNormals;
+use super::normals::{ModelNormals, crease_radii};
 use super::outline::{
     ContourPoint, extract_contour, inset_each, insets, limb_normals, limb_normals_with,
     straight_edge,
@@ -347,29 +347,11 @@ impl Tracker {
         // Limbs by the configured inset, creases by what their splats'
         // size in pixels (the radius at the point's depth) gives.
         if self.contour.crease_radii.is_none() {
-            let mut r: Vec<f32> = self
-                .model
-                .radii
-                .iter()
-                .copied()
-                .filter(|r| *r > 0.0)
-                .collect();
-            let radius = if r.is_empty() {
-                0.0
-            } else {
-                let mid = r.len() / 2;
-                *r.select_nth_unstable_by(mid, f32::total_cmp).1 as f64
-            };
             if self.contour.normals.is_none() {
                 self.contour.normals = ModelNormals::new(&self.model);
             }
-            let sampling = self
-                .contour
-                .normals
-                .as_ref()
-                .and_then(|g| g.sampling_radius())
-                .map_or(radius, |s| s as f64);
-            self.contour.crease_radii = Some((radius, sampling));
+            let radii = crease_radii(&self.model, self.contour.normals.as_ref());
+            self.contour.crease_radii = Some(radii);
         }
         let radii = self.contour.crease_radii.expect("set above");
         let lowpass = self.splatter.params().lowpass_px as f64;
