@@ -214,7 +214,6 @@ fn bench_cpu(c: &mut Criterion) {
             for (attrs_name, attrs) in [
                 ("color", Attributes::COLOR),
                 ("color+predictors", Attributes::MOTION),
-                ("all", Attributes::ALL),
             ] {
                 group.bench_function(format!("cpu{threads}/{attrs_name}/{name}"), |b| {
                     b.iter(|| splatter.render(&packed, &uniform, attrs, &mut out))

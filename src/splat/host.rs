@@ -13,9 +13,9 @@
 
 use super::accumulators::Accumulators;
 use super::gpu_data::{CameraUniform, unpack_color};
-use super::kernel::{Setup, View, intersect, motion, setup, weight};
+use super::kernel::{Setup, View, intersect4, motion, setup, weight};
 use super::{Attributes, PackedModel, SplatImage};
-use glam::{Vec2, Vec3};
+use glam::{Vec3, Vec4};
 use std::sync::Mutex;
 
 /// Splats with a setup part above this many points per thread go to the
@@ -24,6 +24,11 @@ const SETUP_PER_THREAD: usize = 4096;
 /// Bits of a listed splat's index within its setup part (the part is in
 /// the bits above).
 const PART_BITS: u32 = 26;
+/// The pixels of a band, about: its targets (up to 80 bytes a pixel) and
+/// pass 1's hits fit in a core's L2 cache.
+const BAND_PIXELS: usize = 8192;
+/// The lanes' offsets from a row's first column.
+const LANES: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
 /// The most threads a splatter runs on (and parts of 2^26 splats).
 const MAX_THREADS: usize = 64;
 
@@ -44,6 +49,8 @@ pub struct HostSplatter {
     starts: Vec<usize>,
     rays_x: Vec<f32>,
     rays_y: Vec<f32>,
+    /// Each thread's depth band and pass 1's hits.
+    scratch: Vec<(Vec<f32>, Vec<Frag>)>,
 }
 
 impl Default for HostSplatter {
@@ -53,6 +60,7 @@ impl Default for HostSplatter {
 }
 
 /// A pixel that a splat covers: pass 1's hit, blended by pass 2.
+#[derive(Debug, Clone, Copy)]
 struct Frag {
     /// The pixel within the band.
     pixel: u32,
@@ -85,6 +93,7 @@ impl HostSplatter {
             starts: Vec::new(),
             rays_x: Vec::new(),
             rays_y: Vec::new(),
+            scratch: Vec::new(),
         }
     }
 
@@ -165,17 +174,17 @@ impl HostSplatter {
     /// Sets up and bins the splats; returns the band height in rows.
     fn prepare(&mut self, v: &View, model: &PackedModel) -> usize {
         self.rays_x.clear();
-        self.rays_x.extend((0..v.width).map(|x| v.ray_x(x)));
+        // Three more columns, so that every pixel starts four lanes.
+        self.rays_x.extend((0..v.width + 3).map(|x| v.ray_x(x)));
         self.rays_y.clear();
         self.rays_y.extend((0..v.height).map(|y| v.ray_y(y)));
         self.set_up(v, model);
-        // Several bands a thread, so that a band dense with splats does
-        // not keep one thread busy while the others wait.
-        let band_rows = if self.threads == 1 {
-            v.height.max(1)
-        } else {
-            (v.height / (8 * self.threads)).clamp(4, 32)
-        };
+        // Bands of about BAND_PIXELS, so that a band's targets and hits
+        // stay in the cache, and several a thread, so that a band dense
+        // with splats does not keep one thread busy while the others wait.
+        let band_rows = (BAND_PIXELS / v.width.max(1))
+            .min(v.height / (4 * self.threads))
+            .clamp(2, 64);
         self.bin(v.height.div_ceil(band_rows), band_rows);
         band_rows
     }
@@ -254,32 +263,38 @@ impl HostSplatter {
     }
 
     /// The bands, taken in turn by the threads.
-    fn run_bands(&self, v: &View, band_rows: usize, bands: Vec<Band<'_>>) {
+    fn run_bands(&mut self, v: &View, band_rows: usize, bands: Vec<Band<'_>>) {
         let threads = self.threads.min(bands.len()).max(1);
+        let mut scratch = std::mem::take(&mut self.scratch);
+        scratch.resize_with(threads, Default::default);
         let queue = Mutex::new(bands.into_iter());
-        let work = || {
-            let (mut depth, mut frags) = (Vec::new(), Vec::new());
+        let this = &*self;
+        let work = |(depth, frags): &mut (Vec<f32>, Vec<Frag>)| {
             loop {
                 // A poisoned queue: another thread panicked, and the scope
                 // passes its panic on.
                 let Some(band) = queue.lock().ok().and_then(|mut q| q.next()) else {
                     return;
                 };
-                self.band(v, band_rows, band, &mut depth, &mut frags);
+                this.band(v, band_rows, band, depth, frags);
             }
         };
         if threads == 1 {
-            return work();
-        }
-        let work = &work;
-        std::thread::scope(|scope| {
-            for _ in 1..threads {
-                if let Err(e) = std::thread::Builder::new().spawn_scoped(scope, work) {
-                    log::debug!("host splatter: fewer threads ({e})");
+            work(&mut scratch[0]);
+        } else {
+            let work = &work;
+            std::thread::scope(|scope| {
+                let (first, rest) = scratch.split_first_mut().expect("threads >= 1");
+                for s in rest {
+                    let started = std::thread::Builder::new().spawn_scoped(scope, move || work(s));
+                    if let Err(e) = started {
+                        log::debug!("host splatter: fewer threads ({e})");
+                    }
                 }
-            }
-            work();
-        });
+                work(first);
+            });
+        }
+        self.scratch = scratch;
     }
 
     fn splat(&self, id: u32) -> &Setup {
@@ -321,31 +336,44 @@ impl HostSplatter {
         for &id in list {
             let s = self.splat(id);
             let (ys, xs) = span(s);
+            let x1 = *xs.end();
             for y in ys {
                 let ry = self.rays_y[y];
                 let row = (y - y0) * w;
-                for x in xs.clone() {
-                    let d = Vec3::new(self.rays_x[x], ry, 1.0);
-                    let uv = Vec2::new(x as f32, y as f32);
-                    let Some((xx, rho2)) = intersect(v, s, uv, d) else {
+                let yf = y as f32;
+                for x in xs.clone().step_by(4) {
+                    let dx = Vec4::from_slice(&self.rays_x[x..x + 4]);
+                    let u = Vec4::splat(x as f32) + LANES;
+                    let hits = intersect4(v, s, u, dx, ry, yf);
+                    // Lanes past the splat's last column are not its.
+                    let mut mask = hits.mask & (0xf >> 3usize.saturating_sub(x1 - x));
+                    if mask == 0 {
                         continue;
-                    };
-                    let zp = xx.z + s.push / d.length();
-                    let dd = v.depth_of(zp);
-                    let i = row + x;
-                    if dd < depth[i] {
-                        depth[i] = dd;
-                        if let Some(z) = band.z.as_deref_mut() {
-                            z[i] = zp;
-                        }
                     }
-                    if keep {
-                        frags.push(Frag {
-                            pixel: i as u32,
-                            splat: id,
-                            x: xx,
-                            rho2,
-                        });
+                    // |d|, as (dx dx + dy dy) + 1 1.
+                    let len = (dx * dx + Vec4::splat(ry * ry) + Vec4::ONE).sqrt();
+                    let zp = (hits.x[2] + Vec4::splat(s.push) / len).to_array();
+                    let [hx, hy, hz] = hits.x.map(|c| c.to_array());
+                    let rho2 = hits.rho2.to_array();
+                    while mask != 0 {
+                        let k = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        let dd = v.depth_of(zp[k]);
+                        let i = row + x + k;
+                        if dd < depth[i] {
+                            depth[i] = dd;
+                            if let Some(z) = band.z.as_deref_mut() {
+                                z[i] = zp[k];
+                            }
+                        }
+                        if keep {
+                            frags.push(Frag {
+                                pixel: i as u32,
+                                splat: id,
+                                x: Vec3::new(hx[k], hy[k], hz[k]),
+                                rho2: rho2[k],
+                            });
+                        }
                     }
                 }
             }

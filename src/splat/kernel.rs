@@ -175,13 +175,13 @@ pub(super) fn setup(v: &View, s: &SplatGpu, color: u32) -> Option<Setup> {
     })
 }
 
-/// `ray_hit`: the camera-space point `X` seen through the pixel centre
+/// `ray_hit` at one pixel, as [`intersect4`] makes it in each lane: the
+/// camera-space point `X` seen through the pixel centre
 /// `uv` (OpenCV coordinates; `d` its ray, `(ray_x, ray_y, 1)`) and
 /// `rho^2`, or `None` outside the splat's support. The weight is
-/// [`weight`]`(rho^2)` and the ray's length `d.length()`, computed by the
-/// callers that need them.
-#[inline(always)]
-pub(super) fn intersect(v: &View, s: &Setup, uv: Vec2, d: Vec3) -> Option<(Vec3, f32)> {
+/// [`weight`]`(rho^2)`.
+#[cfg(test)]
+fn intersect(v: &View, s: &Setup, uv: Vec2, d: Vec3) -> Option<(Vec3, f32)> {
     let denom = s.m.dot(d);
     let mut rho_obj2 = 1e30f32;
     let mut x = d * s.c.z;
@@ -203,6 +203,52 @@ pub(super) fn intersect(v: &View, s: &Setup, uv: Vec2, d: Vec3) -> Option<(Vec3,
         return None;
     }
     Some((x, rho2))
+}
+
+/// [`intersect`] at four consecutive pixel centres of a row: `u` their
+/// columns, `dx` their rays' x, `dy` and `y` the row's. Each lane makes
+/// the scalar version's operations in its order (no fused multiply-add,
+/// `f32::min`'s NaN rule), so it gives the same bits.
+pub(super) struct Hits4 {
+    /// Bit `k` set: lane `k` hits.
+    pub(super) mask: u32,
+    /// The points `X`, by coordinate.
+    pub(super) x: [Vec4; 3],
+    pub(super) rho2: Vec4,
+}
+
+#[inline(always)]
+pub(super) fn intersect4(v: &View, s: &Setup, u: Vec4, dx: Vec4, dy: f32, y: f32) -> Hits4 {
+    let sp = Vec4::splat;
+    // m . d, as (m.x dx + m.y dy) + m.z 1.
+    let denom = sp(s.m.x) * dx + sp(s.m.y * dy) + sp(s.m.z);
+    let t = sp(s.mc) / denom;
+    let on_plane = denom.abs().cmpgt(sp(1e-12)) & t.cmpgt(sp(v.near));
+    // xi = d t = (dx t, dy t, t).
+    let q = [dx * t - sp(s.c.x), sp(dy) * t - sp(s.c.y), t - sp(s.c.z)];
+    let qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+    let rho_obj2 = Vec4::select(on_plane, qq / sp(s.r2), sp(1e30));
+    let use_xi = on_plane & (rho_obj2.cmple(sp(1.0)) | qq.cmple(sp(s.reach2)));
+    let x = [
+        Vec4::select(use_xi, dx * t, dx * sp(s.c.z)),
+        Vec4::select(use_xi, sp(dy) * t, sp(dy * s.c.z)),
+        Vec4::select(use_xi, t, sp(s.c.z)),
+    ];
+    let ex = (u - sp(s.proj.x)) / sp(v.lowpass);
+    let ey = (y - s.proj.y) / v.lowpass;
+    let ee = ex * ex + sp(ey * ey);
+    let m = rho_obj2.min(ee);
+    let rho2 = Vec4::select(
+        rho_obj2.is_nan_mask(),
+        ee,
+        Vec4::select(ee.is_nan_mask(), rho_obj2, m),
+    );
+    let miss = rho2.cmpgt(sp(1.0)) | x[2].cmple(sp(v.near));
+    Hits4 {
+        mask: !miss.bitmask() & 0xf,
+        x,
+        rho2,
+    }
 }
 
 /// The Gaussian kernel's weight at `rho^2`.
@@ -239,4 +285,58 @@ pub(super) fn motion(v: &View, x: Vec3) -> [f32; 12] {
         out[2 * j + 1] = l[1];
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Intrinsics;
+    use crate::rng::Rng;
+    use crate::splat::gpu_data::pack_color;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn four_lanes_give_the_scalar_intersection_s_bits() {
+        let mut rng = Rng::new(9);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let cam = Intrinsics::new(96, 72, 80.0, 84.0, 47.3, 35.8);
+            let eye = rng.unit_vector() * rng.uniform(1.0, 3.0);
+            let pose = crate::geometry::look_at(&eye, &Vector3::zeros(), &rng.unit_vector());
+            let u = CameraUniform::new(&cam, &pose, 0.05, 5.0, 0.4, 0.75);
+            let v = View::new(&u);
+            let p = rng.unit_vector() * rng.uniform(0.0, 0.5);
+            let n = rng.unit_vector();
+            let r = rng.uniform(0.001, 0.3) as f32;
+            let g = SplatGpu {
+                pos_radius: [p.x as f32, p.y as f32, p.z as f32, r],
+                normal: [n.x as f32, n.y as f32, n.z as f32, 0.0],
+            };
+            let Some(s) = setup(&v, &g, pack_color([0.5; 3])) else {
+                continue;
+            };
+            for y in s.y0..=s.y1 {
+                let (yy, dy) = (y as usize, v.ray_y(y as usize));
+                for x in (s.x0..=s.x1).step_by(4) {
+                    let xs: [usize; 4] = std::array::from_fn(|k| x as usize + k);
+                    let dx = Vec4::from_array(xs.map(|x| v.ray_x(x)));
+                    let u4 = Vec4::from_array(xs.map(|x| x as f32));
+                    let four = intersect4(&v, &s, u4, dx, dy, yy as f32);
+                    for (k, &xk) in xs.iter().enumerate() {
+                        let uv = Vec2::new(xk as f32, yy as f32);
+                        let d = Vec3::new(v.ray_x(xk), dy, 1.0);
+                        let one = intersect(&v, &s, uv, d);
+                        assert_eq!(four.mask >> k & 1 == 1, one.is_some());
+                        if let Some((p, rho2)) = one {
+                            hits += 1;
+                            let lane = [four.x[0][k], four.x[1][k], four.x[2][k], four.rho2[k]];
+                            let want = [p.x, p.y, p.z, rho2];
+                            assert_eq!(lane.map(f32::to_bits), want.map(f32::to_bits));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(hits > 10_000, "{hits} hits");
+    }
 }
