@@ -557,3 +557,62 @@ fn random_view(rng: &mut Rng, dist: f64) -> (Intrinsics, Pose) {
     );
     (cam, pose)
 }
+
+/// Time a render takes, the transcription against the host splatter on 1
+/// and 2 threads, interleaved so that a busy machine slows all alike
+/// (medians of 15; colour + predictors against all of the transcription's
+/// groups). Run with `cargo test --release --test splat_host -- --ignored
+/// --nocapture`; docs/performance.md has its figures.
+#[test]
+#[ignore = "a timing, not a check"]
+fn time_against_the_transcription() {
+    let mut scenes = Vec::new();
+    if let Some(dir) = data_common::real_data("visp_rbt_cube") {
+        let model = PointModel::load(dir.join("model.ply")).unwrap();
+        let cam = Intrinsics::load(&dir.join("camera.json")).unwrap();
+        let pose = splattrack::io::read_poses(&dir.join("init.csv")).unwrap()[0].pose;
+        let (lo, hi) = model.positions.iter().fold(
+            (
+                Vector3::repeat(f64::INFINITY),
+                Vector3::repeat(f64::NEG_INFINITY),
+            ),
+            |(lo, hi), p| {
+                let p = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+                (lo.inf(&p), hi.sup(&p))
+            },
+        );
+        let win = Window::of_box(&cam, &pose, &lo, &hi, 16.0, 8).unwrap();
+        scenes.push(("cube, window", view_of(&model, &win.camera(&cam), &pose)));
+    }
+    let sphere = shapes::sphere(Vec3::ZERO, 0.5, 100_000, 1.2);
+    let cam = Intrinsics::new(640, 480, 600.0, 600.0, 319.5, 239.5);
+    let up = Vector3::new(0.0, -1.0, 0.0);
+    let far = look_at(&Vector3::new(0.3, -0.4, -1.9), &Vector3::zeros(), &up);
+    let near = look_at(&Vector3::new(0.0, 0.0, -0.75), &Vector3::zeros(), &up);
+    scenes.push(("sphere 100k, 640x480", view_of(&sphere, &cam, &far)));
+    scenes.push(("sphere 100k filling 640x480", view_of(&sphere, &cam, &near)));
+    for (name, (packed, uniform)) in &scenes {
+        let mut hosts = [HostSplatter::with_threads(1), HostSplatter::with_threads(2)];
+        let mut out = Accumulators::default();
+        let mut ms = [Vec::new(), Vec::new(), Vec::new()];
+        for _ in 0..15 {
+            let t = std::time::Instant::now();
+            std::hint::black_box(naive_splat(packed, uniform));
+            ms[0].push(t.elapsed().as_secs_f64() * 1e3);
+            for (k, host) in hosts.iter_mut().enumerate() {
+                let t = std::time::Instant::now();
+                host.render(packed, uniform, Attributes::MOTION, &mut out);
+                ms[k + 1].push(t.elapsed().as_secs_f64() * 1e3);
+            }
+        }
+        let [a, b, c] = ms.map(|mut v| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        });
+        println!(
+            "{name}: transcription {a:.1} ms, host 1 thread {b:.1} ms ({:.1}x), 2 threads {c:.1} ms ({:.1}x)",
+            a / b,
+            a / c
+        );
+    }
+}
