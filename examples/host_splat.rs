@@ -7,8 +7,11 @@
 //! `/proc/self/stat`), steadier than wall time on a busy machine.
 //!
 //! ```sh
-//! cargo run --release --example host_splat -- [renders]
+//! cargo run --release --example host_splat -- [renders] [thinning]
 //! ```
+//!
+//! `thinning` n renders every n-th splat, radii grown
+//! (`HostSplatter::set_thinning`; 1, the default: every splat).
 
 use glam::Vec3;
 use nalgebra::Vector3;
@@ -56,6 +59,10 @@ fn main() {
         .nth(1)
         .and_then(|a| a.parse().ok())
         .unwrap_or(30);
+    let thinning: usize = std::env::args()
+        .nth(2)
+        .and_then(|a| a.parse().ok())
+        .unwrap_or(1);
     let mut scenes = Vec::new();
     if let Some(c) = cube() {
         scenes.push(("cube, window".to_owned(), c));
@@ -83,6 +90,7 @@ fn main() {
             let mut line = format!("{name} ({}x{}), {what}:", cam.width, cam.height);
             for threads in [1, 2] {
                 let mut host = HostSplatter::with_threads(threads);
+                host.set_thinning(thinning);
                 let mut out = Accumulators::default();
                 host.render(&packed, &uniform, attrs, &mut out);
                 let cpu0 = cpu_ms();

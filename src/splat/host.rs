@@ -9,7 +9,14 @@
 //! the attribute pass, straight into the band's rows of the targets. No
 //! two threads write the same pixel, and every pixel sees the splats in
 //! the model's order, as the rasteriser draws them, so the sums are the
-//! same bit for bit whatever the thread count or band height.
+//! same bit for bit whatever the thread count or band height. The
+//! threads are a pool kept in the splatter, started by its first render
+//! on more than one thread.
+//!
+//! A thinned render ([`HostSplatter::set_thinning`]) sets up about one
+//! splat in n only, its radius grown by the square root of n: a level of
+//! detail for models with many sub-pixel splats a pixel, whose outputs
+//! differ from the full model's.
 
 use super::accumulators::Accumulators;
 use super::gpu_data::{CameraUniform, unpack_color};
@@ -19,7 +26,8 @@ use glam::{Vec3, Vec4};
 use std::sync::Mutex;
 
 /// Splats with a setup part above this many points per thread go to the
-/// threads; below, one thread sets them up (a thread costs tens of µs).
+/// threads; below, one thread sets them up (handing work to a thread
+/// costs several µs).
 const SETUP_PER_THREAD: usize = 4096;
 /// Bits of a listed splat's index within its setup part (the part is in
 /// the bits above).
@@ -51,6 +59,11 @@ pub struct HostSplatter {
     rays_y: Vec<f32>,
     /// Each thread's depth band and pass 1's hits.
     scratch: Vec<(Vec<f32>, Vec<Frag>)>,
+    /// The worker threads (none on one thread, or where they could not
+    /// be started: then everything runs on the calling thread).
+    pool: Option<rayon::ThreadPool>,
+    /// About one splat in `thin` is rendered (1: all).
+    thin: usize,
 }
 
 impl Default for HostSplatter {
@@ -68,6 +81,8 @@ struct Frag {
     splat: u32,
     x: Vec3,
     rho2: f32,
+    /// `depth_of(x.z)`, pass 2's depth test (made four at a time in pass 1).
+    dz: f32,
 }
 
 /// A band's rows of every output, handed to one thread.
@@ -83,8 +98,10 @@ impl HostSplatter {
         Self::with_threads(crate::par::cores())
     }
 
-    /// A splatter on `threads` threads (the calling one included; 0 counts
-    /// as 1, and at most 64).
+    /// A splatter on `threads` threads (0 counts as 1, and at most 64): on
+    /// the calling thread alone for 1, else on a pool of `threads` threads
+    /// started by the first render and kept while the splatter lives (the
+    /// calling thread waits for them).
     pub fn with_threads(threads: usize) -> Self {
         Self {
             threads: threads.clamp(1, MAX_THREADS),
@@ -94,12 +111,48 @@ impl HostSplatter {
             rays_x: Vec::new(),
             rays_y: Vec::new(),
             scratch: Vec::new(),
+            pool: None,
+            thin: 1,
         }
     }
 
     /// The threads it splats on.
     pub fn threads(&self) -> usize {
         self.threads
+    }
+
+    /// A level of detail for the next renders: about one splat in `step`
+    /// is rendered (picked by a hash of its index, the same ones on every
+    /// render and thread count: a stride would alias with models sampled
+    /// in a regular order), in the model's order, its radius grown by
+    /// `sqrt(step)` so that the splats still cover the surface; 1 (the
+    /// default, and what 0 means) renders every splat, the reference's
+    /// sums bit for bit. Thinned renders differ from the full model's
+    /// (docs/performance.md, "The host splatter", gives the depth error
+    /// and coverage against a mesh); worth it where several splats fall
+    /// in a pixel.
+    pub fn set_thinning(&mut self, step: usize) {
+        self.thin = step.max(1);
+    }
+
+    /// The level of detail set by [`Self::set_thinning`] (1: every splat).
+    pub fn thinning(&self) -> usize {
+        self.thin
+    }
+
+    /// Starts the pool of worker threads if it is wanted and not there.
+    fn start_pool(&mut self) {
+        if self.threads < 2 || self.pool.is_some() {
+            return;
+        }
+        let built = rayon::ThreadPoolBuilder::new()
+            .num_threads(self.threads)
+            .thread_name(|i| format!("host-splat-{i}"))
+            .build();
+        match built {
+            Ok(pool) => self.pool = Some(pool),
+            Err(e) => log::debug!("host splatter: on the calling thread ({e})"),
+        }
     }
 
     /// Renders `model` with the view `uniform` into `out` (resized to the
@@ -173,6 +226,7 @@ impl HostSplatter {
 
     /// Sets up and bins the splats; returns the band height in rows.
     fn prepare(&mut self, v: &View, model: &PackedModel) -> usize {
+        self.start_pool();
         self.rays_x.clear();
         // Three more columns, so that every pixel starts four lanes.
         self.rays_x.extend((0..v.width + 3).map(|x| v.ray_x(x)));
@@ -193,47 +247,44 @@ impl HostSplatter {
     /// splats, one part per thread.
     fn set_up(&mut self, v: &View, model: &PackedModel) {
         let n = model.splats.len().min(model.colors.len());
+        let step = self.thin;
+        let count = n.div_ceil(step);
         let parts = self
             .threads
-            .min(n.div_ceil(SETUP_PER_THREAD))
+            .min(count.div_ceil(SETUP_PER_THREAD))
             .max(n.div_ceil(1 << PART_BITS))
             .max(1);
         let per = n.div_ceil(parts).max(1);
         self.parts.resize_with(parts, Vec::new);
+        let grow = (step as f32).sqrt();
         let run = |i: usize, out: &mut Vec<Setup>| {
             out.clear();
             let range = (i * per).min(n)..((i + 1) * per).min(n);
             let splats = &model.splats[range.clone()];
             let colors = &model.colors[range];
-            out.extend(
-                splats
-                    .iter()
-                    .zip(colors)
-                    .filter_map(|(s, &c)| setup(v, s, c)),
-            );
-        };
-        if parts == 1 {
-            run(0, &mut self.parts[0]);
-            return;
-        }
-        let run = &run;
-        let failed = std::thread::scope(|scope| {
-            let (first, rest) = self.parts.split_first_mut().expect("parts >= 1");
-            let mut failed = Vec::new();
-            for (i, out) in rest.iter_mut().enumerate() {
-                let started =
-                    std::thread::Builder::new().spawn_scoped(scope, move || run(i + 1, out));
-                if let Err(e) = started {
-                    log::debug!("host splatter: setup on the calling thread ({e})");
-                    failed.push(i + 1);
-                }
+            if step == 1 {
+                out.extend(
+                    splats
+                        .iter()
+                        .zip(colors)
+                        .filter_map(|(s, &c)| setup(v, s, c)),
+                );
+            } else {
+                out.extend(
+                    splats
+                        .iter()
+                        .zip(colors)
+                        .enumerate()
+                        .filter(|&(j, _)| kept(i * per + j, step))
+                        .filter_map(|(_, (s, &c))| {
+                            let mut s = *s;
+                            s.pos_radius[3] *= grow;
+                            setup(v, &s, c)
+                        }),
+                );
             }
-            run(0, first);
-            failed
-        });
-        for i in failed {
-            run(i, &mut self.parts[i]);
-        }
+        };
+        on_each(self.pool.as_ref(), &mut self.parts, &run);
     }
 
     /// Lists every visible splat in the bands it covers (a counting sort:
@@ -269,9 +320,9 @@ impl HostSplatter {
         scratch.resize_with(threads, Default::default);
         let queue = Mutex::new(bands.into_iter());
         let this = &*self;
-        let work = |(depth, frags): &mut (Vec<f32>, Vec<Frag>)| {
+        let work = |_: usize, (depth, frags): &mut (Vec<f32>, Vec<Frag>)| {
             loop {
-                // A poisoned queue: another thread panicked, and the scope
+                // A poisoned queue: another thread panicked, and the pool
                 // passes its panic on.
                 let Some(band) = queue.lock().ok().and_then(|mut q| q.next()) else {
                     return;
@@ -279,21 +330,7 @@ impl HostSplatter {
                 this.band(v, band_rows, band, depth, frags);
             }
         };
-        if threads == 1 {
-            work(&mut scratch[0]);
-        } else {
-            let work = &work;
-            std::thread::scope(|scope| {
-                let (first, rest) = scratch.split_first_mut().expect("threads >= 1");
-                for s in rest {
-                    let started = std::thread::Builder::new().spawn_scoped(scope, move || work(s));
-                    if let Err(e) = started {
-                        log::debug!("host splatter: fewer threads ({e})");
-                    }
-                }
-                work(first);
-            });
-        }
+        on_each(self.pool.as_ref(), &mut scratch[..threads], &work);
         self.scratch = scratch;
     }
 
@@ -352,13 +389,20 @@ impl HostSplatter {
                     }
                     // |d|, as (dx dx + dy dy) + 1 1.
                     let len = (dx * dx + Vec4::splat(ry * ry) + Vec4::ONE).sqrt();
-                    let zp = (hits.x[2] + Vec4::splat(s.push) / len).to_array();
+                    let zp4 = hits.x[2] + Vec4::splat(s.push) / len;
+                    let dd = v.depth_of4(zp4).to_array();
+                    let zp = zp4.to_array();
+                    let dz = if keep {
+                        v.depth_of4(hits.x[2]).to_array()
+                    } else {
+                        [0.0; 4]
+                    };
                     let [hx, hy, hz] = hits.x.map(|c| c.to_array());
                     let rho2 = hits.rho2.to_array();
                     while mask != 0 {
                         let k = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        let dd = v.depth_of(zp[k]);
+                        let dd = dd[k];
                         let i = row + x + k;
                         if dd < depth[i] {
                             depth[i] = dd;
@@ -372,6 +416,7 @@ impl HostSplatter {
                                 splat: id,
                                 x: Vec3::new(hx[k], hy[k], hz[k]),
                                 rho2: rho2[k],
+                                dz: dz[k],
                             });
                         }
                     }
@@ -393,7 +438,7 @@ impl HostSplatter {
         let (mut color, mut normal) = ([0.0; 4], Vec3::ZERO);
         for f in frags.iter() {
             let i = f.pixel as usize;
-            if v.depth_of(f.x.z) > depth[i] {
+            if f.dz > depth[i] {
                 continue;
             }
             if f.splat != last {
@@ -413,6 +458,36 @@ impl HostSplatter {
                 add(&mut t2[i], [l[0], l[1], l[2], l[3]], wt);
                 add(&mut t3[i], [l[4], l[5], l[6], l[7]], wt);
                 add(&mut t4[i], [l[8], l[9], l[10], l[11]], wt);
+            }
+        }
+    }
+}
+
+/// Whether a thinned render keeps splat `i`: about one in `step`, by a
+/// hash of the index (splitmix64's finaliser).
+fn kept(i: usize, step: usize) -> bool {
+    let mut z = (i as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    (z ^ (z >> 31)).is_multiple_of(step as u64)
+}
+
+/// `work` on each of `items` (with its index), one item a task of `pool`,
+/// or all on the calling thread without one; returns when all are done.
+fn on_each<T: Send>(
+    pool: Option<&rayon::ThreadPool>,
+    items: &mut [T],
+    work: &(impl Fn(usize, &mut T) + Sync),
+) {
+    match pool {
+        Some(pool) if items.len() > 1 => pool.scope(|scope| {
+            for (i, item) in items.iter_mut().enumerate() {
+                scope.spawn(move |_| work(i, item));
+            }
+        }),
+        _ => {
+            for (i, item) in items.iter_mut().enumerate() {
+                work(i, item);
             }
         }
     }

@@ -61,8 +61,18 @@ impl View {
     }
 
     /// `depth_of`: camera-space z to `[0, 1]`, linear between near and far.
-    pub(super) fn depth_of(&self, z: f32) -> f32 {
+    #[cfg(test)]
+    fn depth_of(&self, z: f32) -> f32 {
         ((z - self.near) / (self.far - self.near)).clamp(0.0, 1.0)
+    }
+
+    /// [`Self::depth_of`] in four lanes, each with the scalar's
+    /// operations; where a lane is NaN the two differ, and the callers
+    /// read only lanes that hit, whose z is past the near plane.
+    #[inline(always)]
+    pub(super) fn depth_of4(&self, z: Vec4) -> Vec4 {
+        ((z - Vec4::splat(self.near)) / Vec4::splat(self.far - self.near))
+            .clamp(Vec4::ZERO, Vec4::ONE)
     }
 
     /// The x component of the ray through pixel column `x` (the y
@@ -332,6 +342,8 @@ mod tests {
                             let lane = [four.x[0][k], four.x[1][k], four.x[2][k], four.rho2[k]];
                             let want = [p.x, p.y, p.z, rho2];
                             assert_eq!(lane.map(f32::to_bits), want.map(f32::to_bits));
+                            let depth = v.depth_of4(four.x[2])[k];
+                            assert_eq!(depth.to_bits(), v.depth_of(p.z).to_bits());
                         }
                     }
                 }
