@@ -127,6 +127,7 @@ impl Tracker {
                 if !self.searching {
                     self.lost_streak += 1;
                 }
+                times.renders = self.stages.renders;
                 times.total = t0.elapsed();
                 return Ok(TrackResult {
                     pose: self.pose,
@@ -220,6 +221,13 @@ impl Tracker {
         times.waits.kf = self.ctx.stats().wait_time.saturating_sub(w_kf);
         let t_contour = Instant::now();
         let w_contour = self.ctx.stats().wait_time;
+        if self.config.modalities.contour && self.stages.renders == 0.0 {
+            // Nothing rendered yet this frame: the previous check's render,
+            // made at the pose this frame starts from, seeds the contour's
+            // first round instead of a render of its own.
+            let window = self.view_window(&start_pose);
+            self.reuse_render(&start_pose, window);
+        }
         let contour = if self.config.modalities.contour {
             // From the best texture estimate, fused with its inliers; else
             // from the previous pose with longer lines.
@@ -364,6 +372,7 @@ impl Tracker {
         times.kf_render = sub.kf_render;
         times.kf_harris = sub.kf_harris;
         times.kf_ncc = sub.kf_ncc;
+        times.renders = sub.renders;
         times.gpu = sub.gpu;
         times.gpu_timeline = sub.gpu_timeline;
         let done = self.ctx.stats().since(&read0);
