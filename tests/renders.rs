@@ -118,7 +118,11 @@ fn the_checks_render_seeds_the_contour_alone() {
     eprintln!("renders {n0} -> {n}; rotation error {e0:.3} -> {e:.3} deg");
     assert!(n < n0, "{:?} against {:?}", renders(&seeded), renders(&own));
     for (r, _) in &seeded {
-        assert!(r.times.renders <= r.times.contour_renders + 1.0, "{:?}", r.times);
+        assert!(
+            r.times.renders <= r.times.contour_renders + 1.0,
+            "{:?}",
+            r.times
+        );
     }
     assert!(e <= e0 + 0.05, "{e0} -> {e}");
 }
