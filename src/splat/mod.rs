@@ -49,8 +49,11 @@
 //! predictors are computed per fragment from `X` with the formulas of
 //! [`crate::geometry::Intrinsics::motion_predictors`], in pixels (OpenCV convention).
 //!
-//! [`cpu`] is the reference implementation of the same maths, used by tests.
+//! [`cpu`] is the same maths on the host's cores ([`cpu::HostSplatter`]):
+//! the GPU splatters' reference in the tests and the CPU back end's
+//! renderer.
 
+mod accumulators;
 mod attributes;
 mod bounds;
 mod compute;
@@ -58,6 +61,8 @@ pub mod cpu;
 mod error;
 mod gather;
 pub mod gpu_data;
+mod host;
+mod kernel;
 mod model;
 mod params;
 mod render;
