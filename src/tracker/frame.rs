@@ -291,8 +291,8 @@ impl Tracker {
                 // texture to correlate (an untextured object's shading):
                 // the contour's edges decide.
                 if self.config.modalities.contour && !texture_held {
-                    let shading_only = self.shading_only()?;
                     let loose = d.residual_px;
+                    let shading_only = self.shading_only_for(&s, loose)?;
                     verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose)
                 } else {
                     verify::judge(&s, &self.config.verify)
@@ -483,8 +483,8 @@ impl Tracker {
         };
         let s = self.verify_scores(frame, &pose)?;
         log::debug!("verify (contour alone): {s:?}");
-        let shading_only = self.shading_only()?;
         let loose = alone.residual_px;
+        let shading_only = self.shading_only_for(&s, loose)?;
         match verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose) {
             Ok(()) => {
                 log::debug!(

@@ -501,11 +501,7 @@ pub fn judge_contour_alone(
     residual_px: f64,
 ) -> Result<(), Unverified> {
     judge_with_contour(s, cfg)?;
-    let shading =
-        shading_only && s.zncc.is_some() && s.view_texture.is_none_or(|t| t < cfg.untextured_below);
-    // A NaN residual (no solve) is not loose: nothing says so.
-    let loose = residual_px > cfg.shading_loose_px;
-    if shading && loose && s.edge_support.unwrap_or(0.0) < cfg.shading_edge_support {
+    if shading_only && shading_rule_applies(s, cfg, residual_px) {
         return Err(Unverified::ShadingOnly {
             zncc: s.zncc,
             edge_support: s.edge_support,
@@ -513,6 +509,17 @@ pub fn judge_contour_alone(
         });
     }
     Ok(())
+}
+
+/// Whether [`judge_contour_alone`] refuses scores `s` and a fit of RMS
+/// `residual_px` for an object whose views show shading only: a view that
+/// correlates (a ZNCC) without texture of its own, a loose fit, and too
+/// little of the outline on edges.
+pub fn shading_rule_applies(s: &VerifyScores, cfg: &VerifyConfig, residual_px: f64) -> bool {
+    let shading = s.zncc.is_some() && s.view_texture.is_none_or(|t| t < cfg.untextured_below);
+    // A NaN residual (no solve) is not loose: nothing says so.
+    let loose = residual_px > cfg.shading_loose_px;
+    shading && loose && s.edge_support.unwrap_or(0.0) < cfg.shading_edge_support
 }
 
 /// The least ZNCC by which a novel view without texture of its own vouches
