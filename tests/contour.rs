@@ -735,11 +735,13 @@ fn the_contour_renders_again_until_its_pose_converges() {
     );
     assert_eq!(rounds[0].0, 2.0, "rounds of the frame at its true pose");
     assert!(rounds.iter().any(|r| r.0 > 2.0), "rounds {rounds:?}");
+    // A frame's first round may move the points of the previous frame's
+    // check render (made at the pose it starts from) instead of rendering.
     let most = ContourConfig::default().rounds as f64;
     assert!(
         rounds
             .iter()
-            .all(|&(n, r)| (2.0..=most).contains(&n) && (1.0..=n).contains(&r)),
+            .all(|&(n, r)| (2.0..=most).contains(&n) && (0.0..=n).contains(&r)),
         "(rounds, renders) {rounds:?}"
     );
 }

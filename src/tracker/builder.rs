@@ -252,6 +252,7 @@ impl Tracker {
             window: Window::full(&cam),
             spare: Vec::new(),
             kept: None,
+            view_made: None,
             box_lo,
             box_hi,
             harris,

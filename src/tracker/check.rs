@@ -48,9 +48,6 @@ impl super::Tracker {
                 ..Default::default()
             });
         }
-        // The window holds every covered pixel with a margin wider than
-        // the edge search, so the scores are those of the whole image.
-        let window = self.view_window(pose);
         // With the predictors: the next frame's IT step needs this very
         // render (at its previous pose), and takes it over.
         let attrs = if self.config.windows {
@@ -61,7 +58,21 @@ impl super::Tracker {
         // The render, its resolves and the frame's window go with the
         // scores' readback (or the view's).
         let _batch = self.ctx.batch();
-        let textured = self.render_view_in(pose, attrs, window, "check")?.is_some();
+        // A novel view made this frame within a pixel or so of the pose
+        // (the KF step's, when its correction was small) is scored
+        // instead of rendering again: the edge test searches 2 px along
+        // the outline's normal, and the ZNCC falls little for a sub-pixel
+        // shift. Else the window holds every covered pixel with a margin
+        // wider than the edge search, so the scores are those of the
+        // whole image.
+        let (window, textured, rendered_at) = match self.view_for_check(pose, attrs) {
+            Some(v) => (v.window, v.keyframe.is_some(), v.pose),
+            None => {
+                let window = self.view_window(pose);
+                let k = self.render_view_in(pose, attrs, window, "check")?;
+                (window, k.is_some(), *pose)
+            }
+        };
         if self.check.resident() && self.check.fits(window.width, window.height) {
             // Resident: the view is resolved into the check's buffers and
             // scored there; CHECK_SUMS floats come back.
@@ -108,7 +119,7 @@ impl super::Tracker {
             };
             // The render serves the next frame's IT step (after its
             // resolves were recorded).
-            self.keep_render(*pose);
+            self.keep_render(rendered_at);
             let t = self.check.take_timings();
             self.note_timings("check score", t);
             return Ok(s);
@@ -130,7 +141,7 @@ impl super::Tracker {
         } else {
             None
         };
-        self.keep_render(*pose);
+        self.keep_render(rendered_at);
         Ok(score(
             &frame,
             &covered,

@@ -36,7 +36,7 @@ use super::config::{CueChoice, Modalities};
 use super::error::TrackError;
 use super::profile::Texture;
 use super::state::Tracker;
-use super::verify::{texture_step, view_texture};
+use super::verify::{self, texture_step, view_texture};
 use crate::features::GreyImage;
 use crate::splat::{Attribute, Attributes};
 
@@ -137,6 +137,23 @@ impl Tracker {
         let s = texture.is_some_and(|t| t < SHADING_ONLY_BELOW);
         self.shading_only = Some(s);
         Ok(s)
+    }
+
+    /// [`Tracker::shading_only`] where it decides [`verify::judge_contour_alone`]
+    /// for scores `s` and a fit of RMS `residual_px`, else `false` without
+    /// measuring: the measure renders and reads back a dozen views, which
+    /// a tight fit, a textured view or a strongly supported outline never
+    /// needs.
+    pub(super) fn shading_only_for(
+        &mut self,
+        s: &verify::VerifyScores,
+        residual_px: f64,
+    ) -> Result<bool, TrackError> {
+        if verify::shading_rule_applies(s, &self.config.verify, residual_px) {
+            self.shading_only()
+        } else {
+            Ok(false)
+        }
     }
 
     /// Measures the object's texture and sets the modalities [`choose`]

@@ -127,6 +127,7 @@ impl Tracker {
                 if !self.searching {
                     self.lost_streak += 1;
                 }
+                times.renders = self.stages.renders;
                 times.total = t0.elapsed();
                 return Ok(TrackResult {
                     pose: self.pose,
@@ -220,6 +221,13 @@ impl Tracker {
         times.waits.kf = self.ctx.stats().wait_time.saturating_sub(w_kf);
         let t_contour = Instant::now();
         let w_contour = self.ctx.stats().wait_time;
+        if self.config.modalities.contour && self.stages.renders == 0.0 {
+            // Nothing rendered yet this frame: the previous check's render,
+            // made at the pose this frame starts from, seeds the contour's
+            // first round instead of a render of its own.
+            let window = self.view_window(&start_pose);
+            self.reuse_render(&start_pose, window);
+        }
         let contour = if self.config.modalities.contour {
             // From the best texture estimate, fused with its inliers; else
             // from the previous pose with longer lines.
@@ -283,7 +291,9 @@ impl Tracker {
                 // texture to correlate (an untextured object's shading):
                 // the contour's edges decide.
                 if self.config.modalities.contour && !texture_held {
-                    verify::judge_with_contour(&s, &self.config.verify)
+                    let loose = d.residual_px;
+                    let shading_only = self.shading_only_for(&s, loose)?;
+                    verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose)
                 } else {
                     verify::judge(&s, &self.config.verify)
                 }
@@ -308,7 +318,9 @@ impl Tracker {
                 {
                     self.contour_alone(&rules, &frame, rgb, (from, false, None), first_frame)?
                 }
-                (Err(Unverified::Appearance { .. }), _) if again => {
+                (Err(Unverified::Appearance { .. } | Unverified::ShadingOnly { .. }), _)
+                    if again =>
+                {
                     let from = (start_pose, true, Some(retry));
                     self.contour_alone(&rules, &frame, rgb, from, first_frame)?
                 }
@@ -364,6 +376,7 @@ impl Tracker {
         times.kf_render = sub.kf_render;
         times.kf_harris = sub.kf_harris;
         times.kf_ncc = sub.kf_ncc;
+        times.renders = sub.renders;
         times.gpu = sub.gpu;
         times.gpu_timeline = sub.gpu_timeline;
         let done = self.ctx.stats().since(&read0);
@@ -440,7 +453,7 @@ impl Tracker {
     /// the previous pose, when the contour alone made that decision), with
     /// long lines or not and damped as given (`None`: as configured),
     /// decided as if no texture step had run and checked by the contour's
-    /// edges ([`verify::judge_with_contour`]): the decision and its scores
+    /// edges ([`verify::judge_contour_alone`]): the decision and its scores
     /// when that pose passes, `None` when it does not (the frame stays
     /// lost).
     fn contour_alone(
@@ -470,7 +483,9 @@ impl Tracker {
         };
         let s = self.verify_scores(frame, &pose)?;
         log::debug!("verify (contour alone): {s:?}");
-        match verify::judge_with_contour(&s, &self.config.verify) {
+        let loose = alone.residual_px;
+        let shading_only = self.shading_only_for(&s, loose)?;
+        match verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose) {
             Ok(()) => {
                 log::debug!(
                     "the contour alone passes: {:.2} deg from where it started",

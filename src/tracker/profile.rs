@@ -69,8 +69,11 @@ impl Tracker {
         Ok(())
     }
 
-    /// Notes the passes of the splat just recorded as `label`.
+    /// Notes the splat just recorded (counted in
+    /// [`super::StageTimes::renders`]), its passes as `label`.
     pub(super) fn note_splat(&mut self, label: &str) {
+        self.stages.renders += 1.0;
+        self.view_made = None;
         if let Some(t) = self.gpu_timer.as_mut() {
             match t.read_later(&self.ctx) {
                 Ok(r) => self.pending_gpu.push((label.to_owned(), r)),

@@ -24,7 +24,7 @@ use crate::features::{
     ResidentImage, ResidentMatch,
 };
 use crate::geometry::Pose;
-use crate::splat::{SplatTargets, Window};
+use crate::splat::{Attributes, SplatTargets, Window};
 
 /// Spare render targets kept (one per recent window size; a sequence
 /// cycles through a few sizes, and a size not kept costs new targets).
@@ -38,6 +38,18 @@ pub(super) struct Kept {
     pub(super) pose: Pose,
     pub(super) window: Window,
     pub(super) targets: SplatTargets,
+}
+
+/// The novel view the targets hold ([`super::Tracker::render_view_in`]'s
+/// last render, while no other render or swap of targets came since): what
+/// the pose check may score instead of rendering again.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct ViewMade {
+    pub(super) pose: Pose,
+    pub(super) window: Window,
+    /// The keyframe that textured it (`None`: the model's colours).
+    pub(super) keyframe: Option<usize>,
+    pub(super) attrs: Attributes,
 }
 
 impl Kept {

@@ -98,6 +98,12 @@ pub struct StageTimes {
     /// The passes an untimed call records (a chain of stages in one).
     #[serde(default)]
     pub passes_untimed: f64,
+    /// Renders of the model during the call, every step's (the
+    /// search's too; a mean over frames is fractional): the novel views,
+    /// the contour's and the pose check's, a render taken over from an
+    /// earlier step not counted again.
+    #[serde(default)]
+    pub renders: f64,
     /// Rounds (searches and solves) of the contour step during the call
     /// (a mean over frames is fractional).
     #[serde(default)]
@@ -178,6 +184,7 @@ impl StageTimes {
         self.passes += other.passes * k;
         self.passes_untimed += other.passes_untimed * k;
         self.command_buffers += other.command_buffers * k;
+        self.renders += other.renders * k;
         self.contour_rounds += other.contour_rounds * k;
         self.contour_renders += other.contour_renders * k;
         for (label, ms) in &other.gpu {
@@ -470,7 +477,7 @@ pub enum LostReason {
 impl LostReason {
     /// A short name of the reason (the refused file's `reason` column):
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
-    /// `frozen_frame`) or the decision rule (`failed`, `untrusted`,
+    /// `shading_only`, `frozen_frame`) or the decision rule (`failed`, `untrusted`,
     /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
     /// `confirming`, `unconfirmed`).
     pub fn code(&self) -> &'static str {
@@ -482,6 +489,7 @@ impl LostReason {
             LostReason::Unverified(Unverified::NotInView { .. }) => "not_in_view",
             LostReason::Unverified(Unverified::TooSmall { .. }) => "too_small",
             LostReason::Unverified(Unverified::Appearance { .. }) => "appearance",
+            LostReason::Unverified(Unverified::ShadingOnly { .. }) => "shading_only",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",

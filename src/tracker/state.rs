@@ -5,7 +5,7 @@ use super::config::TrackerConfig;
 use super::contour::ContourState;
 pub(super) use super::frames::Frame;
 use super::outline_gpu::GpuOutline;
-use super::region::{Kept, Resident};
+use super::region::{Kept, Resident, ViewMade};
 use super::result::{GpuMemoryUse, StageTimes};
 use super::verify_gpu::GpuCheck;
 use crate::features::{Harris, NccMatcher};
@@ -72,6 +72,8 @@ pub struct Tracker {
     pub(super) spare: Vec<SplatTargets>,
     /// The check's render of the last reported pose, for the next IT step.
     pub(super) kept: Option<Kept>,
+    /// The novel view the targets hold, while they hold it.
+    pub(super) view_made: Option<ViewMade>,
     /// The model's bounding box grown by its largest splat (where renders
     /// can cover pixels).
     pub(super) box_lo: Vector3<f64>,

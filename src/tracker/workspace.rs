@@ -6,7 +6,7 @@
 use super::decision::Estimate;
 use super::error::TrackError;
 use super::profile;
-use super::region::{Kept, Placed, SPARE_TARGETS, placed};
+use super::region::{Kept, Placed, SPARE_TARGETS, ViewMade, placed};
 use super::result::StepError;
 use super::state::{Frame, Tracker};
 use crate::features::{Corner, FeatureError};
@@ -91,6 +91,7 @@ impl Tracker {
             self.put_spare(old);
         }
         self.window = w;
+        self.view_made = None;
         w.camera(&self.cam)
     }
 
@@ -117,6 +118,7 @@ impl Tracker {
         if !self.config.windows {
             return;
         }
+        self.view_made = None;
         let fresh = self.spare_targets(self.window);
         let targets = std::mem::replace(&mut self.targets, fresh);
         let kept = Kept {
@@ -129,6 +131,43 @@ impl Tracker {
         }
     }
 
+    /// Whether a render at `at` can stand for one at `pose`: no corner of
+    /// the model's bounding box moves more than
+    /// [`super::TrackerConfig::reuse_render_px`] between them (windows on).
+    pub(super) fn near_render(&self, at: &Pose, pose: &Pose) -> bool {
+        let limit = self.config.reuse_render_px as f64;
+        if !self.config.windows || limit <= 0.0 {
+            return false;
+        }
+        let mut far = 0.0f64;
+        for x in crate::splat::box_corners(&self.box_lo, &self.box_hi) {
+            let (Some(a), Some(b)) = (
+                self.cam.project(&at.transform_point(&x)),
+                self.cam.project(&pose.transform_point(&x)),
+            ) else {
+                return false;
+            };
+            far = far.max((a - b).norm());
+        }
+        far <= limit
+    }
+
+    /// The novel view the targets hold when the pose check at `pose`
+    /// may score it instead of rendering: it has `attrs`, was textured by
+    /// the keyframe a render at `pose` would be, and was made
+    /// [`Tracker::near_render`] to `pose`.
+    pub(super) fn view_for_check(&self, pose: &Pose, attrs: Attributes) -> Option<ViewMade> {
+        let v = self.view_made?;
+        let held = self.targets.last_view().is_some_and(|(p, _)| *p == v.pose);
+        let keyframe = self.store.as_ref().map(|s| s.closest(pose));
+        (held
+            && v.window == self.window
+            && v.attrs.contains(attrs)
+            && v.keyframe == keyframe
+            && self.near_render(&v.pose, pose))
+        .then_some(v)
+    }
+
     /// The kept render and its window, when it was made at `pose`.
     pub(super) fn kept_at(&self, pose: &Pose) -> Option<(&SplatTargets, Window)> {
         self.kept
@@ -139,13 +178,15 @@ impl Tracker {
 
     /// Makes the kept render current when it was made at `pose` in window
     /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
-    /// give); whether it was.
+    /// give), or at a pose [`Tracker::near_render`] to `pose` (in its own
+    /// window, which holds every pixel it covers); whether it was.
     pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window) -> bool {
         match self.kept.take() {
-            Some(k) if k.pose == *pose && k.window == w => {
+            Some(k) if (k.pose == *pose && k.window == w) || self.near_render(&k.pose, pose) => {
                 let old = std::mem::replace(&mut self.targets, k.targets);
                 self.put_spare(old);
-                self.window = w;
+                self.window = k.window;
+                self.view_made = None;
                 true
             }
             Some(k) => {
@@ -358,6 +399,12 @@ impl Tracker {
         let k = self.store.as_ref().map(|s| s.closest(pose));
         let texture = k.map_or(profile::Texture::None, profile::Texture::Keyframe);
         self.splat(texture, &cam, pose, attrs, stage)?;
+        self.view_made = Some(ViewMade {
+            pose: *pose,
+            window: w,
+            keyframe: k,
+            attrs,
+        });
         Ok(k)
     }
 

@@ -25,6 +25,7 @@ pub fn profile_table(t: &StageTimes, cpu_adapter: bool, validated: bool) -> Stri
         out += "\n";
     }
     out += &gpu_work(t, cpu_adapter, validated);
+    out += &format!("  {:<26} {:8.2}\n", "renders of the model", t.renders);
     if t.contour_rounds > 0.0 {
         out += &format!(
             "  {:<26} {:8.2} ({:.2} renders)\n",
