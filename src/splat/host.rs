@@ -22,7 +22,7 @@ use super::accumulators::Accumulators;
 use super::gpu_data::{CameraUniform, unpack_color};
 use super::kernel::{Setup, View, intersect4, motion, setup, weight};
 use super::{Attributes, PackedModel, SplatImage};
-use glam::{Vec3, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 use std::sync::Mutex;
 
 /// Splats with a setup part above this many points per thread go to the
@@ -352,7 +352,8 @@ impl HostSplatter {
         let rows = band_rows.min(v.height - y0);
         let list = &self.bins[self.starts[band.index]..self.starts[band.index + 1]];
         depth.clear();
-        depth.resize(rows * w, 1.0);
+        // Three more, so that every pixel starts four lanes.
+        depth.resize(rows * w + 3, 1.0);
         if let Some(z) = band.z.as_deref_mut() {
             z.fill(f32::NAN);
         }
@@ -390,35 +391,40 @@ impl HostSplatter {
                     // |d|, as (dx dx + dy dy) + 1 1.
                     let len = (dx * dx + Vec4::splat(ry * ry) + Vec4::ONE).sqrt();
                     let zp4 = hits.x[2] + Vec4::splat(s.push) / len;
-                    let dd = v.depth_of4(zp4).to_array();
-                    let zp = zp4.to_array();
-                    let dz = if keep {
-                        v.depth_of4(hits.x[2]).to_array()
-                    } else {
-                        [0.0; 4]
-                    };
+                    // The depth test in four lanes: they are four pixels, so
+                    // each lane's test and write is the scalar one's.
+                    let i0 = row + x;
+                    let dd = v.depth_of4(zp4);
+                    let old = Vec4::from_slice(&depth[i0..i0 + 4]);
+                    let lanes =
+                        BVec4A::new(mask & 1 != 0, mask & 2 != 0, mask & 4 != 0, mask & 8 != 0);
+                    let closer = dd.cmplt(old) & lanes;
+                    Vec4::select(closer, dd, old).write_to_slice(&mut depth[i0..i0 + 4]);
+                    if let Some(z) = band.z.as_deref_mut() {
+                        let zp = zp4.to_array();
+                        let mut c = closer.bitmask();
+                        while c != 0 {
+                            let k = c.trailing_zeros() as usize;
+                            c &= c - 1;
+                            z[i0 + k] = zp[k];
+                        }
+                    }
+                    if !keep {
+                        continue;
+                    }
+                    let dz = v.depth_of4(hits.x[2]).to_array();
                     let [hx, hy, hz] = hits.x.map(|c| c.to_array());
                     let rho2 = hits.rho2.to_array();
                     while mask != 0 {
                         let k = mask.trailing_zeros() as usize;
                         mask &= mask - 1;
-                        let dd = dd[k];
-                        let i = row + x + k;
-                        if dd < depth[i] {
-                            depth[i] = dd;
-                            if let Some(z) = band.z.as_deref_mut() {
-                                z[i] = zp[k];
-                            }
-                        }
-                        if keep {
-                            frags.push(Frag {
-                                pixel: i as u32,
-                                splat: id,
-                                x: Vec3::new(hx[k], hy[k], hz[k]),
-                                rho2: rho2[k],
-                                dz: dz[k],
-                            });
-                        }
+                        frags.push(Frag {
+                            pixel: (i0 + k) as u32,
+                            splat: id,
+                            x: Vec3::new(hx[k], hy[k], hz[k]),
+                            rho2: rho2[k],
+                            dz: dz[k],
+                        });
                     }
                 }
             }
