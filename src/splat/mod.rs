@@ -49,15 +49,22 @@
 //! predictors are computed per fragment from `X` with the formulas of
 //! [`crate::geometry::Intrinsics::motion_predictors`], in pixels (OpenCV convention).
 //!
-//! [`cpu`] is the reference implementation of the same maths, used by tests.
+//! [`cpu`] is the reference implementation of the same maths, used by
+//! tests, and the CPU device's splatter ([`crate::Device::Cpu`]): there a
+//! render splats on the host at the window's camera and keeps the
+//! accumulators in the [`SplatTargets`], reads resolve them and gathers
+//! sample them with the GPU gather's maths.
 
 mod attributes;
 mod bounds;
 mod compute;
 pub mod cpu;
+mod dispatch;
 mod error;
 mod gather;
 pub mod gpu_data;
+mod host;
+mod image;
 mod model;
 mod params;
 mod render;
@@ -71,13 +78,14 @@ mod window;
 
 pub use attributes::{Attribute, Attributes};
 pub use bounds::{ModelBounds, bounding_sphere};
+pub use dispatch::Splatter;
 pub use error::SplatError;
 pub use gather::{GatherMode, GatherSample};
 pub use gpu_data::GATHER_STRIDE;
+pub use image::SplatImage;
 pub use model::{GpuModel, PackedModel, pack_model, spatial_order};
 pub use params::{AUTO_CPU_RENDER_PASS_ABOVE_PX, Backend, SPLATTER_ENV, SplatParams};
 pub use resolve::PendingGather;
-pub use splatter::Splatter;
-pub use targets::{SplatImage, SplatTargets};
+pub use targets::SplatTargets;
 pub use window::Window;
 pub(crate) use window::box_corners;
