@@ -4,7 +4,8 @@
 //! [`crate::splat::cpu`] splatter and the host paths of every step).
 //!
 //! [`DeviceChoice::Auto`] takes a GPU adapter when one can be made, else
-//! the CPU device, and logs one line saying which and why. A software
+//! the CPU device, and logs one line saying which and why (a warning
+//! when it falls back to the CPU). A software
 //! adapter (lavapipe) still wins over the CPU device under `auto`: on the
 //! real cube it measured faster (docs/performance.md).
 
@@ -51,7 +52,7 @@ impl Device {
                     Ok(Self::Gpu(ctx))
                 }
                 Err(e) => {
-                    log::info!("device: the CPU (auto: no GPU adapter: {e})");
+                    log::warn!("device: the CPU (auto: no GPU adapter: {e})");
                     Ok(Self::Cpu)
                 }
             },

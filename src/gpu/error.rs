@@ -6,7 +6,7 @@
 pub enum GpuError {
     /// No adapter wgpu can see has the features the pipelines need.
     #[error(
-        "no usable GPU adapter found{}. On Linux without a GPU, install Mesa's software Vulkan driver (lavapipe): `apt-get install mesa-vulkan-drivers`, or run on the CPU device (`--device cpu`)",
+        "no usable GPU adapter found{}. On Linux without a GPU, install Mesa's software Vulkan driver (lavapipe): `apt-get install mesa-vulkan-drivers`, or use the CPU device (`--compute cpu` on the command line, `Device::Cpu` in the library)",
         rejected_note(.rejected)
     )]
     NoAdapter {
