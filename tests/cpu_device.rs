@@ -326,3 +326,32 @@ fn depth_only_renders_agree() {
     assert!(cov <= a.coverage() / 500, "{cov}");
     assert!(dz < 1e-6, "{dz}");
 }
+
+/// Without a first pose the tracker searches each frame (templates, the
+/// features' detection): the real cube's first 3 frames found on the CPU
+/// device as on lavapipe, the same statuses and poses within 0.05 degrees
+/// and 0.2 mm.
+#[test]
+fn a_search_without_a_first_pose_finds_the_cube_on_the_cpu_device() {
+    let Some(real) = RealSequence::load("visp_rbt_cube") else {
+        return;
+    };
+    let runs: Vec<Vec<TrackResult>> = devices()
+        .iter()
+        .map(|device| {
+            let mut t = Tracker::builder(device, real.model.clone(), real.seq.tracking_camera())
+                .keyframes(real.store.clone())
+                .build()
+                .expect("tracker");
+            (0..3).map(|i| t.track(&real.image(i)).unwrap()).collect()
+        })
+        .collect();
+    let (rot, trans) = compare(&runs[0], &runs[1]);
+    let found = runs[0]
+        .iter()
+        .filter(|r| r.status == Status::Tracking)
+        .count();
+    eprintln!("search: {found} of 3 found; CPU device against lavapipe: {rot:.5} deg, {trans:.6}");
+    assert!(found >= 2, "{found} of 3 frames found");
+    assert!(rot < 0.05 && trans < 2e-4, "{rot} deg, {trans}");
+}
