@@ -330,7 +330,7 @@ fn depth_only_renders_agree() {
 /// Without a first pose the tracker searches each frame (templates, the
 /// features' detection): the real cube's first 3 frames found on the CPU
 /// device as on lavapipe, the same statuses and poses within 0.05 degrees
-/// and 0.2 mm.
+/// and 0.2 mm (measured: all 3 found, 0.00005 degrees apart).
 #[test]
 fn a_search_without_a_first_pose_finds_the_cube_on_the_cpu_device() {
     let Some(real) = RealSequence::load("visp_rbt_cube") else {
