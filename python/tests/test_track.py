@@ -52,7 +52,7 @@ def test_accuracy_against_ground_truth(sequence):
 
 def test_the_cpu_device_tracks_as_the_gpu(sequence, cli_poses):
     """device="cpu": no GPU object, the same statuses and poses within
-    1e-5 (the host's sums in another order than the GPU's)."""
+    1e-4 (the host's sums in another order than the GPU's)."""
     assert "CPU" in st.device("cpu")
     with pytest.raises(ValueError):
         st.device("lavapipe")
@@ -64,7 +64,7 @@ def test_the_cpu_device_tracks_as_the_gpu(sequence, cli_poses):
     assert len(results) == len(cli_poses) == 12
     for i, (r, (_, pose, row)) in enumerate(zip(results, cli_poses)):
         assert r.status == row["status"], f"frame {i}"
-        assert np.abs(r.pose - pose).max() < 1e-5, f"frame {i}"
+        assert np.abs(r.pose - pose).max() < 1e-4, f"frame {i}"
 
 
 def test_keyframe_pairs_and_grey_frames(sequence, cli_poses):

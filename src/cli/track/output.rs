@@ -107,18 +107,26 @@ pub fn print_profile(ctx: &splattrack::Device, stats: &RunStats, wall: f64, view
         "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
         stats.source_ms
     );
-    print!(
-        "{}",
-        profile_table(
-            &stats.mean_stages,
-            ctx.gpu().is_none_or(|c| c.is_cpu()),
-            ctx.gpu().is_some_and(|c| c.validates_indirect),
-        )
+    let table = profile_table(
+        &stats.mean_stages,
+        ctx.gpu().is_none_or(|c| c.is_cpu()),
+        ctx.gpu().is_some_and(|c| c.validates_indirect),
     );
+    for line in table.lines() {
+        // The CPU device has no GPU: its readbacks, waits and submissions
+        // are all zero.
+        let gpu_line = ["read back from the GPU", "waiting for the GPU", "GPU work"]
+            .iter()
+            .any(|p| line.trim_start().starts_with(p));
+        if !(ctx.is_cpu() && gpu_line) {
+            println!("{line}");
+        }
+    }
     if let Some(m) = stats.gpu_memory {
         let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
         println!(
-            "GPU memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+            "{} memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+            if ctx.is_cpu() { "host" } else { "GPU" },
             mb(m.total()),
             mb(m.model),
             mb(m.keyframe_colors),
