@@ -3,21 +3,32 @@
 //! and colour + depth/normal + motion predictors (the tracker's render),
 //! for sphere models of 10k and 100k points (and 1M with
 //! `SPLATTRACK_BENCH_1M=1`) at 640x480 and 1280x720, on whichever adapter
-//! is present (`SPLATTRACK_ADAPTER`); the CPU reference (`cpu`, one
-//! thread) at 10k and 100k points for the GPU/CPU ratio. Wall time per
-//! render (submit + wait) by criterion; GPU time per pass from timestamp
-//! queries (median of 5), printed when the adapter has them.
+//! is present (`SPLATTRACK_ADAPTER`). Wall time per render (submit +
+//! wait) by criterion; GPU time per pass from timestamp queries (median of
+//! 5), printed when the adapter has them.
 //!
-//! `cargo bench --bench splat` (ids `splat/BACKEND/ATTRS/WxH/POINTS`;
-//! `cargo run --release --example bench_report` tabulates the medians).
+//! The host splatter (`splat_cpu`, no GPU needed, run first): the same
+//! spheres on 1 and 2 threads (`cpu1`, `cpu2`), the sphere filling the
+//! image, and the real cube (`SPLATTRACK_DATA`'s visp_rbt_cube at its
+//! initial pose, in its window as the tracker renders it).
+//!
+//! `cargo bench --bench splat` (ids `splat/BACKEND/ATTRS/WxH/POINTS`,
+//! `splat_cpu/cpuTHREADS/ATTRS/SCENE`; `cargo bench --bench splat --
+//! splat_cpu` runs the host splatter alone; `cargo run --release --example
+//! bench_report` tabulates the medians).
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use nalgebra::Vector3;
-use splattrack::geometry::{Intrinsics, look_at};
+use splattrack::geometry::{Intrinsics, Pose, look_at};
 use splattrack::gpu::{GpuContext, GpuTimer};
+use splattrack::model::PointModel;
 use splattrack::model::shapes;
-use splattrack::splat::{Attributes, Backend, GpuModel, SplatParams, SplatTargets, Splatter, cpu};
+use splattrack::splat::cpu::{Accumulators, HostSplatter};
+use splattrack::splat::{
+    Attributes, Backend, GpuModel, ModelBounds, SplatParams, SplatTargets, Splatter, Window,
+    pack_model,
+};
 use std::time::Duration;
 
 /// Model sizes: 10k and 100k, plus 1M when `SPLATTRACK_BENCH_1M` is set
@@ -118,10 +129,94 @@ fn bench(c: &mut Criterion) {
                 }
             }
         }
-        if w == 640 {
-            for (n, model) in models.iter().filter(|(n, _)| *n <= 100_000) {
-                group.bench_function(format!("cpu/color+predictors/{w}x{h}/{n}"), |b| {
-                    b.iter(|| cpu::splat(model, &cam, &pose, &SplatParams::default()).unwrap())
+    }
+    group.finish();
+}
+
+/// The camera of the spheres: the same field of view at every size.
+fn sphere_camera(w: u32, h: u32) -> Intrinsics {
+    let f = 600.0 * w as f64 / 640.0;
+    Intrinsics::new(w, h, f, f, (w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0)
+}
+
+/// The real cube at its initial pose, in the window the tracker renders
+/// it into (its grown bounding box's projection, 16 px of margin), or
+/// `None` without `SPLATTRACK_DATA`.
+fn real_cube() -> Option<(PointModel, Intrinsics, Pose)> {
+    let root = std::path::PathBuf::from(std::env::var_os("SPLATTRACK_DATA")?);
+    let dir = root.join("visp_rbt_cube");
+    let model = PointModel::load(dir.join("model.ply")).expect("the cube's model");
+    let cam = Intrinsics::load(&dir.join("camera.json")).expect("the cube's camera");
+    let pose = splattrack::io::read_poses(&dir.join("init.csv")).expect("init.csv")[0].pose;
+    let pad = model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64));
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        -Vector3::repeat(f64::INFINITY),
+    );
+    for p in &model.positions {
+        let p = Vector3::new(p.x as f64, p.y as f64, p.z as f64);
+        (lo, hi) = (lo.inf(&p), hi.sup(&p));
+    }
+    let pad = Vector3::repeat(pad);
+    let win = Window::of_box(&cam, &pose, &(lo - pad), &(hi + pad), 16.0, 8).expect("in view");
+    eprintln!("real cube: window {}x{}", win.width, win.height);
+    Some((model, win.camera(&cam), pose))
+}
+
+fn bench_cpu(c: &mut Criterion) {
+    let mut group = c.benchmark_group("splat_cpu");
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(300))
+        .measurement_time(Duration::from_secs(2));
+    let mut scenes: Vec<(String, PointModel, Intrinsics, Pose)> = Vec::new();
+    if let Some((model, cam, pose)) = real_cube() {
+        scenes.push(("cube-window".into(), model, cam, pose));
+    }
+    let far = look_at(
+        &Vector3::new(0.3, -0.4, -1.9),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    // Near enough for the sphere to cover the whole 640x480 image.
+    let near = look_at(
+        &Vector3::new(0.0, 0.0, -0.75),
+        &Vector3::zeros(),
+        &Vector3::new(0.0, -1.0, 0.0),
+    );
+    let sizes = model_sizes();
+    for &n in &sizes {
+        let model = shapes::sphere(Vec3::ZERO, 0.5, n, 1.2);
+        for (w, h) in [(640u32, 480u32), (1280, 720)] {
+            scenes.push((
+                format!("{w}x{h}/{n}"),
+                model.clone(),
+                sphere_camera(w, h),
+                far,
+            ));
+        }
+        if n == 100_000 {
+            scenes.push((
+                format!("fill-640x480/{n}"),
+                model,
+                sphere_camera(640, 480),
+                near,
+            ));
+        }
+    }
+    let params = SplatParams::default();
+    for (name, model, cam, pose) in &scenes {
+        let packed = pack_model(model, &params).unwrap();
+        let uniform = ModelBounds::of(model).view(cam, pose, &params).unwrap();
+        for threads in [1, 2] {
+            let mut splatter = HostSplatter::with_threads(threads);
+            let mut out = Accumulators::default();
+            for (attrs_name, attrs) in [
+                ("color", Attributes::COLOR),
+                ("color+predictors", Attributes::MOTION),
+            ] {
+                group.bench_function(format!("cpu{threads}/{attrs_name}/{name}"), |b| {
+                    b.iter(|| splatter.render(&packed, &uniform, attrs, &mut out))
                 });
             }
         }
@@ -129,5 +224,5 @@ fn bench(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, bench);
+criterion_group!(benches, bench_cpu, bench);
 criterion_main!(benches);

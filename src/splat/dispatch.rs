@@ -11,7 +11,7 @@ use super::params::{Backend, SplatParams};
 use super::resolve::PendingGather;
 use super::splatter::GpuSplatter;
 use super::targets::SplatTargets;
-use super::{Attribute, Attributes, GatherMode, GatherSample, host};
+use super::{Attribute, Attributes, GatherMode, GatherSample, cpu_device};
 use crate::device::AsDevice;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuContext, GpuTimer, PassChain};
@@ -154,7 +154,7 @@ impl Splatter {
     ) -> Result<(), SplatError> {
         match self.on(device, Some(model), Some(targets))? {
             Some((g, ctx)) => g.render_timed(ctx, model, cam, pose, attrs, targets, timer),
-            None => host::render(&self.params, model, cam, pose, attrs, false, targets),
+            None => cpu_device::render(&self.params, model, cam, pose, attrs, false, targets),
         }
     }
 
@@ -184,7 +184,7 @@ impl Splatter {
     ) -> Result<(), SplatError> {
         match self.on(device, Some(model), Some(targets))? {
             Some((g, ctx)) => g.render_depth(ctx, model, cam, pose, targets, timer),
-            None => host::render(
+            None => cpu_device::render(
                 &self.params,
                 model,
                 cam,
@@ -207,7 +207,7 @@ impl Splatter {
     ) -> Result<SplatImage, SplatError> {
         match self.on(device, None, Some(targets))? {
             Some((g, ctx)) => g.read(ctx, targets, attribute),
-            None => host::read(targets, attribute),
+            None => cpu_device::read(targets, attribute),
         }
     }
 
@@ -247,7 +247,7 @@ impl Splatter {
             None => Ok(PendingGather {
                 read: None,
                 n: points.len(),
-                ready: Some(host::gather(targets, points, mode)?),
+                ready: Some(cpu_device::gather(targets, points, mode)?),
             }),
         }
     }

@@ -49,22 +49,25 @@
 //! predictors are computed per fragment from `X` with the formulas of
 //! [`crate::geometry::Intrinsics::motion_predictors`], in pixels (OpenCV convention).
 //!
-//! [`cpu`] is the reference implementation of the same maths, used by
-//! tests, and the CPU device's splatter ([`crate::Device::Cpu`]): there a
-//! render splats on the host at the window's camera and keeps the
-//! accumulators in the [`SplatTargets`], reads resolve them and gathers
-//! sample them with the GPU gather's maths.
+//! [`cpu`] is the same maths on the host's cores ([`cpu::HostSplatter`]):
+//! the GPU splatters' reference in the tests and the CPU device's renderer
+//! ([`crate::Device::Cpu`]): there a render splats on the host at the
+//! window's camera and keeps the accumulators in the [`SplatTargets`],
+//! reads resolve them and gathers sample them with the GPU gather's maths.
 
+mod accumulators;
 mod attributes;
 mod bounds;
 mod compute;
 pub mod cpu;
+mod cpu_device;
 mod dispatch;
 mod error;
 mod gather;
 pub mod gpu_data;
 mod host;
 mod image;
+mod kernel;
 mod model;
 mod params;
 mod render;

@@ -1,0 +1,342 @@
+//! The splatting maths on the host: shaders/splat_common.wgsl and the
+//! fragment stages of shaders/splat.wgsl, line by line, in `f32` from the
+//! same [`CameraUniform`]. The host splatter ([`super::cpu`]) runs these
+//! per splat and per pixel; change them together with the shaders.
+//!
+//! Per-splat terms that the shaders recompute at every fragment (`m . c`,
+//! `r * r`, the low-pass reach) are computed once here, with the same
+//! operations in the same order, so every value keeps its bits.
+
+use super::gpu_data::{CameraUniform, SplatGpu};
+use glam::{Vec2, Vec3, Vec4};
+
+/// The camera of a render, unpacked from its uniform.
+#[derive(Debug, Clone)]
+pub(super) struct View {
+    rot: [Vec3; 3],
+    trans: Vec3,
+    pub(super) fx: f32,
+    pub(super) fy: f32,
+    pub(super) cx: f32,
+    pub(super) cy: f32,
+    /// Width and height in pixels (0 when the uniform's are not positive).
+    pub(super) width: usize,
+    pub(super) height: usize,
+    w: f32,
+    h: f32,
+    near: f32,
+    far: f32,
+    eps: f32,
+    lowpass: f32,
+}
+
+impl View {
+    pub(super) fn new(u: &CameraUniform) -> Self {
+        let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+        Self {
+            rot: [v3(u.rot[0]), v3(u.rot[1]), v3(u.rot[2])],
+            trans: v3(u.trans),
+            fx: u.intr[0],
+            fy: u.intr[1],
+            cx: u.intr[2],
+            cy: u.intr[3],
+            // `as` saturates: NaN and negative sizes give empty images.
+            width: u.size[0] as usize,
+            height: u.size[1] as usize,
+            w: u.size[0],
+            h: u.size[1],
+            near: u.size[2],
+            far: u.size[3],
+            eps: u.params[0],
+            lowpass: u.params[1],
+        }
+    }
+
+    fn apply(&self, p: Vec3) -> Vec3 {
+        Vec3::new(self.rot[0].dot(p), self.rot[1].dot(p), self.rot[2].dot(p))
+    }
+
+    fn project(&self, x: Vec3) -> Vec2 {
+        Vec2::new(self.fx * x.x / x.z + self.cx, self.fy * x.y / x.z + self.cy)
+    }
+
+    /// `depth_of`: camera-space z to `[0, 1]`, linear between near and far.
+    pub(super) fn depth_of(&self, z: f32) -> f32 {
+        ((z - self.near) / (self.far - self.near)).clamp(0.0, 1.0)
+    }
+
+    /// The x component of the ray through pixel column `x` (the y
+    /// component of row `y` is [`Self::ray_y`]; z is 1).
+    pub(super) fn ray_x(&self, x: usize) -> f32 {
+        (x as f32 - self.cx) / self.fx
+    }
+
+    pub(super) fn ray_y(&self, y: usize) -> f32 {
+        (y as f32 - self.cy) / self.fy
+    }
+}
+
+/// A splat after the vertex stage (`view_splat`): camera-space data, the
+/// per-splat terms of the intersection, and the pixels its quad covers
+/// (columns `x0..=x1`, rows `y0..=y1`, never empty).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Setup {
+    c: Vec3,
+    pub(super) m: Vec3,
+    proj: Vec2,
+    /// The colour as packed (unpacked where it is blended).
+    pub(super) color: u32,
+    /// `m . c`.
+    mc: f32,
+    /// `r * r`.
+    r2: f32,
+    /// The square of the low-pass reach, `r + 3 h z_c / min(fx, fy)`.
+    reach2: f32,
+    /// The push-back along the ray, `epsilon * r`.
+    pub(super) push: f32,
+    pub(super) x0: u32,
+    pub(super) x1: u32,
+    pub(super) y0: u32,
+    pub(super) y1: u32,
+}
+
+fn tangent(n: Vec3) -> Vec3 {
+    let a = n.abs();
+    let axis = if a.y <= a.x && a.y <= a.z {
+        Vec3::Y
+    } else if a.z <= a.x && a.z <= a.y {
+        Vec3::Z
+    } else {
+        Vec3::X
+    };
+    n.cross(axis).normalize()
+}
+
+/// `view_splat`: `None` for a culled splat (behind the near plane,
+/// back-facing, no radius) and for one whose quad covers no pixel centre
+/// of the image (which the rasteriser would not shade either).
+pub(super) fn setup(v: &View, s: &SplatGpu, color: u32) -> Option<Setup> {
+    let p = Vec3::new(s.pos_radius[0], s.pos_radius[1], s.pos_radius[2]);
+    let r = s.pos_radius[3];
+    let c = v.apply(p) + v.trans;
+    let m = v
+        .apply(Vec3::new(s.normal[0], s.normal[1], s.normal[2]))
+        .normalize();
+    // Same culling as view_splat (a NaN radius is culled too).
+    if c.z <= v.near || m.dot(c) >= 0.0 || r.is_nan() || r <= 0.0 {
+        return None;
+    }
+    let pc = v.project(c);
+    let hh = Vec2::splat(v.lowpass);
+    let (mut lo, mut hi) = (pc - hh, pc + hh);
+    let t = tangent(m);
+    let tu = t * r;
+    let tv = m.cross(t) * r;
+    let k = [c + tu + tv, c + tu - tv, c - tu + tv, c - tu - tv];
+    let size = Vec2::new(v.w, v.h);
+    if k.iter().any(|k| k.z <= v.near) {
+        lo = Vec2::splat(-1.0);
+        hi = size;
+    } else {
+        // The four corners' projections at once (the same operations in
+        // each lane); their order does not change a min or a max.
+        let kz = Vec4::new(k[0].z, k[1].z, k[2].z, k[3].z);
+        let u =
+            Vec4::splat(v.fx) * Vec4::new(k[0].x, k[1].x, k[2].x, k[3].x) / kz + Vec4::splat(v.cx);
+        let w =
+            Vec4::splat(v.fy) * Vec4::new(k[0].y, k[1].y, k[2].y, k[3].y) / kz + Vec4::splat(v.cy);
+        lo = lo.min(Vec2::new(u.min_element(), w.min_element()));
+        hi = hi.max(Vec2::new(u.max_element(), w.max_element()));
+    }
+    lo = (lo - 0.5).clamp(Vec2::splat(-1.0), size);
+    hi = (hi + 0.5).clamp(Vec2::splat(-1.0), size);
+    // The pixel centres inside [lo, hi] (what the rasteriser shades).
+    let x0 = lo.x.ceil().max(0.0);
+    let y0 = lo.y.ceil().max(0.0);
+    let x1 = hi.x.floor().min(v.w - 1.0);
+    let y1 = hi.y.floor().min(v.h - 1.0);
+    if !(x0 <= x1 && y0 <= y1) {
+        return None;
+    }
+    let reach = r + 3.0 * v.lowpass * c.z / v.fx.min(v.fy);
+    Some(Setup {
+        c,
+        m,
+        proj: pc,
+        color,
+        mc: m.dot(c),
+        r2: r * r,
+        reach2: reach * reach,
+        push: v.eps * r,
+        x0: x0 as u32,
+        x1: x1 as u32,
+        y0: y0 as u32,
+        y1: y1 as u32,
+    })
+}
+
+/// `ray_hit` at one pixel, as [`intersect4`] makes it in each lane: the
+/// camera-space point `X` seen through the pixel centre
+/// `uv` (OpenCV coordinates; `d` its ray, `(ray_x, ray_y, 1)`) and
+/// `rho^2`, or `None` outside the splat's support. The weight is
+/// [`weight`]`(rho^2)`.
+#[cfg(test)]
+fn intersect(v: &View, s: &Setup, uv: Vec2, d: Vec3) -> Option<(Vec3, f32)> {
+    let denom = s.m.dot(d);
+    let mut rho_obj2 = 1e30f32;
+    let mut x = d * s.c.z;
+    if denom.abs() > 1e-12 {
+        let t = s.mc / denom;
+        if t > v.near {
+            let xi = d * t;
+            let q = xi - s.c;
+            let qq = q.dot(q);
+            rho_obj2 = qq / s.r2;
+            if rho_obj2 <= 1.0 || qq <= s.reach2 {
+                x = xi;
+            }
+        }
+    }
+    let e = (uv - s.proj) / v.lowpass;
+    let rho2 = rho_obj2.min(e.dot(e));
+    if rho2 > 1.0 || x.z <= v.near {
+        return None;
+    }
+    Some((x, rho2))
+}
+
+/// [`intersect`] at four consecutive pixel centres of a row: `u` their
+/// columns, `dx` their rays' x, `dy` and `y` the row's. Each lane makes
+/// the scalar version's operations in its order (no fused multiply-add,
+/// `f32::min`'s NaN rule), so it gives the same bits.
+pub(super) struct Hits4 {
+    /// Bit `k` set: lane `k` hits.
+    pub(super) mask: u32,
+    /// The points `X`, by coordinate.
+    pub(super) x: [Vec4; 3],
+    pub(super) rho2: Vec4,
+}
+
+#[inline(always)]
+pub(super) fn intersect4(v: &View, s: &Setup, u: Vec4, dx: Vec4, dy: f32, y: f32) -> Hits4 {
+    let sp = Vec4::splat;
+    // m . d, as (m.x dx + m.y dy) + m.z 1.
+    let denom = sp(s.m.x) * dx + sp(s.m.y * dy) + sp(s.m.z);
+    let t = sp(s.mc) / denom;
+    let on_plane = denom.abs().cmpgt(sp(1e-12)) & t.cmpgt(sp(v.near));
+    // xi = d t = (dx t, dy t, t).
+    let q = [dx * t - sp(s.c.x), sp(dy) * t - sp(s.c.y), t - sp(s.c.z)];
+    let qq = q[0] * q[0] + q[1] * q[1] + q[2] * q[2];
+    let rho_obj2 = Vec4::select(on_plane, qq / sp(s.r2), sp(1e30));
+    let use_xi = on_plane & (rho_obj2.cmple(sp(1.0)) | qq.cmple(sp(s.reach2)));
+    let x = [
+        Vec4::select(use_xi, dx * t, dx * sp(s.c.z)),
+        Vec4::select(use_xi, sp(dy) * t, sp(dy * s.c.z)),
+        Vec4::select(use_xi, t, sp(s.c.z)),
+    ];
+    let ex = (u - sp(s.proj.x)) / sp(v.lowpass);
+    let ey = (y - s.proj.y) / v.lowpass;
+    let ee = ex * ex + sp(ey * ey);
+    let m = rho_obj2.min(ee);
+    let rho2 = Vec4::select(
+        rho_obj2.is_nan_mask(),
+        ee,
+        Vec4::select(ee.is_nan_mask(), rho_obj2, m),
+    );
+    let miss = rho2.cmpgt(sp(1.0)) | x[2].cmple(sp(v.near));
+    Hits4 {
+        mask: !miss.bitmask() & 0xf,
+        x,
+        rho2,
+    }
+}
+
+/// The Gaussian kernel's weight at `rho^2`.
+#[inline(always)]
+pub(super) fn weight(rho2: f32) -> f32 {
+    (-2.0 * rho2).exp()
+}
+
+/// `jac` of shaders/splat.wgsl: `J(X) v`.
+#[inline(always)]
+fn jac(v: &View, x: Vec3, d: Vec3) -> [f32; 2] {
+    let iz = 1.0 / x.z;
+    [
+        v.fx * iz * (d.x - x.x * iz * d.z),
+        v.fy * iz * (d.y - x.y * iz * d.z),
+    ]
+}
+
+/// `motion` of shaders/splat.wgsl: the 12 predictors at `x`.
+#[inline(always)]
+pub(super) fn motion(v: &View, x: Vec3) -> [f32; 12] {
+    let g = [
+        Vec3::X,
+        Vec3::Y,
+        Vec3::Z,
+        Vec3::new(0.0, -x.z, x.y),
+        Vec3::new(x.z, 0.0, -x.x),
+        Vec3::new(-x.y, x.x, 0.0),
+    ];
+    let mut out = [0.0; 12];
+    for (j, gj) in g.iter().enumerate() {
+        let l = jac(v, x, *gj);
+        out[2 * j] = l[0];
+        out[2 * j + 1] = l[1];
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Intrinsics;
+    use crate::rng::Rng;
+    use crate::splat::gpu_data::pack_color;
+    use nalgebra::Vector3;
+
+    #[test]
+    fn four_lanes_give_the_scalar_intersection_s_bits() {
+        let mut rng = Rng::new(9);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let cam = Intrinsics::new(96, 72, 80.0, 84.0, 47.3, 35.8);
+            let eye = rng.unit_vector() * rng.uniform(1.0, 3.0);
+            let pose = crate::geometry::look_at(&eye, &Vector3::zeros(), &rng.unit_vector());
+            let u = CameraUniform::new(&cam, &pose, 0.05, 5.0, 0.4, 0.75);
+            let v = View::new(&u);
+            let p = rng.unit_vector() * rng.uniform(0.0, 0.5);
+            let n = rng.unit_vector();
+            let r = rng.uniform(0.001, 0.3) as f32;
+            let g = SplatGpu {
+                pos_radius: [p.x as f32, p.y as f32, p.z as f32, r],
+                normal: [n.x as f32, n.y as f32, n.z as f32, 0.0],
+            };
+            let Some(s) = setup(&v, &g, pack_color([0.5; 3])) else {
+                continue;
+            };
+            for y in s.y0..=s.y1 {
+                let (yy, dy) = (y as usize, v.ray_y(y as usize));
+                for x in (s.x0..=s.x1).step_by(4) {
+                    let xs: [usize; 4] = std::array::from_fn(|k| x as usize + k);
+                    let dx = Vec4::from_array(xs.map(|x| v.ray_x(x)));
+                    let u4 = Vec4::from_array(xs.map(|x| x as f32));
+                    let four = intersect4(&v, &s, u4, dx, dy, yy as f32);
+                    for (k, &xk) in xs.iter().enumerate() {
+                        let uv = Vec2::new(xk as f32, yy as f32);
+                        let d = Vec3::new(v.ray_x(xk), dy, 1.0);
+                        let one = intersect(&v, &s, uv, d);
+                        assert_eq!(four.mask >> k & 1 == 1, one.is_some());
+                        if let Some((p, rho2)) = one {
+                            hits += 1;
+                            let lane = [four.x[0][k], four.x[1][k], four.x[2][k], four.rho2[k]];
+                            let want = [p.x, p.y, p.z, rho2];
+                            assert_eq!(lane.map(f32::to_bits), want.map(f32::to_bits));
+                        }
+                    }
+                }
+            }
+        }
+        assert!(hits > 10_000, "{hits} hits");
+    }
+}
