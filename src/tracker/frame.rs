@@ -289,7 +289,9 @@ impl Tracker {
                 // texture to correlate (an untextured object's shading):
                 // the contour's edges decide.
                 if self.config.modalities.contour && !texture_held {
-                    verify::judge_with_contour(&s, &self.config.verify)
+                    let shading_only = self.shading_only()?;
+                    let loose = d.residual_px;
+                    verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose)
                 } else {
                     verify::judge(&s, &self.config.verify)
                 }
@@ -314,7 +316,9 @@ impl Tracker {
                 {
                     self.contour_alone(&rules, &frame, rgb, (from, false, None), first_frame)?
                 }
-                (Err(Unverified::Appearance { .. }), _) if again => {
+                (Err(Unverified::Appearance { .. } | Unverified::ShadingOnly { .. }), _)
+                    if again =>
+                {
                     let from = (start_pose, true, Some(retry));
                     self.contour_alone(&rules, &frame, rgb, from, first_frame)?
                 }
@@ -446,7 +450,7 @@ impl Tracker {
     /// the previous pose, when the contour alone made that decision), with
     /// long lines or not and damped as given (`None`: as configured),
     /// decided as if no texture step had run and checked by the contour's
-    /// edges ([`verify::judge_with_contour`]): the decision and its scores
+    /// edges ([`verify::judge_contour_alone`]): the decision and its scores
     /// when that pose passes, `None` when it does not (the frame stays
     /// lost).
     fn contour_alone(
@@ -476,7 +480,9 @@ impl Tracker {
         };
         let s = self.verify_scores(frame, &pose)?;
         log::debug!("verify (contour alone): {s:?}");
-        match verify::judge_with_contour(&s, &self.config.verify) {
+        let shading_only = self.shading_only()?;
+        let loose = alone.residual_px;
+        match verify::judge_contour_alone(&s, &self.config.verify, shading_only, loose) {
             Ok(()) => {
                 log::debug!(
                     "the contour alone passes: {:.2} deg from where it started",

@@ -470,7 +470,7 @@ pub enum LostReason {
 impl LostReason {
     /// A short name of the reason (the refused file's `reason` column):
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
-    /// `frozen_frame`) or the decision rule (`failed`, `untrusted`,
+    /// `shading_only`, `frozen_frame`) or the decision rule (`failed`, `untrusted`,
     /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
     /// `confirming`, `unconfirmed`).
     pub fn code(&self) -> &'static str {
@@ -482,6 +482,7 @@ impl LostReason {
             LostReason::Unverified(Unverified::NotInView { .. }) => "not_in_view",
             LostReason::Unverified(Unverified::TooSmall { .. }) => "too_small",
             LostReason::Unverified(Unverified::Appearance { .. }) => "appearance",
+            LostReason::Unverified(Unverified::ShadingOnly { .. }) => "shading_only",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",
