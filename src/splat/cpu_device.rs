@@ -1,7 +1,8 @@
-//! The CPU device's splatter: a render is [`cpu::splat_packed`] (or
-//! [`cpu::visibility_depth`]) at the window's camera, its accumulators
-//! kept in the targets; reads resolve them and gathers sample them with
-//! the GPU gather's maths ([`cpu::sample_at`]).
+//! The CPU device's splatter: a render is [`cpu::HostSplatter::render`]
+//! (or [`cpu::HostSplatter::render_depth`]) at the window's camera, of the
+//! attribute groups asked for, its accumulators kept in the targets and
+//! reused by the next render; reads resolve them and gathers sample them
+//! with the GPU gather's maths ([`cpu::Accumulators::gather`]).
 
 use super::SplatImage;
 use super::cpu;
@@ -9,12 +10,21 @@ use super::model::{GpuModel, ModelStore};
 use super::targets::{HostRender, SplatTargets};
 use super::{Attribute, Attributes, GatherMode, GatherSample, SplatError, SplatParams};
 use crate::geometry::{Intrinsics, Pose};
+use std::sync::Mutex;
 
-/// Splats `model` at `pose` into `targets`: every attribute group (the
-/// host splatter computes them together), or the visibility pass alone.
+/// What a host render needs of the splatter.
+pub(super) struct HostParts<'a> {
+    pub params: &'a SplatParams,
+    /// The splatter's own host splatter (`None`: a fresh one, whose
+    /// threads' scratch is not kept).
+    pub splatter: Option<&'a Mutex<cpu::HostSplatter>>,
+}
+
+/// Splats `model` at `pose` into `targets`: colour, weight and the groups
+/// of `attrs`, or the visibility pass alone.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn render(
-    params: &SplatParams,
+    host: HostParts<'_>,
     model: &GpuModel,
     cam: &Intrinsics,
     pose: &Pose,
@@ -34,13 +44,41 @@ pub(super) fn render(
         return Err(SplatError::WrongDevice("the model"));
     };
     targets.view = None;
-    targets.host = None;
-    let uniform = model.bounds.view(cam, pose, params)?;
+    // The last render's buffers are written over (no allocation when the
+    // window keeps its size).
+    let previous = targets.host.take();
+    let uniform = model.bounds.view(cam, pose, host.params)?;
+    let (mut guard, mut own);
+    let splatter: &mut cpu::HostSplatter = match host.splatter {
+        Some(m) => {
+            guard = m.lock().unwrap_or_else(|p| p.into_inner());
+            &mut guard
+        }
+        None => {
+            own = cpu::HostSplatter::new();
+            &mut own
+        }
+    };
     if depth_only {
-        targets.host = Some(HostRender::Depth(cpu::visibility_depth(packed, &uniform)));
+        let mut depth = match previous {
+            Some(HostRender::Depth(d)) => d,
+            _ => SplatImage {
+                width: 0,
+                height: 0,
+                channels: 1,
+                data: Vec::new(),
+            },
+        };
+        splatter.render_depth(packed, &uniform, &mut depth);
+        targets.host = Some(HostRender::Depth(depth));
         targets.rendered = None;
     } else {
-        targets.host = Some(HostRender::Full(cpu::splat_packed(packed, &uniform)));
+        let mut acc = match previous {
+            Some(HostRender::Full(a)) => a,
+            _ => cpu::Accumulators::default(),
+        };
+        splatter.render(packed, &uniform, attrs, &mut acc);
+        targets.host = Some(HostRender::Full(acc));
         targets.rendered = Some(attrs);
     }
     targets.depth_only = depth_only;
@@ -88,6 +126,5 @@ pub(super) fn gather(
     let Some(HostRender::Full(acc)) = &targets.host else {
         return Err(SplatError::NotRendered(Attribute::Motion));
     };
-    let motion = acc.resolve(Attribute::Motion);
-    Ok(cpu::sample_at(&motion, targets.fx(), points, mode))
+    Ok(acc.gather(targets.fx(), points, mode))
 }

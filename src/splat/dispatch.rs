@@ -25,6 +25,9 @@ pub struct Splatter {
     params: SplatParams,
     /// `None` on the CPU device.
     gpu: Option<GpuSplatter>,
+    /// The CPU device's splatter, its threads' scratch kept between
+    /// renders (`None` on a GPU).
+    host: Option<std::sync::Mutex<super::cpu::HostSplatter>>,
 }
 
 impl Splatter {
@@ -43,7 +46,20 @@ impl Splatter {
             Some(ctx) => Some(GpuSplatter::with_params(ctx, params)?),
             None => None,
         };
-        Ok(Self { params, gpu })
+        let host = gpu
+            .is_none()
+            .then(|| std::sync::Mutex::new(super::cpu::HostSplatter::new()));
+        Ok(Self { params, gpu, host })
+    }
+
+    /// The CPU device's parameters and host splatter (one made here where
+    /// the splatter is a GPU's, which the callers' device checks refuse
+    /// before this is reached).
+    fn host_parts(&self) -> cpu_device::HostParts<'_> {
+        cpu_device::HostParts {
+            params: &self.params,
+            splatter: self.host.as_ref(),
+        }
     }
 
     /// Whether this is the CPU device's splatter.
@@ -154,7 +170,7 @@ impl Splatter {
     ) -> Result<(), SplatError> {
         match self.on(device, Some(model), Some(targets))? {
             Some((g, ctx)) => g.render_timed(ctx, model, cam, pose, attrs, targets, timer),
-            None => cpu_device::render(&self.params, model, cam, pose, attrs, false, targets),
+            None => cpu_device::render(self.host_parts(), model, cam, pose, attrs, false, targets),
         }
     }
 
@@ -185,7 +201,7 @@ impl Splatter {
         match self.on(device, Some(model), Some(targets))? {
             Some((g, ctx)) => g.render_depth(ctx, model, cam, pose, targets, timer),
             None => cpu_device::render(
-                &self.params,
+                self.host_parts(),
                 model,
                 cam,
                 pose,
