@@ -16,8 +16,8 @@
 
 #![warn(missing_docs)]
 
+use crate::device::AsDevice;
 use crate::geometry::{Intrinsics, Pose, PoseError, sample_bilinear_rgb};
-use crate::gpu::GpuContext;
 use crate::io::poses::PoseRow;
 use crate::model::PointModel;
 use crate::splat::{Attribute, Attributes, GpuModel, SplatError, SplatTargets, Splatter};
@@ -202,9 +202,10 @@ impl KeyframeStore {
     /// Builds the store from keyframe images and their poses: `frames`
     /// holds (name, image, object-to-camera pose), each image undistorted
     /// and of `cam`'s size. Every keyframe must see some of the model
-    /// ([`KeyframeError::NothingVisible`] otherwise).
+    /// ([`KeyframeError::NothingVisible`] otherwise). `ctx` is the
+    /// splatter's device (a [`crate::GpuContext`] or a [`crate::Device`]).
     pub fn build(
-        ctx: &GpuContext,
+        ctx: &impl AsDevice,
         splatter: &Splatter,
         model: &PointModel,
         cam: &Intrinsics,
@@ -327,7 +328,7 @@ impl KeyframeStore {
     /// `keyframes/poses.csv`, images named by its frame column, extension
     /// optional) and builds the store.
     pub fn build_from_dir(
-        ctx: &GpuContext,
+        ctx: &impl AsDevice,
         splatter: &Splatter,
         model: &PointModel,
         cam: &Intrinsics,
@@ -600,10 +601,10 @@ impl TexturedCache {
 
     /// The model textured by keyframe `k` of `store`: `geometry` (the
     /// model on the GPU, shared) with keyframe `k`'s colours, uploaded when
-    /// absent.
+    /// absent (`ctx`: the model's device).
     pub fn get(
         &mut self,
-        ctx: &GpuContext,
+        ctx: &impl AsDevice,
         store: &KeyframeStore,
         geometry: &GpuModel,
         k: usize,

@@ -10,6 +10,8 @@
 //!   triangle meshes sampled into points, shapes with a known surface;
 //! - [`geometry`]: intrinsics, poses (SE(3)), the projection, its Jacobian and
 //!   the motion predictors: the host reference for every GPU kernel;
+//! - [`device`]: where the frame loop runs: a GPU through wgpu, or the
+//!   host's cores with no graphics driver ([`Device`]);
 //! - [`gpu`]: the headless wgpu context, readback, bind-group and pipeline
 //!   helpers, GPU timers;
 //! - [`shaders`]: the WGSL sources, composed with a prelude generated from
@@ -77,6 +79,7 @@
 #![warn(missing_docs)]
 
 pub mod app;
+pub mod device;
 pub mod draw;
 pub mod eval;
 pub mod features;
@@ -96,6 +99,7 @@ pub mod synth;
 pub mod tracker;
 pub mod view;
 
+pub use device::{Device, DeviceChoice};
 pub use geometry::{Intrinsics, Pose};
 pub use gpu::{AdapterChoice, GpuContext};
 pub use model::PointModel;

@@ -128,7 +128,9 @@ class Tracker:
     list of ``(image, pose)`` pairs. ``mode``: ``"kf+it"``, ``"it"`` or
     ``"kf"`` (default: kf+it with keyframes or model colours, else it).
     ``modalities``: ``"auto"``, ``"texture"``, ``"contour"`` or
-    ``"texture,contour"``. The other keyword arguments are the command
+    ``"texture,contour"``. ``device``: ``"auto"`` (a GPU adapter when one
+    opens, else the CPU), ``"gpu"`` or ``"cpu"`` (the host's cores, no GPU
+    driver needed). The other keyword arguments are the command
     line's tuning flags under the same names (``kf_search=`` is
     ``--kf-search``).
     """
@@ -141,6 +143,7 @@ class Tracker:
         *,
         mode: Optional[str] = None,
         modalities: str = "auto",
+        device: str = "auto",
         splatter: str = "auto",
         feature_backend: str = "auto",
         resident: Union[None, bool, str] = None,
@@ -191,8 +194,10 @@ class Tracker:
     @property
     def keyframes(self) -> int: ...
 
-def device() -> str:
-    """The GPU adapter in use (GpuError when there is none)."""
+def device(device: str = "auto") -> str:
+    """The device ``device`` names: ``"gpu"`` (GpuError when there is
+    none), ``"cpu"`` (the host's cores, no GPU driver) or ``"auto"`` (a GPU
+    adapter when one opens, else the CPU)."""
 
 def read_image(path: _PathLike) -> npt.NDArray[np.uint8]:
     """A PNG or JPEG as HxWx3 uint8 RGB (InputError if it cannot be read)."""

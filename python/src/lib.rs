@@ -11,8 +11,10 @@ mod model;
 mod settings;
 mod tracker;
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use splattrack::gpu::{AdapterChoice, GpuContext};
+use splattrack::{Device, DeviceChoice};
 use std::sync::Mutex;
 
 /// The process's GPU context: made once, at the first use, on the adapter
@@ -32,11 +34,27 @@ fn context(py: Python<'_>) -> PyResult<GpuContext> {
     .map_err(errors::gpu)
 }
 
-/// The GPU adapter the package runs on, as the command line names it
+/// The device `name` asks for: `"gpu"` (the process's GPU context),
+/// `"cpu"` (the host's cores, no GPU object) or `"auto"` (the GPU context
+/// when one can be made, else the CPU).
+pub(crate) fn device_of(py: Python<'_>, name: &str) -> PyResult<Device> {
+    let choice: DeviceChoice = name
+        .parse()
+        .map_err(|e: splattrack::gpu::GpuError| PyValueError::new_err(e.to_string()))?;
+    match choice {
+        DeviceChoice::Cpu => Ok(Device::Cpu),
+        DeviceChoice::Gpu => Ok(Device::Gpu(context(py)?)),
+        DeviceChoice::Auto => Ok(context(py).map_or(Device::Cpu, Device::Gpu)),
+    }
+}
+
+/// The device the package runs on for `device` (`"auto"`: a GPU adapter
+/// when one opens, else the CPU), as the command line names it
 /// (`llvmpipe (...) (Cpu, Vulkan)`); makes the GPU context when needed.
 #[pyfunction]
-fn device(py: Python<'_>) -> PyResult<String> {
-    Ok(context(py)?.describe())
+#[pyo3(signature = (device="auto"))]
+fn device(py: Python<'_>, device: &str) -> PyResult<String> {
+    Ok(device_of(py, device)?.describe())
 }
 
 #[pymodule]

@@ -12,9 +12,9 @@ use numpy::{PyArray2, PyArray3};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyString};
+use splattrack::Device;
 use splattrack::PointModel;
 use splattrack::geometry::{Intrinsics, Pose, Undistorter};
-use splattrack::gpu::GpuContext;
 use splattrack::keyframes::{KeyframeConfig, KeyframeStore};
 use splattrack::splat::Splatter;
 use splattrack::tracker::{self as lib, Mode, TrackerConfig};
@@ -23,7 +23,7 @@ use std::sync::Arc;
 /// Tracks a rigid object through the frames of one camera.
 #[pyclass(module = "splattrack")]
 pub struct Tracker {
-    ctx: GpuContext,
+    ctx: Device,
     model: Arc<PointModel>,
     /// The camera as calibrated (with its distortion).
     camera: Intrinsics,
@@ -40,7 +40,8 @@ pub struct Tracker {
 #[pymethods]
 impl Tracker {
     #[new]
-    #[pyo3(signature = (model, camera, keyframes=None, *, mode=None, modalities="auto", **kwargs))]
+    #[pyo3(signature = (model, camera, keyframes=None, *, mode=None, modalities="auto", device="auto", **kwargs))]
+    #[allow(clippy::too_many_arguments)] // Python's keyword arguments
     fn new(
         py: Python<'_>,
         model: PyRef<'_, Model>,
@@ -48,10 +49,11 @@ impl Tracker {
         keyframes: Option<&Bound<'_, PyAny>>,
         mode: Option<&str>,
         modalities: &str,
+        device: &str,
         kwargs: Option<&Bound<'_, PyDict>>,
     ) -> PyResult<Self> {
         let settings::Settings { mut config, mode } = settings::parse(mode, modalities, kwargs)?;
-        let ctx = crate::context(py)?;
+        let ctx = crate::device_of(py, device)?;
         let model = model.model.clone();
         let camera = camera.cam;
         let store = match keyframes {
@@ -244,7 +246,7 @@ impl Tracker {
 /// file (`.stkf`), or a list of `(image, pose)` pairs.
 fn load_keyframes(
     py: Python<'_>,
-    ctx: &GpuContext,
+    ctx: &Device,
     model: &PointModel,
     camera: &Intrinsics,
     k: &Bound<'_, PyAny>,

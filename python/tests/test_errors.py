@@ -128,11 +128,13 @@ def test_track_errors(sequence, tmp_path):
 
 
 def test_gpu_error_without_an_adapter():
-    """An adapter that is not there: GpuError, not a crash."""
+    """An adapter that is not there: GpuError, not a crash, where a GPU is
+    asked for; "auto" falls back to the CPU device."""
     code = (
         "import splattrack as st\n"
+        "assert 'CPU' in st.device(), st.device()\n"
         "try:\n"
-        "    st.device()\n"
+        "    st.device('gpu')\n"
         "except st.GpuError as e:\n"
         "    print('GpuError:', e)\n"
     )

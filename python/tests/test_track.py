@@ -50,6 +50,23 @@ def test_accuracy_against_ground_truth(sequence):
     assert len(rot) == 12 and np.mean(rot) < 1.0 and max(rot) < 3.0, rot
 
 
+def test_the_cpu_device_tracks_as_the_gpu(sequence, cli_poses):
+    """device="cpu": no GPU object, the same statuses and poses within
+    1e-4 (the host's sums in another order than the GPU's)."""
+    assert "CPU" in st.device("cpu")
+    with pytest.raises(ValueError):
+        st.device("lavapipe")
+    cam = st.Camera.from_file(sequence / "camera.json")
+    model = st.Model.load(sequence / "model.ply")
+    trk = st.Tracker(model, cam, keyframes=sequence / "keyframes", device="cpu")
+    trk.start(read_poses(sequence / "init.csv")[0][1])
+    results = [r for _, r in st.track_frames(trk, sequence)]
+    assert len(results) == len(cli_poses) == 12
+    for i, (r, (_, pose, row)) in enumerate(zip(results, cli_poses)):
+        assert r.status == row["status"], f"frame {i}"
+        assert np.abs(r.pose - pose).max() < 1e-4, f"frame {i}"
+
+
 def test_keyframe_pairs_and_grey_frames(sequence, cli_poses):
     """A list of (image, pose) pairs builds the folder's store (the
     command's poses); grey frames track."""

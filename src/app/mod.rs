@@ -17,9 +17,9 @@ pub use error::AppError;
 pub use stats::{FrameMs, RunStats};
 pub use tuning::{MAX_CORNERS, Tuning, TuningError, run_mode};
 
+use crate::device::{AsDevice, Device};
 use crate::draw;
 use crate::geometry::{Intrinsics, Pose, Undistorter};
-use crate::gpu::GpuContext;
 use crate::io::bop::BopWriter;
 use crate::io::poses::{PoseRow, PoseWriter, read_poses};
 use crate::io::sequence::{Frame, Sequence};
@@ -40,7 +40,7 @@ use std::time::{Duration, Instant};
 /// directory of keyframe images with `poses.csv`, built into a store here.
 /// `cam` is the camera of the images as calibrated (distortion included).
 pub fn load_keyframes(
-    ctx: &GpuContext,
+    ctx: &impl AsDevice,
     model: &PointModel,
     cam: &Intrinsics,
     path: &Path,
@@ -56,7 +56,7 @@ pub fn load_keyframes(
 /// Builds a keyframe store from a directory of keyframe images and their
 /// `poses.csv`, undistorting the images when `cam` has distortion.
 pub fn build_keyframes(
-    ctx: &GpuContext,
+    ctx: &impl AsDevice,
     model: &PointModel,
     cam: &Intrinsics,
     dir: &Path,
@@ -105,7 +105,7 @@ pub enum KeyframeOrigin {
 /// `model`; otherwise built from the images in `dir` ([`build_keyframes`])
 /// and saved to `cache`, so the next run skips the build.
 pub fn load_or_build_keyframes(
-    ctx: &GpuContext,
+    ctx: &impl AsDevice,
     model: &PointModel,
     cam: &Intrinsics,
     dir: &Path,
@@ -152,7 +152,7 @@ impl TrackInputs {
     /// `SEQUENCE/keyframes` when present, else none). `model_options`
     /// says how the model is loaded (progress, estimation settings).
     pub fn load(
-        ctx: &GpuContext,
+        ctx: &impl AsDevice,
         model: &Path,
         model_options: &LoadOptions,
         sequence: &Path,
@@ -193,7 +193,7 @@ impl TrackInputs {
     /// `None`: the object is searched for) and the keyframe store
     /// `keyframes` names, if any ([`load_keyframes`]).
     pub fn load_with_camera(
-        ctx: &GpuContext,
+        ctx: &impl AsDevice,
         model: &Path,
         model_options: &LoadOptions,
         camera: &Path,
@@ -275,7 +275,7 @@ pub const TRACKING_STAGE: &str = "tracking";
 /// settings, where the frames come from and where the results go. Built
 /// with the setters, started by [`TrackRun::run`].
 pub struct TrackRun<'a> {
-    ctx: &'a GpuContext,
+    device: Device,
     inputs: &'a TrackInputs,
     config: TrackerConfig,
     source: Option<Box<dyn FrameSource + 'a>>,
@@ -292,10 +292,11 @@ pub struct TrackRun<'a> {
 
 impl<'a> TrackRun<'a> {
     /// A run of the tracker `config` describes over `inputs`' sequence
-    /// (or the source [`TrackRun::source`] gives), writing nothing yet.
-    pub fn new(ctx: &'a GpuContext, inputs: &'a TrackInputs, config: TrackerConfig) -> Self {
+    /// (or the source [`TrackRun::source`] gives), writing nothing yet,
+    /// on `device` (a [`Device`], or a `&GpuContext`).
+    pub fn new(device: impl Into<Device>, inputs: &'a TrackInputs, config: TrackerConfig) -> Self {
         Self {
-            ctx,
+            device: device.into(),
             inputs,
             config,
             source: None,
@@ -399,7 +400,10 @@ impl<'a> TrackRun<'a> {
             Some(s) => s,
             None => match &inputs.sequence {
                 Some(seq) => {
-                    Box::new(SequenceFrames::new(seq, self.start).read_ahead(!self.ctx.is_cpu()))
+                    // Reading ahead takes a core: not where the tracker
+                    // works on the host's.
+                    let ahead = self.device.gpu().is_some_and(|c| !c.is_cpu());
+                    Box::new(SequenceFrames::new(seq, self.start).read_ahead(ahead))
                 }
                 None => return Err(AppError::NoSource),
             },
@@ -426,7 +430,7 @@ impl<'a> TrackRun<'a> {
             source.tracking_camera(),
             self.inputs.keyframes.clone(),
         );
-        let mut tracker = Tracker::builder(self.ctx, model, cam)
+        let mut tracker = Tracker::builder(&self.device, model, cam)
             .maybe_keyframes(store)
             .config(self.config)
             .initial_pose(self.inputs.init)

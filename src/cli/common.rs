@@ -8,6 +8,7 @@ use clap::builder::{PossibleValue, TypedValueParser};
 use splattrack::PointModel;
 use splattrack::gpu::{AdapterChoice, GpuContext};
 use splattrack::model::LoadOptions;
+use splattrack::{Device, DeviceChoice};
 use std::io::Write;
 use std::marker::PhantomData;
 
@@ -101,13 +102,43 @@ pub fn choice_name<E: ValueEnum>(v: &E) -> String {
         .unwrap_or_default()
 }
 
-/// The GPU context for `--adapter` (or the environment).
-pub fn gpu(adapter: &Option<String>) -> anyhow::Result<GpuContext> {
-    let choice = match adapter {
-        Some(a) => a.parse()?,
-        None => AdapterChoice::from_env()?,
-    };
-    Ok(GpuContext::new(&choice)?)
+/// Where the commands run: `--compute` (the device: auto, gpu or cpu)
+/// and `--adapter` (the GPU adapter), each else from the environment.
+#[derive(Debug, Clone, Default)]
+pub struct Target {
+    pub adapter: Option<String>,
+    pub compute: Option<String>,
+}
+
+impl Target {
+    fn adapter(&self) -> anyhow::Result<AdapterChoice> {
+        Ok(match &self.adapter {
+            Some(a) => a.parse()?,
+            None => AdapterChoice::from_env()?,
+        })
+    }
+
+    fn choice(&self) -> anyhow::Result<DeviceChoice> {
+        Ok(match &self.compute {
+            Some(c) => c.parse()?,
+            None => DeviceChoice::from_env()?,
+        })
+    }
+}
+
+/// The device of `--compute` and `--adapter`: auto takes a GPU adapter
+/// when one opens, else the CPU device (a log line says which and why).
+pub fn device(target: &Target) -> anyhow::Result<Device> {
+    Ok(Device::new(target.choice()?, &target.adapter()?)?)
+}
+
+/// The GPU context for `--adapter`, for the commands that need a GPU
+/// (`--compute cpu` is refused in one line naming `what`).
+pub fn gpu(target: &Target, what: &str) -> anyhow::Result<GpuContext> {
+    if target.choice()? == DeviceChoice::Cpu {
+        anyhow::bail!("{what} needs a GPU adapter; the CPU device (--compute cpu) has none");
+    }
+    Ok(GpuContext::new(&target.adapter()?)?)
 }
 
 /// How the commands load point models: with progress bars for clouds large

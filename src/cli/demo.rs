@@ -34,8 +34,8 @@ pub struct Args {
     pub splatter: Backend,
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let ctx = std::sync::Arc::new(super::common::gpu(adapter)?);
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
+    let ctx = super::common::device(target)?;
     println!("splattrack demo on {}", ctx.describe());
     let seq_dir = args.out.join("sequence");
     let synth_args = synth::Args {

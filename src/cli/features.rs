@@ -76,7 +76,7 @@ fn load(path: &Path) -> anyhow::Result<(GreyImage, RgbImage)> {
     Ok((GreyImage::from_rgb8(&rgb), rgb))
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
     ensure!(
         args.images.len() <= 2,
         "--image: give one image (corners) or two (matches), not {}",
@@ -123,7 +123,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     let ctx = if args.cpu {
         None
     } else {
-        Some(super::common::gpu(adapter)?)
+        Some(super::common::gpu(target, "features on the GPU")?)
     };
     let mut corners: Vec<Vec<Corner>> = Vec::new();
     match &ctx {

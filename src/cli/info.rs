@@ -10,8 +10,14 @@ pub struct Args {
     pub model: Option<PathBuf>,
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
-    let ctx = super::common::gpu(adapter)?;
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
+    let ctx = match super::common::device(target)? {
+        splattrack::Device::Gpu(ctx) => ctx,
+        splattrack::Device::Cpu => {
+            println!("device:    the CPU (native, no GPU adapter)");
+            return describe_model(&args);
+        }
+    };
     println!("adapter:   {}", ctx.describe());
     println!(
         "driver:    {} {}",
@@ -46,8 +52,13 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     } else {
         println!("splatter:  {backend} (what --splatter auto picks here)");
     }
-    if let Some(path) = args.model {
-        let m = super::common::load_model(&path)?;
+    describe_model(&args)
+}
+
+/// The model's lines (`--model`), on any device.
+fn describe_model(args: &Args) -> anyhow::Result<()> {
+    if let Some(path) = &args.model {
+        let m = super::common::load_model(path)?;
         let (lo, hi) = m.bounds();
         let src = |s: splattrack::model::AttributeSource| match s {
             splattrack::model::AttributeSource::Loaded => "from the file",

@@ -83,7 +83,7 @@ fn read_frame(path: &Path, cam: &Intrinsics, camera: &Path) -> anyhow::Result<Rg
     Ok(img)
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
     let overlay_path = args
         .overlay
         .clone()
@@ -106,7 +106,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
             let source = corr.display().to_string();
             let result = fit(&pairs, &cam, args.max_rms, args.threshold, &source);
             let model = super::common::load_model(&args.model)?;
-            let view = ModelView::new(&model, adapter);
+            let view = ModelView::new(&model, target);
             match result {
                 Ok(fit) => {
                     let img = view.overlay(&frame, &cam, &pairs, &fit)?;
@@ -126,7 +126,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
         (None, Some(pts)) => {
             let named = read_named_points(pts)?;
             let model = super::common::load_model(&args.model)?;
-            let view = ModelView::new(&model, adapter);
+            let view = ModelView::new(&model, target);
             let (pairs, fit) = click_points(&args, &cam, &frame, &named, &view)?;
             let img = view.overlay(&frame, &cam, &pairs, &fit)?;
             finish(&args, &overlay_path, &pairs, &fit, &img)

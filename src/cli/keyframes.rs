@@ -20,13 +20,13 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
     splattrack::io::guard::check_output(
         &args.out,
         "--out",
         &[&args.model, &args.camera, &args.keyframes.join("poses.csv")],
     )?;
-    let ctx = super::common::gpu(adapter)?;
+    let ctx = super::common::device(target)?;
     let model = super::common::load_model(&args.model)?;
     let cam = Intrinsics::load(&args.camera)?;
     let store = load_keyframes(&ctx, &model, &cam, &args.keyframes)?;

@@ -30,6 +30,11 @@ pub struct Cli {
     /// (default: $SPLATTRACK_ADAPTER, else auto).
     #[arg(long, global = true)]
     pub adapter: Option<String>,
+    /// Where to run: gpu (a GPU adapter, lavapipe included), cpu (the
+    /// host's cores, no GPU driver needed) or auto (a GPU adapter when one
+    /// opens, else cpu) (default: $SPLATTRACK_DEVICE, else auto).
+    #[arg(long, global = true, value_name = "auto|gpu|cpu")]
+    pub compute: Option<String>,
     /// More log output (-v: info, -vv: debug).
     #[arg(short, long, global = true, action = clap::ArgAction::Count)]
     pub verbose: u8,
@@ -68,15 +73,19 @@ pub enum Command {
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<()> {
+    let target = common::Target {
+        adapter: cli.adapter,
+        compute: cli.compute,
+    };
     match cli.command {
-        Command::Demo(a) => demo::run(a, &cli.adapter),
-        Command::Info(a) => info::run(a, &cli.adapter),
-        Command::Render(a) => render::run(a, &cli.adapter),
-        Command::Features(a) => features::run(a, &cli.adapter),
-        Command::Init(a) => init::run(a, &cli.adapter),
-        Command::Keyframes(a) => keyframes::run(a, &cli.adapter),
+        Command::Demo(a) => demo::run(a, &target),
+        Command::Info(a) => info::run(a, &target),
+        Command::Render(a) => render::run(a, &target),
+        Command::Features(a) => features::run(a, &target),
+        Command::Init(a) => init::run(a, &target),
+        Command::Keyframes(a) => keyframes::run(a, &target),
         Command::Model(a) => model::run(a),
-        Command::Track(a) => track::run(*a, &cli.adapter),
+        Command::Track(a) => track::run(*a, &target),
         Command::Eval(a) => eval::run(a),
         Command::Synth(a) => synth::run(a),
     }

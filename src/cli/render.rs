@@ -100,7 +100,7 @@ enum Output {
     Npy,
 }
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
     let mut inputs: Vec<&Path> = vec![&args.model, &args.camera];
     inputs.extend(args.pose_file.as_deref());
     splattrack::io::guard::check_output(&args.out, "--out", &inputs)?;
@@ -127,7 +127,7 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     }
     let pose = pick_pose(&args)?;
     let model = super::common::load_model(&args.model)?;
-    let ctx = super::common::gpu(adapter)?;
+    let ctx = super::common::device(target)?;
     let splatter = Splatter::with_params(
         &ctx,
         SplatParams {

@@ -29,7 +29,7 @@ use no_view::DisplaySink;
 #[cfg(feature = "view")]
 use splattrack::view::DisplaySink;
 
-pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
+pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()> {
     let mut config = args.config()?;
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
@@ -41,14 +41,17 @@ pub fn run(args: Args, adapter: &Option<String>) -> anyhow::Result<()> {
     // the model are set up.
     let stop = Arc::new(AtomicBool::new(false));
     let source = input.open(args.realtime, &stop)?;
-    let ctx = crate::cli::common::gpu(adapter)?;
+    let ctx = crate::cli::common::device(target)?;
     // Before anything is loaded or written: no display, no run.
-    let mut display = match args.view {
-        true => Some(DisplaySink::open(
-            &ctx,
+    let mut display = match (args.view, &ctx) {
+        (true, splattrack::Device::Gpu(gpu)) => Some(DisplaySink::open(
+            gpu,
             &format!("splattrack track {}", input.describe()),
         )?),
-        false => None,
+        (true, splattrack::Device::Cpu) => {
+            bail!("--view needs a GPU adapter to draw with; the CPU device has none")
+        }
+        (false, _) => None,
     };
     let inputs = input.load(&ctx, &args)?;
     config.mode = mode_for(&args, &inputs)?;

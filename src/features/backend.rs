@@ -20,6 +20,12 @@ pub enum FeatureBackend {
 }
 
 impl FeatureBackend {
+    /// Whether detection runs on the host on `device`: always on the CPU
+    /// device, else as [`FeatureBackend::host_on`] says.
+    pub fn host_on_device(self, device: &crate::Device) -> bool {
+        device.gpu().is_none_or(|ctx| self.host_on(ctx))
+    }
+
     /// Whether detection runs on the host with adapter `ctx`.
     pub fn host_on(self, ctx: &crate::gpu::GpuContext) -> bool {
         match self {

@@ -6,7 +6,7 @@
 pub enum GpuError {
     /// No adapter wgpu can see has the features the pipelines need.
     #[error(
-        "no usable GPU adapter found{}. On Linux without a GPU, install Mesa's software Vulkan driver (lavapipe): `apt-get install mesa-vulkan-drivers`",
+        "no usable GPU adapter found{}. On Linux without a GPU, install Mesa's software Vulkan driver (lavapipe): `apt-get install mesa-vulkan-drivers`, or use the CPU device (`--compute cpu` on the command line, `Device::Cpu` in the library)",
         rejected_note(.rejected)
     )]
     NoAdapter {
@@ -26,6 +26,9 @@ pub enum GpuError {
         "invalid adapter choice {0:?}: use auto, discrete, integrated, cpu, or part of an adapter's name"
     )]
     BadChoice(String),
+    /// A device choice given as text is not one ([`crate::DeviceChoice`]).
+    #[error("invalid device {0:?}: use auto, gpu or cpu")]
+    BadDevice(String),
     /// The adapter refused to create a device.
     #[error("cannot create a device on {adapter}: {source}")]
     RequestDevice {

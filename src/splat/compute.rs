@@ -21,8 +21,8 @@
 use super::gpu_data::{
     COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
 };
+use super::gpu_data::{TARGETS, compute_supported};
 use super::scratch::{KEPT_BINDS, Scratch};
-use super::targets::{TARGETS, compute_supported};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
     GpuContext, GpuTimer, PassChain, WORKGROUP_1D, buffer_entry, compute_entry, storage, workgroups,
@@ -165,10 +165,12 @@ impl ComputeSplatter {
         } else {
             attrs
         };
-        if targets.compute.is_none() {
-            targets.compute = Some(Scratch::new(ctx, targets.width, targets.height)?);
+        let (width, height) = (targets.width, targets.height);
+        let g = targets.g_mut();
+        if g.compute.is_none() {
+            g.compute = Some(Scratch::new(ctx, width, height)?);
         }
-        let scratch = targets.compute.as_mut().expect("just made");
+        let scratch = g.compute.as_mut().expect("just made");
         ctx.check_buffer_size(
             "compute splatter list of large splats",
             model.count as u64 * 4,
@@ -176,8 +178,8 @@ impl ComputeSplatter {
         )?;
         scratch.big.ensure(ctx, model.count as u64 * 4);
         let params = ComputeParams {
-            width: targets.width,
-            height: targets.height,
+            width,
+            height,
             count: model.count,
             flags: if depth_only {
                 0
@@ -191,7 +193,7 @@ impl ComputeSplatter {
             pad2: 0,
         };
         scratch.slot ^= 1;
-        ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.write_buffer(&g.uniform, 0, bytemuck::bytes_of(uniform));
         scratch.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self.cached_bind(ctx, targets, model);
         // Splats per dispatch row: at most 65535 workgroups in x.
@@ -254,22 +256,30 @@ impl ComputeSplatter {
         targets: &mut SplatTargets,
         model: &GpuModel,
     ) -> wgpu::BindGroup {
-        let scratch = targets.compute.as_ref().expect("scratch made");
-        let key = [
-            model.geometry.clone(),
-            model.colors.clone(),
-            scratch.big.get().clone(),
-        ];
+        let (geometry, colors) = model.gpu_buffers();
+        let scratch = targets.g().compute.as_ref().expect("scratch made");
+        let key = [geometry.clone(), colors.clone(), scratch.big.get().clone()];
         match scratch.binds.iter().position(|(k, _)| *k == key) {
-            Some(i) => targets.compute.as_mut().expect("scratch made").binds[..=i].rotate_right(1),
+            Some(i) => targets
+                .g_mut()
+                .compute
+                .as_mut()
+                .expect("scratch made")
+                .binds[..=i]
+                .rotate_right(1),
             None => {
                 let bind = self.bind(ctx, targets, scratch, model);
-                let binds = &mut targets.compute.as_mut().expect("scratch made").binds;
+                let binds = &mut targets
+                    .g_mut()
+                    .compute
+                    .as_mut()
+                    .expect("scratch made")
+                    .binds;
                 binds.truncate(KEPT_BINDS - 1);
                 binds.insert(0, (key, bind));
             }
         }
-        targets.compute.as_ref().expect("scratch made").binds[0]
+        targets.g().compute.as_ref().expect("scratch made").binds[0]
             .1
             .clone()
     }
@@ -285,7 +295,7 @@ impl ComputeSplatter {
         let mut entries = vec![
             wgpu::BindGroupEntry {
                 binding: 0,
-                resource: targets.uniform.as_entire_binding(),
+                resource: targets.g().uniform.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 1,
@@ -293,7 +303,7 @@ impl ComputeSplatter {
             },
             wgpu::BindGroupEntry {
                 binding: 2,
-                resource: model.geometry.as_entire_binding(),
+                resource: model.gpu_buffers().0.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 3,
@@ -304,7 +314,7 @@ impl ComputeSplatter {
                 resource: scratch.acc.as_entire_binding(),
             },
         ];
-        for (i, v) in targets.acc_views.iter().enumerate() {
+        for (i, v) in targets.g().acc_views.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry {
                 binding: 5 + i as u32,
                 resource: wgpu::BindingResource::TextureView(v),
@@ -320,7 +330,7 @@ impl ComputeSplatter {
         });
         entries.push(wgpu::BindGroupEntry {
             binding: 12,
-            resource: model.colors.as_entire_binding(),
+            resource: model.gpu_buffers().1.as_entire_binding(),
         });
         ctx.bind_group(&wgpu::BindGroupDescriptor {
             label: Some("splat compute"),

@@ -9,6 +9,10 @@ pub enum SplatError {
     /// A GPU operation failed.
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    /// A model or targets made on one device were given to a splatter on
+    /// the other (the CPU device's and a GPU's do not mix).
+    #[error("{0} is on another device than the splatter (the CPU device and a GPU do not mix)")]
+    WrongDevice(&'static str),
     /// The point model has no points.
     #[error("the point model is empty")]
     EmptyModel,

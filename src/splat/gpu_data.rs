@@ -231,3 +231,13 @@ pub(crate) static COMPUTE_SHADER: Shader = Shader {
     ],
     constants: &[COMPUTE_CONSTANTS],
 };
+
+/// The accumulation targets of a render (T0..T4, module docs of
+/// [`super`]).
+pub(super) const TARGETS: usize = 5;
+
+/// Whether the adapter can run the compute back end (it writes the five
+/// accumulation targets as storage textures in one pass).
+pub(super) fn compute_supported(ctx: &crate::gpu::GpuContext) -> bool {
+    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
+}

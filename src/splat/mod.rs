@@ -50,18 +50,23 @@
 //! [`crate::geometry::Intrinsics::motion_predictors`], in pixels (OpenCV convention).
 //!
 //! [`cpu`] is the same maths on the host's cores ([`cpu::HostSplatter`]):
-//! the GPU splatters' reference in the tests and the CPU back end's
-//! renderer.
+//! the GPU splatters' reference in the tests and the CPU device's renderer
+//! ([`crate::Device::Cpu`]): there a render splats on the host at the
+//! window's camera and keeps the accumulators in the [`SplatTargets`],
+//! reads resolve them and gathers sample them with the GPU gather's maths.
 
 mod accumulators;
 mod attributes;
 mod bounds;
 mod compute;
 pub mod cpu;
+mod cpu_device;
+mod dispatch;
 mod error;
 mod gather;
 pub mod gpu_data;
 mod host;
+mod image;
 mod kernel;
 mod model;
 mod params;
@@ -76,13 +81,14 @@ mod window;
 
 pub use attributes::{Attribute, Attributes};
 pub use bounds::{ModelBounds, bounding_sphere};
+pub use dispatch::Splatter;
 pub use error::SplatError;
 pub use gather::{GatherMode, GatherSample};
 pub use gpu_data::GATHER_STRIDE;
+pub use image::SplatImage;
 pub use model::{GpuModel, PackedModel, pack_model, spatial_order};
 pub use params::{AUTO_CPU_RENDER_PASS_ABOVE_PX, Backend, SPLATTER_ENV, SplatParams};
 pub use resolve::PendingGather;
-pub use splatter::Splatter;
-pub use targets::{SplatImage, SplatTargets};
+pub use targets::SplatTargets;
 pub use window::Window;
 pub(crate) use window::box_corners;

@@ -8,6 +8,7 @@
 
 use super::gpu_data::{SplatGpu, pack_color};
 use super::{ModelBounds, SplatError, SplatParams};
+use crate::device::AsDevice;
 use crate::gpu::GpuContext;
 use crate::model::PointModel;
 use glam::Vec3;
@@ -118,41 +119,56 @@ pub fn spatial_order(positions: &[Vec3]) -> Vec<u32> {
     keyed.into_iter().map(|(_, i)| i).collect()
 }
 
-/// A point model uploaded to the GPU: the geometry (32 bytes a point),
-/// shared by every recoloured copy, and the colours (4 bytes a point),
-/// both in [`spatial_order`].
+/// A point model as a splatter reads it: on a GPU, uploaded (the
+/// geometry, 32 bytes a point, shared by every recoloured copy, and the
+/// colours, 4 bytes a point); on the CPU device, packed in host memory.
+/// Either way in [`spatial_order`].
 pub struct GpuModel {
-    pub(super) geometry: wgpu::Buffer,
-    pub(super) colors: wgpu::Buffer,
+    pub(super) store: ModelStore,
     pub(super) count: u32,
     /// Bounding sphere and splat radii of the model.
     pub bounds: ModelBounds,
-    /// The model's index of each splat on the GPU ([`spatial_order`]),
+    /// The model's index of each splat as stored ([`spatial_order`]),
     /// shared by the recoloured copies.
     order: Arc<[u32]>,
 }
 
+/// Where a [`GpuModel`]'s splats are.
+pub(super) enum ModelStore {
+    /// Uploaded: the geometry and the colours.
+    Gpu {
+        geometry: wgpu::Buffer,
+        colors: wgpu::Buffer,
+    },
+    /// On the host, for the CPU device, as [`super::cpu::splat_packed`]
+    /// reads it (a recoloured copy copies the geometry: the host splatter
+    /// takes one packed model).
+    Host(Arc<PackedModel>),
+}
+
 impl GpuModel {
-    /// The model uploaded with default [`SplatParams`]; fails on an invalid
-    /// model or one too large for the adapter.
-    pub fn new(ctx: &GpuContext, model: &PointModel) -> Result<Self, SplatError> {
-        Self::with_params(ctx, model, &SplatParams::default())
+    /// The model on `device` (a [`GpuContext`] or a [`crate::Device`]) with
+    /// default [`SplatParams`]; fails on an invalid model or one too large
+    /// for the adapter.
+    pub fn new(device: &impl AsDevice, model: &PointModel) -> Result<Self, SplatError> {
+        Self::with_params(device, model, &SplatParams::default())
     }
 
-    /// The model uploaded with `params` (whose default colour stands in for
-    /// missing colours).
+    /// The model on `device` with `params` (whose default colour stands in
+    /// for missing colours).
     pub fn with_params(
-        ctx: &GpuContext,
+        device: &impl AsDevice,
         model: &PointModel,
         params: &SplatParams,
     ) -> Result<Self, SplatError> {
         let packed = pack_model(model, params)?;
         let n = packed.splats.len();
         let bytes = (n * std::mem::size_of::<SplatGpu>()) as u64;
-        let limit = ctx
-            .limits
-            .max_storage_buffer_binding_size
-            .min(ctx.limits.max_buffer_size);
+        let limit = device.gpu_context().map_or(u64::MAX, |ctx| {
+            ctx.limits
+                .max_storage_buffer_binding_size
+                .min(ctx.limits.max_buffer_size)
+        });
         if bytes > limit || n > u32::MAX as usize {
             return Err(SplatError::TooLarge {
                 points: n,
@@ -165,14 +181,19 @@ impl GpuModel {
         let splats: Vec<SplatGpu> = order.iter().map(|&i| packed.splats[i as usize]).collect();
         let colors: Vec<u32> = order.iter().map(|&i| packed.colors[i as usize]).collect();
         drop(packed);
-        let geometry = ctx.buffer_init(
-            "splats",
-            &splats,
-            wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-        );
+        let store = match device.gpu_context() {
+            Some(ctx) => ModelStore::Gpu {
+                geometry: ctx.buffer_init(
+                    "splats",
+                    &splats,
+                    wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+                ),
+                colors: Self::color_buffer(ctx, &colors),
+            },
+            None => ModelStore::Host(Arc::new(PackedModel { splats, colors })),
+        };
         Ok(Self {
-            geometry,
-            colors: Self::color_buffer(ctx, &colors),
+            store,
             count: n as u32,
             bounds: ModelBounds::of(model),
             order,
@@ -188,9 +209,14 @@ impl GpuModel {
     }
 
     /// The same geometry with other colours (one per point, linear RGB
-    /// 0..1, e.g. a keyframe's): only a colour buffer of 4 bytes a point is
-    /// uploaded; the geometry buffer is shared.
-    pub fn with_colors(&self, ctx: &GpuContext, colors: &[[f32; 3]]) -> Result<Self, SplatError> {
+    /// 0..1, e.g. a keyframe's): only the colours, 4 bytes a point, are
+    /// made (and uploaded, on a GPU); the geometry is shared. `device` is
+    /// the one the model is on.
+    pub fn with_colors(
+        &self,
+        device: &impl AsDevice,
+        colors: &[[f32; 3]],
+    ) -> Result<Self, SplatError> {
         if colors.len() != self.len() {
             return Err(SplatError::Inconsistent {
                 what: "colours",
@@ -198,35 +224,68 @@ impl GpuModel {
                 expected: self.len(),
             });
         }
-        // The colours are given in the model's order; the GPU holds the
-        // splats in `order`.
+        // The colours are given in the model's order; the splats are
+        // held in `order`.
         let packed: Vec<u32> = self
             .order
             .iter()
             .map(|&i| pack_color(colors[i as usize]))
             .collect();
+        let store = match (&self.store, device.gpu_context()) {
+            (ModelStore::Gpu { geometry, .. }, Some(ctx)) => ModelStore::Gpu {
+                geometry: geometry.clone(),
+                colors: Self::color_buffer(ctx, &packed),
+            },
+            (ModelStore::Host(m), None) => ModelStore::Host(Arc::new(PackedModel {
+                splats: m.splats.clone(),
+                colors: packed,
+            })),
+            _ => return Err(SplatError::WrongDevice("the model")),
+        };
         Ok(Self {
-            geometry: self.geometry.clone(),
-            colors: Self::color_buffer(ctx, &packed),
+            store,
             count: self.count,
             bounds: self.bounds,
             order: self.order.clone(),
         })
     }
 
-    /// GPU bytes of the colours alone (what a recoloured copy adds).
-    pub fn color_bytes(&self) -> u64 {
-        self.colors.size()
+    /// Whether the model is on the CPU device.
+    pub fn on_cpu(&self) -> bool {
+        matches!(self.store, ModelStore::Host(_))
     }
 
-    /// GPU bytes of this model: geometry and colours (36 bytes a point).
+    /// The GPU buffers (geometry, colours); the splatter checks the device
+    /// before its GPU paths run.
+    pub(super) fn gpu_buffers(&self) -> (&wgpu::Buffer, &wgpu::Buffer) {
+        match &self.store {
+            ModelStore::Gpu { geometry, colors } => (geometry, colors),
+            ModelStore::Host(_) => unreachable!("a GPU model (the device is checked first)"),
+        }
+    }
+
+    /// GPU bytes of the colours alone (what a recoloured copy adds); on
+    /// the CPU device, the host bytes of the colours.
+    pub fn color_bytes(&self) -> u64 {
+        match &self.store {
+            ModelStore::Gpu { colors, .. } => colors.size(),
+            ModelStore::Host(m) => (m.colors.len() * 4) as u64,
+        }
+    }
+
+    /// GPU bytes of this model: geometry and colours (36 bytes a point);
+    /// on the CPU device, its host bytes.
     pub fn gpu_bytes(&self) -> u64 {
         self.geometry_bytes() + self.color_bytes()
     }
 
-    /// GPU bytes of the geometry (shared by recoloured copies).
+    /// GPU bytes of the geometry (shared by recoloured copies); on the CPU
+    /// device, its host bytes.
     pub fn geometry_bytes(&self) -> u64 {
-        self.geometry.size()
+        match &self.store {
+            ModelStore::Gpu { geometry, .. } => geometry.size(),
+            ModelStore::Host(m) => std::mem::size_of_val(&m.splats[..]) as u64,
+        }
     }
 
     /// Number of splats (points).

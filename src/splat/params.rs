@@ -2,7 +2,7 @@
 //! and the constants of the splatting maths ([`SplatParams`]).
 
 use super::error::SplatError;
-use super::targets::compute_supported;
+use super::gpu_data::compute_supported;
 
 /// Which splatting implementation renders. Both write the same
 /// accumulation targets (so [`Splatter::read`](super::Splatter::read), [`Splatter::gather`](super::Splatter::gather) and

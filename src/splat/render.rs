@@ -7,26 +7,12 @@ use super::error::SplatError;
 use super::gpu_data::CameraUniform;
 use super::model::GpuModel;
 use super::params::Backend;
-use super::splatter::Splatter;
+use super::splatter::GpuSplatter;
 use super::targets::{SplatTargets, cleared_attachments};
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuContext, GpuTimer};
 
-impl Splatter {
-    /// Splats `model` at `pose` into `targets` (whose size must be the
-    /// camera's). Submits the work and returns without waiting.
-    pub fn render(
-        &self,
-        ctx: &GpuContext,
-        model: &GpuModel,
-        cam: &Intrinsics,
-        pose: &Pose,
-        attrs: Attributes,
-        targets: &mut SplatTargets,
-    ) -> Result<(), SplatError> {
-        self.render_timed(ctx, model, cam, pose, attrs, targets, None)
-    }
-
+impl GpuSplatter {
     /// [`Splatter::render`] with GPU timestamps for the passes "visibility"
     /// and "attributes" (resolved into `timer`; read it after the submit).
     #[allow(clippy::too_many_arguments)]
@@ -69,7 +55,7 @@ impl Splatter {
                 label: Some("splat attributes"),
                 color_attachments: &colors,
                 depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &targets.depth_view,
+                    view: &targets.g().depth_view,
                     depth_ops: Some(wgpu::Operations {
                         load: wgpu::LoadOp::Load,
                         store: wgpu::StoreOp::Store,
@@ -190,11 +176,12 @@ impl Splatter {
         targets: &SplatTargets,
         uniform: &CameraUniform,
     ) -> wgpu::BindGroup {
-        ctx.write_buffer(&targets.uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.write_buffer(&targets.g().uniform, 0, bytemuck::bytes_of(uniform));
+        let (geometry, colors) = model.gpu_buffers();
         let bufs = [
-            targets.uniform.clone(),
-            model.geometry.clone(),
-            model.colors.clone(),
+            targets.g().uniform.clone(),
+            geometry.clone(),
+            colors.clone(),
         ];
         let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
         let made = reuse.render_binds.get(bufs, |b| {
@@ -242,7 +229,7 @@ impl Splatter {
             label: Some(label),
             color_attachments: colors,
             depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                view: &targets.depth_view,
+                view: &targets.g().depth_view,
                 depth_ops: Some(wgpu::Operations {
                     load: wgpu::LoadOp::Clear(1.0),
                     store: wgpu::StoreOp::Store,

@@ -3,18 +3,20 @@
 //! points ([`Splatter::gather`], its readback put off as a
 //! [`PendingGather`]).
 
+use super::SplatImage;
 use super::error::SplatError;
 use super::gpu_data::{
     GATHER_BILINEAR, GATHER_NEAREST, GATHER_STRIDE, RESOLVE_DEPTH_MOTION, RESOLVE_WORKGROUP,
     ResolveParams,
 };
 use super::reuse::{BindKey, Grown, KEPT_BINDS, resolve_params};
-use super::splatter::Splatter;
-use super::targets::{SplatImage, SplatTargets};
+use super::splatter::GpuSplatter;
+use super::targets::SplatTargets;
 use super::{Attribute, Attributes, GatherMode, GatherSample};
+use crate::device::AsDevice;
 use crate::gpu::{GpuContext, PassChain, STORAGE_IN, WORKGROUP_1D, workgroups};
 
-impl Splatter {
+impl GpuSplatter {
     /// The bind group of a resolve or gather into `out` from `targets`,
     /// with its uniform set to `params` (written now). Each kind of
     /// resolve, and the gather, has a uniform of its own: a batch of
@@ -41,7 +43,7 @@ impl Splatter {
         uniform.write(ctx, bytemuck::bytes_of(&params));
         let pbuf = uniform.buffer().clone();
         let key = BindKey {
-            view: targets.acc_views[0].clone(),
+            view: targets.g().acc_views[0].clone(),
             params: pbuf.clone(),
             out: out.clone(),
             points: points.cloned(),
@@ -56,7 +58,7 @@ impl Splatter {
             binding: 0,
             resource: pbuf.as_entire_binding(),
         }];
-        for (i, v) in targets.acc_views.iter().enumerate() {
+        for (i, v) in targets.g().acc_views.iter().enumerate() {
             entries.push(wgpu::BindGroupEntry {
                 binding: 1 + i as u32,
                 resource: wgpu::BindingResource::TextureView(v),
@@ -199,22 +201,6 @@ impl Splatter {
         b.get().clone()
     }
 
-    /// Motion predictors, depth and validity at `points` (OpenCV pixel
-    /// coordinates) from the last render, which must include the motion
-    /// predictors ([`Attributes::MOTION`] or [`Attributes::ALL`]). The depth
-    /// comes from the predictors (`fx / (du/dtx)`: the harmonic mean of the
-    /// fragments' depths, eq. 5), so no geometry needs rendering. Reads
-    /// back 14 floats per point only.
-    pub fn gather(
-        &self,
-        ctx: &GpuContext,
-        targets: &SplatTargets,
-        points: &[[f32; 2]],
-        mode: GatherMode,
-    ) -> Result<Vec<GatherSample>, SplatError> {
-        self.gather_later(ctx, targets, points, mode)?.wait(ctx)
-    }
-
     /// [`Splatter::gather`] without waiting: the gather is recorded and
     /// submitted (within a batch, put off with it) and its readback goes
     /// with the calling thread's next one ([`GpuContext::read_buffer_later`]);
@@ -274,7 +260,11 @@ impl Splatter {
             Points::Written(n) => n,
         };
         if count == 0 {
-            return Ok(PendingGather { read: None, n: 0 });
+            return Ok(PendingGather {
+                read: None,
+                n: 0,
+                ready: None,
+            });
         }
         let size = (count * 8) as u64;
         let _busy = self.busy.lock().unwrap_or_else(|p| p.into_inner());
@@ -343,6 +333,7 @@ impl Splatter {
         Ok(PendingGather {
             read: Some(read),
             n: count,
+            ready: None,
         })
     }
 }
@@ -356,21 +347,32 @@ enum Points<'p> {
     Written(usize),
 }
 
-/// A gather whose readback is put off ([`Splatter::gather_later`]).
+/// A gather whose readback is put off ([`super::Splatter::gather_later`]);
+/// on the CPU device, samples already made.
 #[must_use = "a pending gather is only useful waited for"]
 pub struct PendingGather {
-    read: Option<crate::gpu::PendingRead>,
+    pub(super) read: Option<crate::gpu::PendingRead>,
     /// Points gathered.
-    n: usize,
+    pub(super) n: usize,
+    /// The CPU device's samples.
+    pub(super) ready: Option<Vec<GatherSample>>,
 }
 
 impl PendingGather {
     /// The samples, one a point: at once when a readback since brought
-    /// them, else after a readback of their own.
-    pub fn wait(self, ctx: &GpuContext) -> Result<Vec<GatherSample>, SplatError> {
+    /// them (or on the CPU device), else after a readback of their own.
+    /// `device` is the splatter's (a [`GpuContext`] or a
+    /// [`crate::Device`]).
+    pub fn wait(self, device: &impl AsDevice) -> Result<Vec<GatherSample>, SplatError> {
+        if let Some(samples) = self.ready {
+            return Ok(samples);
+        }
         let Some(read) = self.read else {
             return Ok(Vec::new());
         };
+        let ctx = device
+            .gpu_context()
+            .ok_or(SplatError::WrongDevice("a GPU gather"))?;
         let bytes = read.wait(ctx)?;
         let data: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes);
         debug_assert_eq!(data.len(), self.n * GATHER_STRIDE);

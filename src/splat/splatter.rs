@@ -1,21 +1,23 @@
-//! The GPU splatter: pipelines for the three passes and the gather kernel
-//! (the module docs of [`super`] say how it works). The render pass back
+//! The GPU side of the splatter ([`GpuSplatter`]): pipelines for the
+//! three passes and the gather kernel (the module docs of [`super`] say
+//! how it works; the public [`super::Splatter`] dispatches to it or to the
+//! host's, in `host`). The render pass back
 //! end's passes are in `render`, normalisation (resolves, reads, gathers)
 //! in `resolve`, the compute back end in `compute`.
 
+use super::Attributes;
 use super::compute::ComputeSplatter;
 use super::error::SplatError;
+use super::gpu_data::TARGETS;
 use super::model::GpuModel;
 use super::params::{AUTO_CPU_RENDER_PASS_ABOVE_PX, Backend, SPLATTER_ENV, SplatParams};
 use super::reuse::Reuse;
-use super::targets::{ACC_FORMAT, DEPTH_FORMAT, SplatImage, SplatTargets, TARGETS, target_slots};
-use super::{Attribute, Attributes};
+use super::targets::{ACC_FORMAT, DEPTH_FORMAT, target_slots};
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuContext, buffer_entry, compute_entry, storage, texture_entry};
 
 /// The GPU splatter: pipelines for the three passes and the gather kernel.
-/// Create once per device.
-pub struct Splatter {
+pub(super) struct GpuSplatter {
     pub(super) params: SplatParams,
     pub(super) render_layout: wgpu::BindGroupLayout,
     pub(super) visibility: wgpu::RenderPipeline,
@@ -44,13 +46,7 @@ pub struct Splatter {
     pub(super) busy: std::sync::Mutex<()>,
 }
 
-impl Splatter {
-    /// A splatter with default [`SplatParams`]; fails where the adapter cannot
-    /// splat.
-    pub fn new(ctx: &GpuContext) -> Result<Self, SplatError> {
-        Self::with_params(ctx, SplatParams::default())
-    }
-
+impl GpuSplatter {
     /// A splatter with `params`; its back end is resolved on this adapter
     /// ([`SplatError::Unsupported`] where none works).
     pub fn with_params(ctx: &GpuContext, params: SplatParams) -> Result<Self, SplatError> {
@@ -238,30 +234,11 @@ impl Splatter {
         Backend::Compute
     }
 
-    /// The splatting parameters.
-    pub fn params(&self) -> &SplatParams {
-        &self.params
-    }
-
     /// The back end that renders: [`Backend::RenderPass`] or
     /// [`Backend::Compute`] (what [`Backend::Auto`] chose on this adapter;
     /// on a CPU adapter `auto` still sends renders of large splats through
     /// the render pass: [`Splatter::backend_for`]).
     pub fn backend(&self) -> Backend {
         self.backend
-    }
-
-    /// One-shot convenience: upload, render and read one attribute.
-    pub fn render_image(
-        &self,
-        ctx: &GpuContext,
-        model: &GpuModel,
-        cam: &Intrinsics,
-        pose: &Pose,
-        attribute: Attribute,
-    ) -> Result<SplatImage, SplatError> {
-        let mut targets = SplatTargets::new(ctx, cam.width, cam.height);
-        self.render(ctx, model, cam, pose, attribute.needs(), &mut targets)?;
-        self.read(ctx, &targets, attribute)
     }
 }

@@ -1,39 +1,93 @@
-//! The render targets of the splatter ([`SplatTargets`]) and normalised
-//! images read back from them ([`SplatImage`]).
+//! The render targets of the splatter ([`SplatTargets`]).
 
-use super::gpu_data::CameraUniform;
+use super::cpu::Accumulators;
+use super::gpu_data::{CameraUniform, TARGETS};
 use super::scratch::Scratch;
-use super::{Attribute, Attributes, SplatError};
+use super::{Attribute, Attributes, SplatError, SplatImage};
+use crate::device::AsDevice;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
 
 pub(super) const ACC_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba32Float;
 pub(super) const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
-pub(super) const TARGETS: usize = 5;
 
-/// The GPU-resident result of a render: accumulation targets (weighted sums)
-/// and the visibility depth. Allocate once per image size and reuse.
+/// The result of a render: on a GPU, accumulation targets (weighted sums)
+/// and the visibility depth; on the CPU device, the host's accumulators.
+/// Allocate once per image size and reuse.
 pub struct SplatTargets {
     pub(super) width: u32,
     pub(super) height: u32,
-    acc: Vec<wgpu::Texture>,
-    pub(super) acc_views: Vec<wgpu::TextureView>,
-    pub(super) depth_view: wgpu::TextureView,
-    pub(super) uniform: wgpu::Buffer,
+    /// The GPU's textures (`None` on the CPU device).
+    pub(super) gpu: Option<GpuTargets>,
+    /// The CPU device's last render (`None` on a GPU, or before a render).
+    pub(super) host: Option<HostRender>,
     pub(super) rendered: Option<Attributes>,
     /// The last render was [`super::Splatter::render_depth`]'s: only the
     /// depth and the coverage can be read.
     pub(super) depth_only: bool,
-    /// Scratch of the compute back end, made on its first render here.
-    pub(super) compute: Option<Scratch>,
     /// The pose and camera of the last render (`None` before one, or from
     /// the start of a render that then failed).
     pub(super) view: Option<(Pose, Intrinsics)>,
 }
 
+/// What the CPU device's last render left in its targets.
+pub(super) enum HostRender {
+    /// A full render's five accumulators.
+    Full(Accumulators),
+    /// A depth-only render's depth (NaN where empty).
+    Depth(SplatImage),
+}
+
+/// The GPU side of [`SplatTargets`].
+pub(super) struct GpuTargets {
+    acc: Vec<wgpu::Texture>,
+    pub(super) acc_views: Vec<wgpu::TextureView>,
+    pub(super) depth_view: wgpu::TextureView,
+    pub(super) uniform: wgpu::Buffer,
+    /// Scratch of the compute back end, made on its first render here.
+    pub(super) compute: Option<Scratch>,
+}
+
 impl SplatTargets {
-    /// Render targets of `width x height` pixels, with no render yet.
-    pub fn new(ctx: &GpuContext, width: u32, height: u32) -> Self {
+    /// Render targets of `width x height` pixels on `device` (a
+    /// [`GpuContext`] or a [`crate::Device`]), with no render yet.
+    pub fn new(device: &impl AsDevice, width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            gpu: device
+                .gpu_context()
+                .map(|ctx| GpuTargets::new(ctx, width, height)),
+            host: None,
+            rendered: None,
+            depth_only: false,
+            view: None,
+        }
+    }
+
+    /// Whether these targets are the CPU device's.
+    pub fn on_cpu(&self) -> bool {
+        self.gpu.is_none()
+    }
+
+    /// The GPU side; the splatter checks the device before its GPU paths
+    /// run.
+    pub(super) fn g(&self) -> &GpuTargets {
+        self.gpu
+            .as_ref()
+            .expect("GPU targets (the device is checked first)")
+    }
+
+    /// [`Self::g`], mutable.
+    pub(super) fn g_mut(&mut self) -> &mut GpuTargets {
+        self.gpu
+            .as_mut()
+            .expect("GPU targets (the device is checked first)")
+    }
+}
+
+impl GpuTargets {
+    fn new(ctx: &GpuContext, width: u32, height: u32) -> Self {
         let size = wgpu::Extent3d {
             width,
             height,
@@ -80,26 +134,27 @@ impl SplatTargets {
             wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
         );
         Self {
-            width,
-            height,
             acc,
             acc_views,
             depth_view,
             uniform,
-            rendered: None,
-            depth_only: false,
             compute: None,
-            view: None,
         }
     }
+}
 
+impl SplatTargets {
     /// GPU bytes these targets hold: the five RGBA32F accumulators and the
     /// 32-bit depth (84 bytes a pixel), the camera uniform, and the compute
     /// back end's scratch once it has rendered here (40 bytes a pixel and
-    /// 4 a splat of the largest model; `compute::Scratch`).
+    /// 4 a splat of the largest model; `compute::Scratch`). None on the
+    /// CPU device.
     pub fn gpu_bytes(&self) -> u64 {
+        let Some(g) = &self.gpu else {
+            return 0;
+        };
         let pixels = self.width as u64 * self.height as u64;
-        let acc: u64 = self
+        let acc: u64 = g
             .acc
             .iter()
             .map(|t| {
@@ -110,8 +165,8 @@ impl SplatTargets {
             })
             .sum();
         acc + pixels * DEPTH_FORMAT.block_copy_size(None).unwrap_or(4) as u64
-            + self.uniform.size()
-            + self.compute.as_ref().map_or(0, |c| c.gpu_bytes())
+            + g.uniform.size()
+            + g.compute.as_ref().map_or(0, |c| c.gpu_bytes())
     }
 
     /// Width in pixels.
@@ -150,9 +205,10 @@ impl SplatTargets {
     }
 
     /// The raw accumulation textures (weighted sums; layout in the module
-    /// docs), for passes that consume them on the GPU.
+    /// docs), for passes that consume them on the GPU (none on the CPU
+    /// device).
     pub fn accumulators(&self) -> &[wgpu::Texture] {
-        &self.acc
+        self.gpu.as_ref().map_or(&[], |g| &g.acc)
     }
 
     pub(super) fn check(&self, need: Attributes, what: Attribute) -> Result<(), SplatError> {
@@ -177,41 +233,6 @@ impl SplatTargets {
     }
 }
 
-/// A normalised attribute image read back to the host: row-major
-/// `height x width x channels`, NaN in every channel of empty pixels.
-#[derive(Debug, Clone, PartialEq)]
-pub struct SplatImage {
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// Channels per pixel (see [`Attribute::channels`]).
-    pub channels: usize,
-    /// `height * width * channels` values, row-major; NaN where empty.
-    pub data: Vec<f32>,
-}
-
-impl SplatImage {
-    /// The channels of pixel (x, y).
-    pub fn pixel(&self, x: u32, y: u32) -> &[f32] {
-        let i = (y as usize * self.width as usize + x as usize) * self.channels;
-        &self.data[i..i + self.channels]
-    }
-
-    /// True where a splat covers the pixel.
-    pub fn is_valid(&self, x: u32, y: u32) -> bool {
-        !self.pixel(x, y)[0].is_nan()
-    }
-
-    /// Number of covered pixels.
-    pub fn coverage(&self) -> usize {
-        self.data
-            .chunks(self.channels)
-            .filter(|p| !p[0].is_nan())
-            .count()
-    }
-}
-
 /// The colour attachments of a pass that clears (and then adds to) the
 /// accumulation targets `attrs` writes; `None` for the others.
 pub(super) fn cleared_attachments(
@@ -220,7 +241,7 @@ pub(super) fn cleared_attachments(
 ) -> Vec<Option<wgpu::RenderPassColorAttachment<'_>>> {
     target_slots(attrs)
         .iter()
-        .zip(&targets.acc_views)
+        .zip(&targets.g().acc_views)
         .map(|(&on, view)| {
             on.then_some(wgpu::RenderPassColorAttachment {
                 view,
@@ -244,10 +265,4 @@ pub(super) fn target_slots(attrs: Attributes) -> [bool; TARGETS] {
         attrs.motion,
         attrs.motion,
     ]
-}
-
-/// Whether the adapter can run the compute back end (it writes the five
-/// accumulation targets as storage textures in one pass).
-pub(super) fn compute_supported(ctx: &GpuContext) -> bool {
-    ctx.limits.max_storage_textures_per_shader_stage >= TARGETS as u32
 }

@@ -4,22 +4,22 @@ use super::config::{Mode, TrackerConfig};
 use super::contour::ContourState;
 use super::error::{CameraInvalid, TrackError};
 use super::execution::Execution;
+use super::features_on::{CornerDetector, Matcher};
 use super::outline_gpu::GpuOutline;
 use super::region::Resident;
 use super::result::StageTimes;
 use super::state::Tracker;
 use super::verify_gpu::GpuCheck;
-use crate::features::{Harris, NccMatcher};
+use crate::device::Device;
 use crate::geometry::{Intrinsics, Pose};
-use crate::gpu::GpuContext;
 use crate::keyframes::KeyframeStore;
 use crate::model::PointModel;
 use crate::splat::{GpuModel, SplatTargets, Splatter, Window};
 use nalgebra::{Matrix3, Vector3};
 use std::sync::Arc;
 
-/// Makes a [`Tracker`] ([`Tracker::builder`]): the model, the camera
-/// and the GPU context, then what the tracker needs beyond them.
+/// Makes a [`Tracker`] ([`Tracker::builder`]): the device, the model and
+/// the camera, then what the tracker needs beyond them.
 ///
 /// - [`TrackerBuilder::keyframes`]: the keyframe store, moved in or
 ///   shared (`Arc`). None is needed in the IT mode, or when the model has
@@ -34,7 +34,9 @@ use std::sync::Arc;
 ///   texture (keyframes or model colours).
 /// - [`TrackerBuilder::execution`]: the code paths ([`Execution`]).
 pub struct TrackerBuilder<'a> {
-    ctx: &'a GpuContext,
+    device: Device,
+    /// Keeps the builder's lifetime parameter, for callers that name it.
+    _borrow: std::marker::PhantomData<&'a ()>,
     model: Arc<PointModel>,
     cam: Intrinsics,
     keyframes: Option<Arc<KeyframeStore>>,
@@ -45,17 +47,20 @@ pub struct TrackerBuilder<'a> {
 
 impl Tracker {
     /// A tracker for `model` seen by `cam` (undistorted frames), on
-    /// `ctx` (the tracker keeps its own handle, a cheap clone). The model
+    /// `device`: a [`Device`], or a `&GpuContext` (the tracker keeps its
+    /// own handle, a cheap clone), or `Device::Cpu` for the host's cores
+    /// with no GPU driver (docs/guide.md says which is faster). The model
     /// may be shared (an `Arc<PointModel>`): the tracker copies it only
     /// where it changes its radii (`min_splat_radius_px`, `close_gaps`;
     /// [`Tracker::model`]).
-    pub fn builder(
-        ctx: &GpuContext,
+    pub fn builder<'a>(
+        device: impl Into<Device>,
         model: impl Into<Arc<PointModel>>,
         cam: Intrinsics,
-    ) -> TrackerBuilder<'_> {
+    ) -> TrackerBuilder<'a> {
         TrackerBuilder {
-            ctx,
+            device: device.into(),
+            _borrow: std::marker::PhantomData,
             model: model.into(),
             cam,
             keyframes: None,
@@ -110,7 +115,7 @@ impl TrackerBuilder<'_> {
     pub fn build(self) -> Result<Tracker, TrackError> {
         let mut t = match self.initial {
             Some(initial) => Tracker::start(
-                self.ctx,
+                &self.device,
                 self.model,
                 self.cam,
                 self.keyframes,
@@ -118,7 +123,7 @@ impl TrackerBuilder<'_> {
                 initial,
             )?,
             None => Tracker::start_searching(
-                self.ctx,
+                &self.device,
                 self.model,
                 self.cam,
                 self.keyframes,
@@ -141,7 +146,7 @@ impl TrackerBuilder<'_> {
 impl Tracker {
     /// The tracker starting at `initial`.
     fn start(
-        ctx: &GpuContext,
+        device: &Device,
         mut model: Arc<PointModel>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
@@ -197,16 +202,15 @@ impl Tracker {
         if let Some(r) = radii {
             Arc::make_mut(&mut model).radii = r;
         }
-        let gpu = ctx;
         let splatter = Splatter::with_params(
-            gpu,
+            device,
             crate::splat::SplatParams {
                 backend: config.splatter,
                 ..Default::default()
             },
         )?;
-        let geometry = GpuModel::new(gpu, &model)?;
-        let targets = SplatTargets::new(gpu, cam.width, cam.height);
+        let geometry = GpuModel::new(device, &model)?;
+        let targets = SplatTargets::new(device, cam.width, cam.height);
         let (box_lo, box_hi) = {
             let pad = Vector3::repeat(model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64)));
             let (lo, hi) = model.positions.iter().fold(
@@ -221,18 +225,24 @@ impl Tracker {
             );
             (lo - pad, hi + pad)
         };
-        let on_host = config.feature_backend.host_on(gpu);
-        let mut harris = Harris::new(gpu, config.harris.clone())?;
-        harris.set_host(on_host);
+        let on_host = config.feature_backend.host_on_device(device);
+        let harris = CornerDetector::new(device, config.harris.clone(), on_host)?;
         let matcher = |r: f32| {
-            let mut m = NccMatcher::new(gpu, config.ncc.clone().with_search_radius(Some(r)))?;
-            m.set_host(on_host);
-            Ok::<_, crate::features::FeatureError>(m)
+            Matcher::new(
+                device,
+                config.ncc.clone().with_search_radius(Some(r)),
+                on_host,
+            )
         };
         let n_kf = store.as_ref().map_or(0, |s| s.keyframes.len());
         let model_len = model.len();
         let config_colours = (config.contour.bins, config.contour.sectors);
-        let resident = config.resident.unwrap_or(!ctx.is_cpu());
+        // Resident images and the GPU's check and outline: on GPUs; the
+        // host's paths measured faster on CPU adapters, and are the CPU
+        // device's only ones.
+        let resident = device
+            .gpu()
+            .is_some_and(|ctx| config.resident.unwrap_or(!ctx.is_cpu()));
         let mut tracker = Self {
             it_matcher: matcher(config.it_search_px)?,
             kf_matcher: matcher(config.kf_search_px)?,
@@ -269,21 +279,33 @@ impl Tracker {
             found_by_outline: false,
             confirm_left: 0,
             confirm_report: initial,
-            ctx: ctx.clone(),
+            device: device.clone(),
             contour: ContourState::new(config_colours.0, config_colours.1),
             kf_anchors: Vec::new(),
             stages: StageTimes::default(),
             gpu_timer: None,
             pending_gpu: Vec::new(),
-            check: GpuCheck::new(ctx).map_err(crate::splat::SplatError::from)?,
-            outline: GpuOutline::new(ctx).map_err(crate::splat::SplatError::from)?,
+            check: device
+                .gpu()
+                .map(GpuCheck::new)
+                .transpose()
+                .map_err(crate::splat::SplatError::from)?,
+            outline: device
+                .gpu()
+                .map(GpuOutline::new)
+                .transpose()
+                .map_err(crate::splat::SplatError::from)?,
             resident: Resident::new(resident),
             lost: Default::default(),
             detector: None,
             cue_choice: None,
         };
-        tracker.check.set_resident(resident);
-        tracker.outline.set_resident(resident);
+        if let Some(c) = tracker.check.as_mut() {
+            c.set_resident(resident);
+        }
+        if let Some(o) = tracker.outline.as_mut() {
+            o.set_resident(resident);
+        }
         if tracker.roi(&initial).is_none() {
             return Err(TrackError::ObjectNotInView);
         }
@@ -292,7 +314,7 @@ impl Tracker {
 
     /// The tracker without an initial pose: searching each frame.
     fn start_searching(
-        ctx: &GpuContext,
+        device: &Device,
         model: Arc<PointModel>,
         cam: Intrinsics,
         keyframes: Option<Arc<KeyframeStore>>,
@@ -311,7 +333,7 @@ impl Tracker {
             Some(k) => placeholder(k.pose.rotation)?,
             None => placeholder(Matrix3::identity())?,
         };
-        let mut t = Self::start(ctx, model, cam, keyframes, config, initial)?;
+        let mut t = Self::start(device, model, cam, keyframes, config, initial)?;
         if t.store.is_none() {
             return Err(TrackError::NeedsKeyframes("search (no initial pose)"));
         }
@@ -338,19 +360,20 @@ impl Tracker {
         if let Some(n) = e.harris_select_limit {
             self.harris.set_select_limit(n);
         }
-        if let Some(on) = e.resident_matching {
+        // The CPU device has no resident images, GPU check or outline.
+        if let Some(on) = e.resident_matching.filter(|_| !self.device.is_cpu()) {
             self.set_resident_matching(on);
         }
         self.resident.chain_kf = e.chained_kf;
         self.resident.chain_it = e.chained_it;
-        if let Some(on) = e.resident_check {
-            self.check.set_resident(on);
+        if let (Some(on), Some(c)) = (e.resident_check, self.check.as_mut()) {
+            c.set_resident(on);
         }
-        if let Some(on) = e.resident_outline {
-            self.outline.set_resident(on);
+        if let (Some(on), Some(o)) = (e.resident_outline, self.outline.as_mut()) {
+            o.set_resident(on);
         }
         self.contour.colours.set_background(e.background_learning);
-        if e.gpu_timing {
+        if e.gpu_timing && !self.device.is_cpu() {
             self.enable_gpu_timing();
         }
     }

@@ -57,7 +57,7 @@ impl super::Tracker {
         };
         // The render, its resolves and the frame's window go with the
         // scores' readback (or the view's).
-        let _batch = self.ctx.batch();
+        let _batch = self.device.batch();
         // A novel view made this frame within a pixel or so of the pose
         // (the KF step's, when its correction was small) is scored
         // instead of rendering again: the edge test searches 2 px along
@@ -73,10 +73,15 @@ impl super::Tracker {
                 (window, k.is_some(), *pose)
             }
         };
-        if self.check.resident() && self.check.fits(window.width, window.height) {
+        let gpu_check = self
+            .check
+            .as_mut()
+            .filter(|c| c.resident() && c.fits(window.width, window.height))
+            .zip(self.device.gpu());
+        if let Some((check, ctx)) = gpu_check {
             // Resident: the view is resolved into the check's buffers and
             // scored there; CHECK_SUMS floats come back.
-            let (wb, cb) = self.check.targets(window.width, window.height);
+            let (wb, cb) = check.targets(window.width, window.height);
             let (wb, cb) = (wb.clone(), cb.clone());
             // The frame's window: cut from the resident frame on the GPU
             // where there is one (the same values), else uploaded.
@@ -85,11 +90,11 @@ impl super::Tracker {
             let s = if on_gpu {
                 // The view's resolves, the frame's window and the scores:
                 // one compute pass where untimed.
-                let target = self.check.frame_target(w, h);
-                let (ctx, splatter, targets) = (&self.ctx, &self.splatter, &self.targets);
+                let target = check.frame_target(w, h);
+                let (splatter, targets) = (&self.splatter, &self.targets);
                 let resident = &mut self.resident;
                 let at = [window.x0, window.y0, w, h];
-                self.check.score_prepared(
+                check.score_prepared(
                     w,
                     h,
                     textured,
@@ -107,27 +112,27 @@ impl super::Tracker {
                 )?
             } else {
                 self.splatter
-                    .resolve_into(&self.ctx, &self.targets, Attribute::Weight, &wb)?;
+                    .resolve_into(ctx, &self.targets, Attribute::Weight, &wb)?;
                 if textured {
                     self.splatter
-                        .resolve_into(&self.ctx, &self.targets, Attribute::Color, &cb)?;
+                        .resolve_into(ctx, &self.targets, Attribute::Color, &cb)?;
                 }
                 let frame = Placed::full(frame.grey()).crop(&window);
-                self.check
+                check
                     .score(&frame, textured, visible, step, &self.config.verify)
                     .map_err(crate::splat::SplatError::from)?
             };
             // The render serves the next frame's IT step (after its
             // resolves were recorded).
+            let t = check.take_timings();
             self.keep_render(rendered_at);
-            let t = self.check.take_timings();
             self.note_timings("check score", t);
             return Ok(s);
         }
         let frame = Placed::full(frame.grey()).crop(&window);
         let weight = self
             .splatter
-            .read(&self.ctx, &self.targets, Attribute::Weight)?;
+            .read(&self.device, &self.targets, Attribute::Weight)?;
         let covered: Vec<bool> = weight
             .data
             .iter()
@@ -136,7 +141,7 @@ impl super::Tracker {
         let view = if textured {
             let c = self
                 .splatter
-                .read(&self.ctx, &self.targets, Attribute::Color)?;
+                .read(&self.device, &self.targets, Attribute::Color)?;
             Some(GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)?.data)
         } else {
             None

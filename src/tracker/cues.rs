@@ -86,10 +86,10 @@ impl Tracker {
             self.splat(Texture::Keyframe(k), &cam, &pose, Attributes::COLOR, "cues")?;
             let weight = self
                 .splatter
-                .read(&self.ctx, &self.targets, Attribute::Weight)?;
+                .read(&self.device, &self.targets, Attribute::Weight)?;
             let colour = self
                 .splatter
-                .read(&self.ctx, &self.targets, Attribute::Color)?;
+                .read(&self.device, &self.targets, Attribute::Color)?;
             let (w, h) = (colour.width as usize, colour.height as usize);
             let mut view = GreyImage::from_rgb_f32(w, h, &colour.data)?;
             let covered: Vec<bool> = weight.data.iter().map(|v| *v > 0.0).collect();

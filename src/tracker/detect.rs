@@ -28,10 +28,11 @@ mod matching;
 mod tests;
 
 use super::error::TrackError;
+use super::features_on::CornerDetector;
 use super::profile::Texture;
 use super::result::{Refused, Source, StepError};
 use super::state::{Frame, Tracker};
-use crate::features::{Harris, HarrisConfig};
+use crate::features::HarrisConfig;
 use crate::geometry::Pose;
 use crate::pose::{PnpRansacOptions, solve_pnp_ransac};
 use crate::splat::{Attribute, Attributes, GatherMode, Window};
@@ -78,10 +79,7 @@ impl Tracker {
             relative_threshold: cfg.harris_threshold,
             ..self.config.harris.clone()
         };
-        let mut harris = Harris::new(&self.ctx, hc)?;
-        if self.harris.host() {
-            harris.set_options(self.harris.options());
-        }
+        let harris = self.harris.like(&self.device, hc)?;
         let n = self.store.as_ref().map_or(0, |s| s.keyframes.len());
         self.detector = Some(Detector {
             harris,
@@ -116,7 +114,7 @@ impl Tracker {
     /// camera, whole image), corners on it, lifted by the splatted depth.
     fn keyframe_features(
         &mut self,
-        harris: &mut Harris,
+        harris: &mut CornerDetector,
         k: usize,
         pose: &Pose,
         cfg: &DetectConfig,
@@ -132,7 +130,7 @@ impl Tracker {
         )?;
         let c = self
             .splatter
-            .read(&self.ctx, &self.targets, Attribute::Color)?;
+            .read(&self.device, &self.targets, Attribute::Color)?;
         let grey =
             crate::features::GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)
                 .map_err(TrackError::from)?;
@@ -147,9 +145,9 @@ impl Tracker {
             .iter()
             .flat_map(|c| offsets.map(|o| [c.x + o[0], c.y + o[1]]))
             .collect();
-        let samples = self
-            .splatter
-            .gather(&self.ctx, &self.targets, &pts, GatherMode::Bilinear)?;
+        let samples =
+            self.splatter
+                .gather(&self.device, &self.targets, &pts, GatherMode::Bilinear)?;
         let step = 0.02 * self.radius;
         let inv = pose.inverse();
         let mut kept = Vec::new();

@@ -53,7 +53,7 @@ impl Tracker {
             });
         }
         let t0 = Instant::now();
-        let read0 = self.ctx.stats();
+        let read0 = self.device.stats();
         self.resident.begin();
         self.pending_gpu.clear();
         self.contour.begin_frame();
@@ -77,7 +77,11 @@ impl Tracker {
                 self.lost_search_slice(frame, budget)?
             };
             times.search = t0.elapsed();
-            times.waits.search = self.ctx.stats().wait_time.saturating_sub(read0.wait_time);
+            times.waits.search = self
+                .device
+                .stats()
+                .wait_time
+                .saturating_sub(read0.wait_time);
             // The search's KF-like steps are its own time ("search"), not
             // the KF stage's parts, which would otherwise exceed it (the
             // passes' GPU times stay, under their own labels).
@@ -145,7 +149,7 @@ impl Tracker {
             }
         }
         let t_features = Instant::now();
-        let w_features = self.ctx.stats().wait_time;
+        let w_features = self.device.stats().wait_time;
         // The frame kept for the next one, in the buffer of the frame
         // before the last where it fits.
         let kept = match input {
@@ -171,7 +175,7 @@ impl Tracker {
         // Harris's first readback (their parameters have buffers of their
         // own), and so do IT's render and gather, which do not need the
         // frame: that readback brings the gather's samples too.
-        let intake = self.ctx.batch();
+        let intake = self.device.batch();
         let t_early = Instant::now();
         let it_early = if texture {
             self.it_gather_early(&start_pose, recovering)
@@ -180,7 +184,9 @@ impl Tracker {
         };
         let it_early_time = t_early.elapsed();
         if texture {
-            self.resident.upload(&self.ctx, rgb)?;
+            if let Some(ctx) = self.device.gpu() {
+                self.resident.upload(ctx, rgb)?;
+            }
         }
         // With IT's matching chained behind the frame's Harris where it
         // can be (one wait for both).
@@ -194,21 +200,21 @@ impl Tracker {
         drop(intake);
         // IT's early render and gather count as IT's.
         times.features = t_features.elapsed().saturating_sub(it_early_time);
-        times.waits.features = self.ctx.stats().wait_time.saturating_sub(w_features);
+        times.waits.features = self.device.stats().wait_time.saturating_sub(w_features);
 
         let rules = Rules::of(&self.config);
         let first_frame = self.prev.is_none() && !recovering;
         let t_it = Instant::now();
-        let w_it = self.ctx.stats().wait_time;
+        let w_it = self.device.stats().wait_time;
         let (it, it_anchors) = if texture {
             self.it_stage(&frame, &start_pose, recovering, it_early)
         } else {
             (StepOutcome::default(), Vec::new())
         };
         times.it = t_it.elapsed() + it_early_time;
-        times.waits.it = self.ctx.stats().wait_time.saturating_sub(w_it);
+        times.waits.it = self.device.stats().wait_time.saturating_sub(w_it);
         let t_kf = Instant::now();
-        let w_kf = self.ctx.stats().wait_time;
+        let w_kf = self.device.stats().wait_time;
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
         self.kf_anchors.clear();
         let (kf, keyframe) = if texture {
@@ -218,9 +224,9 @@ impl Tracker {
             (StepOutcome::default(), None)
         };
         times.kf = t_kf.elapsed();
-        times.waits.kf = self.ctx.stats().wait_time.saturating_sub(w_kf);
+        times.waits.kf = self.device.stats().wait_time.saturating_sub(w_kf);
         let t_contour = Instant::now();
-        let w_contour = self.ctx.stats().wait_time;
+        let w_contour = self.device.stats().wait_time;
         if self.config.modalities.contour && self.stages.renders == 0.0 {
             // Nothing rendered yet this frame: the previous check's render,
             // made at the pose this frame starts from, seeds the contour's
@@ -247,7 +253,7 @@ impl Tracker {
             StepOutcome::default()
         };
         times.contour = t_contour.elapsed();
-        times.waits.contour = self.ctx.stats().wait_time.saturating_sub(w_contour);
+        times.waits.contour = self.device.stats().wait_time.saturating_sub(w_contour);
 
         let texture_held = kf.estimate.is_some_and(|e| rules.trusted(&e))
             || it.estimate.is_some_and(|e| rules.trusted(&e));
@@ -278,7 +284,7 @@ impl Tracker {
         let mut texture_set_aside = false;
         let mut contour_again = false;
         let t_verify = Instant::now();
-        let w_verify = self.ctx.stats().wait_time;
+        let w_verify = self.device.stats().wait_time;
         let mut d = d;
         if d.status == Status::Tracking && self.config.verify.enabled {
             let check = if frozen {
@@ -343,7 +349,7 @@ impl Tracker {
             }
         }
         times.verify = t_verify.elapsed();
-        times.waits.verify = self.ctx.stats().wait_time.saturating_sub(w_verify);
+        times.waits.verify = self.device.stats().wait_time.saturating_sub(w_verify);
         let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
         let (status, reason) = match held {
             Some(why) => (Status::Lost, Some(why)),
@@ -379,7 +385,7 @@ impl Tracker {
         times.renders = sub.renders;
         times.gpu = sub.gpu;
         times.gpu_timeline = sub.gpu_timeline;
-        let done = self.ctx.stats().since(&read0);
+        let done = self.device.stats().since(&read0);
         times.readback_bytes = done.bytes_read as f64;
         times.readbacks = done.readbacks as f64;
         times.submissions = done.submissions as f64;

@@ -158,7 +158,7 @@ impl Tracker {
             height: now.height as u32,
         };
         let margin = self.match_margin(self.config.it_search_px);
-        let crop = crop_window(&self.it_matcher, &prev.corners, margin, full);
+        let crop = crop_window(self.it_matcher.config(), &prev.corners, margin, full);
         (crop.width > 0 && crop.height > 0).then(|| ChainPlan {
             window,
             roi,
@@ -184,13 +184,13 @@ impl Tracker {
         } = plan;
         let t = std::time::Instant::now();
         let (ww, wh) = self.pack_frame_window(window, roi)?;
-        let pending = self.harris.detect_packed_later(ww, wh)?;
+        let pending = self.harris.gpu()?.detect_packed_later(ww, wh)?;
         let (Some(now), Some(before)) = self.resident.frames() else {
             return Err(FeatureError::Config("IT's chain without resident frames".into()).into());
         };
         let (now_pixels, before_pixels) = (now.pixels.clone(), before.pixels.clone());
         let (nw, nh, bw, bh) = (now.width, now.height, before.width, before.height);
-        let gate = self.splatter.gathered_samples(&self.ctx);
+        let gate = self.splatter.gathered_samples(self.gpu_ctx()?)?;
         let o = window.origin();
         let c = crop.origin();
         let rows = crop.y0 as usize..(crop.y0 + crop.height) as usize;
@@ -205,12 +205,13 @@ impl Tracker {
             band_y0: rows.start as f32,
             first: a.len(),
         };
-        let harris = &mut self.harris;
+        let harris = self.harris.gpu()?;
+        let it_matcher = self.it_matcher.gpu()?;
         let matching = {
             let mut export = |passes: &mut PassChain, positions: &wgpu::Buffer| {
                 harris.export_corners(passes, &pending, place, positions, None)
             };
-            self.it_matcher.match_resident_exported_b(
+            it_matcher.match_resident_exported_b(
                 ResidentImage {
                     pixels: &before_pixels,
                     width: bw,
@@ -233,7 +234,7 @@ impl Tracker {
         };
         self.stages.it_ncc += t.elapsed();
         // The one wait.
-        let detected = self.harris.finish_later(pending)?;
+        let detected = self.harris.gpu()?.finish_later(pending)?;
         self.note_harris("features");
         let corners = placed(&detected.corners, o);
         let matching = match matching {
@@ -248,15 +249,16 @@ impl Tracker {
         let t = std::time::Instant::now();
         let early = self
             .it_matcher
-            .finish_exported(matching, a.len())
+            .gpu()
             .map_err(StepError::from)
+            .and_then(|m| Ok(m.finish_exported(matching, a.len())?))
             .and_then(|found| {
                 let matches = found
                     .into_iter()
                     .filter(|m| m.b < corners.len())
                     .map(|m| (m.a, m.b))
                     .collect();
-                let samples = gather.wait(&self.ctx)?;
+                let samples = gather.wait(&self.device)?;
                 Ok(ItEarly::Matched { samples, matches })
             });
         let timings = self.it_matcher.take_timings();
@@ -273,7 +275,7 @@ impl Tracker {
     ) -> Result<PendingGather, StepError> {
         let window = self.view_window(pose);
         // The render goes with the gather's readback.
-        let _batch = self.ctx.batch();
+        let _batch = self.device.batch();
         if !self.reuse_render(pose, window) {
             let cam = self.use_window(window);
             self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;
@@ -315,7 +317,7 @@ impl Tracker {
                 self.it_render_and_gather(pose, &pts)?
             }
         };
-        let samples = pending.wait(&self.ctx)?;
+        let samples = pending.wait(&self.device)?;
         // Only corners on the object take part; with `it_interior_px`, only
         // those whose surroundings are on the object too (see the field).
         let mut on_object: Vec<usize> = (0..samples.len()).filter(|&i| samples[i].valid).collect();
@@ -345,7 +347,7 @@ impl Tracker {
             (Some(now), Some(before)) => {
                 let full = prev.whole();
                 match_near_resident(
-                    &mut self.it_matcher,
+                    self.it_matcher.gpu()?,
                     (before, full),
                     AFeatures::InFrame(&src),
                     now,

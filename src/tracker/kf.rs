@@ -5,6 +5,7 @@
 
 use super::config::Mode;
 use super::decision::StepOutcome;
+use super::features_on::Matcher;
 use super::region::{
     AFeatures, Bands, Placed, match_near, match_near_resident, placed, shifted, window_crop,
 };
@@ -13,7 +14,7 @@ use super::state::{Frame, Tracker};
 use super::workspace::estimate;
 use crate::features::resident::MAX_REFINE_WINDOW;
 use crate::features::{
-    Corner, ExportPlace, GreyImage, Match, NccMatcher, Refinement, ResidentImage, refine_match,
+    Corner, ExportPlace, GreyImage, Match, Refinement, ResidentImage, refine_match,
 };
 use crate::geometry::Pose;
 use crate::gpu::PassChain;
@@ -110,7 +111,7 @@ impl Tracker {
         }
         let t = std::time::Instant::now();
         // The render and the resolve go with Harris's first readback.
-        let batch = self.ctx.batch();
+        let batch = self.device.batch();
         let window = self.view_window(pose);
         let k = self
             .render_view_in(pose, Attributes::MOTION, window, "KF")?
@@ -122,9 +123,22 @@ impl Tracker {
         // (for the NCC windows and the refinement).
         let t = std::time::Instant::now();
         let (w, h) = (window.width as usize, window.height as usize);
-        let target = self.harris.colour_target(w, h)?;
-        self.splatter
-            .resolve_into(&self.ctx, &self.targets, Attribute::Color, &target)?;
+        // On the CPU device the view is on the host already: its colour,
+        // read, gives the grey levels.
+        let host_view = match self.device.gpu() {
+            Some(ctx) => {
+                let target = self.harris.gpu()?.colour_target(w, h)?;
+                self.splatter
+                    .resolve_into(ctx, &self.targets, Attribute::Color, &target)?;
+                None
+            }
+            None => {
+                let c = self
+                    .splatter
+                    .read(&self.device, &self.targets, Attribute::Color)?;
+                Some(GreyImage::from_rgb_f32(w, h, &c.data)?)
+            }
+        };
         let margin = self.match_margin(match search {
             Search::Recover => self.config.recover_search_px,
             Search::Motion => self.config.it_search_px,
@@ -153,11 +167,14 @@ impl Tracker {
                 matching = d;
                 (corners, None)
             }
-            None if resident => (self.harris.detect_resolved_resident(w, h)?, None),
-            None => {
-                let (c, v) = self.harris.detect_resolved(w, h)?;
-                (c, Some(v))
-            }
+            None if resident => (self.harris.gpu()?.detect_resolved_resident(w, h)?, None),
+            None => match host_view {
+                Some(v) => (self.harris.detect_view(&v)?, Some(v)),
+                None => {
+                    let (c, v) = self.harris.gpu()?.detect_resolved(w, h)?;
+                    (c, Some(v))
+                }
+            },
         };
         let o = window.origin();
         let view_corners = placed(&corners, o);
@@ -177,12 +194,12 @@ impl Tracker {
                 // Resident, at the corners in the window's pixels (as the
                 // chained step gathers and matches: the same samples and
                 // matches); else at the corners in the frame's.
-                let batch = self.ctx.batch();
+                let batch = self.device.batch();
                 let (found, gathered): (Vec<Found>, _) = match view {
                     None => {
                         let pts: Vec<[f32; 2]> = corners.iter().map(|c| [c.x, c.y]).collect();
                         let gathered = self.splatter.gather_later(
-                            &self.ctx,
+                            &self.device,
                             &self.targets,
                             &pts,
                             GatherMode::Bilinear,
@@ -211,7 +228,7 @@ impl Tracker {
                     }
                 };
                 drop(batch);
-                (found, gathered.wait(&self.ctx)?)
+                (found, gathered.wait(&self.device)?)
             }
         };
         let timings = self.matcher(search).take_timings();
@@ -230,7 +247,7 @@ impl Tracker {
     }
 
     /// The matcher of a search.
-    fn matcher(&mut self, search: Search) -> &mut NccMatcher {
+    fn matcher(&mut self, search: Search) -> &mut Matcher {
         match search {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
@@ -268,7 +285,7 @@ impl Tracker {
             width: nw as u32,
             height: nh as u32,
         };
-        let crop = window_crop(self.matcher(search), window, margin, full);
+        let crop = window_crop(self.matcher(search).config(), window, margin, full);
         let bands = match Bands::new(window, frame_corners, crop) {
             Some(b) if w > 0 && h > 0 && !b.b_in.is_empty() => b,
             _ => return Ok(None),
@@ -278,17 +295,20 @@ impl Tracker {
             max_shift: REFINE_SHIFT as u32,
             min_score: self.config.ncc.min_score * 0.8,
         });
-        let pending = self.harris.detect_resolved_resident_later(w, h)?;
+        let pending = self.harris.gpu()?.detect_resolved_resident_later(w, h)?;
         let t = std::time::Instant::now();
-        let points = self.splatter.gather_points(&self.ctx, pending.slots())?;
-        let view_pixels = self.harris.resident_view(w, h)?.pixels.clone();
+        let points = self
+            .splatter
+            .gather_points(self.gpu_ctx()?, pending.slots())?;
+        let view_pixels = self.harris.gpu()?.resident_view(w, h)?.pixels.clone();
         let band_y0 = bands.a_rows.start as f32;
-        let harris = &mut self.harris;
+        let harris = self.harris.gpu()?;
         let matcher = match search {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
             Search::Refine => &mut self.kf_matcher,
-        };
+        }
+        .gpu()?;
         let matching = {
             let mut export = |passes: &mut PassChain, positions: &wgpu::Buffer| {
                 harris.export_corners(
@@ -321,13 +341,13 @@ impl Tracker {
             )?
         };
         let gathered = self.splatter.gather_written_later(
-            &self.ctx,
+            self.gpu_ctx()?,
             &self.targets,
             pending.rows(),
             GatherMode::Bilinear,
         )?;
         // The one wait.
-        let detected = self.harris.finish_later(pending)?;
+        let detected = self.harris.gpu()?.finish_later(pending)?;
         if !detected.exported {
             log::trace!("KF: the chained matching is done again from the host's corners");
             return Ok(Some((Chained::Corners(detected.corners), t.elapsed())));
@@ -337,13 +357,14 @@ impl Tracker {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
             Search::Refine => &mut self.kf_matcher,
-        };
+        }
+        .gpu()?;
         let found = matcher
             .finish_exported(matching, kept)?
             .into_iter()
             .map(|m| (m.a, m.at.map(|p| Vector2::new(p[0], p[1]))))
             .collect();
-        let mut samples: Vec<GatherSample> = gathered.wait(&self.ctx)?;
+        let mut samples: Vec<GatherSample> = gathered.wait(&self.device)?;
         samples.truncate(kept);
         Ok(Some((
             Chained::Done(detected.corners, found, samples),
@@ -369,7 +390,7 @@ impl Tracker {
             min_score: self.config.ncc.min_score * 0.8,
         });
         let (w, h) = (window.width as usize, window.height as usize);
-        let view = self.harris.resident_view(w, h)?;
+        let view = self.harris.gpu()?.resident_view(w, h)?;
         let Some(now) = self.resident.frames().0 else {
             return Ok(Vec::new());
         };
@@ -377,7 +398,8 @@ impl Tracker {
             Search::Recover => &mut self.recover_matcher,
             Search::Motion => &mut self.it_matcher,
             Search::Refine => &mut self.kf_matcher,
-        };
+        }
+        .gpu()?;
         let matches = match_near_resident(
             matcher,
             (view, window),

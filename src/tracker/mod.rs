@@ -51,6 +51,7 @@ mod decision;
 mod detect;
 mod error;
 mod execution;
+mod features_on;
 mod frame;
 mod frames;
 pub mod init;

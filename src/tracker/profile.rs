@@ -26,10 +26,17 @@ impl Tracker {
     /// supports timestamp queries): [`super::StageTimes::gpu`]
     /// ([`super::Execution::gpu_timing`]).
     pub(super) fn enable_gpu_timing(&mut self) {
-        self.gpu_timer = Some(GpuTimer::new(&self.ctx, 2));
+        let Some(ctx) = self.device.gpu() else {
+            return;
+        };
+        self.gpu_timer = Some(GpuTimer::new(ctx, 2));
         self.harris.enable_timing();
-        self.check.enable_timing();
-        self.outline.enable_timing();
+        if let Some(c) = self.check.as_mut() {
+            c.enable_timing();
+        }
+        if let Some(o) = self.outline.as_mut() {
+            o.enable_timing();
+        }
         for m in [
             &mut self.it_matcher,
             &mut self.kf_matcher,
@@ -52,12 +59,12 @@ impl Tracker {
     ) -> Result<(), SplatError> {
         let gm = match (texture, self.store.as_ref()) {
             (Texture::Keyframe(k), Some(store)) => {
-                self.textured.get(&self.ctx, store, &self.geometry, k)?
+                self.textured.get(&self.device, store, &self.geometry, k)?
             }
             _ => &self.geometry,
         };
         self.splatter.render_timed(
-            &self.ctx,
+            &self.device,
             gm,
             cam,
             pose,
@@ -74,8 +81,8 @@ impl Tracker {
     pub(super) fn note_splat(&mut self, label: &str) {
         self.stages.renders += 1.0;
         self.view_made = None;
-        if let Some(t) = self.gpu_timer.as_mut() {
-            match t.read_later(&self.ctx) {
+        if let (Some(t), Some(ctx)) = (self.gpu_timer.as_mut(), self.device.gpu()) {
+            match t.read_later(ctx) {
                 Ok(r) => self.pending_gpu.push((label.to_owned(), r)),
                 Err(e) => log::warn!("GPU timer: {e}"),
             }
@@ -102,8 +109,11 @@ impl Tracker {
     /// last, if any, in one wait of their own).
     pub(super) fn collect_gpu_times(&mut self) {
         let mut spans = Vec::new();
+        let Some(ctx) = self.device.gpu() else {
+            return;
+        };
         for (label, t) in std::mem::take(&mut self.pending_gpu) {
-            let r = t.wait(&self.ctx);
+            let r = t.wait(ctx);
             note(&mut self.stages.gpu, &label, &r);
             spans.extend(r.spans);
         }

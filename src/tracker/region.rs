@@ -19,9 +19,10 @@
 //!   search radius, and mutual best matches only ever compare features
 //!   within it.
 
+use super::features_on::Matcher;
 use crate::features::{
-    Corner, FeatureError, FrameIntake, GpuGrey, GreyImage, Match, NccMatcher, Refinement,
-    ResidentImage, ResidentMatch,
+    Corner, FeatureError, FrameIntake, GpuGrey, GreyImage, Match, NccConfig, NccMatcher,
+    Refinement, ResidentImage, ResidentMatch,
 };
 use crate::geometry::Pose;
 use crate::splat::{Attributes, SplatTargets, Window};
@@ -257,7 +258,7 @@ pub(super) fn shifted(c: &Corner, origin: [f32; 2]) -> Corner {
 /// images. Also returns the two crops
 /// and their window (for refinements that work near the matches).
 pub(super) fn match_near(
-    matcher: &mut NccMatcher,
+    matcher: &mut Matcher,
     img_a: Placed,
     a: &[Corner],
     img_b: &GreyImage,
@@ -273,7 +274,7 @@ pub(super) fn match_near(
             GreyImage::filled(0, 0, 0.0),
         ));
     }
-    let w = crop_window(matcher, a, margin, full);
+    let w = crop_window(matcher.config(), a, margin, full);
     let o = w.origin();
     let inside = |c: &Corner| {
         c.x >= o[0] && c.y >= o[1] && c.x < o[0] + w.width as f32 && c.y < o[1] + w.height as f32
@@ -295,7 +296,7 @@ pub(super) fn match_near(
 /// the features `a` grown by `margin`, or the whole frame (no search
 /// radius, no margin, or no box).
 pub(super) fn crop_window(
-    matcher: &NccMatcher,
+    matcher: &NccConfig,
     a: &[Corner],
     margin: Option<f64>,
     full: Window,
@@ -312,7 +313,7 @@ pub(super) fn crop_window(
             (x0.min(x), y0.min(y), x1.max(x), y1.max(y))
         },
     );
-    match (matcher.config().search_radius, margin) {
+    match (matcher.search_radius, margin) {
         (Some(_), Some(m)) => {
             Window::around([x0, y0, x1, y1], m, 1, full.width, full.height).unwrap_or(full)
         }
@@ -372,7 +373,7 @@ impl Bands {
 /// of B it adds lie farther than the search radius from all of them: the
 /// matches are the same.
 pub(super) fn window_crop(
-    matcher: &NccMatcher,
+    matcher: &NccConfig,
     at: Window,
     margin: Option<f64>,
     full: Window,
@@ -384,7 +385,7 @@ pub(super) fn window_crop(
         (at.x0 + at.width) as f64,
         (at.y0 + at.height) as f64,
     ];
-    match (matcher.config().search_radius, margin) {
+    match (matcher.search_radius, margin) {
         (Some(_), Some(m)) => Window::around(rect, m, 1, full.width, full.height).unwrap_or(full),
         _ => full,
     }
@@ -418,8 +419,8 @@ pub(super) fn match_near_resident(
     };
     let (img, at) = img_a;
     let (list, w) = match a {
-        AFeatures::InFrame(a) => (a, crop_window(matcher, a, margin, full)),
-        AFeatures::InWindow(a) => (a, window_crop(matcher, at, margin, full)),
+        AFeatures::InFrame(a) => (a, crop_window(matcher.config(), a, margin, full)),
+        AFeatures::InWindow(a) => (a, window_crop(matcher.config(), at, margin, full)),
     };
     if list.is_empty() || b.is_empty() {
         return Ok(Vec::new());

@@ -125,10 +125,10 @@ impl Tracker {
         // pixel (i, j) of the result is centred where coarse pixel (i, j)
         // of the frame is ((u + 0.5) s - 0.5 with s = 1 / f).
         let small = self.cam.scaled(2.0 / f as f64);
-        let targets = SplatTargets::new(&self.ctx, small.width, small.height);
+        let targets = SplatTargets::new(&self.device, small.width, small.height);
         let (thin, idx) = thinned(&self.model, TEMPLATE_POINTS);
         let models = TemplateModels {
-            geometry: GpuModel::new(&self.ctx, &thin)?,
+            geometry: GpuModel::new(&self.device, &thin)?,
             idx,
             textured: HashMap::new(),
         };
@@ -424,13 +424,17 @@ impl Tracker {
                     .iter()
                     .map(|&i| store.keyframes[k].colors[i])
                     .collect();
-                e.insert(models.geometry.with_colors(&self.ctx, &colors)?)
+                e.insert(models.geometry.with_colors(&self.device, &colors)?)
             }
         };
         self.splatter
-            .render(&self.ctx, gm, cam, pose, Attributes::COLOR, targets)?;
-        let weight = self.splatter.read(&self.ctx, targets, Attribute::Weight)?;
-        let c = self.splatter.read(&self.ctx, targets, Attribute::Color)?;
+            .render(&self.device, gm, cam, pose, Attributes::COLOR, targets)?;
+        let weight = self
+            .splatter
+            .read(&self.device, targets, Attribute::Weight)?;
+        let c = self
+            .splatter
+            .read(&self.device, targets, Attribute::Color)?;
         let grey = GreyImage::from_rgb_f32(c.width as usize, c.height as usize, &c.data)?;
         let cover: Vec<f32> = weight
             .data

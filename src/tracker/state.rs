@@ -3,12 +3,13 @@
 
 use super::config::TrackerConfig;
 use super::contour::ContourState;
+use super::features_on::{CornerDetector, Matcher};
 pub(super) use super::frames::Frame;
 use super::outline_gpu::GpuOutline;
 use super::region::{Kept, Resident, ViewMade};
 use super::result::{GpuMemoryUse, StageTimes};
 use super::verify_gpu::GpuCheck;
-use crate::features::{Harris, NccMatcher};
+use crate::device::Device;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::GpuContext;
 use crate::keyframes::KeyframeStore;
@@ -19,8 +20,9 @@ use nalgebra::Vector3;
 use std::sync::Arc;
 
 /// The tracker: create once per sequence, then call [`Tracker::track`] on
-/// each frame in order. It keeps its own handle on the GPU context (a
-/// cheap clone), so a program may keep both side by side.
+/// each frame in order. It runs on a [`Device`]: a GPU (it keeps its own
+/// handle on the context, a cheap clone, so a program may keep both side
+/// by side) or the CPU device, where it makes no GPU object.
 ///
 /// ```no_run
 /// use splattrack::gpu::{AdapterChoice, GpuContext};
@@ -78,10 +80,10 @@ pub struct Tracker {
     /// can cover pixels).
     pub(super) box_lo: Vector3<f64>,
     pub(super) box_hi: Vector3<f64>,
-    pub(super) harris: Harris,
-    pub(super) it_matcher: NccMatcher,
-    pub(super) kf_matcher: NccMatcher,
-    pub(super) recover_matcher: NccMatcher,
+    pub(super) harris: CornerDetector,
+    pub(super) it_matcher: Matcher,
+    pub(super) kf_matcher: Matcher,
+    pub(super) recover_matcher: Matcher,
     pub(super) center: Vector3<f64>,
     pub(super) radius: f64,
     pub(super) pose: Pose,
@@ -107,8 +109,9 @@ pub struct Tracker {
     pub(super) confirm_left: usize,
     /// The pose reported while a start is held (the last good one).
     pub(super) confirm_report: Pose,
-    /// The tracker's own handle on the device (a cheap clone).
-    pub(super) ctx: GpuContext,
+    /// The tracker's device (on a GPU, its own handle on the context: a
+    /// cheap clone).
+    pub(super) device: Device,
     /// The contour step's colours, coverage, normals and counts.
     pub(super) contour: ContourState,
     /// The inliers of this frame's last KF step (for the fused solve).
@@ -120,10 +123,10 @@ pub struct Tracker {
     /// The frame's timed passes by label prefix, their timestamps still
     /// to come with the frame's readbacks (read at its end).
     pub(super) pending_gpu: Vec<(String, crate::gpu::Timings)>,
-    /// The check's scoring on the GPU.
-    pub(super) check: GpuCheck,
-    /// The contour's outline found on the GPU.
-    pub(super) outline: GpuOutline,
+    /// The check's scoring on the GPU (`None` on the CPU device).
+    pub(super) check: Option<GpuCheck>,
+    /// The contour's outline found on the GPU (`None` on the CPU device).
+    pub(super) outline: Option<GpuOutline>,
     /// The grey levels of the frame being tracked and of the previous one,
     /// on the GPU for NCC and the refinement ([`Resident`]).
     pub(super) resident: Resident,
@@ -164,9 +167,24 @@ impl Tracker {
         &self.config
     }
 
-    /// The GPU context the tracker runs on.
-    pub fn context(&self) -> &GpuContext {
-        &self.ctx
+    /// The device the tracker runs on.
+    pub fn device(&self) -> &Device {
+        &self.device
+    }
+
+    /// The GPU context the tracker runs on (`None` on the CPU device).
+    pub fn context(&self) -> Option<&GpuContext> {
+        self.device.gpu()
+    }
+
+    /// The GPU context, for the GPU's paths (never taken on the CPU
+    /// device, where this is an error).
+    pub(super) fn gpu_ctx(&self) -> Result<&GpuContext, crate::splat::SplatError> {
+        self.device
+            .gpu()
+            .ok_or(crate::splat::SplatError::WrongDevice(
+                "a GPU path on the CPU device",
+            ))
     }
 
     /// The keyframe store in use: the one given to [`Tracker::builder`], or

@@ -35,7 +35,9 @@ impl Tracker {
         self.it_matcher.set_tiled(gpu);
         self.kf_matcher.set_tiled(gpu);
         self.recover_matcher.set_tiled(gpu);
-        self.check.set_tiled(gpu);
+        if let Some(c) = self.check.as_mut() {
+            c.set_tiled(gpu);
+        }
     }
 
     /// The window a render of the model at `pose` needs: every pixel it
@@ -103,7 +105,7 @@ impl Tracker {
             .position(|t| (t.width(), t.height()) == (w.width, w.height))
         {
             Some(i) => self.spare.remove(i),
-            None => SplatTargets::new(&self.ctx, w.width, w.height),
+            None => SplatTargets::new(&self.device, w.width, w.height),
         }
     }
 
@@ -203,7 +205,7 @@ impl Tracker {
         &self,
         points: &[[f32; 2]],
     ) -> Result<Vec<GatherSample>, SplatError> {
-        self.gather_frame_later(points)?.wait(&self.ctx)
+        self.gather_frame_later(points)?.wait(&self.device)
     }
 
     /// [`Tracker::gather_frame`], its readback put off to go with the
@@ -215,7 +217,7 @@ impl Tracker {
         let o = self.window.origin();
         let local: Vec<[f32; 2]> = points.iter().map(|p| [p[0] - o[0], p[1] - o[1]]).collect();
         self.splatter
-            .gather_later(&self.ctx, &self.targets, &local, GatherMode::Bilinear)
+            .gather_later(&self.device, &self.targets, &local, GatherMode::Bilinear)
     }
 
     /// The window of `frame` Harris looks in at `pose` (the region of
@@ -249,7 +251,7 @@ impl Tracker {
         roi: [usize; 4],
     ) -> Result<(usize, usize), FeatureError> {
         let (ww, wh) = (w.width as usize, w.height as usize);
-        let target = self.harris.input_target(ww, wh)?;
+        let target = self.harris.gpu()?.input_target(ww, wh)?;
         let (ox, oy) = (w.x0 as usize, w.y0 as usize);
         let [x0, y0, x1, y1] = roi;
         let allowed = [x0 - ox, y0 - oy, x1 - ox, y1 - oy].map(|v| v as u32);
@@ -274,7 +276,7 @@ impl Tracker {
         let corners = if !self.harris.host() && self.resident.frames().0.is_some() {
             // The frame is on the GPU: its window is packed there.
             self.pack_frame_window(w, [x0, y0, x1, y1])?;
-            self.harris.detect_packed(ww, wh)?
+            self.harris.gpu()?.detect_packed(ww, wh)?
         } else {
             let mut mask = vec![false; ww * wh];
             for y in y0..=y1 {
@@ -299,14 +301,15 @@ impl Tracker {
     pub fn silhouette(&mut self, pose: &Pose) -> Result<Vec<bool>, TrackError> {
         let (weight, window) = match self.kept_at(pose) {
             Some((targets, window)) => (
-                self.splatter.read(&self.ctx, targets, Attribute::Weight)?,
+                self.splatter
+                    .read(&self.device, targets, Attribute::Weight)?,
                 window,
             ),
             None => {
                 let window = self.view_window(pose);
                 let cam = self.use_window(window);
                 self.splatter.render(
-                    &self.ctx,
+                    &self.device,
                     &self.geometry,
                     &cam,
                     pose,
@@ -315,7 +318,7 @@ impl Tracker {
                 )?;
                 let weight = self
                     .splatter
-                    .read(&self.ctx, &self.targets, Attribute::Weight)?;
+                    .read(&self.device, &self.targets, Attribute::Weight)?;
                 (weight, window)
             }
         };
@@ -344,7 +347,7 @@ impl Tracker {
         pose.validate()?;
         let window = Window::full(&self.cam);
         let keyframe = self.render_view_in(pose, Attributes::GEOMETRY, window, "view")?;
-        let read = |t: &mut Self, a| t.splatter.read(&t.ctx, &t.targets, a);
+        let read = |t: &mut Self, a| t.splatter.read(&t.device, &t.targets, a);
         let color = read(self, Attribute::Color)?;
         let depth = read(self, Attribute::Depth)?;
         let weight = read(self, Attribute::Weight)?;

@@ -107,9 +107,9 @@ pub struct ModelView<'a> {
 
 impl<'a> ModelView<'a> {
     /// Uses the GPU when one opens; warns and projects points otherwise.
-    pub fn new(model: &'a PointModel, adapter: &Option<String>) -> Self {
+    pub fn new(model: &'a PointModel, target: &crate::cli::common::Target) -> Self {
         let gpu = (|| -> anyhow::Result<_> {
-            let ctx = crate::cli::common::gpu(adapter)?;
+            let ctx = crate::cli::common::gpu(target, "init's views")?;
             let splatter = Splatter::new(&ctx)?;
             let gm = GpuModel::new(&ctx, model)?;
             Ok((ctx, gm, splatter))

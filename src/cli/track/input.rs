@@ -4,11 +4,11 @@
 use super::args::Args;
 use crate::cli::common::model_options;
 use anyhow::bail;
+use splattrack::Intrinsics;
 use splattrack::app::TrackInputs;
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::{FrameSource, Start};
 use splattrack::io::video::VideoSource;
-use splattrack::{GpuContext, Intrinsics};
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
@@ -115,7 +115,7 @@ impl Input {
     }
 
     /// The model, camera, keyframes and first pose of the run.
-    pub fn load(&self, ctx: &GpuContext, args: &Args) -> anyhow::Result<TrackInputs> {
+    pub fn load(&self, ctx: &splattrack::Device, args: &Args) -> anyhow::Result<TrackInputs> {
         Ok(match self {
             Input::Sequence(dir) => TrackInputs::load(
                 ctx,

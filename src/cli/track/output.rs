@@ -3,7 +3,6 @@
 
 use super::args::Args;
 use super::profile::profile_table;
-use splattrack::GpuContext;
 use splattrack::app::RunStats;
 use splattrack::io::guard::{check_output, check_output_dir};
 use splattrack::tracker::Mode;
@@ -44,7 +43,7 @@ pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
 pub fn print_summary(
     args: &Args,
     mode: Mode,
-    ctx: &GpuContext,
+    ctx: &splattrack::Device,
     stats: &RunStats,
     stop: &AtomicBool,
     live: bool,
@@ -103,19 +102,31 @@ fn print_cues(args: &Args, mode: Mode, stats: &RunStats) {
 /// `--profile`'s report: the frame source's time, the stage table, the
 /// splatting's GPU memory and the time end to end (`wall`: seconds;
 /// `viewed`: a live view ran).
-pub fn print_profile(ctx: &GpuContext, stats: &RunStats, wall: f64, viewed: bool) {
+pub fn print_profile(ctx: &splattrack::Device, stats: &RunStats, wall: f64, viewed: bool) {
     println!(
         "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
         stats.source_ms
     );
-    print!(
-        "{}",
-        profile_table(&stats.mean_stages, ctx.is_cpu(), ctx.validates_indirect)
+    let table = profile_table(
+        &stats.mean_stages,
+        ctx.gpu().is_none_or(|c| c.is_cpu()),
+        ctx.gpu().is_some_and(|c| c.validates_indirect),
     );
+    for line in table.lines() {
+        // The CPU device has no GPU: its readbacks, waits and submissions
+        // are all zero.
+        let gpu_line = ["read back from the GPU", "waiting for the GPU", "GPU work"]
+            .iter()
+            .any(|p| line.trim_start().starts_with(p));
+        if !(ctx.is_cpu() && gpu_line) {
+            println!("{line}");
+        }
+    }
     if let Some(m) = stats.gpu_memory {
         let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
         println!(
-            "GPU memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+            "{} memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+            if ctx.is_cpu() { "host" } else { "GPU" },
             mb(m.total()),
             mb(m.model),
             mb(m.keyframe_colors),

@@ -59,6 +59,18 @@ pub fn harris_host(
     Ok(detect_packed(&mut scratch, img.width, img.height, cfg))
 }
 
+/// The corners of a rendered view's grey levels with its pinholes packed
+/// as holes, every pixel allowed: what [`super::Harris::detect_resolved`]
+/// detects on the host, for the CPU device, whose views are on the host.
+pub(crate) fn harris_host_view(grey: &GreyImage, cfg: &HarrisConfig) -> Vec<Corner> {
+    if grey.is_empty() {
+        return Vec::new();
+    }
+    let mut scratch = Scratch::default();
+    crate::features::gpu_data::pack_with_holes_into(grey, None, true, &mut scratch.pixels);
+    detect_packed(&mut scratch, grey.width, grey.height, cfg)
+}
+
 /// The corners of the packed pixels in `scratch.pixels` (`w x h`, as
 /// [`pack_pixels`] makes them).
 pub(super) fn detect_packed(

@@ -186,11 +186,11 @@ impl Tracker {
         let cam = self.use_window(window);
         let t0 = std::time::Instant::now();
         // The render goes with its depth's readback.
-        let _batch = self.ctx.batch();
+        let _batch = self.device.batch();
         let depth_only = self.config.contour.depth_only;
         if depth_only {
             self.splatter.render_depth(
-                &self.ctx,
+                &self.device,
                 &self.geometry,
                 &cam,
                 pose,
@@ -237,25 +237,27 @@ impl Tracker {
         // outline found there, a few integers a point and the coverage's
         // bits read back; else the depth read back and the outline found
         // here. The same points either way.
-        let resident =
-            depth_only && self.outline.resident() && self.outline.fits(window.width, window.height);
-        let (points, depths, depth) = if resident {
-            let _batch = self.ctx.batch();
-            let target = self.outline.depth_target(window.width, window.height);
+        let gpu_outline = self
+            .outline
+            .as_mut()
+            .filter(|o| depth_only && o.resident() && o.fits(window.width, window.height))
+            .zip(self.device.gpu());
+        let (points, depths, depth) = if let Some((gpu_outline, ctx)) = gpu_outline {
+            let _batch = ctx.batch();
+            let target = gpu_outline.depth_target(window.width, window.height);
             self.splatter
-                .resolve_into(&self.ctx, &self.targets, Attribute::Depth, &target)?;
-            let outline = self
-                .outline
+                .resolve_into(ctx, &self.targets, Attribute::Depth, &target)?;
+            let outline = gpu_outline
                 .extract(window.width, window.height, spacing)
                 .map_err(crate::splat::SplatError::from)?;
-            let t = self.outline.take_timings();
+            let t = gpu_outline.take_timings();
             self.note_timings("contour outline", t);
             self.fill_contour_mask(w, h, window, |x, y| outline.covered(x as u32, y as u32));
             (outline.points, outline.depths, None)
         } else {
             let depth = self
                 .splatter
-                .read(&self.ctx, &self.targets, Attribute::Depth)?;
+                .read(&self.device, &self.targets, Attribute::Depth)?;
             let local: Vec<bool> = depth.data.iter().map(|v| v.is_finite()).collect();
             self.fill_contour_mask(w, h, window, |x, y| local[y * ww + x]);
             // Window coordinates (the window's origin is a multiple of the
@@ -340,7 +342,7 @@ impl Tracker {
         } else {
             let normals = self
                 .splatter
-                .read(&self.ctx, &self.targets, Attribute::Normal)?;
+                .read(&self.device, &self.targets, Attribute::Normal)?;
             creases = limb_normals(cam, &normals, &mut points);
         }
         drop(depth);

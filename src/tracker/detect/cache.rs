@@ -2,7 +2,6 @@
 
 use super::config::DetectConfig;
 use super::features::Descriptor;
-use crate::features::Harris;
 use nalgebra::Vector3;
 
 /// One keyframe's corners as model points, and their descriptors (one per
@@ -20,7 +19,7 @@ pub(in crate::tracker) struct KeyframeFeatures {
 /// What the detection keeps between searches: its Harris (more corners
 /// than the tracker's) and the keyframes' features.
 pub(in crate::tracker) struct Detector {
-    pub(in crate::tracker) harris: Harris,
+    pub(in crate::tracker) harris: crate::tracker::features_on::CornerDetector,
     pub(in crate::tracker) keyframes: Vec<KeyframeFeatures>,
     /// Whether each keyframe's features have been made (the search while
     /// lost makes them a few at a time).

@@ -1,0 +1,130 @@
+//! The CPU device's splatter: a render is [`cpu::HostSplatter::render`]
+//! (or [`cpu::HostSplatter::render_depth`]) at the window's camera, of the
+//! attribute groups asked for, its accumulators kept in the targets and
+//! reused by the next render; reads resolve them and gathers sample them
+//! with the GPU gather's maths ([`cpu::Accumulators::gather`]).
+
+use super::SplatImage;
+use super::cpu;
+use super::model::{GpuModel, ModelStore};
+use super::targets::{HostRender, SplatTargets};
+use super::{Attribute, Attributes, GatherMode, GatherSample, SplatError, SplatParams};
+use crate::geometry::{Intrinsics, Pose};
+use std::sync::Mutex;
+
+/// What a host render needs of the splatter.
+pub(super) struct HostParts<'a> {
+    pub params: &'a SplatParams,
+    /// The splatter's own host splatter (`None`: a fresh one, whose
+    /// threads' scratch is not kept).
+    pub splatter: Option<&'a Mutex<cpu::HostSplatter>>,
+}
+
+/// Splats `model` at `pose` into `targets`: colour, weight and the groups
+/// of `attrs`, or the visibility pass alone.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn render(
+    host: HostParts<'_>,
+    model: &GpuModel,
+    cam: &Intrinsics,
+    pose: &Pose,
+    attrs: Attributes,
+    depth_only: bool,
+    targets: &mut SplatTargets,
+) -> Result<(), SplatError> {
+    if targets.width != cam.width || targets.height != cam.height {
+        return Err(SplatError::SizeMismatch {
+            got_w: targets.width,
+            got_h: targets.height,
+            want_w: cam.width,
+            want_h: cam.height,
+        });
+    }
+    let ModelStore::Host(packed) = &model.store else {
+        return Err(SplatError::WrongDevice("the model"));
+    };
+    targets.view = None;
+    // The last render's buffers are written over (no allocation when the
+    // window keeps its size).
+    let previous = targets.host.take();
+    let uniform = model.bounds.view(cam, pose, host.params)?;
+    let (mut guard, mut own);
+    let splatter: &mut cpu::HostSplatter = match host.splatter {
+        Some(m) => {
+            guard = m.lock().unwrap_or_else(|p| p.into_inner());
+            &mut guard
+        }
+        None => {
+            own = cpu::HostSplatter::new();
+            &mut own
+        }
+    };
+    if depth_only {
+        let mut depth = match previous {
+            Some(HostRender::Depth(d)) => d,
+            _ => SplatImage {
+                width: 0,
+                height: 0,
+                channels: 1,
+                data: Vec::new(),
+            },
+        };
+        splatter.render_depth(packed, &uniform, &mut depth);
+        targets.host = Some(HostRender::Depth(depth));
+        targets.rendered = None;
+    } else {
+        let mut acc = match previous {
+            Some(HostRender::Full(a)) => a,
+            _ => cpu::Accumulators::default(),
+        };
+        splatter.render(packed, &uniform, attrs, &mut acc);
+        targets.host = Some(HostRender::Full(acc));
+        targets.rendered = Some(attrs);
+    }
+    targets.depth_only = depth_only;
+    targets.view = Some((*pose, *cam));
+    Ok(())
+}
+
+/// One attribute of the last render, normalised (the GPU read's values).
+pub(super) fn read(targets: &SplatTargets, attribute: Attribute) -> Result<SplatImage, SplatError> {
+    targets.check(attribute.needs(), attribute)?;
+    match &targets.host {
+        Some(HostRender::Full(acc))
+            if attribute == Attribute::Depth && targets.depth_from_motion() =>
+        {
+            Ok(acc.depth_from_motion(targets.fx()))
+        }
+        Some(HostRender::Full(acc)) => Ok(acc.resolve(attribute)),
+        Some(HostRender::Depth(depth)) => Ok(match attribute {
+            // Coverage: 1 where a splat reaches, 0 elsewhere, as the GPU's
+            // depth-only weight.
+            Attribute::Weight => SplatImage {
+                data: depth
+                    .data
+                    .iter()
+                    .map(|z| if z.is_nan() { 0.0 } else { 1.0 })
+                    .collect(),
+                ..depth.clone()
+            },
+            _ => depth.clone(),
+        }),
+        None => Err(SplatError::NotRendered(attribute)),
+    }
+}
+
+/// The predictors and depth at `points` of the last render.
+pub(super) fn gather(
+    targets: &SplatTargets,
+    points: &[[f32; 2]],
+    mode: GatherMode,
+) -> Result<Vec<GatherSample>, SplatError> {
+    targets.check(Attributes::MOTION, Attribute::Motion)?;
+    if points.is_empty() {
+        return Ok(Vec::new());
+    }
+    let Some(HostRender::Full(acc)) = &targets.host else {
+        return Err(SplatError::NotRendered(Attribute::Motion));
+    };
+    Ok(acc.gather(targets.fx(), points, mode))
+}
