@@ -220,16 +220,9 @@ fn a_synthetic_textured_sequence_tracks_the_same_on_the_cpu_device() {
     assert!(worst_gt < 1.0, "{worst_gt} deg from the truth");
 }
 
-/// The untextured object held by its contour alone (no keyframes): the
-/// same statuses, poses within 1 degree and 2 mm (0.4% of the distance),
-/// and the CPU device's within 3 degrees of the ground truth. The
-/// contour's discrete choices (which points are inliers) carry the
-/// renders' last-bit differences (the depth within 1.2e-7,
-/// [`depth_only_renders_agree`]) further than the texture steps do:
-/// measured 0.52 degrees and 0.55 mm apart after 8 frames, each about 1.9
-/// degrees from the truth.
-#[test]
-fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
+/// The untextured `plain` on the Fig. 10 trajectory at 320x240: the
+/// camera, a 30k-point model and the first `n` frames.
+fn plain_scene(n: usize) -> (Intrinsics, PointModel, Vec<splattrack::synth::SynthFrame>) {
     use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
     let camera = camera_320();
     let cfg = SynthConfig {
@@ -242,9 +235,23 @@ fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
     let object = SynthObject::by_name(&cfg.object).unwrap();
     let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
     let bg = background(&camera, cfg.seed);
-    let frames: Vec<_> = (0..8)
+    let frames = (0..n)
         .map(|i| render_frame(&cfg, &object, &bg, i))
         .collect();
+    (camera, model, frames)
+}
+
+/// The untextured object held by its contour alone (no keyframes): the
+/// same statuses, poses within 1 degree and 2 mm (0.4% of the distance),
+/// and the CPU device's within 3 degrees of the ground truth. The
+/// contour's discrete choices (which points are inliers) carry the
+/// renders' last-bit differences (the depth within 1.2e-7,
+/// [`depth_only_renders_agree`]) further than the texture steps do:
+/// measured 0.52 degrees and 0.55 mm apart after 8 frames, each about 1.9
+/// degrees from the truth.
+#[test]
+fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
+    let (camera, model, frames) = plain_scene(8);
     let config = TrackerConfig {
         modalities: Modalities::CONTOUR,
         ..Default::default()
@@ -282,19 +289,8 @@ fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
 /// and the depth within 1e-6 (measured 1.2e-7, one f32 step at 0.55).
 #[test]
 fn depth_only_renders_agree() {
-    use splattrack::synth::{SynthConfig, SynthObject, Trajectory, background, render_frame};
-    let camera = camera_320();
-    let cfg = SynthConfig {
-        object: "plain".into(),
-        trajectory: Trajectory::Fig10,
-        frames: 60,
-        camera,
-        ..Default::default()
-    };
-    let object = SynthObject::by_name(&cfg.object).unwrap();
-    let model = splattrack::synth::sequence::sample_model(&object, 30_000, cfg.seed).unwrap();
-    let bg = background(&camera, cfg.seed);
-    let pose = render_frame(&cfg, &object, &bg, 0).pose;
+    let (camera, model, frames) = plain_scene(1);
+    let pose = frames[0].pose;
     let mut out = Vec::new();
     for device in devices() {
         let splatter = Splatter::new(&device).unwrap();
