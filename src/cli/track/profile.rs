@@ -16,8 +16,15 @@ fn ms(d: Duration) -> f64 {
 /// `validated`: wgpu checks indirect dispatches on the GPU (said beside
 /// the submissions: a dispatch and two barriers more each).
 pub fn profile_table(t: &StageTimes, cpu_adapter: bool, validated: bool) -> String {
-    let mut out = String::from("per frame (mean; in brackets the wait for the GPU):\n");
-    for (name, v, wait) in stage_rows(t) {
+    let rows = stage_rows(t);
+    // No wait at all (the CPU device): no brackets to explain.
+    let waited = rows.iter().any(|(_, _, w)| w.is_some_and(|d| !d.is_zero()));
+    let mut out = String::from(if waited {
+        "per frame (mean; in brackets the wait for the GPU):\n"
+    } else {
+        "per frame (mean):\n"
+    });
+    for (name, v, wait) in rows {
         out += &format!("  {name:<26} {v:8.1} ms");
         if let Some(d) = wait.filter(|d| !d.is_zero()) {
             out += &format!("  ({:.1} waiting)", ms(d));
