@@ -15,9 +15,8 @@ use std::sync::Mutex;
 /// What a host render needs of the splatter.
 pub(super) struct HostParts<'a> {
     pub params: &'a SplatParams,
-    /// The splatter's own host splatter (`None`: a fresh one, whose
-    /// threads' scratch is not kept).
-    pub splatter: Option<&'a Mutex<cpu::HostSplatter>>,
+    /// The splatter's own host splatter.
+    pub splatter: &'a Mutex<cpu::HostSplatter>,
 }
 
 /// Splats `model` at `pose` into `targets`: colour, weight and the groups
@@ -48,17 +47,7 @@ pub(super) fn render(
     // window keeps its size).
     let previous = targets.host.take();
     let uniform = model.bounds.view(cam, pose, host.params)?;
-    let (mut guard, mut own);
-    let splatter: &mut cpu::HostSplatter = match host.splatter {
-        Some(m) => {
-            guard = m.lock().unwrap_or_else(|p| p.into_inner());
-            &mut guard
-        }
-        None => {
-            own = cpu::HostSplatter::new();
-            &mut own
-        }
-    };
+    let mut splatter = host.splatter.lock().unwrap_or_else(|p| p.into_inner());
     if depth_only {
         let mut depth = match previous {
             Some(HostRender::Depth(d)) => d,

@@ -26,8 +26,9 @@ pub struct Splatter {
     /// `None` on the CPU device.
     gpu: Option<GpuSplatter>,
     /// The CPU device's splatter, its threads' scratch kept between
-    /// renders (`None` on a GPU).
-    host: Option<std::sync::Mutex<super::cpu::HostSplatter>>,
+    /// renders (unused on a GPU, where it holds no buffer and no thread:
+    /// both are made by its first render).
+    host: std::sync::Mutex<super::cpu::HostSplatter>,
 }
 
 impl Splatter {
@@ -46,19 +47,15 @@ impl Splatter {
             Some(ctx) => Some(GpuSplatter::with_params(ctx, params)?),
             None => None,
         };
-        let host = gpu
-            .is_none()
-            .then(|| std::sync::Mutex::new(super::cpu::HostSplatter::new()));
+        let host = std::sync::Mutex::new(super::cpu::HostSplatter::new());
         Ok(Self { params, gpu, host })
     }
 
-    /// The CPU device's parameters and host splatter (one made here where
-    /// the splatter is a GPU's, which the callers' device checks refuse
-    /// before this is reached).
+    /// The CPU device's parameters and host splatter.
     fn host_parts(&self) -> cpu_device::HostParts<'_> {
         cpu_device::HostParts {
             params: &self.params,
-            splatter: self.host.as_ref(),
+            splatter: &self.host,
         }
     }
 
@@ -141,7 +138,8 @@ impl Splatter {
 
     /// Splats `model` at `pose` into `targets` (whose size must be the
     /// camera's). On a GPU, submits the work and returns without waiting;
-    /// on the CPU device, renders (every attribute group).
+    /// on the CPU device, renders colour, weight and the groups of
+    /// `attrs`.
     pub fn render(
         &self,
         device: &impl AsDevice,
