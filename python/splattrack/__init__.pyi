@@ -128,8 +128,8 @@ class Tracker:
     list of ``(image, pose)`` pairs. ``mode``: ``"kf+it"``, ``"it"`` or
     ``"kf"`` (default: kf+it with keyframes or model colours, else it).
     ``modalities``: ``"auto"``, ``"texture"``, ``"contour"`` or
-    ``"texture,contour"``. ``device``: ``"auto"`` (a GPU adapter when one
-    opens, else the CPU), ``"gpu"`` or ``"cpu"`` (the host's cores, no GPU
+    ``"texture,contour"``. ``device``: ``"auto"`` (a hardware GPU adapter
+    when one opens, else the CPU), ``"gpu"`` or ``"cpu"`` (the host's cores, no GPU
     driver needed). The other keyword arguments are the command
     line's tuning flags under the same names (``kf_search=`` is
     ``--kf-search``).
@@ -196,8 +196,8 @@ class Tracker:
 
 def device(device: str = "auto") -> str:
     """The device ``device`` names: ``"gpu"`` (GpuError when there is
-    none), ``"cpu"`` (the host's cores, no GPU driver) or ``"auto"`` (a GPU
-    adapter when one opens, else the CPU)."""
+    none), ``"cpu"`` (the host's cores, no GPU driver) or ``"auto"`` (a hardware
+    GPU adapter when one opens, else the CPU)."""
 
 def read_image(path: _PathLike) -> npt.NDArray[np.uint8]:
     """A PNG or JPEG as HxWx3 uint8 RGB (InputError if it cannot be read)."""

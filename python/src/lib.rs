@@ -48,8 +48,8 @@ pub(crate) fn device_of(py: Python<'_>, name: &str) -> PyResult<Device> {
     }
 }
 
-/// The device the package runs on for `device` (`"auto"`: a GPU adapter
-/// when one opens, else the CPU), as the command line names it
+/// The device the package runs on for `device` (`"auto"`: a hardware GPU
+/// adapter when one opens, else the CPU), as the command line names it
 /// (`llvmpipe (...) (Cpu, Vulkan)`); makes the GPU context when needed.
 #[pyfunction]
 #[pyo3(signature = (device="auto"))]
