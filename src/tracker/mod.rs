@@ -38,7 +38,7 @@
 //! pose against the image), `decision.rs` (the rules), `result.rs` (what a
 //! frame reports), `error.rs`, `region.rs` and `workspace.rs` (where the
 //! steps work: the object's region of the image, its renders and reads),
-//! `profile.rs` (GPU timing).
+//! `profile.rs` (GPU timing), `multi.rs` (several objects in one video).
 
 #![warn(missing_docs)]
 
@@ -58,6 +58,7 @@ pub mod init;
 mod it;
 mod kf;
 mod lost;
+mod multi;
 pub mod outline_gpu;
 mod profile;
 mod region;
@@ -77,6 +78,7 @@ pub use detect::DetectConfig;
 pub use error::{CameraInvalid, ConfigError, TrackError};
 pub use execution::Execution;
 pub use init::InitConfig;
+pub use multi::{MultiError, MultiTracker};
 pub use result::{
     GpuMemoryUse, LostReason, NovelView, Refused, Source, Stage, StageTimes, StageWaits, Status,
     StepError, TrackResult,
