@@ -1,6 +1,7 @@
 //! Pose CSV files (docs/formats.md): a header line, then one row per pose,
-//! `frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra columns]`,
-//! object-to-camera, R row-major.
+//! `[object,]frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz[,extra
+//! columns]`, object-to-camera, R row-major; the leading `object` column
+//! (the object's name) where the file holds several objects' poses.
 
 use super::atomic::{PartialFile, WriteError, write_atomic};
 use crate::geometry::{Pose, PoseError};
@@ -59,10 +60,14 @@ pub enum PoseFileError {
     },
 }
 
-/// One row of a pose file: the frame label, the pose and any extra columns
-/// (by header name) that followed `tz`.
+/// One row of a pose file: the object (in a file of several objects), the
+/// frame label, the pose and any extra columns (by header name) that
+/// followed `tz`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PoseRow {
+    /// The object's name, in a file with an `object` column (several
+    /// objects' poses); `None` in a file of one object's.
+    pub object: Option<String>,
     /// The frame label: an index (`000043`) or an image file name.
     pub frame: String,
     /// The object-to-camera pose.
@@ -75,10 +80,17 @@ impl PoseRow {
     /// A row with no extra columns.
     pub fn new(frame: impl Into<String>, pose: Pose) -> Self {
         Self {
+            object: None,
             frame: frame.into(),
             pose,
             extra: Vec::new(),
         }
+    }
+
+    /// This row, of object `name` (a row of a several-object file).
+    pub fn of_object(mut self, name: impl Into<String>) -> Self {
+        self.object = Some(name.into());
+        self
     }
 
     /// The frame label as an index, if it is one (`"000043"` -> 43).
@@ -118,14 +130,19 @@ pub fn parse_poses(text: &str, path: &Path) -> Result<Vec<PoseRow>, PoseFileErro
     let (_, header) = lines
         .next()
         .ok_or_else(|| fmt_err("empty file (expected a header line and pose rows)".into()))?;
-    let cols: Vec<String> = header
+    let mut cols: Vec<String> = header
         .trim_start_matches('\u{feff}')
         .split(',')
         .map(|c| c.trim().to_ascii_lowercase())
         .collect();
+    // A leading `object` column: several objects' poses.
+    let with_object = cols.first().is_some_and(|c| c == "object");
+    if with_object {
+        cols.remove(0);
+    }
     if cols.len() < 13 || cols[..13] != POSE_COLUMNS {
         return Err(fmt_err(format!(
-            "header must start with {:?}, found {:?}",
+            "header must start with {:?} (or object,{0:?}), found {:?}",
             POSE_COLUMNS.join(","),
             header.trim()
         )));
@@ -138,14 +155,23 @@ pub fn parse_poses(text: &str, path: &Path) -> Result<Vec<PoseRow>, PoseFileErro
             line: lineno,
             reason,
         };
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != cols.len() {
+        let mut fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let n_cols = cols.len() + usize::from(with_object);
+        if fields.len() != n_cols {
             return Err(row_err(format!(
-                "{} fields, the header has {}",
+                "{} fields, the header has {n_cols}",
                 fields.len(),
-                cols.len()
             )));
         }
+        let object = if with_object {
+            let name = fields.remove(0);
+            if name.is_empty() {
+                return Err(row_err("empty object name".into()));
+            }
+            Some(name.to_owned())
+        } else {
+            None
+        };
         let mut v = [0.0f64; 12];
         for (k, f) in fields[1..13].iter().enumerate() {
             v[k] = f
@@ -161,6 +187,7 @@ pub fn parse_poses(text: &str, path: &Path) -> Result<Vec<PoseRow>, PoseFileErro
             return Err(row_err("empty frame label".into()));
         }
         rows.push(PoseRow {
+            object,
             frame: fields[0].to_owned(),
             pose: pose.orthonormalized(),
             extra: cols[13..]
@@ -176,9 +203,13 @@ pub fn parse_poses(text: &str, path: &Path) -> Result<Vec<PoseRow>, PoseFileErro
     Ok(rows)
 }
 
-/// Formats one row (no newline) with enough digits to round-trip poses.
+/// Formats one row (no newline) with enough digits to round-trip poses;
+/// the object's name first where the row has one.
 pub fn format_row(row: &PoseRow) -> String {
-    let mut s = row.frame.clone();
+    let mut s = match &row.object {
+        Some(name) => format!("{name},{}", row.frame),
+        None => row.frame.clone(),
+    };
     for v in row.pose.to_row_major() {
         s.push(',');
         s.push_str(&format!("{v:.9}"));
@@ -192,7 +223,18 @@ pub fn format_row(row: &PoseRow) -> String {
 
 /// The header line for rows with these extra columns.
 pub fn header(extra_columns: &[&str]) -> String {
-    let mut h = POSE_COLUMNS.join(",");
+    header_of(false, extra_columns)
+}
+
+/// The header line for rows with these extra columns, and an `object`
+/// column first where `objects` (rows of several objects).
+pub fn header_of(objects: bool, extra_columns: &[&str]) -> String {
+    let mut h = if objects {
+        "object,".to_string()
+    } else {
+        String::new()
+    };
+    h.push_str(&POSE_COLUMNS.join(","));
     for c in extra_columns {
         h.push(',');
         h.push_str(c);
@@ -201,14 +243,16 @@ pub fn header(extra_columns: &[&str]) -> String {
 }
 
 /// Writes a pose CSV atomically ([`write_atomic`]), so a crash never
-/// leaves a truncated file. Rows must all have the same extra columns.
+/// leaves a truncated file. Rows must all have the same extra columns,
+/// and all an object or none (the `object` column).
 pub fn write_poses(path: &Path, rows: &[PoseRow]) -> Result<(), PoseFileError> {
     let extra: Vec<&str> = rows
         .first()
         .map(|r| r.extra.iter().map(|(k, _)| k.as_str()).collect())
         .unwrap_or_default();
+    let objects = rows.first().is_some_and(|r| r.object.is_some());
     write_atomic(path, |f| {
-        writeln!(f, "{}", header(&extra))?;
+        writeln!(f, "{}", header_of(objects, &extra))?;
         for r in rows {
             writeln!(f, "{}", format_row(r))?;
         }
@@ -237,6 +281,13 @@ impl PoseWriter {
         Ok(Self { file })
     }
 
+    /// [`PoseWriter::create`] for rows of several objects (an `object`
+    /// column first: every row must name its object).
+    pub fn create_objects(path: &Path, extra_columns: &[&str]) -> Result<Self, PoseFileError> {
+        let file = PartialFile::create(path, &header_of(true, extra_columns))?;
+        Ok(Self { file })
+    }
+
     /// Appends one row and flushes it.
     pub fn row(&mut self, row: &PoseRow) -> Result<(), PoseFileError> {
         Ok(self.file.line(&format_row(row))?)
@@ -259,6 +310,46 @@ mod tests {
     }
 
     #[test]
+    fn object_column_roundtrips_and_is_checked() {
+        let pose = Pose::new(rotation_exp(&Vector3::new(0.1, 0.2, 0.3)), Vector3::z()).unwrap();
+        let mut rows = Vec::new();
+        for (i, name) in ["gear", "housing"].into_iter().enumerate() {
+            let mut r = PoseRow::new(format!("{i:06}"), pose).of_object(name);
+            r.extra = vec![("status".into(), "tracking".into())];
+            rows.push(r);
+        }
+        let text: String = std::iter::once(header_of(true, &["status"]))
+            .chain(rows.iter().map(format_row))
+            .map(|l| l + "\n")
+            .collect();
+        assert!(text.starts_with("object,frame,r11,"));
+        let back = parse_poses(&text, p()).unwrap();
+        assert_eq!(back.len(), 2);
+        assert_eq!(back[0].object.as_deref(), Some("gear"));
+        assert_eq!(back[1].object.as_deref(), Some("housing"));
+        assert_eq!(back[1].frame, "000001");
+        assert_eq!(back[1].extra, rows[1].extra);
+        // A file of one object has none.
+        let plain = format!(
+            "{}\n{}\n",
+            header(&[]),
+            format_row(&PoseRow::new("0", pose))
+        );
+        assert_eq!(parse_poses(&plain, p()).unwrap()[0].object, None);
+        // An empty name, or a row without the object's field, is refused
+        // naming the line.
+        let empty = text.replace("gear,", ",");
+        let e = parse_poses(&empty, p()).unwrap_err().to_string();
+        assert!(
+            e.contains("line 2") && e.contains("empty object name"),
+            "{e}"
+        );
+        let short = text.replace("housing,", "");
+        let e = parse_poses(&short, p()).unwrap_err().to_string();
+        assert!(e.contains("line 3") && e.contains("fields"), "{e}");
+    }
+
+    #[test]
     fn roundtrip_with_extra_columns() {
         let mut rng = crate::rng::Rng::new(11);
         let rows: Vec<PoseRow> = (0..20)
@@ -266,6 +357,7 @@ mod tests {
                 let r = rotation_exp(&(rng.unit_vector() * rng.uniform(0.0, 3.0)));
                 let t = Vector3::new(rng.normal(), rng.normal(), rng.uniform(0.2, 2.0));
                 PoseRow {
+                    object: None,
                     frame: format!("{i:06}"),
                     pose: Pose::new(r, t).unwrap(),
                     extra: vec![("inliers".into(), format!("{}", i * 3))],
