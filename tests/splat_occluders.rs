@@ -185,75 +185,124 @@ fn same(a: f32, b: f32) -> bool {
     a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan())
 }
 
+/// Renders `model` behind `occluders` (identity poses) on `p` and checks
+/// the known answer: where they are `in_front` of it, empty wherever an
+/// occluder's own render covers the pixel, the plain render bit for bit
+/// elsewhere (the 1 px band around the occluders' coverage left out);
+/// where they are behind it, the plain render bit for bit everywhere.
+/// Returns the pixels checked hidden and kept.
+fn hides_exactly(
+    p: &mut Path,
+    cam: &Intrinsics,
+    model: &GpuModel,
+    occluders: &[Arc<GpuModel>],
+    in_front: bool,
+) -> (usize, usize) {
+    let pose = identity();
+    p.splatter.set_occluders(Vec::new()).unwrap();
+    let plain = p.images(model, cam, &pose);
+    let mut cover = SplatImage {
+        data: vec![0.0; (cam.width * cam.height) as usize],
+        ..plain[4].clone()
+    };
+    for o in occluders {
+        let w = p.images(o, cam, &pose).remove(4);
+        for (c, v) in cover.data.iter_mut().zip(&w.data) {
+            *c += v;
+        }
+    }
+    let (mut hidden, mut band) = mask_and_band(&cover);
+    if !in_front {
+        hidden.fill(false);
+        band.fill(false);
+    }
+    let list = occluders
+        .iter()
+        .map(|m| Occluder {
+            model: m.clone(),
+            pose,
+        })
+        .collect();
+    p.splatter.set_occluders(list).unwrap();
+    let occluded = p.images(model, cam, &pose);
+    let (mut empty, mut kept) = (0, 0);
+    for i in 0..hidden.len() {
+        if band[i] || plain[4].data[i] <= 0.0 {
+            continue;
+        }
+        if hidden[i] {
+            assert_eq!(occluded[4].data[i], 0.0, "{}: pixel {i} not hidden", p.name);
+            assert!(occluded[1].data[i].is_nan(), "{}: depth at {i}", p.name);
+            empty += 1;
+            continue;
+        }
+        for (k, (a, b)) in occluded.iter().zip(&plain).enumerate() {
+            let c = a.channels;
+            for j in i * c..(i + 1) * c {
+                assert!(
+                    same(a.data[j], b.data[j]),
+                    "{}: {:?} at pixel {i}: {} vs {} plain",
+                    p.name,
+                    READ[k],
+                    a.data[j],
+                    b.data[j]
+                );
+            }
+        }
+        kept += 1;
+    }
+    (empty, kept)
+}
+
 #[test]
 fn a_near_plane_hides_exactly_what_it_covers_of_a_far_one() {
     let (cam, far, near) = planes();
-    let pose = identity();
-    for path in Path::all() {
-        let mut p = path;
+    for mut p in Path::all() {
         let (far_m, near_m) = (p.model(&far), p.model(&near));
-        let plain = p.images(&far_m, &cam, &pose);
-        let cover = p.images(&near_m, &cam, &pose).remove(4);
-        let (hidden, band) = mask_and_band(&cover);
-        p.splatter
-            .set_occluders(vec![Occluder {
-                model: near_m.clone(),
-                pose,
-            }])
-            .unwrap();
-        let occluded = p.images(&far_m, &cam, &pose);
-        let (mut empty, mut kept) = (0, 0);
-        for i in 0..hidden.len() {
-            let far_covers = plain[4].data[i] > 0.0;
-            if band[i] || !far_covers {
-                continue;
-            }
-            if hidden[i] {
-                assert_eq!(occluded[4].data[i], 0.0, "{}: pixel {i} not hidden", p.name);
-                assert!(occluded[1].data[i].is_nan(), "{}: depth at {i}", p.name);
-                empty += 1;
-            } else {
-                for (k, (a, b)) in occluded.iter().zip(&plain).enumerate() {
-                    let c = a.channels as usize;
-                    for j in i * c..(i + 1) * c {
-                        assert!(
-                            same(a.data[j], b.data[j]),
-                            "{}: {:?} at pixel {i}: {} vs {} plain",
-                            p.name,
-                            READ[k],
-                            a.data[j],
-                            b.data[j]
-                        );
-                    }
-                }
-                kept += 1;
-            }
-        }
+        let (empty, kept) = hides_exactly(&mut p, &cam, &far_m, &[near_m.clone()], true);
         eprintln!("{}: {empty} pixels hidden, {kept} kept", p.name);
         assert!(
             empty > 2000 && kept > 2000,
             "{}: {empty} hidden, {kept} kept",
             p.name
         );
+        // The far plane as the near one's occluder: the near one's plain
+        // render, every pixel.
+        let (empty, kept) = hides_exactly(&mut p, &cam, &near_m, &[far_m.clone()], false);
+        assert_eq!(empty, 0, "{}: the near plane hidden by the far one", p.name);
+        assert!(kept > 2000, "{}: {kept} kept", p.name);
+    }
+}
 
-        // The near plane behind the far one as occluder: its plain render.
-        let plain_near = p.images(&near_m, &cam, &pose);
-        p.splatter
-            .set_occluders(vec![Occluder {
-                model: far_m.clone(),
-                pose,
-            }])
-            .unwrap();
-        let in_front = p.images(&near_m, &cam, &pose);
-        for (k, (a, b)) in in_front.iter().zip(&plain_near).enumerate() {
-            assert_eq!(
-                differing(a, b),
-                0,
-                "{}: {:?} of the near plane",
-                p.name,
-                READ[k]
-            );
-        }
+#[test]
+fn several_occluders_of_large_splats_hide_a_plane_of_large_splats() {
+    // Splats of 17-20 px radius: footprints over 32 x 32 pixels, which
+    // the compute splatter lists and walks a workgroup each, the model's
+    // and each of three occluders' in turn (three strips at depths 1.0,
+    // 1.1 and 1.2, one above the other, over the far plane's left part).
+    let (cam, _, _) = planes();
+    let facing = Vec3::new(0.0, 0.0, -1.0);
+    let far = shapes::plane(Vec3::new(0.0, 0.0, 1.5), facing, 0.5, 6, 1.6);
+    let strips: Vec<PointModel> = (0..3)
+        .map(|k| {
+            let z = 1.0 + 0.1 * k as f32;
+            let y = (k as f32 - 1.0) * 0.3 * z;
+            shapes::plane(Vec3::new(-0.3 * z, y, z), facing, 0.15 * z, 3, 2.0)
+        })
+        .collect();
+    for mut p in Path::all() {
+        let far_m = p.model(&far);
+        let occluders: Vec<Arc<GpuModel>> = strips.iter().map(|m| p.model(m)).collect();
+        let (empty, kept) = hides_exactly(&mut p, &cam, &far_m, &occluders, true);
+        eprintln!(
+            "{}: large splats: {empty} pixels hidden, {kept} kept",
+            p.name
+        );
+        assert!(
+            empty > 1000 && kept > 1000,
+            "{}: {empty} hidden, {kept} kept",
+            p.name
+        );
     }
 }
 
