@@ -259,7 +259,8 @@ fn a_near_plane_hides_exactly_what_it_covers_of_a_far_one() {
     let (cam, far, near) = planes();
     for mut p in Path::all() {
         let (far_m, near_m) = (p.model(&far), p.model(&near));
-        let (empty, kept) = hides_exactly(&mut p, &cam, &far_m, &[near_m.clone()], true);
+        let (empty, kept) =
+            hides_exactly(&mut p, &cam, &far_m, std::slice::from_ref(&near_m), true);
         eprintln!("{}: {empty} pixels hidden, {kept} kept", p.name);
         assert!(
             empty > 2000 && kept > 2000,
@@ -268,7 +269,8 @@ fn a_near_plane_hides_exactly_what_it_covers_of_a_far_one() {
         );
         // The far plane as the near one's occluder: the near one's plain
         // render, every pixel.
-        let (empty, kept) = hides_exactly(&mut p, &cam, &near_m, &[far_m.clone()], false);
+        let (empty, kept) =
+            hides_exactly(&mut p, &cam, &near_m, std::slice::from_ref(&far_m), false);
         assert_eq!(empty, 0, "{}: the near plane hidden by the far one", p.name);
         assert!(kept > 2000, "{}: {kept} kept", p.name);
     }

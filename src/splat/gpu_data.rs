@@ -97,6 +97,15 @@ impl CameraUniform {
     }
 }
 
+/// A buffer for one [`CameraUniform`] (a render's, or an occluder's).
+pub(super) fn camera_buffer(ctx: &crate::gpu::GpuContext) -> wgpu::Buffer {
+    ctx.buffer(
+        "splat camera",
+        std::mem::size_of::<CameraUniform>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    )
+}
+
 pub use crate::gpu::GATHER_STRIDE;
 
 wgsl_struct! {

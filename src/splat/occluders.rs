@@ -21,7 +21,7 @@ pub const MAX_OCCLUDERS: usize = 16;
 /// Another object hiding part of the model a splatter renders: its
 /// uploaded model (made on the splatter's device) and its pose (object to
 /// camera), the camera being the render's. Shared models are cheap to
-/// hand on: a tracker's ([`crate::Tracker`]) can serve another's renders.
+/// hand on: a tracker's ([`crate::tracker::Tracker`]) can serve another's renders.
 #[derive(Clone)]
 pub struct Occluder {
     /// The occluding object's splats.
@@ -161,7 +161,7 @@ fn reaches(
     let b = &model.bounds;
     let c = pose.transform_point(&b.center);
     let r = b.radius + (2.0 + params.epsilon as f64) * b.max_splat_radius;
-    if !(c.z + r > 0.0) || c.z - r >= far {
+    if c.z + r <= 0.0 || c.z - r >= far {
         return false;
     }
     // Pixels beyond the image a splat's quad may still reach it from.

@@ -6,7 +6,7 @@
 
 use super::Attributes;
 use super::error::SplatError;
-use super::gpu_data::CameraUniform;
+use super::gpu_data::{CameraUniform, camera_buffer};
 use super::model::GpuModel;
 use super::occluders::OccluderSet;
 use super::params::Backend;
@@ -272,13 +272,4 @@ impl GpuSplatter {
         pass.set_bind_group(0, bind, &[]);
         pass.draw(0..4, 0..count);
     }
-}
-
-/// A buffer for one camera uniform.
-pub(super) fn camera_buffer(ctx: &GpuContext) -> wgpu::Buffer {
-    ctx.buffer(
-        "splat camera",
-        std::mem::size_of::<CameraUniform>() as u64,
-        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-    )
 }

@@ -40,7 +40,7 @@ pub(super) struct OccluderSlot {
 impl OccluderSlot {
     pub(super) fn new(ctx: &GpuContext) -> Self {
         Self {
-            uniform: super::render::camera_buffer(ctx),
+            uniform: super::gpu_data::camera_buffer(ctx),
             params: params_uniform(ctx),
             bind: None,
         }

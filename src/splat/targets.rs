@@ -135,7 +135,7 @@ impl GpuTargets {
             wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
         let depth_view = depth.create_view(&Default::default());
-        let uniform = super::render::camera_buffer(ctx);
+        let uniform = super::gpu_data::camera_buffer(ctx);
         Self {
             acc,
             acc_views,
