@@ -300,6 +300,7 @@ impl Tracker {
             detector: None,
             cue_choice: None,
             hidden: None,
+            seed: None,
         };
         if let Some(c) = tracker.check.as_mut() {
             c.set_resident(resident);
