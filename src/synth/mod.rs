@@ -15,17 +15,21 @@
 
 mod background;
 pub mod framing;
+pub mod multi;
 pub mod objects;
 pub mod raster;
 mod scene;
 pub mod sequence;
 
 pub use background::{Background, background};
+pub use multi::{Layout, MultiConfig, MultiFrame, MultiObject, MultiScene};
 pub use objects::{Light, SynthObject, Texture};
 pub use scene::{
     SynthConfig, SynthFrame, SynthScene, Trajectory, base_pose, keyframe_images, keyframe_poses,
     render_frame, to_image, trajectory_pose,
 };
 
+#[cfg(test)]
+mod multi_tests;
 #[cfg(test)]
 mod scene_tests;
