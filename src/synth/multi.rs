@@ -218,7 +218,8 @@ const FAR_SIZE: f64 = 0.25;
 const NEAR_SIZE: f64 = 0.27;
 
 /// The hidden fraction of the farther object at the crossing that
-/// [`Layout::Cross`] and [`Layout::Mixed`] aim at.
+/// [`Layout::Cross`] and [`Layout::Mixed`] aim at (of any object, for
+/// [`Layout::Cross3`]).
 fn target_hidden(layout: Layout) -> f64 {
     match layout {
         Layout::Mixed => 0.33,
@@ -494,19 +495,40 @@ fn place(layout: Layout, objects: &[SynthObject], cam: &Intrinsics) -> Vec<Path>
         }
         Layout::Cross3 => {
             let (far, mid, near) = (&objects[0], &objects[1], &objects[2]);
-            let paths = vec![
-                path((0.5, 0.58), (0.5, 0.42), 30.0, 25.0, 0.0),
-                path((0.2, 0.42), (0.8, 0.42), -35.0, 20.0, 2.0),
-                path((0.8, 0.6), (0.2, 0.6), 60.0, 35.0, 4.0),
+            // The middle one crosses the farthest at the middle of the
+            // sequence, the nearest later, and they cross each other in
+            // between.
+            let mut paths = vec![
+                path((0.45, 0.5), (0.55, 0.5), 30.0, 25.0, 0.0),
+                path((0.15, 0.5), (0.85, 0.5), -35.0, 20.0, 2.0),
+                path((0.85, 0.5), (0.35, 0.5), 60.0, 35.0, 4.0),
             ];
-            let mut paths = paths;
             paths[0].turn = 0.25;
             paths[2].distance = distance_for(near, cam, NEAR_SIZE, 60.0, 35.0);
             paths[1].distance = distance_for(mid, cam, NEAR_SIZE, -35.0, 20.0)
                 .max(paths[2].distance + gap(mid, near));
             paths[0].distance =
                 distance_for(far, cam, FAR_SIZE, 30.0, 25.0).max(paths[1].distance + gap(far, mid));
-            paths
+            let meshes = [far, mid, near];
+            // The middle one above by `dv` (fraction of the height), the
+            // nearest below by as much.
+            let with = |dv: f64| {
+                let mut p = paths.clone();
+                for (k, sign) in [(1, -1.0), (2, 1.0)] {
+                    p[k].from.y += sign * dv;
+                    p[k].to.y += sign * dv;
+                }
+                p
+            };
+            let hidden = |dv: f64| {
+                let p = with(dv);
+                (0..=50)
+                    .map(|j| visible_at(&meshes, &p, cam, j as f64 / 50.0))
+                    .flat_map(|v| v.into_iter().map(|v| 1.0 - v))
+                    .fold(0.0, f64::max)
+            };
+            let dv = solve_decreasing(hidden, target_hidden(layout), 0.0, 0.5);
+            with(dv)
         }
     }
 }
