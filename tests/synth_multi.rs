@@ -6,6 +6,7 @@ mod cli_common;
 
 use cli_common::*;
 use splattrack::io::read_poses;
+use splattrack::synth::sequence::read_visibility;
 use std::path::{Path, PathBuf};
 
 fn root(name: &str) -> PathBuf {
@@ -27,20 +28,6 @@ fn images(dir: &Path) -> usize {
         .count()
 }
 
-/// The sequence's `visibility.csv`: (object, frame, visible) rows.
-fn visibility(seq: &Path) -> Vec<(String, String, f64)> {
-    let text = std::fs::read_to_string(seq.join("visibility.csv")).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("object,frame,visible"));
-    lines
-        .map(|l| {
-            let f: Vec<&str> = l.split(',').collect();
-            assert_eq!(f.len(), 3, "{l}");
-            (f[0].to_owned(), f[1].to_owned(), f[2].parse().unwrap())
-        })
-        .collect()
-}
-
 /// Checks a written sequence of `names` over `frames` frames: every
 /// object's pose in every frame, ordered by frame then object, frame 0's
 /// in init.csv, the visibility of each, the objects' folders.
@@ -60,15 +47,17 @@ fn check_sequence(seq: &Path, names: &[&str], frames: usize) {
         assert_eq!(a.frame_index(), Some(0));
         assert_eq!(a.pose, b.pose);
     }
-    let vis = visibility(seq);
+    let vis = read_visibility(&seq.join("visibility.csv")).unwrap();
     assert_eq!(vis.len(), names.len() * frames);
-    for (j, (name, frame, v)) in vis.iter().enumerate() {
-        assert_eq!(name, names[j % names.len()]);
-        assert_eq!(frame, &poses[j].frame);
-        assert!((0.0..=1.0).contains(v), "{v}");
+    for (j, row) in vis.iter().enumerate() {
+        assert_eq!(row.object, names[j % names.len()]);
+        assert_eq!(row.frame, poses[j].frame);
     }
     // Every object wholly in view at the start.
-    assert!(vis[..names.len()].iter().all(|r| r.2 == 1.0), "{vis:?}");
+    assert!(
+        vis[..names.len()].iter().all(|r| r.visible == 1.0),
+        "{vis:?}"
+    );
     for name in names {
         let obj = seq.join("objects").join(name);
         assert!(obj.join("model.ply").is_file(), "{name}");

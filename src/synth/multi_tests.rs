@@ -230,3 +230,36 @@ fn repeated_objects_are_numbered_and_bad_lists_refused() {
     let s = with(&["blob", "blob"], Layout::Cross).unwrap();
     assert_eq!(s.names(), ["blob", "blob-2"]);
 }
+
+#[test]
+fn visibility_files_are_read_back_and_bad_ones_named() {
+    use super::sequence::read_visibility;
+    let dir = std::env::temp_dir().join(format!("splattrack-vis-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("visibility.csv");
+    let read = |text: &str| {
+        std::fs::write(&path, text).unwrap();
+        read_visibility(&path)
+    };
+    let rows = read("object,frame,visible\nblob,000000,1.000000\nbox,000000,0.25\n").unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(
+        (rows[1].object.as_str(), rows[1].frame.as_str()),
+        ("box", "000000")
+    );
+    assert_eq!(rows[1].visible, 0.25);
+    for (text, needle) in [
+        ("frame,visible\n", "line 1: the header"),
+        ("object,frame,visible\nblob,0\n", "line 2: 2 fields"),
+        (
+            "object,frame,visible\nblob,0,1\nblob,1,1.5\n",
+            "line 3: visible \"1.5\"",
+        ),
+        ("object,frame,visible\nblob,0,x\n", "visible \"x\""),
+        ("object,frame,visible\n,0,1\n", "an empty object"),
+    ] {
+        let e = read(text).unwrap_err().to_string();
+        assert!(e.contains(needle) && e.contains("visibility.csv"), "{e}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -44,6 +44,16 @@ pub enum SynthError {
     /// A sequence needs at least two frames (the trajectory's start and end).
     #[error("a sequence needs at least 2 frames, got {0}")]
     TooFewFrames(usize),
+    /// A visibility file is malformed.
+    #[error("{path}, line {line}: {reason}")]
+    Visibility {
+        /// The file.
+        path: PathBuf,
+        /// The 1-based line number.
+        line: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// A scene of several objects was given the wrong number of them.
     #[error("scene {layout} takes {want} objects, got {got}")]
     ObjectCount {
@@ -272,7 +282,7 @@ pub fn write_multi_sequence(
         model_len = model.len();
     }
     let mut rows = Vec::with_capacity(cfg.frames * n_obj);
-    let mut vis_lines = String::from("object,frame,visible\n");
+    let mut vis_lines = format!("{VISIBILITY_HEADER}\n");
     let mut poses = vec![Vec::with_capacity(cfg.frames); n_obj];
     let mut visibility = vec![Vec::with_capacity(cfg.frames); n_obj];
     for i in 0..cfg.frames {
@@ -314,4 +324,62 @@ pub fn write_multi_sequence(
         poses,
         visibility,
     })
+}
+
+/// One row of a sequence's `visibility.csv` (docs/formats.md, "Several
+/// objects").
+#[derive(Debug, Clone, PartialEq)]
+pub struct VisibilityRow {
+    /// The object's name.
+    pub object: String,
+    /// The frame's label, as in `poses.csv`.
+    pub frame: String,
+    /// The fraction (0..1) of the object's silhouette the frame shows.
+    pub visible: f64,
+}
+
+/// The header line of `visibility.csv`.
+pub const VISIBILITY_HEADER: &str = "object,frame,visible";
+
+/// Reads a `visibility.csv`: its header, then `object,frame,visible` rows
+/// with `visible` in 0..1.
+pub fn read_visibility(path: &Path) -> Result<Vec<VisibilityRow>, SynthError> {
+    let text = std::fs::read_to_string(path).map_err(io_err(path))?;
+    let bad = |line: usize, reason: String| SynthError::Visibility {
+        path: path.to_owned(),
+        line,
+        reason,
+    };
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim() == VISIBILITY_HEADER => {}
+        _ => return Err(bad(1, format!("the header must be {VISIBILITY_HEADER}"))),
+    }
+    lines
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(k, l)| {
+            let f: Vec<&str> = l.trim().split(',').collect();
+            let [object, frame, visible] = f[..] else {
+                return Err(bad(k + 1, format!("{} fields, want 3", f.len())));
+            };
+            let visible: f64 = visible
+                .parse()
+                .ok()
+                .filter(|v: &f64| (0.0..=1.0).contains(v))
+                .ok_or_else(|| {
+                    bad(
+                        k + 1,
+                        format!("visible {visible:?} is not a number in 0..1"),
+                    )
+                })?;
+            if object.is_empty() || frame.is_empty() {
+                return Err(bad(k + 1, "an empty object or frame".into()));
+            }
+            Ok(VisibilityRow {
+                object: object.to_owned(),
+                frame: frame.to_owned(),
+                visible,
+            })
+        })
+        .collect()
 }
