@@ -10,6 +10,10 @@
 //! Keyframes are rendered the same way from viewpoints spread over the
 //! viewing sphere. [`framing`] measures and sets where the object sits in
 //! the image (its size, how much of it is outside).
+//!
+//! [`MultiScene`] renders several objects that cross and hide each other,
+//! all in one rasterisation with one depth test, with the visible fraction
+//! of each from the rasteriser's object ids ([`multi`]).
 
 #![warn(missing_docs)]
 
