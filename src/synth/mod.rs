@@ -18,6 +18,7 @@
 #![warn(missing_docs)]
 
 mod background;
+mod error;
 pub mod framing;
 pub mod multi;
 pub mod objects;

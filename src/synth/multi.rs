@@ -8,11 +8,11 @@
 
 use super::Background;
 use super::background::make_background;
+use super::error::SynthError;
 use super::framing::{apparent_size_px, distance_for_size};
 use super::objects::{Light, SynthObject};
 use super::raster;
 use super::scene::{SynthConfig, base_pose, keyframe_images, to_image};
-use super::sequence::SynthError;
 use crate::geometry::{Intrinsics, Pose, rotation_exp};
 use crate::rng::Rng;
 use nalgebra::{Vector2, Vector3};

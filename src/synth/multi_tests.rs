@@ -170,9 +170,9 @@ fn each_pixel_shows_the_object_its_id_names_and_visibility_counts_them() {
     assert!(own > 1000 && hidden > 100, "{own} {hidden}");
     // The visible fraction: the samples the object shows over those it
     // covers alone.
-    for k in 0..2 {
+    for (k, a) in alone.iter().enumerate() {
         let seen: f32 = joint.coverage[k].iter().sum();
-        let all: f32 = alone[k].coverage.iter().sum();
+        let all: f32 = a.coverage.iter().sum();
         let want = seen as f64 / all as f64;
         assert!((joint.visible_fraction(k) - want).abs() < 1e-4, "{k}");
     }
