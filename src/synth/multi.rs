@@ -125,6 +125,8 @@ struct Path {
     to: Vector2<f64>,
     /// Distance from the camera, metres.
     distance: f64,
+    /// How far the distance swings about [`Path::distance`], metres.
+    swing: f64,
     /// The viewpoint of the object's resting orientation, degrees.
     azimuth: f64,
     elevation: f64,
@@ -137,7 +139,7 @@ struct Path {
     ease: bool,
 }
 
-/// How far the depth swings about [`Path::distance`], metres.
+/// How far the depth swings about [`Path::distance`] by default, metres.
 const DEPTH_SWING: f64 = 0.015;
 
 impl Path {
@@ -151,7 +153,7 @@ impl Path {
         };
         let f = self.from + (self.to - self.from) * e;
         let (u, v) = (f.x * cam.width as f64, f.y * cam.height as f64);
-        let z = self.distance + DEPTH_SWING * (tau * s + self.phase).sin();
+        let z = self.distance + self.swing * (tau * s + self.phase).sin();
         let t = Vector3::new((u - cam.cx) / cam.fx * z, (v - cam.cy) / cam.fy * z, z);
         // The one-object trajectories' rotation amplitude, slower.
         let rate = [1.0, 1.5, 0.75];
@@ -393,10 +395,10 @@ fn distance_for(object: &SynthObject, cam: &Intrinsics, fraction: f64, az: f64, 
     })
 }
 
-/// The depth between two objects' centres that keeps them apart in space
-/// however they turn, with the depth's swing.
-fn gap(a: &SynthObject, b: &SynthObject) -> f64 {
-    radius(a) + radius(b) + 2.0 * DEPTH_SWING + 0.01
+/// The depth between the centres of two objects on paths `pa` and `pb`
+/// that keeps them apart in space however they turn and swing.
+fn gap(a: &SynthObject, pa: &Path, b: &SynthObject, pb: &Path) -> f64 {
+    radius(a) + radius(b) + pa.swing + pb.swing + 0.01
 }
 
 /// The paths of `objects` (farthest first) in `layout`.
@@ -405,6 +407,7 @@ fn place(layout: Layout, objects: &[SynthObject], cam: &Intrinsics) -> Vec<Path>
         from: Vector2::new(from.0, from.1),
         to: Vector2::new(to.0, to.1),
         distance: 0.0,
+        swing: DEPTH_SWING,
         azimuth: az,
         elevation: el,
         turn: 0.35,
@@ -420,7 +423,7 @@ fn place(layout: Layout, objects: &[SynthObject], cam: &Intrinsics) -> Vec<Path>
             ];
             paths[1].distance = distance_for(near, cam, NEAR_SIZE, -35.0, 20.0);
             paths[0].distance = distance_for(far, cam, FAR_SIZE, 30.0, 25.0)
-                .max(paths[1].distance + gap(far, near));
+                .max(paths[1].distance + gap(far, &paths[0], near, &paths[1]));
             let meshes = [far, near];
             let target = target_hidden(layout);
             // Apart vertically by `dv` (fraction of the height): the far
@@ -441,12 +444,15 @@ fn place(layout: Layout, objects: &[SynthObject], cam: &Intrinsics) -> Vec<Path>
             let (far, near) = (&objects[0], &objects[1]);
             let mut paths = vec![
                 path((0.46, 0.5), (0.54, 0.5), 30.0, 25.0, 0.0),
-                path((0.82, 0.5), (0.18, 0.5), -35.0, 20.0, 2.0),
+                path((0.77, 0.5), (0.23, 0.5), -35.0, 20.0, 2.0),
             ];
             paths[0].turn = 0.15;
             paths[1].ease = true;
+            // No swing in depth: the near one may then be smaller.
+            paths[0].swing = 0.0;
+            paths[1].swing = 0.0;
             paths[0].distance = distance_for(far, cam, 0.2, 30.0, 25.0);
-            paths[1].distance = paths[0].distance - gap(far, near);
+            paths[1].distance = paths[0].distance - gap(far, &paths[0], near, &paths[1]);
             let meshes = [far, near];
             // Wholly hidden at both ends of the span about the middle and
             // at the middle itself.
@@ -506,9 +512,9 @@ fn place(layout: Layout, objects: &[SynthObject], cam: &Intrinsics) -> Vec<Path>
             paths[0].turn = 0.25;
             paths[2].distance = distance_for(near, cam, NEAR_SIZE, 60.0, 35.0);
             paths[1].distance = distance_for(mid, cam, NEAR_SIZE, -35.0, 20.0)
-                .max(paths[2].distance + gap(mid, near));
-            paths[0].distance =
-                distance_for(far, cam, FAR_SIZE, 30.0, 25.0).max(paths[1].distance + gap(far, mid));
+                .max(paths[2].distance + gap(mid, &paths[1], near, &paths[2]));
+            paths[0].distance = distance_for(far, cam, FAR_SIZE, 30.0, 25.0)
+                .max(paths[1].distance + gap(far, &paths[0], mid, &paths[1]));
             let meshes = [far, mid, near];
             // The middle one above by `dv` (fraction of the height), the
             // nearest below by as much.

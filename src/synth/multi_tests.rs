@@ -129,6 +129,12 @@ fn objects_are_about_the_one_object_size() {
             // The one-object default is about 0.3 of the width.
             let f = s.size_px(k) / cam().width as f64;
             assert!((0.15..=0.5).contains(&f), "{layout:?} object {k}: {f}");
+            // Wholly in the image at the start and the end.
+            let mesh = &s.objects[k].object.mesh;
+            for i in [0, s.config.frames - 1] {
+                let out = super::framing::outside_fraction(mesh, &s.pose(k, i), &cam());
+                assert_eq!(out, 0.0, "{layout:?} object {k} frame {i}");
+            }
         }
     }
 }
