@@ -82,8 +82,8 @@ fn synth_scene_writes_every_objects_ground_truth() {
     assert!(out.contains("% hidden"), "{out}");
     check_sequence(&seq, &["blob", "box"], 4);
 
-    // Written again over it with other objects and fewer frames: nothing
-    // stale is left of the first.
+    // Written again over it with other objects, fewer frames and another
+    // background: nothing stale is left of the first.
     let mut args = vec![
         "synth",
         "--scene",
@@ -92,6 +92,8 @@ fn synth_scene_writes_every_objects_ground_truth() {
         "blob,blob",
         "--frames",
         "3",
+        "--background",
+        "clutter",
         "--force",
     ];
     args.extend(small);
