@@ -229,8 +229,8 @@ fn target_hidden(layout: Layout) -> f64 {
     }
 }
 
-/// The part of the sequence, about its middle, that [`Layout::Hide`]
-/// hides the farther object for at least.
+/// The part of the sequence about its middle throughout which
+/// [`Layout::Hide`] hides the farther object wholly (at least).
 const HIDE_SPAN: f64 = 0.1;
 
 impl MultiScene {
