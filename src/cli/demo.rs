@@ -41,7 +41,9 @@ pub fn run(args: Args, target: &super::common::Target) -> anyhow::Result<()> {
     let synth_args = synth::Args {
         object: args.object,
         trajectory: args.trajectory,
-        frames: args.frames,
+        layout: None,
+        objects: Vec::new(),
+        frames: Some(args.frames),
         width: args.width,
         height: args.height,
         points: 60_000,

@@ -1,10 +1,14 @@
 //! `splattrack synth [--object NAME] [--trajectory fig10|fast|turn] [--frames N]
-//! [--background plain|shapes|clutter] [--object-px PX] [--exit F] ... --out DIR`.
+//! [--background plain|shapes|clutter] [--object-px PX] [--exit F] ... --out DIR`,
+//! or with `--scene cross|hide|mixed|cross3 [--objects A,B]` a sequence of
+//! several objects.
 
 use super::common::{Choice, choice_name};
 use anyhow::{Context, bail};
 use splattrack::Intrinsics;
-use splattrack::synth::{Background, SynthConfig, SynthObject, Trajectory, sequence};
+use splattrack::synth::{
+    Background, Layout, MultiConfig, SynthConfig, SynthObject, Trajectory, sequence,
+};
 use std::path::{Path, PathBuf};
 
 /// The built-in objects (`splattrack::synth::objects::OBJECT_NAMES`).
@@ -31,6 +35,24 @@ pub enum TrajectoryArg {
     Fast,
     /// A full turn about the vertical.
     Turn,
+}
+
+/// The scenes of several objects (`splattrack::synth::Layout`).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LayoutArg {
+    /// Two objects cross; the nearer hides about half of the farther.
+    Cross,
+    /// The nearer hides the farther wholly for a stretch.
+    Hide,
+    /// A textured and an untextured object cross (at most ~40% hidden).
+    Mixed,
+    /// Three objects at three depths cross.
+    Cross3,
+}
+
+/// `--scene`.
+pub fn layout_parser() -> Choice<LayoutArg> {
+    Choice::new("scene")
 }
 
 /// The backgrounds (`splattrack::synth::Background`).
@@ -93,8 +115,22 @@ pub struct Args {
     /// How the object moves.
     #[arg(long, default_value = "fig10", value_parser = trajectory_parser())]
     pub trajectory: TrajectoryArg,
-    #[arg(long, default_value_t = 120)]
-    pub frames: usize,
+    /// A sequence of several objects that cross and hide each other,
+    /// with visibility.csv and a folder per object (docs/formats.md).
+    #[arg(
+        long = "scene",
+        value_parser = layout_parser(),
+        conflicts_with_all = ["object", "trajectory", "exit", "occluders", "object_px", "distance", "low_contrast"]
+    )]
+    pub layout: Option<LayoutArg>,
+    /// The scene's built-in objects, farthest first, comma-separated
+    /// (default: blob,box for cross; box,blob for hide; blob,plain for
+    /// mixed; blob,torus,box for cross3).
+    #[arg(long, value_delimiter = ',', requires = "layout", value_parser = object_parser())]
+    pub objects: Vec<Object>,
+    /// Number of frames (default 120; 90 with --scene).
+    #[arg(long)]
+    pub frames: Option<usize>,
     /// Image width and height.
     #[arg(long, default_value_t = 640)]
     pub width: u32,
@@ -115,20 +151,27 @@ pub struct Args {
     pub out: PathBuf,
     /// Write into a non-empty directory: first remove what a sequence
     /// holds there (the images of frames/ and keyframes/, their poses.csv,
-    /// camera.json, init.csv, poses.csv, model.ply), so no stale frame or
-    /// ground truth survives; other files are left alone.
+    /// camera.json, init.csv, poses.csv, visibility.csv, model.ply,
+    /// mesh.obj, and in each objects/NAME/ its model, mesh, keyframe images
+    /// and their poses.csv), so no stale frame or ground truth survives;
+    /// other files are left alone.
     #[arg(long)]
     pub force: bool,
 }
 
 /// The files of a sequence directory that `synth` writes (docs/formats.md).
-const SEQUENCE_FILES: [&str; 5] = [
+const SEQUENCE_FILES: [&str; 7] = [
     "camera.json",
     "init.csv",
     "poses.csv",
     "model.ply",
+    "mesh.obj",
     "keyframes/poses.csv",
+    "visibility.csv",
 ];
+
+/// The files of an object's folder in a sequence of several objects.
+const OBJECT_FILES: [&str; 3] = ["model.ply", "mesh.obj", "keyframes/poses.csv"];
 
 /// Makes `dir` ready for a new sequence: absent or empty is fine; a
 /// non-empty one is refused without `force`, and with it the sequence
@@ -154,8 +197,26 @@ pub fn prepare_out(dir: &Path, force: bool) -> anyhow::Result<()> {
             std::fs::remove_file(&p).with_context(|| format!("{}: cannot remove", p.display()))?;
         }
     }
-    for sub in ["frames", "keyframes"] {
-        let d = dir.join(sub);
+    let mut image_dirs = vec![dir.join("frames"), dir.join("keyframes")];
+    let objects = dir.join("objects");
+    if objects.is_dir() {
+        let entries = std::fs::read_dir(&objects)
+            .with_context(|| format!("{}: cannot read", objects.display()))?;
+        for entry in entries {
+            let obj = entry
+                .with_context(|| format!("{}: cannot read", objects.display()))?
+                .path();
+            for name in OBJECT_FILES {
+                let p = obj.join(name);
+                if p.is_file() {
+                    std::fs::remove_file(&p)
+                        .with_context(|| format!("{}: cannot remove", p.display()))?;
+                }
+            }
+            image_dirs.push(obj.join("keyframes"));
+        }
+    }
+    for d in image_dirs {
         if !d.is_dir() {
             continue;
         }
@@ -167,15 +228,12 @@ pub fn prepare_out(dir: &Path, force: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Builds the configuration the flags describe (checked).
-pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
-    let trajectory = Trajectory::by_name(&choice_name(&args.trajectory))
-        .context("a trajectory the library lacks")?;
-    if args.frames < 2 {
-        bail!(
-            "--frames {}: a sequence needs at least 2 frames",
-            args.frames
-        );
+/// Checks the flags both kinds of sequence share: the frame count (or
+/// `default_frames`) and the camera they describe.
+fn common(args: &Args, default_frames: usize) -> anyhow::Result<(usize, Intrinsics)> {
+    let frames = args.frames.unwrap_or(default_frames);
+    if frames < 2 {
+        bail!("--frames {frames}: a sequence needs at least 2 frames");
     }
     if !(16..=4096).contains(&args.width) || !(16..=4096).contains(&args.height) {
         bail!(
@@ -193,6 +251,55 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
             args.points
         );
     }
+    // Focal length scaled with the width: the same field of view (56 deg).
+    let f = 600.0 * args.width as f64 / 640.0;
+    let camera = Intrinsics::new(
+        args.width,
+        args.height,
+        f,
+        f,
+        (args.width as f64 - 1.0) / 2.0,
+        (args.height as f64 - 1.0) / 2.0,
+    );
+    Ok((frames, camera))
+}
+
+/// The configuration of a sequence of several objects the flags describe
+/// (checked), or `None` without `--scene`.
+pub fn multi_config(args: &Args) -> anyhow::Result<Option<MultiConfig>> {
+    let Some(layout) = args.layout else {
+        return Ok(None);
+    };
+    let layout = Layout::by_name(&choice_name(&layout)).context("a scene the library lacks")?;
+    let defaults = MultiConfig::default();
+    let (frames, camera) = common(args, defaults.frames)?;
+    if !args.objects.is_empty() && args.objects.len() != layout.object_count() {
+        bail!(
+            "--objects: scene {} takes {} objects, got {}",
+            layout.name(),
+            layout.object_count(),
+            args.objects.len()
+        );
+    }
+    let background = Background::by_name(&choice_name(&args.scene.background))
+        .context("a background the library lacks")?;
+    Ok(Some(MultiConfig {
+        layout,
+        objects: args.objects.iter().map(choice_name).collect(),
+        frames,
+        camera,
+        noise: args.noise,
+        seed: args.seed,
+        background,
+        ..defaults
+    }))
+}
+
+/// Builds the configuration the flags describe (checked).
+pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
+    let trajectory = Trajectory::by_name(&choice_name(&args.trajectory))
+        .context("a trajectory the library lacks")?;
+    let (frames, camera) = common(args, SynthConfig::default().frames)?;
     let sc = &args.scene;
     if !(sc.exit.is_finite() && (0.0..=0.95).contains(&sc.exit)) {
         bail!("--exit {}: must be in 0..0.95", sc.exit);
@@ -213,21 +320,12 @@ pub fn config(args: &Args) -> anyhow::Result<SynthConfig> {
     }
     let background = Background::by_name(&choice_name(&sc.background))
         .context("a background the library lacks")?;
-    // Focal length scaled with the width: the same field of view (56 deg).
-    let f = 600.0 * args.width as f64 / 640.0;
     let defaults = SynthConfig::default();
     let cfg = SynthConfig {
         object: choice_name(&args.object),
         trajectory,
-        frames: args.frames,
-        camera: Intrinsics::new(
-            args.width,
-            args.height,
-            f,
-            f,
-            (args.width as f64 - 1.0) / 2.0,
-            (args.height as f64 - 1.0) / 2.0,
-        ),
+        frames,
+        camera,
         noise: args.noise,
         seed: args.seed,
         background,
@@ -257,7 +355,37 @@ pub fn write(
     Ok(sequence::write_sequence(cfg, dir, points, Some(&progress))?)
 }
 
+/// Writes the sequence of several objects with a progress bar and says
+/// what each object's occlusion came to.
+fn run_multi(args: &Args, cfg: &MultiConfig) -> anyhow::Result<()> {
+    prepare_out(&args.out, args.force)?;
+    let progress = super::progress::bars("synth ", 1);
+    let s = sequence::write_multi_sequence(cfg, &args.out, args.points, Some(&progress))?;
+    println!(
+        "wrote {} ({} scene, {} background): {} frames, {} objects, {} keyframes each, models with {} points",
+        s.dir.display(),
+        cfg.layout.name(),
+        cfg.background.name(),
+        s.frames,
+        s.names.len(),
+        s.keyframes,
+        s.model_points
+    );
+    for (k, name) in s.names.iter().enumerate() {
+        println!(
+            "  {name}: {:.0} px across, at most {:.0}% hidden, {} frames wholly hidden",
+            s.sizes_px[k],
+            100.0 * s.peak_hidden(k),
+            s.frames_hidden(k)
+        );
+    }
+    Ok(())
+}
+
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if let Some(cfg) = multi_config(&args)? {
+        return run_multi(&args, &cfg);
+    }
     let cfg = config(&args)?;
     prepare_out(&args.out, args.force)?;
     let s = write(&cfg, &args.out, args.points)?;
@@ -295,6 +423,11 @@ mod tests {
             .map(choice_name)
             .collect();
         assert_eq!(backgrounds, Background::NAMES);
+        let layouts: Vec<String> = LayoutArg::value_variants()
+            .iter()
+            .map(choice_name)
+            .collect();
+        assert_eq!(layouts, Layout::NAMES);
         assert_eq!(
             choice_name(&BackgroundArg::default()),
             SynthConfig::default().background.name()
