@@ -65,6 +65,9 @@ impl Layout {
 /// second; on a lost frame, the reason, and on a frame whose texture was
 /// set aside, that the contour alone tracked it.
 pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+    if !frame.objects.is_empty() {
+        return objects_lines(frame);
+    }
     let r = frame.result;
     let time = frame
         .time_s
@@ -98,6 +101,43 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
         (Status::Tracking, _) => String::new(),
     };
     [first, second, third]
+}
+
+/// [`status_lines`] of several objects: mode, frame and time; how many
+/// track, the frame's milliseconds and the frames per second; each lost
+/// object's name and reason.
+fn objects_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+    let time = frame
+        .time_s
+        .map_or_else(String::new, |t| format!("  t {t:.3} s"));
+    let first = format!(
+        "{}  frame {} ({}){time}",
+        frame.mode.name(),
+        frame.index,
+        frame.label
+    );
+    let rate = frame
+        .rate_hz
+        .map_or_else(String::new, |f| format!("  {f:.1} frames/s"));
+    let ms: f64 = frame
+        .objects
+        .iter()
+        .map(|o| o.result.times.total.as_secs_f64() * 1e3)
+        .sum();
+    let second = format!(
+        "{}  {ms:.0} ms{rate}",
+        super::objects::objects_tracking(frame.objects)
+    );
+    let lost: Vec<String> = frame
+        .objects
+        .iter()
+        .filter(|o| o.result.status == Status::Lost)
+        .map(|o| match &o.result.reason {
+            Some(why) => format!("{} lost: {why}", o.name),
+            None => format!("{} lost", o.name),
+        })
+        .collect();
+    [first, second, lost.join("; ")]
 }
 
 /// Frames per second over the last [`Rate::FRAMES`] frames, from the
@@ -145,15 +185,28 @@ fn fit(text: &str, n: usize) -> String {
 /// ([`Layout::band`] pixels, [`BAND_COLOUR`]) with [`status_lines`] in it
 /// (the status line in [`status_colour`], the others white), above the
 /// frame with the silhouette's outline in the status colour and its inside
-/// lightly tinted ([`draw::silhouette`]). A pure function: everything the
-/// display shows is tested through it.
+/// lightly tinted ([`draw::silhouette`]); several objects each in its
+/// colour, named ([`super::objects::draw_objects`]), the status line red
+/// when one is lost. A pure function: everything the display shows is
+/// tested through it.
 pub fn compose(frame: &ViewFrame<'_>) -> RgbaImage {
     let (w, h) = frame.image.dimensions();
     let layout = Layout::for_width(w);
-    let colour = status_colour(frame.result.status);
+    let status = if frame
+        .objects
+        .iter()
+        .any(|o| o.result.status == Status::Lost)
+    {
+        Status::Lost
+    } else {
+        frame.result.status
+    };
+    let colour = status_colour(status);
     let mut picture = RgbImage::from_pixel(w, h + layout.band, image::Rgb(BAND_COLOUR));
     let mut shown = frame.image.clone();
-    if let Some(mask) = frame.mask {
+    if !frame.objects.is_empty() {
+        super::objects::draw_objects(&mut shown, frame.objects);
+    } else if let Some(mask) = frame.mask {
         draw::silhouette(&mut shown, mask, colour);
     }
     image::imageops::replace(&mut picture, &shown, 0, layout.band as i64);
