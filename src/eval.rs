@@ -463,7 +463,12 @@ mod tests {
     #[test]
     fn objects_are_matched_by_name_and_frame() {
         let of = |o: &str, f: &str, deg: f64| row(f, deg, 0.0, None).of_object(o);
-        let gt = vec![of("a", "0", 0.0), of("b", "0", 0.0), of("a", "1", 0.0), of("b", "1", 0.0)];
+        let gt = vec![
+            of("a", "0", 0.0),
+            of("b", "0", 0.0),
+            of("a", "1", 0.0),
+            of("b", "1", 0.0),
+        ];
         // b's rows first, a's frame 1 missing: each object its own figures.
         let est = vec![of("b", "0", 2.0), of("a", "0", 1.0), of("b", "1", 4.0)];
         let out = evaluate_objects("run", &est, &gt, &EvalOptions::default()).unwrap();
@@ -480,11 +485,17 @@ mod tests {
         assert_eq!(e.unwrap_err(), EvalError::UnknownObject("c".into()));
         let plain = vec![row("0", 0.0, 0.0, None)];
         let e = evaluate_objects("run", &plain, &gt, &EvalOptions::default()).unwrap_err();
-        assert!(e.to_string().contains("estimate has no object column"), "{e}");
+        assert!(
+            e.to_string().contains("estimate has no object column"),
+            "{e}"
+        );
         // Plain files: one evaluation, as evaluate gives.
         let one = evaluate_objects("run", &plain, &plain, &EvalOptions::default()).unwrap();
         assert_eq!(one.len(), 1);
-        assert_eq!((one[0].0.as_deref(), one[0].1.summary.name.as_str()), (None, "run"));
+        assert_eq!(
+            (one[0].0.as_deref(), one[0].1.summary.name.as_str()),
+            (None, "run")
+        );
     }
 
     #[test]

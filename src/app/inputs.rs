@@ -124,7 +124,6 @@ impl TrackInputs {
     }
 }
 
-
 /// One object of a run of several ([`super::TrackRun::objects`]): its
 /// name (the `object` column of the outputs), model, first pose,
 /// keyframes and tracker settings.

@@ -154,4 +154,3 @@ pub fn result_row(label: &str, r: &TrackResult) -> PoseRow {
 pub fn cues_name(m: crate::tracker::Modalities) -> String {
     m.name().replace(',', "+")
 }
-

@@ -159,10 +159,7 @@ impl<'a> TrackRun<'a> {
     /// when the run ends: at the end of the frames, after the limit, or on
     /// the stop flag. A video or a camera adds the column [`TIME_COLUMN`]
     /// to the pose file.
-    pub fn run(
-        self,
-        mut on_frame: impl FnMut(&Frame, &TrackResult),
-    ) -> Result<RunStats, AppError> {
+    pub fn run(self, mut on_frame: impl FnMut(&Frame, &TrackResult)) -> Result<RunStats, AppError> {
         self.run_objects(|frame, results| on_frame(frame, &results[0]))
     }
 
@@ -461,14 +458,15 @@ impl<'a> TrackRun<'a> {
                 keyframe_colors: 0,
                 targets: 0,
             };
-            stats.objects.iter().filter_map(|o| o.gpu_memory).fold(
-                none,
-                |a, m| crate::tracker::GpuMemoryUse {
+            stats
+                .objects
+                .iter()
+                .filter_map(|o| o.gpu_memory)
+                .fold(none, |a, m| crate::tracker::GpuMemoryUse {
                     model: a.model + m.model,
                     keyframe_colors: a.keyframe_colors + m.keyframe_colors,
                     targets: a.targets + m.targets,
-                },
-            )
+                })
         } else {
             trackers.tracker(0).gpu_memory()
         });

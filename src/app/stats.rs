@@ -166,7 +166,11 @@ impl Tally {
         s.contour_ms *= k;
         s.mean_stages.add_scaled(&self.sum, k);
         self.totals.sort_by(f64::total_cmp);
-        s.median_ms = self.totals.get(self.totals.len() / 2).copied().unwrap_or(0.0);
+        s.median_ms = self
+            .totals
+            .get(self.totals.len() / 2)
+            .copied()
+            .unwrap_or(0.0);
         self.stats
     }
 

@@ -157,7 +157,8 @@ pub fn load_model(path: &std::path::Path) -> anyhow::Result<PointModel> {
 }
 
 /// `FLAG NAME=PATH` or `FLAG PATH` (`--model`): the name (NAME, else the
-/// file's stem) and the path. A `=` after a path separator is part of
+/// file's stem; for `objects/NAME/model.*`, a sequence's layout, the
+/// folder's NAME) and the path. A `=` after a path separator is part of
 /// the path.
 pub fn named_path(flag: &str, arg: &str) -> anyhow::Result<(String, std::path::PathBuf)> {
     use anyhow::Context;
@@ -171,8 +172,15 @@ pub fn named_path(flag: &str, arg: &str) -> anyhow::Result<(String, std::path::P
         return Ok((name.to_owned(), std::path::PathBuf::from(path)));
     }
     let path = std::path::PathBuf::from(arg);
-    let name = path
-        .file_stem()
+    let folder = path.parent().filter(|d| {
+        path.file_stem().is_some_and(|s| s == "model")
+            && d.parent()
+                .and_then(|o| o.file_name())
+                .is_some_and(|o| o == "objects")
+    });
+    let name = folder
+        .and_then(|d| d.file_name())
+        .or_else(|| path.file_stem())
         .map(|s| s.to_string_lossy().into_owned())
         .filter(|s| !s.is_empty())
         .with_context(|| format!("{flag} {arg}: no file name to name the object by"))?;

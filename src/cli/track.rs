@@ -154,12 +154,7 @@ pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()
 /// where there is none, said once. A KF mode asked for without a
 /// texture, or no first pose and nothing to search for the object with,
 /// fails naming what would help.
-fn mode_for(
-    args: &Args,
-    textured: bool,
-    init: bool,
-    object: Option<&str>,
-) -> anyhow::Result<Mode> {
+fn mode_for(args: &Args, textured: bool, init: bool, object: Option<&str>) -> anyhow::Result<Mode> {
     let of = object.map_or_else(String::new, |name| format!("object {name:?}: "));
     if !textured && !init {
         bail!(

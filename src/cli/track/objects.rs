@@ -72,13 +72,22 @@ fn sequence_objects(dir: &Path) -> anyhow::Result<Vec<(String, PathBuf)>> {
 
 /// A per-model flag given `given` times for `n` models: once (for all),
 /// once per model, or not at all.
-fn per_model<T: Clone>(flag: &str, values: &[T], n: usize, once: bool) -> anyhow::Result<Vec<Option<T>>> {
+fn per_model<T: Clone>(
+    flag: &str,
+    values: &[T],
+    n: usize,
+    once: bool,
+) -> anyhow::Result<Vec<Option<T>>> {
     match values.len() {
         0 => Ok(vec![None; n]),
         1 if once || n == 1 => Ok(vec![Some(values[0].clone()); n]),
         k if k == n => Ok(values.iter().cloned().map(Some).collect()),
         k => {
-            let how = if once { "once, or once per --model" } else { "once per --model" };
+            let how = if once {
+                "once, or once per --model"
+            } else {
+                "once per --model"
+            };
             bail!("{flag} is given {k} times for {n} models: give it {how}, in the --model order")
         }
     }

@@ -36,8 +36,10 @@ pub fn check_outputs(args: &Args, objects: &[Object]) -> anyhow::Result<()> {
         }
     }
     if let Some(dir) = &args.overlay {
-        let protected: Vec<&std::path::Path> =
-            objects.iter().filter_map(|o| o.keyframes.as_deref()).collect();
+        let protected: Vec<&std::path::Path> = objects
+            .iter()
+            .filter_map(|o| o.keyframes.as_deref())
+            .collect();
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
     Ok(())
@@ -210,7 +212,10 @@ fn print_stages(
 }
 
 /// The splatting's memory, as `--profile` says it.
-fn memory_line(ctx: &splattrack::Device, memory: Option<splattrack::tracker::GpuMemoryUse>) -> String {
+fn memory_line(
+    ctx: &splattrack::Device,
+    memory: Option<splattrack::tracker::GpuMemoryUse>,
+) -> String {
     let Some(m) = memory else {
         return String::new();
     };
