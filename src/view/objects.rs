@@ -1,11 +1,19 @@
 //! Several objects in one picture (the live view's [`super::compose`] and
 //! `--overlay`): each outline in its object's colour, its name beside it.
 
-use super::picture::status_colour;
 use super::sink::ViewObject;
 use crate::draw::{self, Colour};
 use crate::tracker::Status;
 use image::RgbImage;
+
+/// The colour of the outline and the status word: green tracking, red
+/// lost (as `--overlay` draws them).
+pub fn status_colour(status: Status) -> Colour {
+    match status {
+        Status::Tracking => [40, 230, 60],
+        Status::Lost => [240, 40, 40],
+    }
+}
 
 /// The colours of the objects after the first, while they track: far
 /// from the first object's green and red and from each other.

@@ -1,19 +1,11 @@
 //! The picture the live view shows for a frame ([`compose`]): a status
 //! band above the frame with the silhouette's outline.
 
+use super::objects::status_colour;
 use super::sink::ViewFrame;
 use crate::draw::{self, Colour};
 use crate::tracker::Status;
 use image::{RgbImage, RgbaImage};
-
-/// The colour of the outline and the status word: green tracking, red
-/// lost (as `--overlay` draws them).
-pub fn status_colour(status: Status) -> Colour {
-    match status {
-        Status::Tracking => [40, 230, 60],
-        Status::Lost => [240, 40, 40],
-    }
-}
 
 /// The colour of the status band behind the text.
 pub const BAND_COLOUR: Colour = [16, 16, 16];
