@@ -53,7 +53,7 @@ fn fixture() -> &'static Fixture {
                 let config = SynthConfig {
                     object: object.name.into(),
                     frames: 60,
-                    camera: cam.clone(),
+                    camera: cam,
                     seed: k as u64 + 1,
                     ..Default::default()
                 }
@@ -285,7 +285,7 @@ fn one_model_writes_what_one_tracker_alone_writes() {
         auto_modalities: true,
         ..Default::default()
     };
-    let mut tracker = Tracker::builder(&device, model, seq.camera.clone())
+    let mut tracker = Tracker::builder(&device, model, seq.camera)
         .config(config)
         .initial_pose(init)
         .build()

@@ -16,7 +16,7 @@ pub(super) enum Trackers {
     /// first frame that needs one).
     Many {
         multi: MultiTracker,
-        masks: Option<Masks>,
+        masks: Option<Box<Masks>>,
     },
 }
 
@@ -71,17 +71,17 @@ impl Trackers {
                         .iter()
                         .map(|t| GpuModel::new(device, t.model()))
                         .collect::<Result<Vec<_>, _>>()?;
-                    *masks = Some(Masks {
+                    *masks = Some(Box::new(Masks {
                         splatter: Splatter::new(device)?,
                         models,
                         targets: SplatTargets::new(device, cam.width, cam.height),
-                    });
+                    }));
                 }
                 let Masks {
                     splatter,
                     models,
                     targets,
-                } = masks.as_mut().expect("made above");
+                } = &mut **masks.as_mut().expect("made above");
                 results
                     .iter()
                     .zip(models.iter())

@@ -489,7 +489,7 @@ impl<'a> TrackRun<'a> {
             source: Box::new(e),
         };
         let Some(objects) = &self.objects else {
-            let tracker = Tracker::builder(&self.device, self.inputs.model.clone(), cam.clone())
+            let tracker = Tracker::builder(&self.device, self.inputs.model.clone(), *cam)
                 .maybe_keyframes(self.inputs.keyframes.clone())
                 .config(self.config.clone())
                 .initial_pose(self.inputs.init)
@@ -503,7 +503,7 @@ impl<'a> TrackRun<'a> {
         }
         let mut named = Vec::with_capacity(objects.len());
         for o in objects {
-            let tracker = Tracker::builder(&self.device, o.model.clone(), cam.clone())
+            let tracker = Tracker::builder(&self.device, o.model.clone(), *cam)
                 .maybe_keyframes(o.keyframes.clone())
                 .config(o.config.clone())
                 .initial_pose(o.init)

@@ -193,7 +193,7 @@ pub fn load(
     let (sequence, camera, camera_path) = match input {
         Input::Sequence(dir) => {
             let seq = splattrack::io::sequence::Sequence::open(dir)?;
-            let (cam, path) = (seq.camera.clone(), seq.camera_path.clone());
+            let (cam, path) = (seq.camera, seq.camera_path.clone());
             (Some(seq), cam, path)
         }
         Input::Video { camera, .. } | Input::Device { camera, .. } => {
