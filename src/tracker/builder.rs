@@ -299,6 +299,7 @@ impl Tracker {
             lost: Default::default(),
             detector: None,
             cue_choice: None,
+            hidden: None,
         };
         if let Some(c) = tracker.check.as_mut() {
             c.set_resident(resident);

@@ -59,6 +59,7 @@ mod it;
 mod kf;
 mod lost;
 mod multi;
+mod occlusion;
 pub mod outline_gpu;
 mod profile;
 mod region;

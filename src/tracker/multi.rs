@@ -2,10 +2,23 @@
 //! object, each with its own model, keyframes, settings, status and
 //! check, fed the same frames.
 
+use super::config::Modalities;
 use super::error::TrackError;
-use super::result::TrackResult;
+use super::occlusion::{DepthLayer, DepthProxy, Hidden};
+use super::result::{LostReason, StageTimes, Status, TrackResult};
 use super::state::Tracker;
 use thiserror::Error;
+
+/// An object less visible than this (the fraction of it that shows, by
+/// the coarse depth images of [`super::occlusion`]) is not tracked in the
+/// frame: `lost`, [`LostReason::Occluded`]. Half-hidden objects track
+/// (their renders leave the hidden part out); below a quarter too little
+/// of the outline and texture is left to hold all six degrees of freedom.
+const MIN_VISIBLE: f64 = 0.25;
+
+/// Depths this much nearer (relative) than a point hide it in the coarse
+/// depth images (their discs' error; objects that touch).
+const HIDE_TOLERANCE: f32 = 0.02;
 
 /// Why a set of trackers cannot track together.
 #[derive(Debug, Error, Clone, PartialEq, Eq)]
@@ -62,6 +75,13 @@ pub enum MultiError {
 pub struct MultiTracker {
     names: Vec<String>,
     trackers: Vec<Tracker>,
+    /// Each object's coarse depth image, at its current pose.
+    proxies: Vec<DepthProxy>,
+    layers: Vec<DepthLayer>,
+    /// Whether each object hides the others: tracked in its last frame.
+    shows: Vec<bool>,
+    /// The other objects' nearest depth, for the object being tracked.
+    hidden: Option<Hidden>,
 }
 
 impl MultiTracker {
@@ -89,17 +109,92 @@ impl MultiTracker {
             names.push(name);
             trackers.push(tracker);
         }
-        Ok(Self { names, trackers })
+        let (w, h) = (
+            trackers[0].cam.width as usize,
+            trackers[0].cam.height as usize,
+        );
+        let proxies: Vec<DepthProxy> = trackers.iter().map(|t| DepthProxy::new(&t.model)).collect();
+        let mut layers = vec![DepthLayer::new(w, h); trackers.len()];
+        for ((t, p), l) in trackers.iter().zip(&proxies).zip(&mut layers) {
+            if !t.searching() {
+                p.draw(&t.pose(), &t.cam, l);
+            }
+        }
+        let shows = trackers.iter().map(|t| !t.searching()).collect();
+        Ok(Self {
+            names,
+            trackers,
+            proxies,
+            layers,
+            shows,
+            hidden: Some(Hidden {
+                others: DepthLayer::new(w, h),
+                tolerance: HIDE_TOLERANCE,
+            }),
+        })
     }
 
     /// Tracks one frame (RGB, undistorted, the camera's size) for every
     /// object: one result an object, in the order the objects were given.
+    ///
+    /// The objects are tracked nearest first (by their centres' depths at
+    /// their current poses), each with the others at their latest poses
+    /// (this frame's for those already tracked) as what may hide it: an
+    /// object that shows less than a quarter of itself is `lost`
+    /// ([`LostReason::Occluded`]) without being tracked, and looked for
+    /// again where it was once it shows.
     pub fn track(&mut self, frame: &image::RgbImage) -> Result<Vec<TrackResult>, TrackError> {
-        let mut out = Vec::with_capacity(self.trackers.len());
-        for tracker in &mut self.trackers {
-            out.push(tracker.track(frame)?);
+        if self.trackers.len() == 1 {
+            return Ok(vec![self.trackers[0].track(frame)?]);
         }
-        Ok(out)
+        let mut order: Vec<usize> = (0..self.trackers.len()).collect();
+        let depth = |t: &Tracker| {
+            if t.searching() {
+                f64::INFINITY
+            } else {
+                t.pose().transform_point(&t.center).z
+            }
+        };
+        order.sort_by(|&a, &b| depth(&self.trackers[a]).total_cmp(&depth(&self.trackers[b])));
+        let mut out: Vec<Option<TrackResult>> = (0..self.trackers.len()).map(|_| None).collect();
+        for i in order {
+            let mut hidden = self.hidden.take().expect("kept between objects");
+            let others = self
+                .layers
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != i && self.shows[j])
+                .map(|(_, l)| l);
+            hidden.others.nearest_of(others);
+            let tracker = &mut self.trackers[i];
+            let visible = if tracker.searching() {
+                1.0
+            } else {
+                hidden.visible_fraction(&self.layers[i])
+            };
+            let r = if visible < MIN_VISIBLE {
+                Ok(tracker.occluded_frame(visible))
+            } else {
+                tracker.hidden = hidden.others.rect.is_some().then_some(hidden);
+                let r = tracker.track(frame);
+                hidden = tracker.hidden.take().unwrap_or_else(|| Hidden {
+                    others: DepthLayer::new(self.layers[i].width, self.layers[i].height),
+                    tolerance: HIDE_TOLERANCE,
+                });
+                r
+            };
+            self.hidden = Some(hidden);
+            let r = r?;
+            self.shows[i] = r.status == Status::Tracking;
+            if !tracker.searching() {
+                self.proxies[i].draw(&tracker.pose(), &tracker.cam, &mut self.layers[i]);
+            }
+            out[i] = Some(r);
+        }
+        Ok(out
+            .into_iter()
+            .map(|r| r.expect("every object tracked"))
+            .collect())
     }
 
     /// The number of objects.
@@ -130,6 +225,33 @@ impl MultiTracker {
     /// Takes the trackers back, with their names.
     pub fn into_trackers(self) -> Vec<(String, Tracker)> {
         self.names.into_iter().zip(self.trackers).collect()
+    }
+}
+
+impl Tracker {
+    /// A frame in which other objects hide this one: `lost`, nothing
+    /// tracked. The frame before it is forgotten (the next tracked frame
+    /// has no frame to follow from), and the track is recovering: when the
+    /// object shows again it is looked for around its last pose first.
+    fn occluded_frame(&mut self, visible: f64) -> TrackResult {
+        if let Some(old) = self.prev.take() {
+            self.spare_frame = Some(old.rgb);
+        }
+        self.lost_streak = 1;
+        self.lost.reset();
+        TrackResult {
+            pose: self.pose,
+            inliers: 0,
+            residual_px: f64::NAN,
+            status: Status::Lost,
+            reason: Some(LostReason::Occluded { visible }),
+            keyframe: None,
+            times: StageTimes::default(),
+            verify: None,
+            texture_set_aside: false,
+            cues: Modalities::NONE,
+            refused: None,
+        }
     }
 }
 

@@ -472,6 +472,13 @@ pub enum LostReason {
         /// The search's check's verdict, where it failed.
         check: Option<Unverified>,
     },
+    /// Other objects, nearer the camera, hide this one (several objects,
+    /// [`super::MultiTracker`]): nothing of it to track; it is looked for
+    /// again where it was once enough of it shows.
+    Occluded {
+        /// The fraction of it that shows, 0-1.
+        visible: f64,
+    },
 }
 
 impl LostReason {
@@ -479,7 +486,7 @@ impl LostReason {
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
     /// `shading_only`, `frozen_frame`) or the decision rule (`failed`, `untrusted`,
     /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
-    /// `confirming`, `unconfirmed`).
+    /// `confirming`, `unconfirmed`, `occluded`).
     pub fn code(&self) -> &'static str {
         match self {
             LostReason::Failed { .. } => "failed",
@@ -494,6 +501,7 @@ impl LostReason {
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",
             LostReason::Unconfirmed { .. } => "unconfirmed",
+            LostReason::Occluded { .. } => "occluded",
         }
     }
 }
@@ -535,6 +543,11 @@ impl fmt::Display for LostReason {
                     None => Ok(()),
                 }
             }
+            LostReason::Occluded { visible } => write!(
+                f,
+                "hidden by other objects ({:.0}% of it shows)",
+                visible * 100.0
+            ),
         }
     }
 }

@@ -136,6 +136,9 @@ pub struct Tracker {
     pub(super) detector: Option<super::detect::cache::Detector>,
     /// What the automatic choice of cues measured and chose, when it ran.
     pub(super) cue_choice: Option<super::config::CueChoice>,
+    /// What other objects hide of this one in the frame being tracked
+    /// (several objects, [`super::MultiTracker`]; `None`: nothing).
+    pub(super) hidden: Option<super::occlusion::Hidden>,
 }
 
 impl Tracker {

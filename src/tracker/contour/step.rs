@@ -17,6 +17,11 @@ use crate::tracker::result::StepError;
 use crate::tracker::state::Tracker;
 use nalgebra::{Vector2, Vector6};
 
+/// Outline points this close (pixels, along their normal) to an object
+/// in front are left out: their lines would find that object's edge (half
+/// the longest default line).
+const OCCLUDED_EDGE_PX: f64 = 8.0;
+
 impl Tracker {
     /// The contour step from `pose`: the iterations of the module docs,
     /// fused with `anchors` (texture matches of this frame, object point
@@ -361,7 +366,7 @@ impl Tracker {
         inset_each(&mut points, &by);
         let rows = contour_predictors_at(cam, &points, &depths);
         let origin = Vector2::new(x0 as f64, y0 as f64);
-        let lifted = points
+        let mut lifted: Vec<Lifted> = points
             .iter()
             .zip(rows)
             .zip(&depths)
@@ -375,6 +380,14 @@ impl Tracker {
                 row,
             })
             .collect();
+        if let Some(hidden) = &self.hidden {
+            // Where another object in front cuts the outline, the edge in
+            // the image is that object's: it does not move with this one.
+            lifted.retain(|l| {
+                let p = &l.point;
+                !hidden.near_edge(p.position, p.normal, l.xc.z as f32, OCCLUDED_EDGE_PX)
+            });
+        }
         Ok(lifted)
     }
 
