@@ -187,6 +187,13 @@ fn two_objects_in_one_run_give_one_file_and_per_object_figures() {
     let refused_text = std::fs::read_to_string(&refused).unwrap();
     assert!(refused_text.starts_with("object,frame,"), "{refused_text}");
     assert_eq!(std::fs::read_dir(&overlay).unwrap().count(), FRAMES);
+    // Each object's outline in its colour: the first as one object's
+    // (green while tracking), the second its own.
+    let picture = image::open(overlay.join("000000.png")).unwrap().to_rgb8();
+    for (k, name) in ["blob", "box"].iter().enumerate() {
+        let c = splattrack::view::object_colour(k, splattrack::tracker::Status::Tracking);
+        assert!(picture.pixels().any(|p| p.0 == c), "{name}'s outline");
+    }
     assert!(!dir.join("poses.csv.partial").exists());
 
     // eval: one row per object, the names alone.
