@@ -112,7 +112,7 @@ impl TrackInputs {
     }
 
     /// Whether the KF step's views have a texture: keyframes, or colours
-    /// in the model ([`run_mode`]).
+    /// in the model ([`super::run_mode`]).
     pub fn textured(&self) -> bool {
         self.keyframes.is_some() || self.model.colors.is_some()
     }

@@ -15,7 +15,7 @@ pub(super) enum Trackers {
     /// Several objects, and what draws their silhouettes (made on the
     /// first frame that needs one).
     Many {
-        multi: MultiTracker,
+        multi: Box<MultiTracker>,
         masks: Option<Box<Masks>>,
     },
 }

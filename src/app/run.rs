@@ -518,7 +518,10 @@ impl<'a> TrackRun<'a> {
             let (_, tracker) = multi.into_trackers().pop().expect("one object");
             Trackers::One(Box::new(tracker))
         } else {
-            Trackers::Many { multi, masks: None }
+            Trackers::Many {
+                multi: Box::new(multi),
+                masks: None,
+            }
         };
         Ok((trackers, names))
     }

@@ -36,6 +36,6 @@ mod sink;
 
 #[cfg(feature = "view")]
 pub use display::{DisplaySink, DisplayStats};
-pub use objects::{object_colour, objects_overlay, objects_tracking, status_colour};
+pub use objects::{draw_objects, object_colour, objects_overlay, objects_tracking, status_colour};
 pub use picture::{BAND_COLOUR, BAND_LINES, Layout, Rate, compose, status_lines};
 pub use sink::{Flow, FrameSink, ViewError, ViewFrame, ViewObject};

@@ -132,53 +132,6 @@ mod tests {
     }
 
     #[test]
-    fn the_live_view_counts_the_objects_and_names_the_lost() {
-        use crate::tracker::{LostReason, Mode};
-        use crate::view::{ViewFrame, compose, status_lines};
-        let img = RgbImage::new(64, 48);
-        let a = result(Status::Tracking);
-        let b = TrackResult {
-            reason: Some(LostReason::NotFound),
-            ..result(Status::Lost)
-        };
-        let mask: Vec<bool> = (0..64 * 48).map(|p| (p % 64) > 40 && p / 64 > 20).collect();
-        let objects = [
-            ViewObject {
-                name: "a",
-                result: &a,
-                mask: None,
-            },
-            ViewObject {
-                name: "b",
-                result: &b,
-                mask: Some(&mask),
-            },
-        ];
-        let frame = ViewFrame {
-            index: 3,
-            label: "000003",
-            image: &img,
-            result: &a,
-            mask: None,
-            objects: &objects,
-            time_s: None,
-            rate_hz: None,
-            mode: Mode::KfIt,
-        };
-        let lines = status_lines(&frame);
-        assert!(lines[1].starts_with("1/2 tracking"), "{lines:?}");
-        assert!(lines[2].starts_with("b lost: "), "{lines:?}");
-        // b's outline in its lost colour, below the band.
-        let picture = compose(&frame);
-        let band = super::super::Layout::for_width(64).band;
-        let c = object_colour(1, Status::Lost);
-        let found = (band..picture.height())
-            .flat_map(|y| (0..64).map(move |x| (x, y)))
-            .any(|(x, y)| picture.get_pixel(x, y).0[..3] == c);
-        assert!(found);
-    }
-
-    #[test]
     fn each_outline_has_its_colour_and_a_name_above_it() {
         let (w, h) = (64u32, 48u32);
         let square = |x0: usize, y0: usize| {

@@ -178,7 +178,7 @@ fn fit(text: &str, n: usize) -> String {
 /// (the status line in [`status_colour`], the others white), above the
 /// frame with the silhouette's outline in the status colour and its inside
 /// lightly tinted ([`draw::silhouette`]); several objects each in its
-/// colour, named ([`super::objects::draw_objects`]), the status line red
+/// colour, named ([`super::draw_objects`]), the status line red
 /// when one is lost. A pure function: everything the display shows is
 /// tested through it.
 pub fn compose(frame: &ViewFrame<'_>) -> RgbaImage {
@@ -243,6 +243,66 @@ mod tests {
             last = r.tick_at(at(5.0 + k as f64 * 0.1));
         }
         assert!((last.unwrap() - 10.0).abs() < 1e-6, "{last:?}");
+    }
+
+    #[test]
+    fn the_live_view_counts_the_objects_and_names_the_lost() {
+        use crate::tracker::{LostReason, Mode, TrackResult};
+        use crate::view::{ViewFrame, ViewObject, object_colour};
+        let img = RgbImage::new(64, 48);
+        let result = |status| TrackResult {
+            pose: crate::geometry::Pose::identity(),
+            inliers: 0,
+            residual_px: f64::NAN,
+            status,
+            reason: None,
+            keyframe: None,
+            times: Default::default(),
+            verify: None,
+            texture_set_aside: false,
+            cues: crate::tracker::Modalities::NONE,
+            refused: None,
+        };
+        let a = result(Status::Tracking);
+        let b = TrackResult {
+            reason: Some(LostReason::NotFound),
+            ..result(Status::Lost)
+        };
+        let mask: Vec<bool> = (0..64 * 48).map(|p| (p % 64) > 40 && p / 64 > 20).collect();
+        let objects = [
+            ViewObject {
+                name: "a",
+                result: &a,
+                mask: None,
+            },
+            ViewObject {
+                name: "b",
+                result: &b,
+                mask: Some(&mask),
+            },
+        ];
+        let frame = ViewFrame {
+            index: 3,
+            label: "000003",
+            image: &img,
+            result: &a,
+            mask: None,
+            objects: &objects,
+            time_s: None,
+            rate_hz: None,
+            mode: Mode::KfIt,
+        };
+        let lines = status_lines(&frame);
+        assert!(lines[1].starts_with("1/2 tracking"), "{lines:?}");
+        assert!(lines[2].starts_with("b lost: "), "{lines:?}");
+        // b's outline in its lost colour, below the band.
+        let picture = compose(&frame);
+        let band = Layout::for_width(64).band;
+        let c = object_colour(1, Status::Lost);
+        let found = (band..picture.height())
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .any(|(x, y)| picture.get_pixel(x, y).0[..3] == c);
+        assert!(found);
     }
 
     #[test]
