@@ -14,7 +14,10 @@ struct CameraUniform {
     // width, height, near, far (camera-space z, model units).
     size: vec4<f32>,
     // epsilon (visibility push-back, in splat radii along the ray),
-    // low-pass radius h (px), unused, unused.
+    // low-pass radius h (px), and the depth buffer's range: the z at depth
+    // 0 and 1 (size.zw for a model's own render, the occluded model's for
+    // an occluder, so that both write comparable depths; size.z still
+    // culls).
     params: vec4<f32>,
 }
 

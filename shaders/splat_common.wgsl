@@ -141,7 +141,9 @@ fn ray_hit(v: SplatView, uv: vec2<f32>) -> Hit {
     return hit;
 }
 
-// Camera-space z -> [0, 1] depth, linear between near and far.
+// Camera-space z -> [0, 1] depth, linear over the depth buffer's range
+// (clamped: an occluder nearer than the model's range writes 0, which
+// hides the model, as it is in front of all of it).
 fn depth_of(z: f32) -> f32 {
-    return clamp((z - cam.size.z) / (cam.size.w - cam.size.z), 0.0, 1.0);
+    return clamp((z - cam.params.z) / (cam.params.w - cam.params.z), 0.0, 1.0);
 }

@@ -36,6 +36,18 @@
 //    the normalisation and gather kernels (splat_resolve.wgsl) serve both
 //    back ends unchanged.
 //
+// Occluders (src/splat/occluders.rs): before the model's pass 1, each
+// occluder's splats run `visibility` and `visibility_big` with its own
+// camera and parameters (the model's depth range) into the same depth
+// keys and bounding box; pass 2 and `finish` are the model's alone. Each
+// lists its large splats at a counter of its own in `bounds` (the model's
+// at 4; the occluders' alternate between 5 and 6, each zeroing the one
+// its predecessor used, which that predecessor's `visibility_big`, the
+// dispatch before, has finished reading). In a depth-only render the
+// occluders' keys also go into the first sum of the pixel, which
+// `finish_depth` compares with the depth key: the model shows only where
+// its key is above every occluder's.
+//
 // Headroom: sums are i32 in units of 2^-20, so a pixel holds up to 2048
 // full-weight contributions of the visible surface (weights are at most 1
 // and at least exp(-2); a pixel of a dense model sees tens).
@@ -54,9 +66,12 @@ struct ComputeParams {
     // The half of `bounds` this render uses (0 or 1): its last pass zeroes
     // the other half, which the next render uses (no clear of its own).
     slot: u32,
+    // The entry of this render's half of `bounds` counting the large
+    // splats listed (4 for the model, 5 or 6 for an occluder).
+    big_at: u32,
+    // An entry `visibility` zeroes (an earlier occluder's counter), or 0.
+    clear_big: u32,
     pad0: u32,
-    pad1: u32,
-    pad2: u32,
 }
 
 // @group(0) @binding(0): `cam`, in splat_common.wgsl.
@@ -155,7 +170,12 @@ fn visibility_key(s: Setup, x: i32, y: i32) -> u32 {
 fn visibility_pixel(s: Setup, x: i32, y: i32) {
     let key = visibility_key(s, x, y);
     if key != 0u {
-        atomicMax(&depth_key[u32(y) * params.width + u32(x)], key);
+        let pixel = u32(y) * params.width + u32(x);
+        atomicMax(&depth_key[pixel], key);
+        if (params.flags & COMPUTE_OCCLUDER_KEYS) != 0u {
+            // Keys are below 2^31: as i32 they order the same.
+            atomicMax(&acc[pixel * ACC_STRIDE], bitcast<i32>(key));
+        }
     }
 }
 
@@ -275,7 +295,7 @@ fn walk_thread(s: Setup, stage: u32) {
 // workgroups striding over however many pass 1 listed (none leaves them
 // idle at once): no pass sizing them on the GPU first.
 fn walk_big(li: u32, wg: u32, groups: u32, stage: u32) {
-    let n = atomicLoad(&bounds[bound(4u)]);
+    let n = atomicLoad(&bounds[bound(params.big_at)]);
     let lane = vec2<i32>(i32(li & 7u), i32(li >> 3u));
     for (var j = wg; j < n; j += groups) {
         let s = setup(big[j]);
@@ -308,6 +328,9 @@ fn visibility(
     if li < 4u {
         atomicStore(&wg_bounds[li], 0u);
     }
+    if params.clear_big != 0u && id.x == 0u && id.y == 0u {
+        atomicStore(&bounds[bound(params.clear_big)], 0u);
+    }
     workgroupBarrier();
     let i = splat_index(id, groups);
     if i < params.count {
@@ -320,7 +343,7 @@ fn visibility(
         }
         if footprint(s) > BIG_SPLAT_PIXELS {
             // Too long a walk for one thread: a workgroup shares it.
-            big[atomicAdd(&bounds[bound(4u)], 1u)] = i;
+            big[atomicAdd(&bounds[bound(params.big_at)], 1u)] = i;
         } else {
             walk_thread(s, PASS_VISIBILITY);
         }
@@ -365,7 +388,7 @@ fn accumulate(
 // Camera-space z of a visibility depth (bits of the [0, 1] depth): the
 // inverse of depth_of, the same in `accumulate` and `finish`.
 fn visible_z(bits: u32) -> f32 {
-    return cam.size.z + bitcast<f32>(bits) * (cam.size.w - cam.size.z);
+    return cam.params.z + bitcast<f32>(bits) * (cam.params.w - cam.params.z);
 }
 
 // J(X) v at X = d (z = 1): splat.wgsl's `jac` with the 1 / z factored out.
@@ -385,8 +408,9 @@ fn in_bounds(id: vec2<u32>) -> bool {
     return all(id >= lo) && all(id < hi);
 }
 
-// Index of entry k (the box's four bounds, then the count of large
-// splats) in this render's half of `bounds`.
+// Index of entry k (the box's four bounds, then the counts of large
+// splats: the model's, two for occluders) in this render's half of
+// `bounds`.
 fn bound(k: u32) -> u32 {
     return params.slot * 8u + k;
 }
@@ -396,7 +420,7 @@ fn bound(k: u32) -> u32 {
 fn clear_next_bounds(gid: vec3<u32>) {
     if gid.x == 0u && gid.y == 0u {
         let other = (1u - params.slot) * 8u;
-        for (var k = 0u; k < 5u; k++) {
+        for (var k = 0u; k < 8u; k++) {
             atomicStore(&bounds[other + k], 0u);
         }
     }
@@ -470,7 +494,9 @@ fn finish(@builtin(global_invocation_id) gid: vec3<u32>) {
 // in T0 and the visibility depth (camera-space z, pushed back as pass 1
 // wrote it) in T1 where a splat covers the pixel, what the normalisation
 // reads as the depth, zeros elsewhere; the depth keys are cleared for the
-// next render (the sums were never touched).
+// next render (the sums were never touched, but for the occluders' keys
+// behind COMPUTE_OCCLUDED: there the pixel is the model's only where its
+// key is above theirs, and they are cleared too).
 @compute @workgroup_size(RESOLVE_WORKGROUP, RESOLVE_WORKGROUP)
 fn finish_depth(@builtin(global_invocation_id) gid: vec3<u32>) {
     clear_next_bounds(gid);
@@ -483,6 +509,14 @@ fn finish_depth(@builtin(global_invocation_id) gid: vec3<u32>) {
     var key = 0u;
     if in_bounds(id) {
         key = atomicLoad(&depth_key[pixel]);
+        if (params.flags & COMPUTE_OCCLUDED) != 0u {
+            let hidden = bitcast<u32>(atomicLoad(&acc[pixel * ACC_STRIDE]));
+            atomicStore(&acc[pixel * ACC_STRIDE], 0);
+            if key <= hidden {
+                atomicStore(&depth_key[pixel], 0u);
+                key = 0u;
+            }
+        }
     }
     if key == 0u {
         store_zeros(p, true, false);

@@ -19,10 +19,11 @@
 //! of workgroups striding over those pass 1 listed.
 
 use super::gpu_data::{
-    COMPUTE_GEOMETRY, COMPUTE_MOTION, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
+    COMPUTE_BIG_MODEL, COMPUTE_BIG_OCCLUDER, COMPUTE_GEOMETRY, COMPUTE_MOTION, COMPUTE_OCCLUDED,
+    COMPUTE_OCCLUDER_KEYS, CameraUniform, ComputeParams, RESOLVE_WORKGROUP,
 };
 use super::gpu_data::{TARGETS, compute_supported};
-use super::scratch::{KEPT_BINDS, Scratch};
+use super::scratch::{KEPT_BINDS, OccluderSlot, Scratch};
 use super::{Attributes, GpuModel, SplatError, SplatTargets};
 use crate::gpu::{
     GpuContext, GpuTimer, PassChain, WORKGROUP_1D, buffer_entry, compute_entry, storage, workgroups,
@@ -142,18 +143,18 @@ impl ComputeSplatter {
         })
     }
 
-    /// Passes 1 and 2 into `targets` (checked by the caller to be the
-    /// camera's size), timed as "visibility" and "attributes" like the
-    /// render pass (the conversion into the targets counts as attributes).
-    /// `depth_only`: pass 1 only, then `finish_depth` (timed as "depth")
-    /// writes the visibility depth and a unit weight
-    /// ([`super::Splatter::render_depth`]); `attrs` is then ignored.
-    #[allow(clippy::too_many_arguments)]
+    /// Passes 1 and 2 of `model` with its `uniform` behind `occluders`
+    /// (each with its uniform) into `targets` (checked by the caller to be
+    /// the camera's size), timed as "visibility" and "attributes" like the
+    /// render pass (the conversion into the targets counts as attributes;
+    /// the occluders' pass 1 counts as visibility). `depth_only`: pass 1
+    /// only, then `finish_depth` (timed as "depth") writes the visibility
+    /// depth and a unit weight ([`super::Splatter::render_depth`]);
+    /// `attrs` is then ignored.
     pub(super) fn render(
         &self,
         ctx: &GpuContext,
-        model: &GpuModel,
-        uniform: &CameraUniform,
+        (model, uniform, occluders): (&GpuModel, &CameraUniform, &[(&GpuModel, CameraUniform)]),
         attrs: Attributes,
         depth_only: bool,
         targets: &mut SplatTargets,
@@ -171,31 +172,64 @@ impl ComputeSplatter {
             g.compute = Some(Scratch::new(ctx, width, height)?);
         }
         let scratch = g.compute.as_mut().expect("just made");
+        // One list of large splats serves every object in turn.
+        let most = occluders
+            .iter()
+            .map(|(m, _)| m.count)
+            .fold(model.count, u32::max);
         ctx.check_buffer_size(
             "compute splatter list of large splats",
-            model.count as u64 * 4,
+            most as u64 * 4,
             wgpu::BufferUsages::STORAGE,
         )?;
-        scratch.big.ensure(ctx, model.count as u64 * 4);
+        scratch.big.ensure(ctx, most as u64 * 4);
         let params = ComputeParams {
             width,
             height,
             count: model.count,
             flags: if depth_only {
-                0
+                if occluders.is_empty() {
+                    0
+                } else {
+                    COMPUTE_OCCLUDED
+                }
             } else {
                 (if attrs.geometry { COMPUTE_GEOMETRY } else { 0 })
                     | (if attrs.motion { COMPUTE_MOTION } else { 0 })
             },
             slot: scratch.slot,
+            big_at: COMPUTE_BIG_MODEL,
+            clear_big: 0,
             pad0: 0,
-            pad1: 0,
-            pad2: 0,
         };
+        while scratch.occluders.len() < occluders.len() {
+            scratch.occluders.push(OccluderSlot::new(ctx));
+        }
+        for (k, ((m, u), o)) in occluders.iter().zip(&mut scratch.occluders).enumerate() {
+            let k = k as u32;
+            let p = ComputeParams {
+                count: m.count,
+                flags: if depth_only { COMPUTE_OCCLUDER_KEYS } else { 0 },
+                big_at: COMPUTE_BIG_OCCLUDER + (k & 1),
+                clear_big: if k == 0 {
+                    0
+                } else {
+                    COMPUTE_BIG_OCCLUDER + ((k + 1) & 1)
+                },
+                ..params
+            };
+            ctx.write_buffer(&o.uniform, 0, bytemuck::bytes_of(u));
+            o.params.write(ctx, bytemuck::bytes_of(&p));
+        }
         scratch.slot ^= 1;
         ctx.write_buffer(&g.uniform, 0, bytemuck::bytes_of(uniform));
         scratch.params.write(ctx, bytemuck::bytes_of(&params));
         let bind = self.cached_bind(ctx, targets, model);
+        let hidden: Vec<(wgpu::BindGroup, u32)> = occluders
+            .iter()
+            .enumerate()
+            .map(|(k, (m, _))| (self.occluder_bind(ctx, targets, k, m), m.count))
+            .collect();
         // Splats per dispatch row: at most 65535 workgroups in x.
         let groups = workgroups(model.count, WORKGROUP_1D);
         let gx = groups.clamp(1, 65_535);
@@ -214,8 +248,18 @@ impl ComputeSplatter {
         // pass, two where timed.
         let mut passes = PassChain::new(ctx, &mut enc);
         // Pass 1, the large splats' visibility after the others' (a fixed
-        // number of workgroups striding over those listed).
+        // number of workgroups striding over those listed), each
+        // occluder's before the model's.
         let pass = passes.stage("visibility", timer.as_deref_mut());
+        for (b, n) in &hidden {
+            let groups = workgroups(*n, WORKGROUP_1D);
+            let gx = groups.clamp(1, 65_535);
+            pass.set_bind_group(0, b, &[]);
+            pass.set_pipeline(&self.visibility);
+            pass.dispatch_workgroups(gx, groups.div_ceil(gx), 1);
+            pass.set_pipeline(&self.visibility_big);
+            pass.dispatch_workgroups(self.big_groups, 1, 1);
+        }
         pass.set_pipeline(&self.visibility);
         pass.set_bind_group(0, &bind, &[]);
         pass.dispatch_workgroups(gx, gy, 1);
@@ -268,7 +312,8 @@ impl ComputeSplatter {
                 .binds[..=i]
                 .rotate_right(1),
             None => {
-                let bind = self.bind(ctx, targets, scratch, model);
+                let own = (&targets.g().uniform, scratch.params.buffer());
+                let bind = self.bind(ctx, targets, scratch, model, own);
                 let binds = &mut targets
                     .g_mut()
                     .compute
@@ -284,22 +329,55 @@ impl ComputeSplatter {
             .clone()
     }
 
-    /// A new bind group of a render of `model` into `targets`.
+    /// The bind group of occluder `k` (`model`) in a render into
+    /// `targets`: its slot's, made anew when its buffers change.
+    fn occluder_bind(
+        &self,
+        ctx: &GpuContext,
+        targets: &mut SplatTargets,
+        k: usize,
+        model: &GpuModel,
+    ) -> wgpu::BindGroup {
+        let (geometry, colors) = model.gpu_buffers();
+        let scratch = targets.g().compute.as_ref().expect("scratch made");
+        let key = [geometry.clone(), colors.clone(), scratch.big.get().clone()];
+        let slot = &scratch.occluders[k];
+        if let Some((held, bind)) = &slot.bind
+            && *held == key
+        {
+            return bind.clone();
+        }
+        let own = (&slot.uniform, slot.params.buffer());
+        let bind = self.bind(ctx, targets, scratch, model, own);
+        targets
+            .g_mut()
+            .compute
+            .as_mut()
+            .expect("scratch made")
+            .occluders[k]
+            .bind = Some((key, bind.clone()));
+        bind
+    }
+
+    /// A new bind group of a render of `model` into `targets`, with its
+    /// camera uniform and parameters (`own`: the targets' and the
+    /// scratch's for the model, a slot's for an occluder).
     fn bind(
         &self,
         ctx: &GpuContext,
         targets: &SplatTargets,
         scratch: &Scratch,
         model: &GpuModel,
+        (uniform, params): (&wgpu::Buffer, &wgpu::Buffer),
     ) -> wgpu::BindGroup {
         let mut entries = vec![
             wgpu::BindGroupEntry {
                 binding: 0,
-                resource: targets.g().uniform.as_entire_binding(),
+                resource: uniform.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 1,
-                resource: scratch.params.buffer().as_entire_binding(),
+                resource: params.as_entire_binding(),
             },
             wgpu::BindGroupEntry {
                 binding: 2,

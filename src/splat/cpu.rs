@@ -46,6 +46,52 @@ pub fn visibility_depth(model: &PackedModel, uniform: &CameraUniform) -> SplatIm
     out
 }
 
+/// [`splat_packed`] behind occluders, each a packed model with its own
+/// view (its pose, the same camera, `uniform`'s depth range:
+/// [`CameraUniform::with_depth_range`]): the reference of a render by a
+/// [`super::Splatter`] with [`super::Splatter::set_occluders`].
+pub fn splat_packed_occluded(
+    model: &PackedModel,
+    uniform: &CameraUniform,
+    occluders: &[(&PackedModel, CameraUniform)],
+) -> Accumulators {
+    let mut out = Accumulators::default();
+    HostSplatter::new().render_occluded(model, uniform, occluders, Attributes::ALL, &mut out);
+    out
+}
+
+/// [`visibility_depth`] behind occluders (as in
+/// [`splat_packed_occluded`]): NaN too where an occluder hides the model.
+pub fn visibility_depth_occluded(
+    model: &PackedModel,
+    uniform: &CameraUniform,
+    occluders: &[(&PackedModel, CameraUniform)],
+) -> SplatImage {
+    let mut out = SplatImage {
+        width: 0,
+        height: 0,
+        channels: 1,
+        data: Vec::new(),
+    };
+    HostSplatter::new().render_depth_occluded(model, uniform, occluders, &mut out);
+    out
+}
+
+/// The view of an occluder at `pose` in a render whose model's view is
+/// `model_view`: its own bounds and near plane, the model's depth range.
+pub fn occluder_view(
+    occluder: &PointModel,
+    cam: &Intrinsics,
+    pose: &Pose,
+    params: &SplatParams,
+    model_view: &CameraUniform,
+) -> Result<CameraUniform, SplatError> {
+    let (near, far) = model_view.depth_range();
+    Ok(ModelBounds::of(occluder)
+        .view(cam, pose, params)?
+        .with_depth_range(near, far))
+}
+
 /// A whole render on the host: the same checks, bounds and uniform as the
 /// GPU path.
 pub fn splat(

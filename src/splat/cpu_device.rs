@@ -6,9 +6,13 @@
 
 use super::SplatImage;
 use super::cpu;
+use super::gpu_data::CameraUniform;
 use super::model::{GpuModel, ModelStore};
+use super::occluders::OccluderSet;
 use super::targets::{HostRender, SplatTargets};
-use super::{Attribute, Attributes, GatherMode, GatherSample, SplatError, SplatParams};
+use super::{
+    Attribute, Attributes, GatherMode, GatherSample, PackedModel, SplatError, SplatParams,
+};
 use crate::geometry::{Intrinsics, Pose};
 use std::sync::Mutex;
 
@@ -17,10 +21,13 @@ pub(super) struct HostParts<'a> {
     pub params: &'a SplatParams,
     /// The splatter's own host splatter.
     pub splatter: &'a Mutex<cpu::HostSplatter>,
+    /// The splatter's occluders.
+    pub occluders: &'a OccluderSet,
 }
 
-/// Splats `model` at `pose` into `targets`: colour, weight and the groups
-/// of `attrs`, or the visibility pass alone.
+/// Splats `model` at `pose` into `targets`, behind the splatter's
+/// occluders: colour, weight and the groups of `attrs`, or the visibility
+/// pass alone.
 #[allow(clippy::too_many_arguments)]
 pub(super) fn render(
     host: HostParts<'_>,
@@ -47,6 +54,15 @@ pub(super) fn render(
     // window keeps its size).
     let previous = targets.host.take();
     let uniform = model.bounds.view(cam, pose, host.params)?;
+    let occluders = host
+        .occluders
+        .views(cam, host.params, &uniform)?
+        .into_iter()
+        .map(|(m, u)| match &m.store {
+            ModelStore::Host(p) => Ok((&**p, u)),
+            ModelStore::Gpu { .. } => Err(SplatError::WrongDevice("an occluder's model")),
+        })
+        .collect::<Result<Vec<(&PackedModel, CameraUniform)>, _>>()?;
     let mut splatter = host.splatter.lock().unwrap_or_else(|p| p.into_inner());
     if depth_only {
         let mut depth = match previous {
@@ -58,7 +74,7 @@ pub(super) fn render(
                 data: Vec::new(),
             },
         };
-        splatter.render_depth(packed, &uniform, &mut depth);
+        splatter.render_depth_occluded(packed, &uniform, &occluders, &mut depth);
         targets.host = Some(HostRender::Depth(depth));
         targets.rendered = None;
     } else {
@@ -66,7 +82,7 @@ pub(super) fn render(
             Some(HostRender::Full(a)) => a,
             _ => cpu::Accumulators::default(),
         };
-        splatter.render(packed, &uniform, attrs, &mut acc);
+        splatter.render_occluded(packed, &uniform, &occluders, attrs, &mut acc);
         targets.host = Some(HostRender::Full(acc));
         targets.rendered = Some(attrs);
     }

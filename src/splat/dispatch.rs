@@ -7,6 +7,7 @@
 use super::SplatImage;
 use super::error::SplatError;
 use super::model::GpuModel;
+use super::occluders::{Occluder, OccluderSet};
 use super::params::{Backend, SplatParams};
 use super::resolve::PendingGather;
 use super::splatter::GpuSplatter;
@@ -29,6 +30,8 @@ pub struct Splatter {
     /// renders (unused on a GPU, where it holds no buffer and no thread:
     /// both are made by its first render).
     host: std::sync::Mutex<super::cpu::HostSplatter>,
+    /// Other objects splatted into every render's visibility pass.
+    occluders: OccluderSet,
 }
 
 impl Splatter {
@@ -48,15 +51,65 @@ impl Splatter {
             None => None,
         };
         let host = std::sync::Mutex::new(super::cpu::HostSplatter::new());
-        Ok(Self { params, gpu, host })
+        Ok(Self {
+            params,
+            gpu,
+            host,
+            occluders: OccluderSet::default(),
+        })
     }
 
-    /// The CPU device's parameters and host splatter.
+    /// The CPU device's parameters, host splatter and occluders.
     fn host_parts(&self) -> cpu_device::HostParts<'_> {
         cpu_device::HostParts {
             params: &self.params,
             splatter: &self.host,
+            occluders: &self.occluders,
         }
+    }
+
+    /// Sets the objects that hide part of every later render (none at
+    /// first): each render of a model by this splatter ([`Self::render`],
+    /// [`Self::render_timed`], [`Self::render_image`],
+    /// [`Self::render_depth`]) first splats every occluder, at its own
+    /// pose, with the render's camera (and so its window), into the same
+    /// visibility depth buffer, then the model's visibility pass, then the
+    /// model's attribute pass alone. The targets hold only the model's
+    /// attributes: empty (weight 0, as where no splat reaches) wherever an
+    /// occluder is nearer than the model beyond the visibility push-back
+    /// ([`SplatParams::epsilon`]), and elsewhere what a render without
+    /// occluders gives (bit for bit on the host splatter and the render
+    /// pass; the compute back end's sums are relative to the pixel's
+    /// visibility depth, which an occluder within the push-back of the
+    /// model's surface moves). A depth-only render reads empty where an
+    /// occluder hides the model, never the occluder's depth. With no
+    /// occluders a render is what it was without this call; occluders
+    /// whose bounding sphere misses the image or lies behind the model's
+    /// are skipped, and those partly outside the image cost a setup per
+    /// splat beyond it.
+    ///
+    /// Refused (the set unchanged) where an occluder's model is of the
+    /// other device kind ([`SplatError::WrongDevice`]), a pose is not
+    /// rigid, or there are more than [`super::MAX_OCCLUDERS`]. Every
+    /// change of the set (not the same models at the same poses) gives it
+    /// a new [`Self::occluder_generation`]; targets remember the
+    /// generation of their last render ([`SplatTargets::occluder_generation`])
+    /// and their [`SplatTargets::last_view`] is `None` once the splatter's
+    /// set has changed since, so that no cache keyed by the view hands back
+    /// a render made behind other occluders.
+    pub fn set_occluders(&mut self, occluders: Vec<Occluder>) -> Result<(), SplatError> {
+        self.occluders.set(self.on_cpu(), occluders)
+    }
+
+    /// The occluders of every render ([`Self::set_occluders`]).
+    pub fn occluders(&self) -> &[Occluder] {
+        &self.occluders.list
+    }
+
+    /// A number naming the occluder set: 0 before any is set, and new
+    /// (unique across splatters) at every change.
+    pub fn occluder_generation(&self) -> u64 {
+        self.occluders.generation()
     }
 
     /// Whether this is the CPU device's splatter.
@@ -137,9 +190,9 @@ impl Splatter {
     }
 
     /// Splats `model` at `pose` into `targets` (whose size must be the
-    /// camera's). On a GPU, submits the work and returns without waiting;
-    /// on the CPU device, renders colour, weight and the groups of
-    /// `attrs`.
+    /// camera's), behind the occluders ([`Self::set_occluders`]). On a
+    /// GPU, submits the work and returns without waiting; on the CPU
+    /// device, renders colour, weight and the groups of `attrs`.
     pub fn render(
         &self,
         device: &impl AsDevice,
@@ -167,13 +220,19 @@ impl Splatter {
         timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
         match self.on(device, Some(model), Some(targets))? {
-            Some((g, ctx)) => g.render_timed(ctx, model, cam, pose, attrs, targets, timer),
-            None => cpu_device::render(self.host_parts(), model, cam, pose, attrs, false, targets),
+            Some((g, ctx)) => {
+                let occluders = &self.occluders;
+                g.render_timed(ctx, model, cam, pose, attrs, targets, timer, occluders)?
+            }
+            None => cpu_device::render(self.host_parts(), model, cam, pose, attrs, false, targets)?,
         }
+        targets.occluders = Some(self.occluders.stamp());
+        Ok(())
     }
 
     /// A depth-only render: the visibility pass alone (one pass over the
-    /// splats instead of two, no attribute sums). Afterwards
+    /// splats instead of two, no attribute sums), behind the occluders
+    /// (empty where one is nearer than the model's pushed-back depth). Afterwards
     /// [`Splatter::read`] gives [`Attribute::Depth`], the depth of the
     /// nearest surface pushed back by the visibility epsilon (`epsilon *
     /// r` along the ray, [`SplatParams::epsilon`]: what the attribute pass
@@ -197,7 +256,9 @@ impl Splatter {
         timer: Option<&mut GpuTimer>,
     ) -> Result<(), SplatError> {
         match self.on(device, Some(model), Some(targets))? {
-            Some((g, ctx)) => g.render_depth(ctx, model, cam, pose, targets, timer),
+            Some((g, ctx)) => {
+                g.render_depth(ctx, model, cam, pose, targets, timer, &self.occluders)?
+            }
             None => cpu_device::render(
                 self.host_parts(),
                 model,
@@ -206,8 +267,10 @@ impl Splatter {
                 Attributes::GEOMETRY,
                 true,
                 targets,
-            ),
+            )?,
         }
+        targets.occluders = Some(self.occluders.stamp());
+        Ok(())
     }
 
     /// Normalises one attribute of the last render and reads the whole

@@ -49,7 +49,11 @@ wgsl_struct! {
         pub intr: [f32; 4],
         /// width, height, near, far.
         pub size: [f32; 4],
-        /// epsilon (in radii, along the ray), low-pass radius (px), 0, 0.
+        /// epsilon (in radii, along the ray), low-pass radius (px), and
+        /// the depth buffer's range: the camera-space z mapped to depth 0
+        /// and to 1. A model's own render has its near and far there;
+        /// an occluder's has the occluded model's, so that both write
+        /// comparable depths into one buffer.
         pub params: [f32; 4],
     }
 }
@@ -74,9 +78,32 @@ impl CameraUniform {
             trans: [t.x as f32, t.y as f32, t.z as f32, 0.0],
             intr: [cam.fx as f32, cam.fy as f32, cam.cx as f32, cam.cy as f32],
             size: [cam.width as f32, cam.height as f32, near, far],
-            params: [epsilon, lowpass_px, 0.0, 0.0],
+            params: [epsilon, lowpass_px, near, far],
         }
     }
+
+    /// This view with the depth buffer's range of another (`near`, `far`
+    /// of the model an occluder is splatted with); the near plane that
+    /// culls stays this view's.
+    pub fn with_depth_range(mut self, near: f32, far: f32) -> Self {
+        self.params[2] = near;
+        self.params[3] = far;
+        self
+    }
+
+    /// The depth buffer's range (camera-space z at depth 0 and 1).
+    pub fn depth_range(&self) -> (f32, f32) {
+        (self.params[2], self.params[3])
+    }
+}
+
+/// A buffer for one [`CameraUniform`] (a render's, or an occluder's).
+pub(super) fn camera_buffer(ctx: &crate::gpu::GpuContext) -> wgpu::Buffer {
+    ctx.buffer(
+        "splat camera",
+        std::mem::size_of::<CameraUniform>() as u64,
+        wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+    )
 }
 
 pub use crate::gpu::GATHER_STRIDE;
@@ -142,19 +169,34 @@ wgsl_struct! {
         /// The half of the bounds buffer this render uses (0 or 1): its
         /// last pass zeroes the other half for the next render.
         pub slot: u32,
+        /// The entry of that half counting the large splats listed:
+        /// [`COMPUTE_BIG_MODEL`] for the model, [`COMPUTE_BIG_OCCLUDER`]
+        /// and the one after, alternately, for occluders.
+        pub big_at: u32,
+        /// An entry `visibility` zeroes (the previous occluder's
+        /// counter), or 0 for none.
+        pub clear_big: u32,
         /// Padding to a 16-byte multiple.
         pub pad0: u32,
-        /// Padding to a 16-byte multiple.
-        pub pad1: u32,
-        /// Padding to a 16-byte multiple.
-        pub pad2: u32,
     }
 }
+
+/// `ComputeParams.big_at` of the model.
+pub const COMPUTE_BIG_MODEL: u32 = 4;
+/// `ComputeParams.big_at` of the first occluder (the next is one more).
+pub const COMPUTE_BIG_OCCLUDER: u32 = 5;
 
 /// `ComputeParams.flags`: accumulate depth and normal.
 pub const COMPUTE_GEOMETRY: u32 = 1;
 /// `ComputeParams.flags`: accumulate what the motion predictors need.
 pub const COMPUTE_MOTION: u32 = 2;
+/// `ComputeParams.flags` of an occluder in a depth-only render: its
+/// depth keys also go into the pixel's first sum.
+pub const COMPUTE_OCCLUDER_KEYS: u32 = 4;
+/// `ComputeParams.flags` of the model in a depth-only render behind
+/// occluders: `finish_depth` shows the model only where its key is above
+/// the occluders' (and clears theirs).
+pub const COMPUTE_OCCLUDED: u32 = 8;
 /// Fixed-point sums per pixel of the compute splatter: w, w r, w g, w b,
 /// w z / zv, w nx, w ny, w nz, w zv / z (zv: the pixel's visibility depth).
 pub const ACC_STRIDE: u32 = 9;
@@ -198,6 +240,8 @@ pub(crate) const COMPUTE_CONSTANTS: Constants = &[
     ("RESOLVE_WORKGROUP", U32(RESOLVE_WORKGROUP)),
     ("COMPUTE_GEOMETRY", U32(COMPUTE_GEOMETRY)),
     ("COMPUTE_MOTION", U32(COMPUTE_MOTION)),
+    ("COMPUTE_OCCLUDER_KEYS", U32(COMPUTE_OCCLUDER_KEYS)),
+    ("COMPUTE_OCCLUDED", U32(COMPUTE_OCCLUDED)),
     ("ACC_STRIDE", U32(ACC_STRIDE)),
     ("FIXED_SCALE", crate::shaders::WgslValue::F32(FIXED_SCALE)),
     ("BIG_SPLAT_PIXELS", U32(BIG_SPLAT_PIXELS)),

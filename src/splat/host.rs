@@ -37,8 +37,11 @@ const PART_BITS: u32 = 26;
 const BAND_PIXELS: usize = 8192;
 /// The lanes' offsets from a row's first column.
 const LANES: Vec4 = Vec4::new(0.0, 1.0, 2.0, 3.0);
-/// The most threads a splatter runs on (and parts of 2^26 splats).
+/// The most threads a splatter runs on.
 const MAX_THREADS: usize = 64;
+/// The most setup parts of a render, all objects together (the bits of
+/// a listed splat's index above [`PART_BITS`]).
+const MAX_PARTS: usize = 1 << (32 - PART_BITS);
 
 /// A reusable host splatter: threads and scratch kept across renders.
 ///
@@ -49,8 +52,12 @@ const MAX_THREADS: usize = 64;
 #[derive(Debug)]
 pub struct HostSplatter {
     threads: usize,
-    /// The visible splats, one list per setup part.
+    /// The visible splats, one list per setup part: the occluders' parts
+    /// first, then the model's.
     parts: Vec<Vec<Setup>>,
+    /// Each part's object (an index into the render's views; the model's
+    /// is the last) and its range of the object's splats.
+    jobs: Vec<(usize, std::ops::Range<usize>)>,
     /// The splats of each band (indices into `parts`), band after band.
     bins: Vec<u32>,
     /// Where each band's splats start in `bins` (one more than bands).
@@ -106,6 +113,7 @@ impl HostSplatter {
         Self {
             threads: threads.clamp(1, MAX_THREADS),
             parts: Vec::new(),
+            jobs: Vec::new(),
             bins: Vec::new(),
             starts: Vec::new(),
             rays_x: Vec::new(),
@@ -166,6 +174,24 @@ impl HostSplatter {
         attrs: Attributes,
         out: &mut Accumulators,
     ) {
+        self.render_occluded(model, uniform, &[], attrs, out);
+    }
+
+    /// [`Self::render`] behind `occluders`, each a model with its own view
+    /// (its pose, the same camera, and `uniform`'s depth range:
+    /// [`CameraUniform::with_depth_range`]): pass 1 runs over the
+    /// occluders' splats, in their order, then the model's; pass 2 over
+    /// the model's alone, so the targets are empty where an occluder is
+    /// nearer than the model (beyond the push-back) and, elsewhere, those
+    /// of a render without them. A thinned render thins the occluders too.
+    pub fn render_occluded(
+        &mut self,
+        model: &PackedModel,
+        uniform: &CameraUniform,
+        occluders: &[(&PackedModel, CameraUniform)],
+        attrs: Attributes,
+        out: &mut Accumulators,
+    ) {
         let v = View::new(uniform);
         let n = v.width * v.height;
         out.width = v.width as u32;
@@ -181,7 +207,8 @@ impl HostSplatter {
             // Zeroed by the bands, where they are written.
             t.resize(if want { n } else { 0 }, [0.0; 4]);
         }
-        let band_rows = self.prepare(&v, model);
+        let views = self.views(&v, occluders);
+        let band_rows = self.prepare(&views, model, occluders);
         let stride = band_rows * v.width;
         let mut chunks = out
             .targets
@@ -194,7 +221,7 @@ impl HostSplatter {
                 z: None,
             })
             .collect();
-        self.run_bands(&v, band_rows, bands);
+        self.run_bands(&views, band_rows, bands);
     }
 
     /// The visibility pass alone (the reference of
@@ -207,12 +234,27 @@ impl HostSplatter {
         uniform: &CameraUniform,
         out: &mut SplatImage,
     ) {
+        self.render_depth_occluded(model, uniform, &[], out);
+    }
+
+    /// [`Self::render_depth`] behind `occluders` (as in
+    /// [`Self::render_occluded`]): NaN too where an occluder's pushed-back
+    /// depth is nearer than the model's, or equal (drawn first, it wins
+    /// the test), never the occluder's depth.
+    pub fn render_depth_occluded(
+        &mut self,
+        model: &PackedModel,
+        uniform: &CameraUniform,
+        occluders: &[(&PackedModel, CameraUniform)],
+        out: &mut SplatImage,
+    ) {
         let v = View::new(uniform);
         out.width = v.width as u32;
         out.height = v.height as u32;
         out.channels = 1;
         out.data.resize(v.width * v.height, f32::NAN);
-        let band_rows = self.prepare(&v, model);
+        let views = self.views(&v, occluders);
+        let band_rows = self.prepare(&views, model, occluders);
         let mut chunks = out.data.chunks_mut((band_rows * v.width).max(1));
         let bands = (0..self.starts.len() - 1)
             .map(|index| Band {
@@ -221,18 +263,42 @@ impl HostSplatter {
                 z: chunks.next(),
             })
             .collect();
-        self.run_bands(&v, band_rows, bands);
+        self.run_bands(&views, band_rows, bands);
     }
 
-    /// Sets up and bins the splats; returns the band height in rows.
-    fn prepare(&mut self, v: &View, model: &PackedModel) -> usize {
+    /// The views of a render: the occluders' (their own pose and near
+    /// plane, the model's camera and depth range), then the model's.
+    fn views(&self, v: &View, occluders: &[(&PackedModel, CameraUniform)]) -> Vec<View> {
+        let (near, far) = v.depth_range();
+        occluders
+            .iter()
+            .map(|(_, u)| View::new(&u.with_depth_range(near, far)))
+            .chain(std::iter::once(v.clone()))
+            .collect()
+    }
+
+    /// Sets up and bins the splats of the occluders and the model
+    /// (`views`: theirs, the model's last); returns the band height in
+    /// rows.
+    fn prepare(
+        &mut self,
+        views: &[View],
+        model: &PackedModel,
+        occluders: &[(&PackedModel, CameraUniform)],
+    ) -> usize {
+        let v = views.last().expect("the model's view");
         self.start_pool();
         self.rays_x.clear();
         // Three more columns, so that every pixel starts four lanes.
         self.rays_x.extend((0..v.width + 3).map(|x| v.ray_x(x)));
         self.rays_y.clear();
         self.rays_y.extend((0..v.height).map(|y| v.ray_y(y)));
-        self.set_up(v, model);
+        let objects: Vec<&PackedModel> = occluders
+            .iter()
+            .map(|(m, _)| *m)
+            .chain(std::iter::once(model))
+            .collect();
+        self.set_up(views, &objects);
         // Bands of about BAND_PIXELS, so that a band's targets and hits
         // stay in the cache, and several a thread, so that a band dense
         // with splats does not keep one thread busy while the others wait.
@@ -243,25 +309,56 @@ impl HostSplatter {
         band_rows
     }
 
-    /// The visible splats, in the model's order, in parts of consecutive
-    /// splats, one part per thread.
-    fn set_up(&mut self, v: &View, model: &PackedModel) {
-        let n = model.splats.len().min(model.colors.len());
+    /// The visible splats of each object (`views[k]` is `objects[k]`'s),
+    /// in its order, in parts of consecutive splats, about one part per
+    /// thread an object (fewer where the objects need more than
+    /// [`MAX_PARTS`] in all); the objects' parts in order.
+    fn set_up(&mut self, views: &[View], objects: &[&PackedModel]) {
         let step = self.thin;
-        let count = n.div_ceil(step);
-        let parts = self
-            .threads
-            .min(count.div_ceil(SETUP_PER_THREAD))
-            .max(n.div_ceil(1 << PART_BITS))
-            .max(1);
-        let per = n.div_ceil(parts).max(1);
-        self.parts.resize_with(parts, Vec::new);
+        let sizes: Vec<usize> = objects
+            .iter()
+            .map(|m| m.splats.len().min(m.colors.len()))
+            .collect();
+        let least: Vec<usize> = sizes
+            .iter()
+            .map(|n| n.div_ceil(1 << PART_BITS).max(1))
+            .collect();
+        let mut counts: Vec<usize> = sizes
+            .iter()
+            .zip(&least)
+            .map(|(n, &l)| {
+                self.threads
+                    .min(n.div_ceil(step).div_ceil(SETUP_PER_THREAD))
+                    .max(l)
+            })
+            .collect();
+        // Over the bits of a listed index: fewer parts for the objects
+        // with the most (never fewer than their size needs).
+        while counts.iter().sum::<usize>() > MAX_PARTS {
+            let Some(k) = (0..counts.len())
+                .filter(|&k| counts[k] > least[k])
+                .max_by_key(|&k| counts[k])
+            else {
+                break;
+            };
+            counts[k] -= 1;
+        }
+        self.jobs.clear();
+        for (k, (&n, &parts)) in sizes.iter().zip(&counts).enumerate() {
+            let per = n.div_ceil(parts).max(1);
+            self.jobs
+                .extend((0..parts).map(|i| (k, (i * per).min(n)..((i + 1) * per).min(n))));
+        }
+        self.parts.resize_with(self.jobs.len(), Vec::new);
         let grow = (step as f32).sqrt();
+        let jobs = &self.jobs;
         let run = |i: usize, out: &mut Vec<Setup>| {
             out.clear();
-            let range = (i * per).min(n)..((i + 1) * per).min(n);
+            let (k, range) = &jobs[i];
+            let (v, model) = (&views[*k], objects[*k]);
+            let first = range.start;
             let splats = &model.splats[range.clone()];
-            let colors = &model.colors[range];
+            let colors = &model.colors[range.clone()];
             if step == 1 {
                 out.extend(
                     splats
@@ -275,7 +372,7 @@ impl HostSplatter {
                         .iter()
                         .zip(colors)
                         .enumerate()
-                        .filter(|&(j, _)| kept(i * per + j, step))
+                        .filter(|&(j, _)| kept(first + j, step))
                         .filter_map(|(_, (s, &c))| {
                             let mut s = *s;
                             s.pos_radius[3] *= grow;
@@ -314,7 +411,7 @@ impl HostSplatter {
     }
 
     /// The bands, taken in turn by the threads.
-    fn run_bands(&mut self, v: &View, band_rows: usize, bands: Vec<Band<'_>>) {
+    fn run_bands(&mut self, views: &[View], band_rows: usize, bands: Vec<Band<'_>>) {
         let threads = self.threads.min(bands.len()).max(1);
         let mut scratch = std::mem::take(&mut self.scratch);
         scratch.resize_with(threads, Default::default);
@@ -327,7 +424,7 @@ impl HostSplatter {
                 let Some(band) = queue.lock().ok().and_then(|mut q| q.next()) else {
                     return;
                 };
-                this.band(v, band_rows, band, depth, frags);
+                this.band(views, band_rows, band, depth, frags);
             }
         };
         on_each(self.pool.as_ref(), &mut scratch[..threads], &work);
@@ -338,15 +435,19 @@ impl HostSplatter {
         &self.parts[(id >> PART_BITS) as usize][(id & ((1 << PART_BITS) - 1)) as usize]
     }
 
-    /// Both passes over one band's rows.
+    /// Both passes over one band's rows: pass 1 over every object's
+    /// splats (`views`: the occluders', then the model's), pass 2 over
+    /// the model's.
     fn band(
         &self,
-        v: &View,
+        views: &[View],
         band_rows: usize,
         mut band: Band<'_>,
         depth: &mut Vec<f32>,
         frags: &mut Vec<Frag>,
     ) {
+        let model = views.len() - 1;
+        let v = &views[model];
         let w = v.width;
         let y0 = band.index * band_rows;
         let rows = band_rows.min(v.height - y0);
@@ -373,6 +474,9 @@ impl HostSplatter {
         frags.clear();
         for &id in list {
             let s = self.splat(id);
+            let object = self.jobs[(id >> PART_BITS) as usize].0;
+            // An occluder's splat: its own view; it writes the depth alone.
+            let (v, own) = (&views[object], object == model);
             let (ys, xs) = span(s);
             let x1 = *xs.end();
             for y in ys {
@@ -400,6 +504,9 @@ impl HostSplatter {
                         BVec4A::new(mask & 1 != 0, mask & 2 != 0, mask & 4 != 0, mask & 8 != 0);
                     let closer = dd.cmplt(old) & lanes;
                     Vec4::select(closer, dd, old).write_to_slice(&mut depth[i0..i0 + 4]);
+                    if !own {
+                        continue;
+                    }
                     if let Some(z) = band.z.as_deref_mut() {
                         let zp = zp4.to_array();
                         let mut c = closer.bitmask();

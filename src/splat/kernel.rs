@@ -25,7 +25,9 @@ pub(super) struct View {
     w: f32,
     h: f32,
     near: f32,
-    far: f32,
+    /// The depth buffer's range (`CameraUniform::depth_range`).
+    depth_near: f32,
+    depth_far: f32,
     eps: f32,
     lowpass: f32,
 }
@@ -46,7 +48,8 @@ impl View {
             w: u.size[0],
             h: u.size[1],
             near: u.size[2],
-            far: u.size[3],
+            depth_near: u.params[2],
+            depth_far: u.params[3],
             eps: u.params[0],
             lowpass: u.params[1],
         }
@@ -60,10 +63,11 @@ impl View {
         Vec2::new(self.fx * x.x / x.z + self.cx, self.fy * x.y / x.z + self.cy)
     }
 
-    /// `depth_of`: camera-space z to `[0, 1]`, linear between near and far.
+    /// `depth_of`: camera-space z to `[0, 1]`, linear over the depth
+    /// buffer's range.
     #[cfg(test)]
     fn depth_of(&self, z: f32) -> f32 {
-        ((z - self.near) / (self.far - self.near)).clamp(0.0, 1.0)
+        ((z - self.depth_near) / (self.depth_far - self.depth_near)).clamp(0.0, 1.0)
     }
 
     /// [`Self::depth_of`] in four lanes, each with the scalar's
@@ -71,8 +75,13 @@ impl View {
     /// read only lanes that hit, whose z is past the near plane.
     #[inline(always)]
     pub(super) fn depth_of4(&self, z: Vec4) -> Vec4 {
-        ((z - Vec4::splat(self.near)) / Vec4::splat(self.far - self.near))
+        ((z - Vec4::splat(self.depth_near)) / Vec4::splat(self.depth_far - self.depth_near))
             .clamp(Vec4::ZERO, Vec4::ONE)
+    }
+
+    /// The depth buffer's range: the camera-space z at depth 0 and 1.
+    pub(super) fn depth_range(&self) -> (f32, f32) {
+        (self.depth_near, self.depth_far)
     }
 
     /// The x component of the ray through pixel column `x` (the y

@@ -1,11 +1,14 @@
 //! The render pass back end of the splatter: the visibility and
 //! attribute passes through the rasteriser (the compute back end, in
-//! `compute`, writes the same targets).
+//! `compute`, writes the same targets). Occluders are extra draws at the
+//! start of the visibility pass, each with its own camera uniform and
+//! buffers, writing depth alone.
 
 use super::Attributes;
 use super::error::SplatError;
-use super::gpu_data::CameraUniform;
+use super::gpu_data::{CameraUniform, camera_buffer};
 use super::model::GpuModel;
+use super::occluders::OccluderSet;
 use super::params::Backend;
 use super::splatter::GpuSplatter;
 use super::targets::{SplatTargets, cleared_attachments};
@@ -25,27 +28,31 @@ impl GpuSplatter {
         attrs: Attributes,
         targets: &mut SplatTargets,
         mut timer: Option<&mut GpuTimer>,
+        occluders: &OccluderSet,
     ) -> Result<(), SplatError> {
         let uniform = self.checked_view(model, cam, pose, targets)?;
+        let occluders = occluders.views(cam, &self.params, &uniform)?;
         targets.view = None;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
-            compute.render(ctx, model, &uniform, attrs, false, targets, timer)?;
+            let job = (model, &uniform, &occluders[..]);
+            compute.render(ctx, job, attrs, false, targets, timer)?;
             targets.rendered = Some(attrs);
             targets.depth_only = false;
             targets.view = Some((*pose, *cam));
             return Ok(());
         }
-        let bind = self.render_bind(ctx, model, targets, &uniform);
+        let bind = self.render_bind(ctx, model, &targets.g().uniform, &uniform);
+        let hidden = self.occluder_binds(ctx, targets, &occluders);
         let mut enc = ctx.encoder();
         // Two render passes: the visibility, the attributes.
         ctx.count_passes(2);
         self.visibility_pass(
             &mut enc,
             (&self.visibility, "splat visibility", &[]),
-            &bind,
-            model,
+            (&bind, model.count),
+            (&self.visibility, &hidden),
             targets,
             timer.as_deref_mut(),
         );
@@ -104,35 +111,31 @@ impl GpuSplatter {
         pose: &Pose,
         targets: &mut SplatTargets,
         mut timer: Option<&mut GpuTimer>,
+        occluders: &OccluderSet,
     ) -> Result<(), SplatError> {
         let uniform = self.checked_view(model, cam, pose, targets)?;
+        let occluders = occluders.views(cam, &self.params, &uniform)?;
         targets.view = None;
         if let Some(compute) = &self.compute
             && self.backend_for(model, cam, pose) == Backend::Compute
         {
-            compute.render(
-                ctx,
-                model,
-                &uniform,
-                Attributes::GEOMETRY,
-                true,
-                targets,
-                timer,
-            )?;
+            let job = (model, &uniform, &occluders[..]);
+            compute.render(ctx, job, Attributes::GEOMETRY, true, targets, timer)?;
             targets.rendered = None;
             targets.depth_only = true;
             targets.view = Some((*pose, *cam));
             return Ok(());
         }
-        let bind = self.render_bind(ctx, model, targets, &uniform);
+        let bind = self.render_bind(ctx, model, &targets.g().uniform, &uniform);
+        let hidden = self.occluder_binds(ctx, targets, &occluders);
         let mut enc = ctx.encoder();
         ctx.count_passes(1);
         let colors = cleared_attachments(targets, Attributes::GEOMETRY);
         self.visibility_pass(
             &mut enc,
             (&self.visibility_depth, "splat visibility depth", &colors),
-            &bind,
-            model,
+            (&bind, model.count),
+            (&self.visibility_depth_occluder, &hidden),
             targets,
             timer.as_deref_mut(),
         );
@@ -166,23 +169,39 @@ impl GpuSplatter {
         model.bounds.view(cam, pose, &self.params)
     }
 
+    /// The bind group and splat count of each occluder's draw, its
+    /// uniform written to a buffer of its own in the targets (one per
+    /// occluder: the writes all land before the pass runs).
+    fn occluder_binds(
+        &self,
+        ctx: &GpuContext,
+        targets: &mut SplatTargets,
+        occluders: &[(&GpuModel, CameraUniform)],
+    ) -> Vec<(wgpu::BindGroup, u32)> {
+        let g = targets.g_mut();
+        while g.occluder_uniforms.len() < occluders.len() {
+            g.occluder_uniforms.push(camera_buffer(ctx));
+        }
+        occluders
+            .iter()
+            .zip(&g.occluder_uniforms)
+            .map(|((m, u), buffer)| (self.render_bind(ctx, m, buffer, u), m.count))
+            .collect()
+    }
+
     /// The render pass back end's bind group, with `uniform` written to
-    /// the targets' uniform buffer; kept for the targets and model of the
-    /// last few renders.
+    /// `buffer` (the targets' uniform, or an occluder's); kept for the
+    /// buffers of the last few draws.
     fn render_bind(
         &self,
         ctx: &GpuContext,
         model: &GpuModel,
-        targets: &SplatTargets,
+        buffer: &wgpu::Buffer,
         uniform: &CameraUniform,
     ) -> wgpu::BindGroup {
-        ctx.write_buffer(&targets.g().uniform, 0, bytemuck::bytes_of(uniform));
+        ctx.write_buffer(buffer, 0, bytemuck::bytes_of(uniform));
         let (geometry, colors) = model.gpu_buffers();
-        let bufs = [
-            targets.g().uniform.clone(),
-            geometry.clone(),
-            colors.clone(),
-        ];
+        let bufs = [buffer.clone(), geometry.clone(), colors.clone()];
         let mut reuse = self.reuse.lock().unwrap_or_else(|p| p.into_inner());
         let made = reuse.render_binds.get(bufs, |b| {
             Ok(ctx.bind_group(&wgpu::BindGroupDescriptor {
@@ -211,7 +230,9 @@ impl GpuSplatter {
     /// The render pass back end's visibility pass into a cleared depth
     /// buffer: `pipeline`, its label and colour attachments (none for a
     /// full render's first pass, the depth-only render's targets for
-    /// [`Splatter::render_depth`]); timed as "visibility".
+    /// [`Splatter::render_depth`]), drawing the model's splats (its bind
+    /// group and count) after the occluders' (their pipeline, which writes
+    /// no colour, and draws); timed as "visibility".
     fn visibility_pass(
         &self,
         enc: &mut wgpu::CommandEncoder,
@@ -220,8 +241,8 @@ impl GpuSplatter {
             &str,
             &[Option<wgpu::RenderPassColorAttachment<'_>>],
         ),
-        bind: &wgpu::BindGroup,
-        model: &GpuModel,
+        (bind, count): (&wgpu::BindGroup, u32),
+        (hidden_pipeline, hidden): (&wgpu::RenderPipeline, &[(wgpu::BindGroup, u32)]),
         targets: &SplatTargets,
         timer: Option<&mut GpuTimer>,
     ) {
@@ -240,8 +261,15 @@ impl GpuSplatter {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        if !hidden.is_empty() {
+            pass.set_pipeline(hidden_pipeline);
+            for (b, n) in hidden {
+                pass.set_bind_group(0, b, &[]);
+                pass.draw(0..4, 0..*n);
+            }
+        }
         pass.set_pipeline(pipeline);
         pass.set_bind_group(0, bind, &[]);
-        pass.draw(0..4, 0..model.count);
+        pass.draw(0..4, 0..count);
     }
 }

@@ -7,6 +7,9 @@ use crate::gpu::{BindCache, GpuContext, GrowBuffer, STORAGE_IN, STORAGE_OUT, Uni
 /// Bind groups of resolves and gathers kept (one per recent targets and
 /// output buffer).
 pub(super) const KEPT_BINDS: usize = 4;
+/// Render pass bind groups kept: those of resolves, and one per
+/// occluder of a render behind a few.
+const KEPT_RENDER_BINDS: usize = KEPT_BINDS + 8;
 
 /// The buffers [`Splatter::read`](super::Splatter::read) and [`Splatter::gather`](super::Splatter::gather) reuse
 /// (grow-only) and the bind groups made on them.
@@ -17,8 +20,8 @@ pub(super) struct Reuse {
     /// Indexed by [`Grown`].
     pub(super) buffers: [GrowBuffer; 3],
     pub(super) binds: Vec<(BindKey, wgpu::BindGroup)>,
-    /// The render pass back end's, by targets' uniform, geometry and
-    /// colours.
+    /// The render pass back end's, by camera uniform (the targets' or an
+    /// occluder's), geometry and colours.
     pub(super) render_binds: BindCache<3>,
     /// The last gather, given back to the context at this mark: its
     /// points and parameters, written by `Queue::write_buffer`, must not
@@ -62,7 +65,7 @@ impl Reuse {
                 GrowBuffer::new("gather points", STORAGE_IN),
             ],
             binds: Vec::new(),
-            render_binds: BindCache::keeping(KEPT_BINDS),
+            render_binds: BindCache::keeping(KEPT_RENDER_BINDS),
             last_gather: None,
         }
     }

@@ -24,6 +24,35 @@ pub(super) struct Scratch {
     /// first: the frame loop's renders (a keyframe's colours, the bare
     /// geometry) bind anew only when a model or the list changes.
     pub(super) binds: Vec<([wgpu::Buffer; 3], wgpu::BindGroup)>,
+    /// One per occluder of the most occluded render here.
+    pub(super) occluders: Vec<OccluderSlot>,
+}
+
+/// An occluder's own buffers in a [`Scratch`]: its camera uniform and
+/// parameters (written before the submission, so one per occluder), and
+/// its bind group by the buffers that vary (as [`Scratch::binds`]).
+pub(super) struct OccluderSlot {
+    pub(super) uniform: wgpu::Buffer,
+    pub(super) params: Uniform,
+    pub(super) bind: Option<([wgpu::Buffer; 3], wgpu::BindGroup)>,
+}
+
+impl OccluderSlot {
+    pub(super) fn new(ctx: &GpuContext) -> Self {
+        Self {
+            uniform: super::gpu_data::camera_buffer(ctx),
+            params: params_uniform(ctx),
+            bind: None,
+        }
+    }
+}
+
+fn params_uniform(ctx: &GpuContext) -> Uniform {
+    Uniform::new(
+        ctx,
+        "compute splat params",
+        std::mem::size_of::<ComputeParams>() as u64,
+    )
 }
 
 /// Bind groups a [`Scratch`] keeps: the frame loop's two models (each
@@ -40,15 +69,12 @@ impl Scratch {
         Ok(Self {
             depth: ctx.buffer("compute splat depth", pixels * 4, usage),
             acc: ctx.buffer("compute splat sums", acc_bytes, usage),
-            params: Uniform::new(
-                ctx,
-                "compute splat params",
-                std::mem::size_of::<ComputeParams>() as u64,
-            ),
+            params: params_uniform(ctx),
             bounds: ctx.buffer("compute splat bounds", 64, usage),
             slot: 0,
             big: GrowBuffer::new("compute splat large splats", wgpu::BufferUsages::STORAGE),
             binds: Vec::new(),
+            occluders: Vec::new(),
         })
     }
 }
@@ -63,5 +89,10 @@ impl Scratch {
             .map(|b| b.size())
             .sum::<u64>()
             + self.big.size()
+            + self
+                .occluders
+                .iter()
+                .map(|o| o.uniform.size() + o.params.buffer().size())
+                .sum::<u64>()
     }
 }

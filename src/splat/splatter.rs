@@ -24,6 +24,10 @@ pub(super) struct GpuSplatter {
     /// The visibility pass of [`Splatter::render_depth`]: depth, and the
     /// nearest fragment's depth and unit weight into T1 and T0.
     pub(super) visibility_depth: wgpu::RenderPipeline,
+    /// The occluders' draws in that pass: depth alone (the targets'
+    /// writes masked), so that where an occluder is nearest the model's
+    /// cleared values stay.
+    pub(super) visibility_depth_occluder: wgpu::RenderPipeline,
     /// Indexed by [`Attributes::index`].
     pub(super) attribute: Vec<wgpu::RenderPipeline>,
     pub(super) resolve_layout: wgpu::BindGroupLayout,
@@ -147,6 +151,17 @@ impl GpuSplatter {
             true,
             &target_slots(Attributes::GEOMETRY).map(|on| if on { replace.clone() } else { None }),
         )?;
+        let masked = Some(wgpu::ColorTargetState {
+            format: ACC_FORMAT,
+            blend: None,
+            write_mask: wgpu::ColorWrites::empty(),
+        });
+        let visibility_depth_occluder = pipeline(
+            "splat visibility depth occluder",
+            "fs_visibility_depth",
+            true,
+            &target_slots(Attributes::GEOMETRY).map(|on| if on { masked.clone() } else { None }),
+        )?;
         let additive = Some(wgpu::ColorTargetState {
             format: ACC_FORMAT,
             blend: Some(wgpu::BlendState {
@@ -202,6 +217,7 @@ impl GpuSplatter {
             render_layout,
             visibility,
             visibility_depth,
+            visibility_depth_occluder,
             attribute,
             resolve_layout,
             resolve,

@@ -1,7 +1,8 @@
 //! The render targets of the splatter ([`SplatTargets`]).
 
 use super::cpu::Accumulators;
-use super::gpu_data::{CameraUniform, TARGETS};
+use super::gpu_data::TARGETS;
+use super::occluders::Stamp;
 use super::scratch::Scratch;
 use super::{Attribute, Attributes, SplatError, SplatImage};
 use crate::device::AsDevice;
@@ -28,6 +29,8 @@ pub struct SplatTargets {
     /// The pose and camera of the last render (`None` before one, or from
     /// the start of a render that then failed).
     pub(super) view: Option<(Pose, Intrinsics)>,
+    /// The occluder set of the last render (its splatter's generation).
+    pub(super) occluders: Option<Stamp>,
 }
 
 /// What the CPU device's last render left in its targets.
@@ -44,6 +47,9 @@ pub(super) struct GpuTargets {
     pub(super) acc_views: Vec<wgpu::TextureView>,
     pub(super) depth_view: wgpu::TextureView,
     pub(super) uniform: wgpu::Buffer,
+    /// The render pass back end's occluders' camera uniforms, one per
+    /// occluder of the most occluded render here.
+    pub(super) occluder_uniforms: Vec<wgpu::Buffer>,
     /// Scratch of the compute back end, made on its first render here.
     pub(super) compute: Option<Scratch>,
 }
@@ -62,6 +68,7 @@ impl SplatTargets {
             rendered: None,
             depth_only: false,
             view: None,
+            occluders: None,
         }
     }
 
@@ -128,16 +135,13 @@ impl GpuTargets {
             wgpu::TextureUsages::RENDER_ATTACHMENT,
         );
         let depth_view = depth.create_view(&Default::default());
-        let uniform = ctx.buffer(
-            "splat camera",
-            std::mem::size_of::<CameraUniform>() as u64,
-            wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        );
+        let uniform = super::gpu_data::camera_buffer(ctx);
         Self {
             acc,
             acc_views,
             depth_view,
             uniform,
+            occluder_uniforms: Vec::new(),
             compute: None,
         }
     }
@@ -166,6 +170,7 @@ impl SplatTargets {
             .sum();
         acc + pixels * DEPTH_FORMAT.block_copy_size(None).unwrap_or(4) as u64
             + g.uniform.size()
+            + g.occluder_uniforms.iter().map(|b| b.size()).sum::<u64>()
             + g.compute.as_ref().map_or(0, |c| c.gpu_bytes())
     }
 
@@ -193,9 +198,21 @@ impl SplatTargets {
     }
 
     /// The pose and camera of the last render, whose images these targets
-    /// hold (`None` before any render, or after one that failed).
+    /// hold (`None` before any render, after one that failed, or once the
+    /// splatter that made it has other occluders: a render at this view
+    /// would no longer give these images, so a cache keyed by the view
+    /// must not hand them back).
     pub fn last_view(&self) -> Option<&(Pose, Intrinsics)> {
-        self.view.as_ref()
+        self.view
+            .as_ref()
+            .filter(|_| self.occluders.as_ref().is_none_or(|s| s.current()))
+    }
+
+    /// The generation of the occluder set the last render was made with
+    /// ([`super::Splatter::occluder_generation`] then; `None` before a
+    /// render): part of what identifies the render, with its view.
+    pub fn occluder_generation(&self) -> Option<u64> {
+        self.occluders.as_ref().map(|s| s.generation)
     }
 
     /// Whether the last render was depth-only

@@ -209,7 +209,7 @@ impl Tracker {
                 ..Default::default()
             },
         )?;
-        let geometry = GpuModel::new(device, &model)?;
+        let geometry = Arc::new(GpuModel::new(device, &model)?);
         let targets = SplatTargets::new(device, cam.width, cam.height);
         let (box_lo, box_hi) = {
             let pad = Vector3::repeat(model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64)));

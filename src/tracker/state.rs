@@ -64,7 +64,9 @@ pub struct Tracker {
     pub(super) model: Arc<PointModel>,
     pub(super) store: Option<Arc<KeyframeStore>>,
     pub(super) splatter: Splatter,
-    pub(super) geometry: GpuModel,
+    /// The model uploaded, shared so that it can occlude another
+    /// object's renders ([`crate::splat::Occluder`]).
+    pub(super) geometry: Arc<GpuModel>,
     pub(super) textured: crate::keyframes::TexturedCache,
     /// The targets of the last render, the size of [`Tracker::window`].
     pub(super) targets: SplatTargets,
@@ -147,6 +149,16 @@ impl Tracker {
     /// radii raised to `min_splat_radius_px` and grown to close gaps.
     pub fn model(&self) -> &Arc<PointModel> {
         &self.model
+    }
+
+    /// The model as uploaded to the tracker's device, to occlude the
+    /// renders of another object's tracker on that device.
+    #[allow(
+        dead_code,
+        reason = "for the code tracking several objects, which hands it to the others"
+    )]
+    pub(crate) fn gpu_model(&self) -> &Arc<GpuModel> {
+        &self.geometry
     }
 
     /// What [`TrackerConfig::auto_modalities`] measured and chose when the

@@ -184,7 +184,11 @@ impl Tracker {
     /// window, which holds every pixel it covers); whether it was.
     pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window) -> bool {
         match self.kept.take() {
-            Some(k) if (k.pose == *pose && k.window == w) || self.near_render(&k.pose, pose) => {
+            // Not when the splatter's occluders changed since it was made.
+            Some(k)
+                if k.targets.last_view().is_some()
+                    && ((k.pose == *pose && k.window == w) || self.near_render(&k.pose, pose)) =>
+            {
                 let old = std::mem::replace(&mut self.targets, k.targets);
                 self.put_spare(old);
                 self.window = k.window;
