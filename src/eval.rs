@@ -87,9 +87,17 @@ pub enum EvalError {
     /// [`frame_key`] normalisation).
     #[error("no frame of the estimate matches a ground-truth frame (labels differ?)")]
     NoCommonFrames,
-    /// A frame label occurs twice in one file (`estimate` or `ground truth`).
+    /// A frame label occurs twice in one file (`estimate` or `ground truth`)
+    /// for one object.
     #[error("duplicate frame {0:?} in the {1}")]
     Duplicate(String, &'static str),
+    /// An object of the estimate has no row in the ground truth.
+    #[error("object {0:?} of the estimate is not in the ground truth")]
+    UnknownObject(String),
+    /// One file names its rows' objects (the `object` column) and the
+    /// other does not, and the objects cannot be told apart.
+    #[error("the {0} has no object column, the {1} names several objects")]
+    NoObjectColumn(&'static str, &'static str),
 }
 
 /// Normalises a frame label so that `000043`, `43` and `000043.png` agree.
@@ -127,6 +135,9 @@ pub struct EvalOptions {
     pub units_per_metre: f64,
     /// Frame keys (see [`frame_key`]) left out of the statistics.
     pub exclude: HashSet<String>,
+    /// Each object's diameter by name, in place of `diameter`
+    /// ([`evaluate_objects`]).
+    pub object_diameters: HashMap<String, f64>,
 }
 
 impl Default for EvalOptions {
@@ -135,6 +146,7 @@ impl Default for EvalOptions {
             diameter: None,
             units_per_metre: 1.0,
             exclude: HashSet::new(),
+            object_diameters: HashMap::new(),
         }
     }
 }
@@ -228,6 +240,78 @@ pub fn evaluate(
             .map(|d| rate(&|f| f.rotation_deg < 2.0 && f.translation < 0.02 * d)),
     };
     Ok(Evaluation { frames, summary })
+}
+
+/// [`evaluate`] object by object, for pose files with an `object` column
+/// (several objects' rows): each object of `estimate`, in the order it
+/// first appears, against the ground-truth rows of the same name, matched
+/// by (object, frame); its [`Summary::name`] is `name`, a space and the
+/// object's name; its diameter is [`EvalOptions::object_diameters`]'
+/// entry, else [`EvalOptions::diameter`]. Files without the column give one evaluation named
+/// `name`, as [`evaluate`]; an estimate without it against a ground truth
+/// of one object is that object's. An estimate's object missing from the
+/// ground truth is refused ([`EvalError::UnknownObject`]).
+pub fn evaluate_objects(
+    name: &str,
+    estimate: &[PoseRow],
+    gt: &[PoseRow],
+    opts: &EvalOptions,
+) -> Result<Vec<(Option<String>, Evaluation)>, EvalError> {
+    let est_objects = objects_of(estimate);
+    let gt_objects = objects_of(gt);
+    match (est_objects.is_empty(), gt_objects.is_empty()) {
+        (true, true) => return Ok(vec![(None, evaluate(name, estimate, gt, opts)?)]),
+        (true, false) if gt_objects.len() == 1 => {
+            return Ok(vec![(None, evaluate(name, estimate, gt, opts)?)]);
+        }
+        (true, false) => return Err(EvalError::NoObjectColumn("estimate", "ground truth")),
+        (false, true) if est_objects.len() == 1 => {
+            return Ok(vec![(
+                Some(est_objects[0].to_owned()),
+                evaluate(name, estimate, gt, opts)?,
+            )]);
+        }
+        (false, true) => return Err(EvalError::NoObjectColumn("ground truth", "estimate")),
+        (false, false) => {}
+    }
+    let rows_of = |rows: &[PoseRow], object: &str| -> Vec<PoseRow> {
+        rows.iter()
+            .filter(|r| r.object.as_deref() == Some(object))
+            .cloned()
+            .collect()
+    };
+    let mut out = Vec::with_capacity(est_objects.len());
+    for object in est_objects {
+        let truth = rows_of(gt, object);
+        if truth.is_empty() {
+            return Err(EvalError::UnknownObject(object.to_owned()));
+        }
+        let own = EvalOptions {
+            diameter: opts.object_diameters.get(object).copied().or(opts.diameter),
+            ..opts.clone()
+        };
+        let e = evaluate(
+            &format!("{name} {object}"),
+            &rows_of(estimate, object),
+            &truth,
+            &own,
+        )?;
+        out.push((Some(object.to_owned()), e));
+    }
+    Ok(out)
+}
+
+/// The objects the rows name, in the order they first appear.
+fn objects_of(rows: &[PoseRow]) -> Vec<&str> {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if let Some(o) = r.object.as_deref()
+            && !names.contains(&o)
+        {
+            names.push(o);
+        }
+    }
+    names
 }
 
 /// The translation error of `estimate` against `truth` split along the
@@ -374,6 +458,44 @@ mod tests {
             r.extra.push(("status".into(), s.into()));
         }
         r
+    }
+
+    #[test]
+    fn objects_are_matched_by_name_and_frame() {
+        let of = |o: &str, f: &str, deg: f64| row(f, deg, 0.0, None).of_object(o);
+        let gt = vec![
+            of("a", "0", 0.0),
+            of("b", "0", 0.0),
+            of("a", "1", 0.0),
+            of("b", "1", 0.0),
+        ];
+        // b's rows first, a's frame 1 missing: each object its own figures.
+        let est = vec![of("b", "0", 2.0), of("a", "0", 1.0), of("b", "1", 4.0)];
+        let out = evaluate_objects("run", &est, &gt, &EvalOptions::default()).unwrap();
+        let names: Vec<_> = out.iter().map(|(o, _)| o.as_deref().unwrap()).collect();
+        assert_eq!(names, ["b", "a"]);
+        let (b, a) = (&out[0].1.summary, &out[1].1.summary);
+        assert_eq!((b.name.as_str(), b.frames, b.missing), ("run b", 2, 0));
+        assert!((b.rotation_mean - 3.0).abs() < 1e-9);
+        assert_eq!((a.frames, a.missing), (2, 1));
+        assert!((a.rotation_mean - 1.0).abs() < 1e-9);
+        // An object the ground truth lacks, or files that cannot be told
+        // apart, are refused naming why.
+        let e = evaluate_objects("run", &[of("c", "0", 0.0)], &gt, &EvalOptions::default());
+        assert_eq!(e.unwrap_err(), EvalError::UnknownObject("c".into()));
+        let plain = vec![row("0", 0.0, 0.0, None)];
+        let e = evaluate_objects("run", &plain, &gt, &EvalOptions::default()).unwrap_err();
+        assert!(
+            e.to_string().contains("estimate has no object column"),
+            "{e}"
+        );
+        // Plain files: one evaluation, as evaluate gives.
+        let one = evaluate_objects("run", &plain, &plain, &EvalOptions::default()).unwrap();
+        assert_eq!(one.len(), 1);
+        assert_eq!(
+            (one[0].0.as_deref(), one[0].1.summary.name.as_str()),
+            (None, "run")
+        );
     }
 
     #[test]

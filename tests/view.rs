@@ -79,6 +79,7 @@ fn view<'a>(
         image: img,
         result: r,
         mask,
+        objects: &[],
         time_s,
         rate_hz: None,
         mode: Mode::KfIt,

@@ -2,7 +2,7 @@
 
 import os
 import pathlib
-from typing import Iterator, List, Optional, Sequence, Tuple, Union, final
+from typing import Dict, Iterator, List, Mapping, Optional, Sequence, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
@@ -17,6 +17,7 @@ __all__ = [
     "InputError",
     "Model",
     "ModelError",
+    "MultiTracker",
     "Tracker",
     "TrackError",
     "TrackResult",
@@ -193,6 +194,30 @@ class Tracker:
     def camera(self) -> Camera: ...
     @property
     def keyframes(self) -> int: ...
+
+@final
+class MultiTracker:
+    """Several objects through the frames of one camera: each object's
+    model, keyframes and settings are those of the Tracker given for it
+    (all with the same camera). ``objects``: a dict of name: Tracker, or a
+    list of (name, Tracker) pairs; names unique, without commas, quotes
+    or line breaks. With one object its poses are that Tracker's.
+    """
+
+    def __new__(
+        cls,
+        objects: Union[Mapping[str, Tracker], Sequence[Tuple[str, Tracker]]],
+    ) -> "MultiTracker": ...
+    def start(self, poses: Mapping[str, _Pose]) -> None:
+        """Starts (or restarts) the track at the next frame's poses, by name;
+        an object left out is searched for."""
+    def track(self, frame: npt.NDArray[np.uint8]) -> Dict[str, TrackResult]:
+        """Tracks the next frame: each object's result by name, in the objects' order."""
+    @property
+    def names(self) -> List[str]: ...
+    @property
+    def poses(self) -> Dict[str, Optional[npt.NDArray[np.float64]]]: ...
+    def __len__(self) -> int: ...
 
 def device(device: str = "auto") -> str:
     """The device ``device`` names: ``"gpu"`` (GpuError when there is

@@ -8,6 +8,7 @@ mod arrays;
 mod camera;
 mod errors;
 mod model;
+mod multi;
 mod settings;
 mod tracker;
 
@@ -64,6 +65,7 @@ fn _splattrack(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::Model>()?;
     m.add_class::<tracker::Tracker>()?;
     m.add_class::<tracker::TrackResult>()?;
+    m.add_class::<multi::MultiTracker>()?;
     m.add_function(wrap_pyfunction!(device, m)?)?;
     m.add_function(wrap_pyfunction!(arrays::read_image, m)?)?;
     m.add_function(wrap_pyfunction!(arrays::list_images, m)?)?;

@@ -115,12 +115,7 @@ impl Tracker {
                 inner.track_owned(img)
             })
             .map_err(errors::track)?;
-        let mut result = TrackResult::of(&r);
-        if inner.searching() {
-            // No pose yet: nothing good to report.
-            result.pose = [[f64::NAN; 4]; 4];
-        }
-        Ok(result)
+        Ok(TrackResult::of_tracker(&r, inner))
     }
 
     /// The novel view at `pose` (4x4): the model textured by the closest
@@ -219,7 +214,12 @@ impl Tracker {
 }
 
 impl Tracker {
-    fn build(&self, py: Python<'_>, pose: Option<Pose>) -> PyResult<lib::Tracker> {
+    /// The camera as calibrated, with its distortion.
+    pub(crate) fn calibrated(&self) -> &Intrinsics {
+        &self.camera
+    }
+
+    pub(crate) fn build(&self, py: Python<'_>, pose: Option<Pose>) -> PyResult<lib::Tracker> {
         self.build_with(py, pose, self.config.clone())
     }
 
@@ -323,6 +323,16 @@ pub struct TrackResult {
 }
 
 impl TrackResult {
+    /// `r`, a result of `tracker`: its pose NaN while the tracker has
+    /// none yet (searching), as nothing good can be reported.
+    pub(crate) fn of_tracker(r: &lib::TrackResult, tracker: &lib::Tracker) -> Self {
+        let mut result = Self::of(r);
+        if tracker.searching() {
+            result.pose = [[f64::NAN; 4]; 4];
+        }
+        result
+    }
+
     fn of(r: &lib::TrackResult) -> Self {
         let m = r.pose.to_matrix4();
         Self {

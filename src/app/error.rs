@@ -93,6 +93,10 @@ pub enum AppError {
     /// A run without a sequence was given no [`crate::io::source::FrameSource`].
     #[error("no frames to track: the inputs have no sequence and the run no frame source")]
     NoSource,
+    /// The objects of a run of several cannot be tracked together (none,
+    /// two of the same name, a name that cannot be a CSV field).
+    #[error(transparent)]
+    Objects(#[from] crate::tracker::MultiError),
     /// An output would overwrite one of the run's inputs.
     #[error(transparent)]
     Clobber(#[from] crate::io::guard::ClobberError),

@@ -53,7 +53,9 @@ pub fn refused_row(label: &str, r: &TrackResult) -> Option<PoseRow> {
 }
 
 /// Writes the refused file row by row, crash-safe as the pose file
-/// ([`PoseWriter`]: the rows in `FILE.partial` until [`Self::finish`]).
+/// ([`PoseWriter`]: the rows in `FILE.partial` until [`Self::finish`]);
+/// in a run of several objects, with the `object` column first
+/// ([`Self::create_objects`], [`Self::object_frame`]).
 pub struct RefusedWriter {
     file: PoseWriter,
     rows: usize,
@@ -66,6 +68,29 @@ impl RefusedWriter {
             file: PoseWriter::create(path, &REFUSED_COLUMNS)?,
             rows: 0,
         })
+    }
+
+    /// Starts `path` with its header and the `object` column first.
+    pub fn create_objects(path: &Path) -> Result<Self, PoseFileError> {
+        Ok(Self {
+            file: PoseWriter::create_objects(path, &REFUSED_COLUMNS)?,
+            rows: 0,
+        })
+    }
+
+    /// Writes object `name`'s row of frame `label`, if it refused an
+    /// estimate (a file of [`Self::create_objects`]).
+    pub fn object_frame(
+        &mut self,
+        name: &str,
+        label: &str,
+        r: &TrackResult,
+    ) -> Result<(), PoseFileError> {
+        if let Some(row) = refused_row(label, r) {
+            self.file.row(&row.of_object(name))?;
+            self.rows += 1;
+        }
+        Ok(())
     }
 
     /// Writes frame `label`'s row, if it refused an estimate.

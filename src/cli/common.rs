@@ -155,3 +155,34 @@ pub fn model_options() -> LoadOptions {
 pub fn load_model(path: &std::path::Path) -> anyhow::Result<PointModel> {
     Ok(PointModel::load_any_with(path, 0, &model_options())?)
 }
+
+/// `FLAG NAME=PATH` or `FLAG PATH` (`--model`): the name (NAME, else the
+/// file's stem; for `objects/NAME/model.*`, a sequence's layout, the
+/// folder's NAME) and the path. A `=` after a path separator is part of
+/// the path.
+pub fn named_path(flag: &str, arg: &str) -> anyhow::Result<(String, std::path::PathBuf)> {
+    use anyhow::Context;
+    if let Some((name, path)) = arg.split_once('=')
+        && !name.is_empty()
+        && !name.contains(['/', '\\'])
+    {
+        if path.is_empty() {
+            anyhow::bail!("{flag} {arg}: no path after {name}=");
+        }
+        return Ok((name.to_owned(), std::path::PathBuf::from(path)));
+    }
+    let path = std::path::PathBuf::from(arg);
+    let folder = path.parent().filter(|d| {
+        path.file_stem().is_some_and(|s| s == "model")
+            && d.parent()
+                .and_then(|o| o.file_name())
+                .is_some_and(|o| o == "objects")
+    });
+    let name = folder
+        .and_then(|d| d.file_name())
+        .or_else(|| path.file_stem())
+        .map(|s| s.to_string_lossy().into_owned())
+        .filter(|s| !s.is_empty())
+        .with_context(|| format!("{flag} {arg}: no file name to name the object by"))?;
+    Ok((name, path))
+}

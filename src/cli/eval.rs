@@ -1,4 +1,6 @@
-//! `splattrack eval --poses poses.csv --gt gt.csv [--model M.ply] [--plot errors.png]`.
+//! `splattrack eval --poses poses.csv --gt gt.csv [--model [NAME=]M.ply]...
+//! [--plot errors.png]`: files of one object, or of several (the object
+//! column), each object's figures apart.
 
 use anyhow::{Context, bail};
 use splattrack::eval::{self, EvalOptions, frame_key};
@@ -16,8 +18,10 @@ pub struct Args {
     #[arg(long)]
     pub gt: PathBuf,
     /// The model, for its diameter (errors in % of it, the 2deg/2% rate).
-    #[arg(long)]
-    pub model: Option<PathBuf>,
+    /// Files of several objects: once per object, NAME=PATH or PATH (named
+    /// by the file's stem), matched to the object column by name.
+    #[arg(long, value_name = "[NAME=]PATH")]
+    pub model: Vec<String>,
     /// The model's diameter in model units, instead of --model.
     #[arg(long, conflicts_with = "model")]
     pub diameter: Option<f64>,
@@ -72,9 +76,14 @@ fn excluded_frames(path: &Path) -> anyhow::Result<HashSet<String>> {
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Outputs never overwrite inputs.
+    let models = args
+        .model
+        .iter()
+        .map(|m| super::common::named_path("--model", m))
+        .collect::<anyhow::Result<Vec<_>>>()?;
     let mut inputs: Vec<&Path> = args.poses.iter().map(PathBuf::as_path).collect();
     inputs.push(&args.gt);
-    inputs.extend(args.model.as_deref());
+    inputs.extend(models.iter().map(|(_, p)| p.as_path()));
     inputs.extend(args.gt_quality.as_deref());
     for (out, flag) in [(&args.plot, "--plot"), (&args.csv, "--csv")] {
         if let Some(out) = out {
@@ -82,12 +91,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     let gt = splattrack::io::read_poses(&args.gt)?;
-    let diameter = match (&args.model, args.diameter) {
-        (Some(m), _) => Some(super::common::load_model(m)?.diameter() as f64),
-        (None, Some(d)) if d.is_finite() && d > 0.0 => Some(d),
-        (None, Some(d)) => bail!("--diameter {d}: must be a positive number"),
-        (None, None) => None,
+    let objects = gt.iter().any(|r| r.object.is_some());
+    if !models.is_empty() && args.diameter.is_some() {
+        bail!("give --model or --diameter, not both");
+    }
+    let diameter = match (models.as_slice(), args.diameter) {
+        ([(_, m)], _) if !objects => Some(super::common::load_model(m)?.diameter() as f64),
+        ([_, _, ..], _) if !objects => bail!(
+            "--model is given {} times, and {} holds one object's poses: give it once",
+            models.len(),
+            args.gt.display()
+        ),
+        (_, Some(d)) if d.is_finite() && d > 0.0 => Some(d),
+        (_, Some(d)) => bail!("--diameter {d}: must be a positive number"),
+        _ => None,
     };
+    let mut object_diameters = std::collections::HashMap::new();
+    if objects {
+        for (name, m) in &models {
+            if !gt.iter().any(|r| r.object.as_deref() == Some(name)) {
+                bail!(
+                    "--model {}: no object {name:?} in {} (name the model's object with --model NAME=PATH)",
+                    m.display(),
+                    args.gt.display()
+                );
+            }
+            let d = super::common::load_model(m)?.diameter() as f64;
+            object_diameters.insert(name.clone(), d);
+        }
+    }
     if !(args.units_per_metre.is_finite() && args.units_per_metre > 0.0) {
         bail!(
             "--units-per-metre {}: must be a positive number",
@@ -108,6 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(p) => excluded_frames(p)?,
             None => HashSet::new(),
         },
+        object_diameters,
     };
     let mut evals = Vec::new();
     for (i, p) in args.poses.iter().enumerate() {
@@ -117,9 +150,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| format!("run{i}"))
         });
-        let e = eval::evaluate(&name, &est, &gt, &opts)
+        let per_object = eval::evaluate_objects(&name, &est, &gt, &opts)
             .with_context(|| format!("{} against {}", p.display(), args.gt.display()))?;
-        evals.push(e);
+        for (object, mut e) in per_object {
+            if let Some(object) = object {
+                if !models.is_empty() && !opts.object_diameters.contains_key(&object) {
+                    bail!(
+                        "{}: object {object:?} has no --model (give --model {object}=PATH for each object, or none)",
+                        p.display()
+                    );
+                }
+                // One file: the objects' names alone.
+                if args.poses.len() == 1 {
+                    e.summary.name = object;
+                }
+            }
+            evals.push(e);
+        }
     }
     let summaries: Vec<_> = evals.iter().map(|e| e.summary.clone()).collect();
     print!("{}", eval::table(&summaries, "units"));

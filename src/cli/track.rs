@@ -1,14 +1,16 @@
-//! `splattrack track --model M.ply (--sequence DIR | --video FILE |
-//! --device N|PATH --camera C) [--keyframes DIR|FILE] [--init init.csv]
-//! [--mode kf+it|it|kf] --out poses.csv [--overlay DIR] [--profile]
-//! [--bop FILE] [--refused FILE] [--start N|Ts] [--frames N]`: the flags ([`args`]), the
-//! input they name ([`input`]), then [`splattrack::app`] does the work and
-//! [`output`] prints what it did.
+//! `splattrack track --model [NAME=]M.ply... (--sequence DIR | --video
+//! FILE | --device N|PATH --camera C) [--keyframes DIR|FILE]...
+//! [--init init.csv]... [--mode kf+it|it|kf] --out poses.csv [--overlay
+//! DIR] [--profile] [--bop FILE] [--refused FILE] [--start N|Ts]
+//! [--frames N]`: the flags ([`args`]), the input they name ([`input`])
+//! and the objects ([`objects`]), then [`splattrack::app`] does the work
+//! and [`output`] prints what it did.
 
 mod args;
 mod input;
 #[cfg(not(feature = "view"))]
 mod no_view;
+mod objects;
 mod output;
 mod profile;
 mod refused;
@@ -17,7 +19,7 @@ pub use args::Args;
 
 use anyhow::{Context, bail};
 use input::Input;
-use splattrack::app::{AppError, TrackInputs, TrackRun};
+use splattrack::app::{AppError, TrackRun};
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::Start;
 use splattrack::tracker::Mode;
@@ -30,12 +32,14 @@ use no_view::DisplaySink;
 use splattrack::view::DisplaySink;
 
 pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()> {
-    let mut config = args.config()?;
+    // The tuning flags checked first.
+    args.config(args::Cues::Auto)?;
     if args.frames == Some(0) {
         bail!("--frames 0: nothing to track");
     }
     let input = Input::of(&args)?;
-    output::check_outputs(&args)?;
+    let objects = objects::of(&args)?;
+    output::check_outputs(&args, &objects)?;
     // A video or a camera is opened first: a missing ffmpeg, a file it
     // cannot decode or frames of the wrong size fail before the GPU and
     // the model are set up.
@@ -53,25 +57,43 @@ pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()
         }
         (false, _) => None,
     };
-    let inputs = input.load(&ctx, &args)?;
-    config.mode = mode_for(&args, &inputs)?;
+    let (inputs, several) = objects::load(&ctx, &input, &objects)?;
+    let mut config = args.config(objects[0].cues)?;
+    let several = match several {
+        None => {
+            config.mode = mode_for(&args, inputs.textured(), inputs.init.is_some(), None)?;
+            None
+        }
+        Some(mut list) => {
+            for (o, given) in list.iter_mut().zip(&objects) {
+                o.config = args.config(given.cues)?;
+                o.config.mode = mode_for(&args, o.textured(), o.init.is_some(), Some(&o.name))?;
+            }
+            config.mode = list[0].config.mode;
+            Some(list)
+        }
+    };
     let live = matches!(input, Input::Device { .. }) || args.realtime;
     if live {
         catch_ctrl_c(&stop)?;
     }
     let mode = config.mode;
+    let prefix = match objects.len() {
+        1 => format!("{} ", mode.name()),
+        n => format!("{} {n} objects ", mode.name()),
+    };
     let mut run = TrackRun::new(&ctx, &inputs, config)
         .limit(args.frames)
         .poses(&args.out)
-        .progress(Some(crate::cli::progress::bars(
-            format!("{} ", mode.name()),
-            1,
-        )));
+        .progress(Some(crate::cli::progress::bars(prefix, 1)));
+    if let Some(list) = several {
+        run = run.objects(list);
+    }
     if let Some(dir) = &args.overlay {
         run = run.overlays(dir, 1);
     }
     if let Some(path) = &args.bop {
-        run = run.bop(path, args.obj_id);
+        run = run.bop(path, args.obj_id.unwrap_or(1));
     }
     if args.profile {
         run = run.gpu_timing(true);
@@ -94,9 +116,10 @@ pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()
     if let Some(w) = display.as_mut() {
         run = run.sink(w);
     }
-    let mut refused = refused::Refused::create(args.refused.as_deref())?;
+    let names = objects.iter().map(|o| o.name.clone()).collect();
+    let mut refused = refused::Refused::create(args.refused.as_deref(), names)?;
     let wall = std::time::Instant::now();
-    let stats = match run.run(|frame, r| refused.frame(frame, r)) {
+    let stats = match run.run_objects(|frame, results| refused.frame(frame, results)) {
         Err(AppError::NoFrames) if args.start.is_some() => {
             refused.discard();
             bail!("{}", no_frame_at_start(&input, args.start))
@@ -125,25 +148,28 @@ pub fn run(args: Args, target: &crate::cli::common::Target) -> anyhow::Result<()
     Ok(())
 }
 
-/// The mode of the run: `--mode`, else kf+it where there is a texture
-/// for the KF step's views (keyframes or model colours) and it (frame to
-/// frame) where there is none, said once. A KF mode asked for without a
+/// The mode of an object's tracker (`object`: its name, in a run of
+/// several): `--mode`, else kf+it where there is a texture for the KF
+/// step's views (keyframes or model colours) and it (frame to frame)
+/// where there is none, said once. A KF mode asked for without a
 /// texture, or no first pose and nothing to search for the object with,
 /// fails naming what would help.
-fn mode_for(args: &Args, inputs: &TrackInputs) -> anyhow::Result<Mode> {
-    let textured = inputs.textured();
-    if !textured && inputs.init.is_none() {
+fn mode_for(args: &Args, textured: bool, init: bool, object: Option<&str>) -> anyhow::Result<Mode> {
+    let of = object.map_or_else(String::new, |name| format!("object {name:?}: "));
+    if !textured && !init {
         bail!(
-            "no first pose (init.csv or --init) and nothing to search for the object with (keyframes or model colours): give the pose of the first frame with --init"
+            "{of}no first pose (init.csv or --init) and nothing to search for the object with (keyframes or model colours): give the pose of the first frame with --init"
         );
     }
     match splattrack::app::run_mode(args.mode, textured) {
         Err(m) => bail!(
-            "--mode {m} needs keyframes (--keyframes DIR or SEQUENCE/keyframes) or a model with colours for the KF step's views; without them use --mode it (frame to frame)"
+            "{of}--mode {m} needs keyframes (--keyframes DIR or SEQUENCE/keyframes) or a model with colours for the KF step's views; without them use --mode it (frame to frame)"
         ),
         Ok(m) => {
             if args.mode.is_none() && m == Mode::It {
-                log::info!("no keyframes and no model colours: tracking frame to frame (mode it)");
+                log::info!(
+                    "{of}no keyframes and no model colours: tracking frame to frame (mode it)"
+                );
             }
             Ok(m)
         }

@@ -26,6 +26,16 @@ pub fn format_bop_row(im_id: usize, obj_id: u32, pose: &Pose, score: f64, second
     )
 }
 
+/// The BOP object id of object `name`, the `position`-th (from 1) of a
+/// run: the number in a name of BOP's model naming (`obj_000005` -> 5),
+/// else `position`.
+pub fn bop_obj_id(name: &str, position: usize) -> u32 {
+    name.strip_prefix("obj_")
+        .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or(position as u32)
+}
+
 /// A BOP results file written row by row into `OUT.partial`, renamed to
 /// `OUT` by [`finish`](Self::finish).
 pub struct BopWriter {
@@ -52,6 +62,20 @@ impl BopWriter {
             .line(&format_bop_row(im_id, self.obj_id, pose, score, seconds))
     }
 
+    /// Appends the row of frame `im_id` for object `obj_id` (a file of
+    /// several objects' rows).
+    pub fn object_row(
+        &mut self,
+        im_id: usize,
+        obj_id: u32,
+        pose: &Pose,
+        score: f64,
+        seconds: f64,
+    ) -> Result<(), WriteError> {
+        self.file
+            .line(&format_bop_row(im_id, obj_id, pose, score, seconds))
+    }
+
     /// Syncs the file and renames it into place.
     pub fn finish(self) -> Result<(), WriteError> {
         self.file.finish()
@@ -62,6 +86,16 @@ impl BopWriter {
 mod tests {
     use super::*;
     use nalgebra::{Matrix3, Vector3};
+
+    #[test]
+    fn object_ids_come_from_bop_names_else_positions() {
+        assert_eq!(bop_obj_id("obj_000005", 1), 5);
+        assert_eq!(bop_obj_id("obj_12", 3), 12);
+        assert_eq!(bop_obj_id("gear", 2), 2);
+        assert_eq!(bop_obj_id("obj_", 4), 4);
+        assert_eq!(bop_obj_id("obj_5a", 1), 1);
+        assert_eq!(bop_obj_id("my_obj_000005", 2), 2);
+    }
 
     #[test]
     fn rows_are_in_millimetres_and_row_major() {

@@ -14,7 +14,9 @@
 //! status band above the frame (mode, frame number, time, `tracking` or
 //! `lost` with inliers, residual and milliseconds, and on a lost frame the
 //! tracker's reason) and the frame with the silhouette's outline in the
-//! status colour ([`status_colour`]). `display::DisplaySink` (the `view`
+//! status colour ([`status_colour`]). With several objects each outline
+//! has its object's colour ([`object_colour`]) and its name beside it,
+//! and the band counts the objects tracking and names the lost ones. `display::DisplaySink` (the `view`
 //! feature) shows that picture in an OS window (winit), drawn by the
 //! tracker's own wgpu device ([`present`]: a letterboxing blit with a CPU
 //! reference); tests feed [`compose`] and fake sinks directly, without a
@@ -27,11 +29,13 @@
 pub mod clicks;
 #[cfg(feature = "view")]
 pub mod display;
+mod objects;
 mod picture;
 pub mod present;
 mod sink;
 
 #[cfg(feature = "view")]
 pub use display::{DisplaySink, DisplayStats};
-pub use picture::{BAND_COLOUR, BAND_LINES, Layout, Rate, compose, status_colour, status_lines};
-pub use sink::{Flow, FrameSink, ViewError, ViewFrame};
+pub use objects::{draw_objects, object_colour, objects_overlay, objects_tracking, status_colour};
+pub use picture::{BAND_COLOUR, BAND_LINES, Layout, Rate, compose, status_lines};
+pub use sink::{Flow, FrameSink, ViewError, ViewFrame, ViewObject};

@@ -1,19 +1,11 @@
 //! The picture the live view shows for a frame ([`compose`]): a status
 //! band above the frame with the silhouette's outline.
 
+use super::objects::status_colour;
 use super::sink::ViewFrame;
 use crate::draw::{self, Colour};
 use crate::tracker::Status;
 use image::{RgbImage, RgbaImage};
-
-/// The colour of the outline and the status word: green tracking, red
-/// lost (as `--overlay` draws them).
-pub fn status_colour(status: Status) -> Colour {
-    match status {
-        Status::Tracking => [40, 230, 60],
-        Status::Lost => [240, 40, 40],
-    }
-}
 
 /// The colour of the status band behind the text.
 pub const BAND_COLOUR: Colour = [16, 16, 16];
@@ -65,6 +57,9 @@ impl Layout {
 /// second; on a lost frame, the reason, and on a frame whose texture was
 /// set aside, that the contour alone tracked it.
 pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+    if !frame.objects.is_empty() {
+        return objects_lines(frame);
+    }
     let r = frame.result;
     let time = frame
         .time_s
@@ -98,6 +93,43 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
         (Status::Tracking, _) => String::new(),
     };
     [first, second, third]
+}
+
+/// [`status_lines`] of several objects: mode, frame and time; how many
+/// track, the frame's milliseconds and the frames per second; each lost
+/// object's name and reason.
+fn objects_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+    let time = frame
+        .time_s
+        .map_or_else(String::new, |t| format!("  t {t:.3} s"));
+    let first = format!(
+        "{}  frame {} ({}){time}",
+        frame.mode.name(),
+        frame.index,
+        frame.label
+    );
+    let rate = frame
+        .rate_hz
+        .map_or_else(String::new, |f| format!("  {f:.1} frames/s"));
+    let ms: f64 = frame
+        .objects
+        .iter()
+        .map(|o| o.result.times.total.as_secs_f64() * 1e3)
+        .sum();
+    let second = format!(
+        "{}  {ms:.0} ms{rate}",
+        super::objects::objects_tracking(frame.objects)
+    );
+    let lost: Vec<String> = frame
+        .objects
+        .iter()
+        .filter(|o| o.result.status == Status::Lost)
+        .map(|o| match &o.result.reason {
+            Some(why) => format!("{} lost: {why}", o.name),
+            None => format!("{} lost", o.name),
+        })
+        .collect();
+    [first, second, lost.join("; ")]
 }
 
 /// Frames per second over the last [`Rate::FRAMES`] frames, from the
@@ -145,15 +177,28 @@ fn fit(text: &str, n: usize) -> String {
 /// ([`Layout::band`] pixels, [`BAND_COLOUR`]) with [`status_lines`] in it
 /// (the status line in [`status_colour`], the others white), above the
 /// frame with the silhouette's outline in the status colour and its inside
-/// lightly tinted ([`draw::silhouette`]). A pure function: everything the
-/// display shows is tested through it.
+/// lightly tinted ([`draw::silhouette`]); several objects each in its
+/// colour, named ([`super::draw_objects`]), the status line red
+/// when one is lost. A pure function: everything the display shows is
+/// tested through it.
 pub fn compose(frame: &ViewFrame<'_>) -> RgbaImage {
     let (w, h) = frame.image.dimensions();
     let layout = Layout::for_width(w);
-    let colour = status_colour(frame.result.status);
+    let status = if frame
+        .objects
+        .iter()
+        .any(|o| o.result.status == Status::Lost)
+    {
+        Status::Lost
+    } else {
+        frame.result.status
+    };
+    let colour = status_colour(status);
     let mut picture = RgbImage::from_pixel(w, h + layout.band, image::Rgb(BAND_COLOUR));
     let mut shown = frame.image.clone();
-    if let Some(mask) = frame.mask {
+    if !frame.objects.is_empty() {
+        super::objects::draw_objects(&mut shown, frame.objects);
+    } else if let Some(mask) = frame.mask {
         draw::silhouette(&mut shown, mask, colour);
     }
     image::imageops::replace(&mut picture, &shown, 0, layout.band as i64);
@@ -198,6 +243,66 @@ mod tests {
             last = r.tick_at(at(5.0 + k as f64 * 0.1));
         }
         assert!((last.unwrap() - 10.0).abs() < 1e-6, "{last:?}");
+    }
+
+    #[test]
+    fn the_live_view_counts_the_objects_and_names_the_lost() {
+        use crate::tracker::{LostReason, Mode, TrackResult};
+        use crate::view::{ViewFrame, ViewObject, object_colour};
+        let img = RgbImage::new(64, 48);
+        let result = |status| TrackResult {
+            pose: crate::geometry::Pose::identity(),
+            inliers: 0,
+            residual_px: f64::NAN,
+            status,
+            reason: None,
+            keyframe: None,
+            times: Default::default(),
+            verify: None,
+            texture_set_aside: false,
+            cues: crate::tracker::Modalities::NONE,
+            refused: None,
+        };
+        let a = result(Status::Tracking);
+        let b = TrackResult {
+            reason: Some(LostReason::NotFound),
+            ..result(Status::Lost)
+        };
+        let mask: Vec<bool> = (0..64 * 48).map(|p| (p % 64) > 40 && p / 64 > 20).collect();
+        let objects = [
+            ViewObject {
+                name: "a",
+                result: &a,
+                mask: None,
+            },
+            ViewObject {
+                name: "b",
+                result: &b,
+                mask: Some(&mask),
+            },
+        ];
+        let frame = ViewFrame {
+            index: 3,
+            label: "000003",
+            image: &img,
+            result: &a,
+            mask: None,
+            objects: &objects,
+            time_s: None,
+            rate_hz: None,
+            mode: Mode::KfIt,
+        };
+        let lines = status_lines(&frame);
+        assert!(lines[1].starts_with("1/2 tracking"), "{lines:?}");
+        assert!(lines[2].starts_with("b lost: "), "{lines:?}");
+        // b's outline in its lost colour, below the band.
+        let picture = compose(&frame);
+        let band = Layout::for_width(64).band;
+        let c = object_colour(1, Status::Lost);
+        let found = (band..picture.height())
+            .flat_map(|y| (0..64).map(move |x| (x, y)))
+            .any(|(x, y)| picture.get_pixel(x, y).0[..3] == c);
+        assert!(found);
     }
 
     #[test]

@@ -42,6 +42,9 @@ pub struct ViewFrame<'a> {
     /// `image` (row-major), when the sink asked for it
     /// ([`FrameSink::wants_mask`]).
     pub mask: Option<&'a [bool]>,
+    /// Every object of a run of several, in their order (the first is
+    /// `result`'s and `mask`'s); empty with one object.
+    pub objects: &'a [ViewObject<'a>],
     /// The frame's timestamp in seconds, when the source has one.
     pub time_s: Option<f64>,
     /// Frames per second of the whole run lately (reading, tracking,
@@ -50,6 +53,17 @@ pub struct ViewFrame<'a> {
     pub rate_hz: Option<f64>,
     /// The tracker's mode.
     pub mode: Mode,
+}
+
+/// One object of a frame in a run of several ([`ViewFrame::objects`]).
+#[derive(Debug, Clone, Copy)]
+pub struct ViewObject<'a> {
+    /// The object's name.
+    pub name: &'a str,
+    /// What the tracker made of it.
+    pub result: &'a TrackResult,
+    /// Its silhouette at `result.pose`, when the sink asked for it.
+    pub mask: Option<&'a [bool]>,
 }
 
 /// What the run does after a sink has seen a frame.

@@ -11,9 +11,11 @@ use std::path::PathBuf;
 pub struct Args {
     /// The object's model: a point model (PLY), or a mesh (OBJ, STL, PLY
     /// with faces) sampled into 100000 points (`splattrack model` writes
-    /// that sample out).
-    #[arg(long)]
-    pub model: PathBuf,
+    /// that sample out). Repeat for several objects, each NAME=PATH or
+    /// PATH (named by the file's stem). Default with --sequence DIR: every
+    /// DIR/objects/NAME/model.ply.
+    #[arg(long, value_name = "[NAME=]PATH")]
+    pub model: Vec<String>,
     /// The sequence directory (camera.json, frames/, init.csv, ...).
     #[arg(long, conflicts_with_all = ["video", "device", "camera"])]
     pub sequence: Option<PathBuf>,
@@ -43,13 +45,17 @@ pub struct Args {
     #[arg(long)]
     pub start: Option<Start>,
     /// Keyframes: a directory with images and poses.csv, or a store built by
-    /// `splattrack keyframes` (.stkf). Default: SEQUENCE/keyframes if present.
+    /// `splattrack keyframes` (.stkf); once per --model, in their order.
+    /// Default: SEQUENCE/objects/NAME/keyframes, else (one model)
+    /// SEQUENCE/keyframes, if present.
     #[arg(long)]
-    pub keyframes: Option<PathBuf>,
-    /// The pose of frame 0. Default: SEQUENCE/init.csv when present, else
-    /// the object is searched for in the frames (automatic initialisation).
+    pub keyframes: Vec<PathBuf>,
+    /// The pose of frame 0: a pose file's first row, or in a file with an
+    /// object column each object's first row; once, or once per --model.
+    /// Default: SEQUENCE/init.csv when present, else the object is
+    /// searched for in the frames (automatic initialisation).
     #[arg(long)]
-    pub init: Option<PathBuf>,
+    pub init: Vec<PathBuf>,
     /// kf+it (the paper's hybrid), it (frame to frame) or kf (keyframes
     /// only). Default: kf+it, or it when there are neither keyframes nor
     /// model colours to build the KF step's views from.
@@ -60,9 +66,9 @@ pub struct Args {
     /// textured one, contour for an untextured one and without keyframes
     /// or model colours), texture (corners and NCC), contour (the splatted
     /// silhouette against the frame's colours) or both in one robust solve
-    /// (texture,contour).
-    #[arg(long, default_value = "auto")]
-    pub modalities: Cues,
+    /// (texture,contour). Once for every object, or once per --model.
+    #[arg(long)]
+    pub modalities: Vec<Cues>,
     /// Output pose CSV (docs/formats.md "Tracker output").
     #[arg(long)]
     pub out: PathBuf,
@@ -81,9 +87,10 @@ pub struct Args {
     /// scores (docs/formats.md "Refused estimates").
     #[arg(long, value_name = "FILE.csv")]
     pub refused: Option<PathBuf>,
-    /// BOP object id.
-    #[arg(long, default_value_t = 1)]
-    pub obj_id: u32,
+    /// BOP object id of the one model (default 1; several models: each
+    /// object's from its name, obj_000005 -> 5, else its position).
+    #[arg(long)]
+    pub obj_id: Option<u32>,
     /// Track only N frames (from --start).
     #[arg(long)]
     pub frames: Option<usize>,
@@ -157,10 +164,10 @@ impl OnOff {
 }
 
 impl Args {
-    /// The tracker's settings: the defaults with the tuning flags' overrides, and
-    /// the mode, cues and backends named.
-    pub fn config(&self) -> anyhow::Result<TrackerConfig> {
-        let (modalities, auto_modalities) = match self.modalities {
+    /// The tracker's settings with the cues `cues`: the defaults with the
+    /// tuning flags' overrides, and the mode and backends named.
+    pub fn config(&self, cues: Cues) -> anyhow::Result<TrackerConfig> {
+        let (modalities, auto_modalities) = match cues {
             Cues::Auto => (Modalities::default(), true),
             Cues::Named(m) => (m, false),
         };

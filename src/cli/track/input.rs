@@ -9,7 +9,7 @@ use splattrack::app::TrackInputs;
 use splattrack::io::live::LiveSource;
 use splattrack::io::source::{FrameSource, Start};
 use splattrack::io::video::VideoSource;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::sync::atomic::AtomicBool;
 
@@ -114,25 +114,27 @@ impl Input {
         })
     }
 
-    /// The model, camera, keyframes and first pose of the run.
-    pub fn load(&self, ctx: &splattrack::Device, args: &Args) -> anyhow::Result<TrackInputs> {
+    /// The model, camera, keyframes and first pose of a run of one
+    /// object.
+    pub fn load(
+        &self,
+        ctx: &splattrack::Device,
+        model: &Path,
+        keyframes: Option<&Path>,
+        init: Option<&Path>,
+    ) -> anyhow::Result<TrackInputs> {
         Ok(match self {
-            Input::Sequence(dir) => TrackInputs::load(
-                ctx,
-                &args.model,
-                &model_options(),
-                dir,
-                args.keyframes.as_deref(),
-                args.init.as_deref(),
-            )?,
+            Input::Sequence(dir) => {
+                TrackInputs::load(ctx, model, &model_options(), dir, keyframes, init)?
+            }
             Input::Video { camera, .. } | Input::Device { camera, .. } => {
                 TrackInputs::load_with_camera(
                     ctx,
-                    &args.model,
+                    model,
                     &model_options(),
                     camera,
-                    args.keyframes.as_deref(),
-                    args.init.as_deref(),
+                    keyframes,
+                    init,
                 )?
             }
         })

@@ -2,6 +2,7 @@
 //! the run, the summary and the `--profile` report after it.
 
 use super::args::Args;
+use super::objects::Object;
 use super::profile::profile_table;
 use splattrack::app::RunStats;
 use splattrack::io::guard::{check_output, check_output_dir};
@@ -10,10 +11,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 /// Refuses outputs that are this run's other inputs (the sequence's own
 /// files are checked by the run).
-pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
-    let mut inputs = vec![args.model.as_path()];
-    inputs.extend(args.init.as_deref());
-    inputs.extend(args.keyframes.as_deref());
+pub fn check_outputs(args: &Args, objects: &[Object]) -> anyhow::Result<()> {
+    let mut inputs: Vec<&std::path::Path> = Vec::new();
+    for o in objects {
+        inputs.push(&o.model);
+        inputs.extend(o.init.as_ref().map(|(p, _)| p.as_path()));
+        inputs.extend(o.keyframes.as_deref());
+    }
     inputs.extend(args.video.as_deref());
     inputs.extend(args.camera.as_deref());
     check_output(&args.out, "--out", &inputs)?;
@@ -32,7 +36,10 @@ pub fn check_outputs(args: &Args) -> anyhow::Result<()> {
         }
     }
     if let Some(dir) = &args.overlay {
-        let protected: Vec<&std::path::Path> = args.keyframes.as_deref().into_iter().collect();
+        let protected: Vec<&std::path::Path> = objects
+            .iter()
+            .filter_map(|o| o.keyframes.as_deref())
+            .collect();
         check_output_dir(dir, "--overlay", &protected, &inputs)?;
     }
     Ok(())
@@ -48,6 +55,62 @@ pub fn print_summary(
     stop: &AtomicBool,
     live: bool,
 ) {
+    if !stats.objects.is_empty() {
+        print_objects_summary(args, mode, ctx, stats);
+    } else {
+        print_one_summary(args, mode, ctx, stats);
+    }
+    let ctrl_c = stop.load(Ordering::SeqCst);
+    if live {
+        println!(
+            "{} frames dropped (arrived while a frame was being tracked){}",
+            stats.dropped,
+            if ctrl_c { "; stopped by Ctrl-C" } else { "" }
+        );
+    }
+    if stats.stopped && !ctrl_c {
+        println!(
+            "the live view was closed: stopped after {} frames",
+            stats.frames
+        );
+    }
+}
+
+/// The summary of a run of several objects: frames, each object's lost
+/// frames, the time per frame of all of them, and each one's cues.
+fn print_objects_summary(args: &Args, mode: Mode, ctx: &splattrack::Device, stats: &RunStats) {
+    let lost: Vec<String> = stats
+        .objects
+        .iter()
+        .map(|o| format!("{} {}", o.name, o.lost))
+        .collect();
+    println!(
+        "tracked {} frames of {} objects ({} mode, {}): lost {}; {:.1} ms per frame for all (median {:.1}); poses in {}",
+        stats.frames,
+        stats.objects.len(),
+        mode.name(),
+        ctx.describe(),
+        lost.join(", "),
+        stats.mean.total,
+        stats.median_ms,
+        args.out.display()
+    );
+    for o in &stats.objects {
+        let Some(m) = o.modalities else { continue };
+        let why = match &o.cue_choice {
+            Some(c) => c.describe(),
+            None => format!("{} (as given)", m.name()),
+        };
+        let [t, c, b] = o.held_by;
+        println!(
+            "cues of {}: {why}; frames held by texture {t}, contour {c}, both {b}; {:.1} ms per frame (median {:.1})",
+            o.name, o.mean.total, o.median_ms
+        );
+    }
+}
+
+/// The summary of a run of one object.
+fn print_one_summary(args: &Args, mode: Mode, ctx: &splattrack::Device, stats: &RunStats) {
     let aside = match stats.texture_set_aside {
         0 => String::new(),
         n => format!(" ({n} tracked by the contour alone, their texture set aside)"),
@@ -63,20 +126,6 @@ pub fn print_summary(
         args.out.display()
     );
     print_cues(args, mode, stats);
-    let ctrl_c = stop.load(Ordering::SeqCst);
-    if live {
-        println!(
-            "{} frames dropped (arrived while a frame was being tracked){}",
-            stats.dropped,
-            if ctrl_c { "; stopped by Ctrl-C" } else { "" }
-        );
-    }
-    if stats.stopped && !ctrl_c {
-        println!(
-            "the live view was closed: stopped after {} frames",
-            stats.frames
-        );
-    }
 }
 
 /// The line on the cues: which the run used and why (the automatic choice,
@@ -107,8 +156,43 @@ pub fn print_profile(ctx: &splattrack::Device, stats: &RunStats, wall: f64, view
         "frame source: {:.1} ms per frame (reading or decoding, waiting for it; outside the tracker's total)",
         stats.source_ms
     );
+    if stats.objects.is_empty() {
+        print_stages(ctx, &stats.mean_stages, stats.gpu_memory, "");
+    } else {
+        // Each object's own stages and memory, then the whole frame's.
+        for o in &stats.objects {
+            println!(
+                "object {}: {:.1} ms per frame (median {:.1})",
+                o.name, o.mean.total, o.median_ms
+            );
+            print_stages(ctx, &o.mean_stages, o.gpu_memory, "  ");
+        }
+        println!(
+            "all {} objects: {:.1} ms per frame (median {:.1}); {}",
+            stats.objects.len(),
+            stats.mean.total,
+            stats.median_ms,
+            memory_line(ctx, stats.gpu_memory)
+        );
+    }
+    println!(
+        "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
+        if viewed { ", live view" } else { "" },
+        wall * 1e3 / stats.frames as f64,
+        stats.frames as f64 / wall
+    );
+}
+
+/// The stage table of a tracker and its splatting's memory, each line
+/// after `indent`.
+fn print_stages(
+    ctx: &splattrack::Device,
+    stages: &splattrack::tracker::StageTimes,
+    memory: Option<splattrack::tracker::GpuMemoryUse>,
+    indent: &str,
+) {
     let table = profile_table(
-        &stats.mean_stages,
+        stages,
         ctx.gpu().is_none_or(|c| c.is_cpu()),
         ctx.gpu().is_some_and(|c| c.validates_indirect),
     );
@@ -119,24 +203,29 @@ pub fn print_profile(ctx: &splattrack::Device, stats: &RunStats, wall: f64, view
             .iter()
             .any(|p| line.trim_start().starts_with(p));
         if !(ctx.is_cpu() && gpu_line) {
-            println!("{line}");
+            println!("{indent}{line}");
         }
     }
-    if let Some(m) = stats.gpu_memory {
-        let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
-        println!(
-            "{} memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
-            if ctx.is_cpu() { "host" } else { "GPU" },
-            mb(m.total()),
-            mb(m.model),
-            mb(m.keyframe_colors),
-            mb(m.targets)
-        );
+    if memory.is_some() {
+        println!("{indent}{}", memory_line(ctx, memory));
     }
-    println!(
-        "end to end (tracking, outputs{}): {:.1} ms per frame, {:.2} frames/s",
-        if viewed { ", live view" } else { "" },
-        wall * 1e3 / stats.frames as f64,
-        stats.frames as f64 / wall
-    );
+}
+
+/// The splatting's memory, as `--profile` says it.
+fn memory_line(
+    ctx: &splattrack::Device,
+    memory: Option<splattrack::tracker::GpuMemoryUse>,
+) -> String {
+    let Some(m) = memory else {
+        return String::new();
+    };
+    let mb = |b: u64| b as f64 / (1u64 << 20) as f64;
+    format!(
+        "{} memory of the splatting: {:.1} MB (model {:.1}, keyframe colours {:.1}, render targets {:.1})",
+        if ctx.is_cpu() { "host" } else { "GPU" },
+        mb(m.total()),
+        mb(m.model),
+        mb(m.keyframe_colors),
+        mb(m.targets)
+    )
 }

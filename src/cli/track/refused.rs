@@ -12,22 +12,39 @@ use std::path::{Path, PathBuf};
 pub struct Refused {
     file: Option<(PathBuf, RefusedWriter)>,
     error: Option<PoseFileError>,
+    /// The objects' names in a run of several (the object column).
+    names: Vec<String>,
 }
 
 impl Refused {
-    /// Starts `path`'s file (`None`: nothing to write).
-    pub fn create(path: Option<&Path>) -> anyhow::Result<Self> {
-        let file = match path {
-            Some(p) => Some((p.to_owned(), RefusedWriter::create(p)?)),
-            None => None,
+    /// Starts `path`'s file (`None`: nothing to write), with the object
+    /// column when `names` holds several objects' names.
+    pub fn create(path: Option<&Path>, names: Vec<String>) -> anyhow::Result<Self> {
+        let file = match (path, names.len() > 1) {
+            (Some(p), false) => Some((p.to_owned(), RefusedWriter::create(p)?)),
+            (Some(p), true) => Some((p.to_owned(), RefusedWriter::create_objects(p)?)),
+            (None, _) => None,
         };
-        Ok(Self { file, error: None })
+        Ok(Self {
+            file,
+            error: None,
+            names,
+        })
     }
 
-    /// Writes a frame's row, if it refused an estimate.
-    pub fn frame(&mut self, frame: &Frame, r: &TrackResult) {
+    /// Writes a frame's rows (one per object that refused an estimate,
+    /// in the objects' order).
+    pub fn frame(&mut self, frame: &Frame, results: &[TrackResult]) {
         if let (Some((_, w)), None) = (self.file.as_mut(), &self.error) {
-            self.error = w.frame(&frame.label, r).err();
+            self.error = if self.names.len() > 1 {
+                results
+                    .iter()
+                    .zip(&self.names)
+                    .try_for_each(|(r, name)| w.object_frame(name, &frame.label, r))
+                    .err()
+            } else {
+                w.frame(&frame.label, &results[0]).err()
+            };
         }
     }
 
