@@ -300,7 +300,6 @@ impl Tracker {
             detector: None,
             cue_choice: None,
             hidden: None,
-            seed: None,
         };
         if let Some(c) = tracker.check.as_mut() {
             c.set_resident(resident);

@@ -52,8 +52,6 @@ impl Tracker {
                 want_h: self.cam.height,
             });
         }
-        // A seed is for this frame only (a search may take the frame).
-        let mut seed = self.seed.take();
         let t0 = Instant::now();
         let read0 = self.device.stats();
         self.resident.begin();
@@ -98,10 +96,6 @@ impl Tracker {
                 *part = Duration::ZERO;
             }
             let no_time = lost_search && t0.elapsed() + self.lost.steps_time() > target;
-            if found.is_some() {
-                // Where the search found it, not where it was thought to be.
-                seed = None;
-            }
             let stop = match found {
                 // Tracked from it on the next frame (a wide KF step).
                 Some(p) if no_time => {
@@ -174,7 +168,7 @@ impl Tracker {
             .prev
             .as_ref()
             .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
-        let start_pose = seed.unwrap_or(self.pose);
+        let start_pose = self.pose;
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
         // The frame's intake and its window's packing go to the GPU with

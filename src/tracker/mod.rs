@@ -58,7 +58,6 @@ pub mod init;
 mod it;
 mod kf;
 mod lost;
-mod motion;
 mod multi;
 mod occlusion;
 pub mod outline_gpu;

@@ -4,11 +4,9 @@
 
 use super::config::Modalities;
 use super::error::TrackError;
-use super::motion::Motion;
 use super::occlusion::{DepthLayer, DepthProxy, Hidden};
 use super::result::{LostReason, StageTimes, Status, TrackResult};
 use super::state::Tracker;
-use crate::splat::Occluder;
 use thiserror::Error;
 
 /// An object less visible than this (the fraction of it that shows, by
@@ -82,8 +80,6 @@ pub struct MultiTracker {
     layers: Vec<DepthLayer>,
     /// Whether each object hides the others: tracked in its last frame.
     shows: Vec<bool>,
-    /// Each object's motion, to predict it while hidden.
-    motions: Vec<Motion>,
     /// The other objects' nearest depth, for the object being tracked.
     hidden: Option<Hidden>,
 }
@@ -125,14 +121,12 @@ impl MultiTracker {
             }
         }
         let shows = trackers.iter().map(|t| !t.searching()).collect();
-        let motions = trackers.iter().map(|t| Motion::new(t.center)).collect();
         Ok(Self {
             names,
             trackers,
             proxies,
             layers,
             shows,
-            motions,
             hidden: Some(Hidden {
                 others: DepthLayer::new(w, h),
                 tolerance: HIDE_TOLERANCE,
@@ -172,25 +166,7 @@ impl MultiTracker {
                 .filter(|&(j, _)| j != i && self.shows[j])
                 .map(|(_, l)| l);
             hidden.others.nearest_of(others);
-            let occluders: Vec<Occluder> = (0..self.trackers.len())
-                .filter(|&j| j != i && self.shows[j])
-                .map(|j| Occluder {
-                    model: self.trackers[j].gpu_model().clone(),
-                    pose: self.trackers[j].pose(),
-                })
-                .collect();
             let tracker = &mut self.trackers[i];
-            tracker.splatter.set_occluders(occluders)?;
-            // Not tracked last frame: where its motion would have taken
-            // it, if it was moving.
-            let predicted = if self.shows[i] || tracker.searching() {
-                None
-            } else {
-                self.motions[i].untracked()
-            };
-            if let Some(p) = &predicted {
-                self.proxies[i].draw(p, &tracker.cam, &mut self.layers[i]);
-            }
             let visible = if tracker.searching() {
                 1.0
             } else {
@@ -199,7 +175,6 @@ impl MultiTracker {
             let r = if visible < MIN_VISIBLE {
                 Ok(tracker.occluded_frame(visible))
             } else {
-                tracker.seed = predicted;
                 tracker.hidden = hidden.others.rect.is_some().then_some(hidden);
                 let r = tracker.track(frame);
                 hidden = tracker.hidden.take().unwrap_or_else(|| Hidden {
@@ -211,10 +186,7 @@ impl MultiTracker {
             self.hidden = Some(hidden);
             let r = r?;
             self.shows[i] = r.status == Status::Tracking;
-            if self.shows[i] {
-                self.motions[i].tracked(tracker.pose());
-            }
-            if self.shows[i] || (predicted.is_none() && !tracker.searching()) {
+            if !tracker.searching() {
                 self.proxies[i].draw(&tracker.pose(), &tracker.cam, &mut self.layers[i]);
             }
             out[i] = Some(r);

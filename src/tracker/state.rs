@@ -141,10 +141,6 @@ pub struct Tracker {
     /// What other objects hide of this one in the frame being tracked
     /// (several objects, [`super::MultiTracker`]; `None`: nothing).
     pub(super) hidden: Option<super::occlusion::Hidden>,
-    /// Where the next frame's steps start instead of the last good pose
-    /// (reported while they fail): a hidden object's predicted pose
-    /// ([`super::MultiTracker`]). Taken by the frame.
-    pub(super) seed: Option<Pose>,
 }
 
 impl Tracker {
@@ -157,6 +153,10 @@ impl Tracker {
 
     /// The model as uploaded to the tracker's device, to occlude the
     /// renders of another object's tracker on that device.
+    #[allow(
+        dead_code,
+        reason = "for the code tracking several objects, which hands it to the others"
+    )]
     pub(crate) fn gpu_model(&self) -> &Arc<GpuModel> {
         &self.geometry
     }
