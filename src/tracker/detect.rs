@@ -259,10 +259,11 @@ impl Tracker {
         frame: &mut Frame,
     ) -> Result<Option<Described>, TrackError> {
         let t0 = Instant::now();
+        let mask = self.search_mask();
         let Some(det) = self.detector.as_mut() else {
             return Ok(None);
         };
-        let c = det.harris.detect(frame.grey(), None)?;
+        let c = det.harris.detect(frame.grey(), mask.as_deref())?;
         log::debug!(
             "detect: {} frame corners in {:.0} ms",
             c.len(),

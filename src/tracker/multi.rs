@@ -229,6 +229,15 @@ impl MultiTracker {
 }
 
 impl Tracker {
+    /// Where the search for this object looks for the frame's corners:
+    /// not on another tracked object (whose texture would crowd this
+    /// one's out of the corners kept, and match nothing of it); `None`:
+    /// the whole frame.
+    pub(super) fn search_mask(&self) -> Option<Vec<bool>> {
+        let others = &self.hidden.as_ref()?.others;
+        Some(others.depth.iter().map(|d| !d.is_finite()).collect())
+    }
+
     /// A frame in which other objects hide this one: `lost`, nothing
     /// tracked. The frame before it is forgotten (the next tracked frame
     /// has no frame to follow from), and the track is recovering: when the

@@ -78,7 +78,8 @@ impl Tracker {
             templates = self.detector.as_ref().is_none_or(|d| d.templates_now(&cfg));
         }
         if matches!(found, Ok(None)) && templates {
-            grey_frame.corners = self.harris.detect(grey_frame.grey(), None)?;
+            let mask = self.search_mask();
+            grey_frame.corners = self.harris.detect(grey_frame.grey(), mask.as_deref())?;
             found = self.find_in(&grey_frame, frame);
         }
         if self.config.modalities.contour {

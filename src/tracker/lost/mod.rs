@@ -271,7 +271,8 @@ impl Tracker {
             }
             (Unit::Templates, Some(Round::Templates(r))) => {
                 let mut frame = Frame::new(r.frame.rgb.clone());
-                frame.corners = self.harris.detect(frame.grey(), None)?;
+                let mask = self.search_mask();
+                frame.corners = self.harris.detect(frame.grey(), mask.as_deref())?;
                 r.search = Some(self.template_search(&frame)?);
                 r.frame = frame;
                 Ok(Step::More)
