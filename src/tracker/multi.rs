@@ -58,7 +58,7 @@ pub enum MultiError {
 /// for name in ["gear", "housing"] {
 ///     let model = PointModel::load(format!("{name}.ply"))?;
 ///     let init = read_poses(Path::new(&format!("{name}_init.csv")))?[0].pose;
-///     let tracker = Tracker::builder(&device, model, cam.clone())
+///     let tracker = Tracker::builder(&device, model, cam)
 ///         .initial_pose(init)
 ///         .build()?;
 ///     objects.push((name.to_string(), tracker));
