@@ -7,6 +7,7 @@ use super::error::TrackError;
 use super::occlusion::{DepthLayer, DepthProxy, Hidden};
 use super::result::{LostReason, StageTimes, Status, TrackResult};
 use super::state::Tracker;
+use crate::splat::Occluder;
 use thiserror::Error;
 
 /// An object less visible than this (the fraction of it that shows, by
@@ -166,7 +167,15 @@ impl MultiTracker {
                 .filter(|&(j, _)| j != i && self.shows[j])
                 .map(|(_, l)| l);
             hidden.others.nearest_of(others);
+            let occluders: Vec<Occluder> = (0..self.trackers.len())
+                .filter(|&j| j != i && self.shows[j])
+                .map(|j| Occluder {
+                    model: self.trackers[j].gpu_model().clone(),
+                    pose: self.trackers[j].pose(),
+                })
+                .collect();
             let tracker = &mut self.trackers[i];
+            tracker.splatter.set_occluders(occluders)?;
             let visible = if tracker.searching() {
                 1.0
             } else {

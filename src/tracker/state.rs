@@ -153,10 +153,6 @@ impl Tracker {
 
     /// The model as uploaded to the tracker's device, to occlude the
     /// renders of another object's tracker on that device.
-    #[allow(
-        dead_code,
-        reason = "for the code tracking several objects, which hands it to the others"
-    )]
     pub(crate) fn gpu_model(&self) -> &Arc<GpuModel> {
         &self.geometry
     }
