@@ -67,7 +67,8 @@ pub enum MultiError {
 /// let mut multi = MultiTracker::new(objects)?;
 /// # let frames: Vec<image::RgbImage> = Vec::new();
 /// for frame in &frames {
-///     for (name, r) in multi.names().zip(multi.track(frame)?) {
+///     let results = multi.track(frame)?;
+///     for (name, r) in multi.names().zip(results) {
 ///         println!("{name}: {} {:?}", r.status, r.pose.translation);
 ///     }
 /// }
