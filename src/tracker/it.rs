@@ -276,7 +276,7 @@ impl Tracker {
         let window = self.view_window(pose);
         // The render goes with the gather's readback.
         let _batch = self.device.batch();
-        if !self.reuse_render(pose, window) {
+        if !self.reuse_render(pose, window, true) {
             let cam = self.use_window(window);
             self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;
         }

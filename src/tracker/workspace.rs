@@ -181,12 +181,16 @@ impl Tracker {
     /// Makes the kept render current when it was made at `pose` in window
     /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
     /// give), or at a pose [`Tracker::near_render`] to `pose` (in its own
-    /// window, which holds every pixel it covers); whether it was.
-    pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window) -> bool {
+    /// window, which holds every pixel it covers); whether it was. For
+    /// `previous_frame` (IT's view of the frame before, the kept render's
+    /// own frame) a render behind other occluders serves too: it shows
+    /// that frame's objects where they were then.
+    pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window, previous_frame: bool) -> bool {
         match self.kept.take() {
-            // Not when the splatter's occluders changed since it was made.
+            // Otherwise not when the splatter's occluders changed since it
+            // was made.
             Some(k)
-                if k.targets.last_view().is_some()
+                if (previous_frame || k.targets.last_view().is_some())
                     && ((k.pose == *pose && k.window == w) || self.near_render(&k.pose, pose)) =>
             {
                 let old = std::mem::replace(&mut self.targets, k.targets);
