@@ -28,15 +28,7 @@ use splattrack::splat::{
 use splattrack::synth::raster;
 
 mod splat_common;
-use splat_common::{ctx, random_view, splatter};
-
-const READ: [Attribute; 5] = [
-    Attribute::Color,
-    Attribute::Depth,
-    Attribute::Normal,
-    Attribute::Motion,
-    Attribute::Weight,
-];
+use splat_common::{READ, ctx, disagreement, random_view, splatter};
 
 fn images(s: &Splatter, model: &PointModel, cam: &Intrinsics, pose: &Pose) -> Vec<SplatImage> {
     let gm = GpuModel::new(ctx(), model).unwrap();
@@ -51,45 +43,6 @@ fn images(s: &Splatter, model: &PointModel, cam: &Intrinsics, pose: &Pose) -> Ve
 fn cpu_images(model: &PointModel, cam: &Intrinsics, pose: &Pose) -> Vec<SplatImage> {
     let acc = cpu::splat(model, cam, pose, &SplatParams::default()).unwrap();
     READ.iter().map(|&a| acc.resolve(a)).collect()
-}
-
-/// Covered pixels, and those whose coverage or values disagree.
-fn disagreement(a: &[SplatImage], b: &[SplatImage]) -> (usize, usize) {
-    let (w, h) = (a[0].width, a[0].height);
-    let (mut covered, mut bad) = (0, 0);
-    for y in 0..h {
-        for x in 0..w {
-            let (va, vb) = (a[1].is_valid(x, y), b[1].is_valid(x, y));
-            covered += (va || vb) as usize;
-            if va != vb {
-                bad += 1;
-                continue;
-            }
-            if !va {
-                continue;
-            }
-            let maxdiff = |k: usize| {
-                a[k].pixel(x, y)
-                    .iter()
-                    .zip(b[k].pixel(x, y))
-                    .map(|(p, q)| (p - q).abs())
-                    .fold(0.0f32, f32::max)
-            };
-            let z = b[1].pixel(x, y)[0];
-            let scale = b[3]
-                .pixel(x, y)
-                .iter()
-                .map(|v| v.abs())
-                .fold(1e-6, f32::max);
-            let ok = maxdiff(0) <= 1e-4
-                && maxdiff(1) <= 1e-5 * z
-                && maxdiff(2) <= 1e-4
-                && maxdiff(3) <= 1e-4 * scale
-                && maxdiff(4) <= 1e-4 * b[4].pixel(x, y)[0].max(1.0);
-            bad += !ok as usize;
-        }
-    }
-    (covered, bad)
 }
 
 fn check(model: &PointModel, cam: &Intrinsics, pose: &Pose, label: &str) {

@@ -29,15 +29,8 @@ use splattrack::splat::{
 use std::sync::Arc;
 
 mod splat_common;
+use splat_common::{READ, disagreement};
 use splat_common::{ctx, differing, random_view, splatter};
-
-const READ: [Attribute; 5] = [
-    Attribute::Color,
-    Attribute::Depth,
-    Attribute::Normal,
-    Attribute::Motion,
-    Attribute::Weight,
-];
 
 /// A splatter and the device it renders on.
 struct Path {
@@ -357,46 +350,6 @@ fn a_depth_only_render_is_empty_where_an_occluder_hides_the_model() {
             p.name
         );
     }
-}
-
-/// Covered pixels of `a` or `b`, and those whose coverage or values
-/// disagree (the tolerances of the module docs).
-fn disagreement(a: &[SplatImage], b: &[SplatImage]) -> (usize, usize) {
-    let (w, h) = (a[0].width, a[0].height);
-    let (mut covered, mut bad) = (0, 0);
-    for y in 0..h {
-        for x in 0..w {
-            let (va, vb) = (a[1].is_valid(x, y), b[1].is_valid(x, y));
-            covered += (va || vb) as usize;
-            if va != vb {
-                bad += 1;
-                continue;
-            }
-            if !va {
-                continue;
-            }
-            let diff = |k: usize| {
-                a[k].pixel(x, y)
-                    .iter()
-                    .zip(b[k].pixel(x, y))
-                    .map(|(p, q)| (p - q).abs())
-                    .fold(0.0f32, f32::max)
-            };
-            let z = b[1].pixel(x, y)[0];
-            let scale = b[3]
-                .pixel(x, y)
-                .iter()
-                .map(|v| v.abs())
-                .fold(1e-6, f32::max);
-            let ok = diff(0) <= 1e-4
-                && diff(1) <= 1e-5 * z
-                && diff(2) <= 1e-4
-                && diff(3) <= 1e-4 * scale
-                && diff(4) <= 1e-4 * b[4].pixel(x, y)[0].max(1.0);
-            bad += !ok as usize;
-        }
-    }
-    (covered, bad)
 }
 
 /// The CPU reference of `model` at `pose` behind `occluders`.

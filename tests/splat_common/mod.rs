@@ -6,7 +6,7 @@ use nalgebra::Vector3;
 use splattrack::geometry::{Intrinsics, Pose, look_at};
 use splattrack::gpu::{self, GpuContext};
 use splattrack::rng::Rng;
-use splattrack::splat::{Backend, SplatParams, Splatter};
+use splattrack::splat::{Attribute, Backend, SplatImage, SplatParams, Splatter};
 
 pub fn ctx() -> &'static GpuContext {
     gpu::shared_test_context()
@@ -54,3 +54,55 @@ pub fn differing(a: &splattrack::splat::SplatImage, b: &splattrack::splat::Splat
         .filter(|(p, q)| p.to_bits() != q.to_bits() && !(p.is_nan() && q.is_nan()))
         .count()
 }
+
+/// Covered pixels of two renders' images (the order of the `READ` lists
+/// of `splat_compute.rs` and `splat_occluders.rs`: colour, depth, normal,
+/// motion, weight), and those whose coverage or values disagree: colour
+/// and normal within 1e-4, depth within 1e-5 relative, the predictors
+/// within 1e-4 of their largest, the weight within 1e-4 relative.
+pub fn disagreement(a: &[SplatImage], b: &[SplatImage]) -> (usize, usize) {
+    let (w, h) = (a[0].width, a[0].height);
+    let (mut covered, mut bad) = (0, 0);
+    for y in 0..h {
+        for x in 0..w {
+            let (va, vb) = (a[1].is_valid(x, y), b[1].is_valid(x, y));
+            covered += (va || vb) as usize;
+            if va != vb {
+                bad += 1;
+                continue;
+            }
+            if !va {
+                continue;
+            }
+            let maxdiff = |k: usize| {
+                a[k].pixel(x, y)
+                    .iter()
+                    .zip(b[k].pixel(x, y))
+                    .map(|(p, q)| (p - q).abs())
+                    .fold(0.0f32, f32::max)
+            };
+            let z = b[1].pixel(x, y)[0];
+            let scale = b[3]
+                .pixel(x, y)
+                .iter()
+                .map(|v| v.abs())
+                .fold(1e-6, f32::max);
+            let ok = maxdiff(0) <= 1e-4
+                && maxdiff(1) <= 1e-5 * z
+                && maxdiff(2) <= 1e-4
+                && maxdiff(3) <= 1e-4 * scale
+                && maxdiff(4) <= 1e-4 * b[4].pixel(x, y)[0].max(1.0);
+            bad += !ok as usize;
+        }
+    }
+    (covered, bad)
+}
+
+/// The images [`disagreement`] compares, in its order.
+pub const READ: [Attribute; 5] = [
+    Attribute::Color,
+    Attribute::Depth,
+    Attribute::Normal,
+    Attribute::Motion,
+    Attribute::Weight,
+];
