@@ -162,3 +162,19 @@ pub fn read_image<'py>(
 pub fn list_images(dir: std::path::PathBuf) -> PyResult<Vec<std::path::PathBuf>> {
     splattrack::io::sequence::list_images(&dir).map_err(crate::errors::input)
 }
+
+/// The frame `buf` undistorted by `und` (as it is without one): the image
+/// the tracker takes.
+pub fn undistorted(
+    und: Option<&splattrack::geometry::Undistorter>,
+    buf: image::RgbImage,
+) -> Result<image::RgbImage, splattrack::tracker::TrackError> {
+    match und {
+        Some(u) => u.apply(&buf).map_err(|reason| {
+            splattrack::tracker::TrackError::Camera(splattrack::tracker::CameraInvalid(format!(
+                "cannot undistort: {reason}"
+            )))
+        }),
+        None => Ok(buf),
+    }
+}

@@ -97,14 +97,7 @@ impl MultiTracker {
         let multi = self.inner.as_mut().expect("built above");
         let results = py
             .detach(|| {
-                let img = match und {
-                    Some(u) => u.apply(&buf).map_err(|reason| {
-                        lib::TrackError::Camera(lib::CameraInvalid(format!(
-                            "cannot undistort: {reason}"
-                        )))
-                    })?,
-                    None => buf,
-                };
+                let img = crate::arrays::undistorted(und, buf)?;
                 multi.track(&img)
             })
             .map_err(errors::track)?;

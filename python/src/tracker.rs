@@ -104,14 +104,7 @@ impl Tracker {
         let und = self.undistorter.as_ref();
         let r = py
             .detach(|| {
-                let img = match und {
-                    Some(u) => u.apply(&buf).map_err(|reason| {
-                        lib::TrackError::Camera(lib::CameraInvalid(format!(
-                            "cannot undistort: {reason}"
-                        )))
-                    })?,
-                    None => buf,
-                };
+                let img = crate::arrays::undistorted(und, buf)?;
                 inner.track_owned(img)
             })
             .map_err(errors::track)?;

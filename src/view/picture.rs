@@ -61,15 +61,7 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
         return objects_lines(frame);
     }
     let r = frame.result;
-    let time = frame
-        .time_s
-        .map_or_else(String::new, |t| format!("  t {t:.3} s"));
-    let first = format!(
-        "{}  frame {} ({}){time}",
-        frame.mode.name(),
-        frame.index,
-        frame.label
-    );
+    let first = frame_line(frame);
     let residual = if r.residual_px.is_finite() {
         format!("{:.2} px", r.residual_px)
     } else {
@@ -95,19 +87,24 @@ pub fn status_lines(frame: &ViewFrame<'_>) -> [String; 3] {
     [first, second, third]
 }
 
-/// [`status_lines`] of several objects: mode, frame and time; how many
-/// track, the frame's milliseconds and the frames per second; each lost
-/// object's name and reason.
-fn objects_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+/// The first status line: mode, frame and its time.
+fn frame_line(frame: &ViewFrame<'_>) -> String {
     let time = frame
         .time_s
         .map_or_else(String::new, |t| format!("  t {t:.3} s"));
-    let first = format!(
+    format!(
         "{}  frame {} ({}){time}",
         frame.mode.name(),
         frame.index,
         frame.label
-    );
+    )
+}
+
+/// [`status_lines`] of several objects: mode, frame and time; how many
+/// track, the frame's milliseconds and the frames per second; each lost
+/// object's name and reason.
+fn objects_lines(frame: &ViewFrame<'_>) -> [String; 3] {
+    let first = frame_line(frame);
     let rate = frame
         .rate_hz
         .map_or_else(String::new, |f| format!("  {f:.1} frames/s"));
