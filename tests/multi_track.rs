@@ -172,6 +172,8 @@ fn a_set_of_objects_is_checked() {
         MultiTracker::new(bad).err(),
         Some(MultiError::BadName(_))
     ));
+    let many: Vec<(String, Tracker)> = (0..18).map(|k| (format!("o{k}"), make(cam))).collect();
+    assert_eq!(MultiTracker::new(many).err(), Some(MultiError::TooMany(18)));
     let cams = vec![("a".to_string(), make(cam)), ("b".to_string(), make(other))];
     assert_eq!(
         MultiTracker::new(cams).err(),

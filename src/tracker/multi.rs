@@ -7,7 +7,7 @@ use super::error::TrackError;
 use super::occlusion::{DepthLayer, DepthProxy, Hidden};
 use super::result::{LostReason, StageTimes, Status, TrackResult};
 use super::state::Tracker;
-use crate::splat::Occluder;
+use crate::splat::{MAX_OCCLUDERS, Occluder};
 use thiserror::Error;
 
 /// An object less visible than this (the fraction of it that shows, by
@@ -37,6 +37,9 @@ pub enum MultiError {
     /// The trackers do not see the same camera.
     #[error("object {0:?} has another camera than the first object's")]
     OtherCamera(String),
+    /// More objects than a render takes occluders, plus one.
+    #[error("{0} objects: at most {max} are tracked together", max = MAX_OCCLUDERS + 1)]
+    TooMany(usize),
 }
 
 /// Several objects tracked through the same frames. Each object has its
@@ -88,11 +91,16 @@ pub struct MultiTracker {
 
 impl MultiTracker {
     /// The objects, named, each with its tracker (built on the same device
-    /// and camera). Refused when there is none, when two names are the
-    /// same or a name cannot be a CSV field, or when the cameras differ.
+    /// and camera). Refused when there is none or more than
+    /// [`MAX_OCCLUDERS`] + 1 (every other object occludes each one's
+    /// renders), when two names are the same or a name cannot be a CSV
+    /// field, or when the cameras differ.
     pub fn new(objects: Vec<(String, Tracker)>) -> Result<Self, MultiError> {
         if objects.is_empty() {
             return Err(MultiError::Empty);
+        }
+        if objects.len() > MAX_OCCLUDERS + 1 {
+            return Err(MultiError::TooMany(objects.len()));
         }
         let mut names = Vec::with_capacity(objects.len());
         let mut trackers = Vec::with_capacity(objects.len());
