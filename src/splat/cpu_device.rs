@@ -38,14 +38,7 @@ pub(super) fn render(
     depth_only: bool,
     targets: &mut SplatTargets,
 ) -> Result<(), SplatError> {
-    if targets.width != cam.width || targets.height != cam.height {
-        return Err(SplatError::SizeMismatch {
-            got_w: targets.width,
-            got_h: targets.height,
-            want_w: cam.width,
-            want_h: cam.height,
-        });
-    }
+    targets.check_size(cam)?;
     let ModelStore::Host(packed) = &model.store else {
         return Err(SplatError::WrongDevice("the model"));
     };

@@ -158,14 +158,7 @@ impl GpuSplatter {
         pose: &Pose,
         targets: &SplatTargets,
     ) -> Result<CameraUniform, SplatError> {
-        if targets.width != cam.width || targets.height != cam.height {
-            return Err(SplatError::SizeMismatch {
-                got_w: targets.width,
-                got_h: targets.height,
-                want_w: cam.width,
-                want_h: cam.height,
-            });
-        }
+        targets.check_size(cam)?;
         model.bounds.view(cam, pose, &self.params)
     }
 

@@ -197,6 +197,20 @@ impl SplatTargets {
         self.view.map_or(0.0, |(_, cam)| cam.fx as f32)
     }
 
+    /// Refused ([`SplatError::SizeMismatch`]) unless the targets are the
+    /// size of `cam`'s image, as every render into them needs.
+    pub fn check_size(&self, cam: &Intrinsics) -> Result<(), SplatError> {
+        if self.width != cam.width || self.height != cam.height {
+            return Err(SplatError::SizeMismatch {
+                got_w: self.width,
+                got_h: self.height,
+                want_w: cam.width,
+                want_h: cam.height,
+            });
+        }
+        Ok(())
+    }
+
     /// The pose and camera of the last render, whose images these targets
     /// hold (`None` before any render, after one that failed, or once the
     /// splatter that made it has other occluders: a render at this view

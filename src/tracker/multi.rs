@@ -192,14 +192,14 @@ impl MultiTracker {
             };
             let r = if visible < MIN_VISIBLE {
                 Ok(tracker.occluded_frame(visible))
-            } else {
-                tracker.hidden = hidden.others.rect.is_some().then_some(hidden);
+            } else if hidden.others.rect.is_some() {
+                // Lent to the tracker for the frame, kept again after.
+                tracker.hidden = Some(hidden);
                 let r = tracker.track(frame);
-                hidden = tracker.hidden.take().unwrap_or_else(|| Hidden {
-                    others: DepthLayer::new(self.layers[i].width, self.layers[i].height),
-                    tolerance: HIDE_TOLERANCE,
-                });
+                hidden = tracker.hidden.take().expect("lent for the frame");
                 r
+            } else {
+                tracker.track(frame)
             };
             self.hidden = Some(hidden);
             let r = r?;
