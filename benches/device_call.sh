@@ -4,6 +4,7 @@
 #
 #   bash benches/device_call.sh pack    # here: .dev/ (ignored) holds the stripped
 #                                       # binaries, 15 GPU test binaries and the real cube
+#                                       # and dragon
 #   then one `device` run, carry [".gl", ".dev"], timeout_s 590:
 #   BUDGET=545 bash benches/device_call.sh run
 #
@@ -13,7 +14,8 @@
 # (texture and fused, three times each; render-pass splatter; resident
 # loop off), peak host RSS of each; synthetic blobs of 1M and 100k points
 # tracked with `--profile`, and the cube and the 1M blob without it (no
-# timestamp queries); the features, splat (colour + predictors) and
+# timestamp queries); the per-back-end table (benches/backends.sh, its
+# `gpu` rows); the features, splat (colour + predictors) and
 # tracker benches with the 1M models; then the GPU test binaries on the
 # device. Logs and criterion's results come back as $OUT/results.tgz
 # (refreshed after every item, so a cut-off run still returns what it
@@ -43,7 +45,7 @@ for line in sys.stdin:
 '
     strip .dev/bin/*
     tar cJf .dev/bins.tar.xz -C .dev bin && rm -rf .dev/bin
-    mkdir -p .dev/shared/data && cp -r ../shared/data/visp_rbt_cube .dev/shared/data/
+    mkdir -p .dev/shared/data && cp -r ../shared/data/visp_rbt_cube ../shared/data/visp_rbt_dragon .dev/shared/data/
     chmod -R u+w .dev
     du -sh .dev
     exit 0
@@ -138,6 +140,10 @@ item blob1m_tex     50 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob
 summary blob1m_tex
 item blob1m_fused   50 python3 /tmp/rss.py $B/splattrack track --model /tmp/blob1m/model.ply --sequence /tmp/blob1m --out $R/blob1m_fused.csv --modalities texture,contour --profile
 summary blob1m_fused
+# The per-back-end table of docs/performance.md, this machine's GPU row.
+TAILN=14
+item backends      180 env BIN=$B/splattrack SPLATTRACK_DATA=.dev/shared/data WORK=/tmp/backends bash benches/backends.sh gpu
+TAILN=0
 TAILN=3
 item synth100k      40 $B/splattrack synth --object blob --frames 40 --width 640 --height 480 --points 100000 --out /tmp/blob100k
 TAILN=0
