@@ -37,7 +37,9 @@ fn context(py: Python<'_>) -> PyResult<GpuContext> {
 
 /// The device `name` asks for: `"gpu"` (the process's GPU context),
 /// `"cpu"` (the host's cores, no GPU object) or `"auto"` (the GPU context
-/// when one can be made, else the CPU).
+/// when one can be made, else the CPU; the CPU too where the context is a
+/// software adapter that `$SPLATTRACK_ADAPTER` did not name: the rule of
+/// [`Device::new`], so that the package and the command line run alike).
 pub(crate) fn device_of(py: Python<'_>, name: &str) -> PyResult<Device> {
     let choice: DeviceChoice = name
         .parse()
@@ -45,7 +47,14 @@ pub(crate) fn device_of(py: Python<'_>, name: &str) -> PyResult<Device> {
     match choice {
         DeviceChoice::Cpu => Ok(Device::Cpu),
         DeviceChoice::Gpu => Ok(Device::Gpu(context(py)?)),
-        DeviceChoice::Auto => Ok(context(py).map_or(Device::Cpu, Device::Gpu)),
+        DeviceChoice::Auto => {
+            let named = AdapterChoice::from_env().map_err(errors::gpu)? != AdapterChoice::Auto;
+            Ok(match context(py) {
+                Ok(ctx) if ctx.is_cpu() && !named => Device::Cpu,
+                Ok(ctx) => Device::Gpu(ctx),
+                Err(_) => Device::Cpu,
+            })
+        }
     }
 }
 

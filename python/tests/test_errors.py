@@ -142,3 +142,24 @@ def test_gpu_error_without_an_adapter():
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
     assert p.returncode == 0, p.stderr
     assert p.stdout.startswith("GpuError: "), p.stdout + p.stderr
+
+
+def test_auto_takes_the_cpu_device_over_a_software_adapter():
+    """As the command line: "auto" runs on the CPU device where the only
+    adapter is a software one nobody named (lavapipe: about 3x slower),
+    and on that adapter where $SPLATTRACK_ADAPTER names it."""
+    code = (
+        "import splattrack as st\n"
+        "gpu = st.device('gpu')\n"
+        "print(gpu)\n"
+        "print(st.device())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "SPLATTRACK_ADAPTER"}
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=120)
+    if p.returncode != 0 or "(Cpu," not in p.stdout.splitlines()[0]:
+        pytest.skip("a hardware GPU adapter is the default here: auto takes it")
+    assert "CPU" in p.stdout.splitlines()[1], p.stdout
+    named = dict(os.environ, SPLATTRACK_ADAPTER="cpu")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=named, timeout=120)
+    assert p.returncode == 0, p.stderr
+    assert p.stdout.splitlines()[1] == p.stdout.splitlines()[0], p.stdout
