@@ -62,10 +62,11 @@ impl Tracker {
         // No pose yet: search the whole frame. Lost for a while: a slice
         // of that search (its budget leaves room for the frame's steps).
         let every = self.config.init.redetect_after_lost;
-        let lost_search = !self.searching
-            && every > 0
-            && self.lost_streak >= every
-            && !std::mem::take(&mut self.lost.seeded);
+        let seeded = std::mem::take(&mut self.lost.seeded);
+        let lost_search = !self.searching && every > 0 && self.lost_streak >= every && !seeded;
+        // A pose the search found this frame or the last is where this
+        // frame starts; else a recovering frame picks its start.
+        let mut found_start = seeded;
         let target = self
             .lost
             .frame_target(self.config.init.lost_frame_budget, LOST_FALLBACK);
@@ -113,6 +114,7 @@ impl Tracker {
                     self.hold_outline_start();
                     self.pose = p;
                     self.lost.reset();
+                    found_start = true;
                     false
                 }
                 Some(p) => {
@@ -168,9 +170,18 @@ impl Tracker {
             .prev
             .as_ref()
             .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
-        let start_pose = self.pose;
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
+        let mut start_pose = if recovering && texture && !found_start {
+            self.recovery_start()
+        } else {
+            self.pose
+        };
+        // A start turned away from the last pose is tried by the texture
+        // alone: from a wrong turn the outline of a smooth object still
+        // finds edges to fit (the real dragon's passed the check 12
+        // degrees off), while the keyframes' texture does not correlate.
+        let mut turned = start_pose != self.pose;
         // The frame's intake and its window's packing go to the GPU with
         // Harris's first readback (their parameters have buffers of their
         // own), and so do IT's render and gather, which do not need the
@@ -217,12 +228,28 @@ impl Tracker {
         let w_kf = self.device.stats().wait_time;
         let it_trusted = it.estimate.filter(|e| rules.trusted(e)).map(|e| e.pose);
         self.kf_anchors.clear();
-        let (kf, keyframe) = if texture {
+        let (mut kf, mut keyframe) = if texture {
             let fused: &[Anchor] = if self.config.fuse { &it_anchors } else { &[] };
             self.kf_stage(&frame, &start_pose, recovering, it_trusted, fused)
         } else {
             (StepOutcome::default(), None)
         };
+        // Recovering, a second start where the first gave nothing to
+        // trust and the frame's budget has room for it (IT does not run).
+        let room = target.saturating_sub(t0.elapsed()) > t_kf.elapsed();
+        if recovering
+            && texture
+            && !found_start
+            && room
+            && !kf.estimate.is_some_and(|e| rules.trusted(&e))
+        {
+            let second = self.recovery_start();
+            let (k2, kf2) = self.kf_stage(&frame, &second, recovering, None, &[]);
+            if k2.estimate.is_some_and(|e| rules.trusted(&e)) {
+                (kf, keyframe, start_pose) = (k2, kf2, second);
+                turned = start_pose != self.pose;
+            }
+        }
         times.kf = t_kf.elapsed();
         times.waits.kf = self.device.stats().wait_time.saturating_sub(w_kf);
         let t_contour = Instant::now();
@@ -247,6 +274,7 @@ impl Tracker {
                 // IT's matches are not fused: they carry its drift (on the
                 // real dragon they pulled the fused pose 20 degrees off).
                 (None, Some(p)) => self.contour_stage(rgb, &p, false, &[]),
+                (None, None) if turned => StepOutcome::default(),
                 (None, None) => self.contour_stage(rgb, &start_pose, true, &[]),
             }
         } else {
@@ -316,11 +344,11 @@ impl Tracker {
             // the check takes it where it passes, and over a pose that
             // passed where its edges support it better.
             let retry = self.config.contour.retry_damping;
-            let again = self.config.modalities.contour && !texture_held && retry > 0.0;
+            let again = self.config.modalities.contour && !texture_held && retry > 0.0 && !turned;
             let edges = |s: &VerifyScores| s.edge_support.unwrap_or(0.0);
             let aside = match (&check, d.pose) {
                 (Err(Unverified::Appearance { .. }), Some(from))
-                    if self.config.modalities.contour && texture_held =>
+                    if self.config.modalities.contour && texture_held && !turned =>
                 {
                     self.contour_alone(&rules, &frame, rgb, (from, false, None), first_frame)?
                 }
@@ -350,6 +378,9 @@ impl Tracker {
         }
         times.verify = t_verify.elapsed();
         times.waits.verify = self.device.stats().wait_time.saturating_sub(w_verify);
+        if recovering || first_frame {
+            d = self.judge_start(d, scores.as_ref());
+        }
         let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
         let (status, reason) = match held {
             Some(why) => (Status::Lost, Some(why)),
@@ -362,6 +393,9 @@ impl Tracker {
         if d.status == Status::Tracking {
             self.pose = d.pose.unwrap_or(start_pose);
             self.lost_streak = 0;
+            self.recovery_turn = 0;
+            self.recovery_next = None;
+            self.recovery_hidden = false;
             self.lost.reset();
             if self.config.modalities.contour {
                 let pose = self.pose;

@@ -79,7 +79,10 @@ impl Tracker {
             (false, Some(p)) => (p, Search::Refine),
             (false, None) => (*start_pose, Search::Motion),
         };
-        for it in 0..self.config.kf_iterations.max(1) {
+        // Recovering, the wide step's outcome is refined once more: from
+        // a start some degrees off the first step gets only part way.
+        let iterations = self.config.kf_iterations.max(1 + usize::from(recovering));
+        for it in 0..iterations {
             let search = if it == 0 { first } else { Search::Refine };
             match self.kf_step(frame, &pose, search, anchors) {
                 Ok((step, k)) => {

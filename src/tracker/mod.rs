@@ -62,6 +62,7 @@ mod multi;
 mod occlusion;
 pub mod outline_gpu;
 mod profile;
+mod recovery;
 mod region;
 mod result;
 mod search;

@@ -266,6 +266,9 @@ impl Tracker {
         }
         self.lost_streak = 1;
         self.lost.reset();
+        self.recovery_turn = 0;
+        self.recovery_next = None;
+        self.recovery_hidden = true;
         TrackResult {
             pose: self.pose,
             inliers: 0,

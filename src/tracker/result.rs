@@ -497,6 +497,7 @@ impl LostReason {
             LostReason::Unverified(Unverified::TooSmall { .. }) => "too_small",
             LostReason::Unverified(Unverified::Appearance { .. }) => "appearance",
             LostReason::Unverified(Unverified::ShadingOnly { .. }) => "shading_only",
+            LostReason::Unverified(Unverified::Recovery { .. }) => "recovery",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",

@@ -93,6 +93,15 @@ pub struct Tracker {
     /// The bytes of the frame before `prev`, a buffer for the next one.
     pub(super) spare_frame: Option<image::RgbImage>,
     pub(super) lost_streak: usize,
+    /// Recovering frames so far, which pick their KF step's start
+    /// ([`Tracker::recovery_start`]).
+    pub(super) recovery_turn: usize,
+    /// A start's pose that passed only the usual check
+    /// ([`Tracker::judge_start`]): the next recovering frame starts there.
+    pub(super) recovery_next: Option<Pose>,
+    /// The object was last lost hidden by another object (the recovery's
+    /// turns of the last pose come first).
+    pub(super) recovery_hidden: bool,
     /// KF+IT: consecutive frames tracked by IT alone.
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).

@@ -81,6 +81,17 @@ pub struct VerifyConfig {
     /// 0.153-0.192, real dragon 0.077-0.098 (untextured by this measure;
     /// its ZNCC is high anyway).
     pub untextured_below: f64,
+    /// Least ZNCC of a pose that starts a track of an object seen by its
+    /// texture: the first frame's, and one that ends a loss (the
+    /// recovering KF step's from the last pose or from one of the starts
+    /// turned away from it, or from where the search found the object).
+    /// A start has no motion to agree with, and the recovery's tries give
+    /// a wrong pose many chances to pass [`VerifyConfig::min_zncc`].
+    /// Measured: 0.77-0.99 at the right poses of the real cube and dragon
+    /// and the synthetic objects; 0.48-0.54 at poses of the real cube 17
+    /// and 69 degrees off reached from a start 50 degrees off, 0.45 at
+    /// one of the dragon 12 degrees off.
+    pub recovery_zncc: f64,
     /// Least frame gradient along the contour normal (grey levels 0..1 per
     /// pixel, Sobel / 8) that counts as an edge, however quiet the
     /// surroundings: the floor under [`VerifyConfig::edge_contrast`]'s
@@ -119,6 +130,7 @@ impl Default for VerifyConfig {
             shading_edge_support: 0.85,
             shading_loose_px: 0.5,
             untextured_below: 0.125,
+            recovery_zncc: 0.7,
             edge_gradient: 0.008,
             edge_search_px: 2,
             edge_contrast: 3.0,
@@ -188,6 +200,15 @@ pub enum Unverified {
         /// [`VerifyConfig::shading_edge_support`].
         min: f64,
     },
+    /// A pose that starts a track (the first frame's, or one after a
+    /// loss) correlates too little with the frame
+    /// ([`VerifyConfig::recovery_zncc`]).
+    Recovery {
+        /// [`VerifyScores::zncc`].
+        zncc: Option<f64>,
+        /// [`VerifyConfig::recovery_zncc`].
+        min: f64,
+    },
     /// The frame is identical to the previous one (a frozen feed: a real
     /// camera's noise changes every frame), so nothing says where the
     /// object is now.
@@ -222,6 +243,11 @@ impl fmt::Display for Unverified {
                 "outline not on the image's edges: contour edge support {} (need {min:.2} where \
                  the view shows shading only: its ZNCC {} cannot tell the object from clutter)",
                 opt(edge_support),
+                opt(zncc)
+            ),
+            Unverified::Recovery { zncc, min } => write!(
+                f,
+                "a start unlike the frame: ZNCC {} (need {min:.2} to start a track)",
                 opt(zncc)
             ),
             Unverified::FrozenFrame => f.write_str("frame identical to the previous one (frozen)"),

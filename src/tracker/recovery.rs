@@ -1,0 +1,120 @@
+//! Where a recovering frame's wide KF step starts: the last pose, that
+//! pose turned by [`RING_TURN_DEG`] about [`RING_AXES`] axes in the image
+//! plane, and each keyframe's view of the object seen from where the
+//! object was last (its rotation carried to that line of sight, its
+//! centre there), in turn; two a frame where the first gives nothing to
+//! trust and the frame's budget has room.
+//!
+//! An object lost while it turned (hidden by another, or moved too fast)
+//! or started from a wrong pose is seldom found again from the last pose
+//! alone: the KF step matches a view of the object as it was, and after
+//! 20 degrees of turning its patches no longer correlate. Among the
+//! turns and the keyframes' views one is near however the object turned.
+//! Each start costs what the step from the last pose costs; the pose
+//! check judges each outcome, more strictly than a tracked frame's
+//! ([`super::verify::VerifyConfig::recovery_zncc`]).
+
+use super::decision::{Decision, verified};
+use super::result::Status;
+use super::state::Tracker;
+use super::verify::{Unverified, VerifyScores};
+use crate::geometry::Pose;
+use nalgebra::{Rotation3, Vector3};
+
+/// A keyframe's start closer than this to the last pose's rotation adds
+/// nothing to the start from the last pose (the KF step's reach), degrees.
+const SAME_START_DEG: f64 = 8.0;
+
+/// Axes in the image plane the last pose is turned about, evenly spaced.
+const RING_AXES: usize = 8;
+
+/// How far the last pose is turned about each, degrees.
+const RING_TURN_DEG: f64 = 20.0;
+
+impl Tracker {
+    /// The start of the next recovering frame's KF step (module docs): a
+    /// pose a turned start reached that passed only the usual check, else
+    /// the last pose, then each other start, then round again.
+    pub(super) fn recovery_start(&mut self) -> Pose {
+        if let Some(p) = self.recovery_next.take() {
+            return p;
+        }
+        let starts = self.recovery_starts();
+        let i = self.recovery_turn % (starts.len() + 1);
+        self.recovery_turn += 1;
+        let p = if i == 0 { self.pose } else { starts[i - 1] };
+        log::debug!("recovery: start {i} of {}", starts.len() + 1);
+        p
+    }
+
+    /// `d` of a frame that starts a track (the first, or one ending a
+    /// loss), whose check gave `scores`: an object seen by its texture
+    /// needs [`super::verify::VerifyConfig::recovery_zncc`] besides the
+    /// usual check; a pose that passes only that is where the next frame
+    /// starts.
+    pub(super) fn judge_start(&mut self, d: Decision, scores: Option<&VerifyScores>) -> Decision {
+        let cfg = &self.config;
+        if !cfg.modalities.texture || !cfg.verify.enabled || d.status != Status::Tracking {
+            return d;
+        }
+        let zncc = scores.and_then(|s| s.zncc);
+        let min = cfg.verify.recovery_zncc;
+        if zncc.is_some_and(|z| z >= min) {
+            return d;
+        }
+        self.recovery_next = d.pose;
+        verified(d, Err(Unverified::Recovery { zncc, min }))
+    }
+
+    /// The other starts: turns of the last pose and the keyframes' starts
+    /// (nearest first), taken in turn; the turns first after the object
+    /// was hidden by another (it turned while out of sight, most often by
+    /// less than a keyframe's spacing).
+    fn recovery_starts(&self) -> Vec<Pose> {
+        let Some(store) = self.store.as_ref() else {
+            return Vec::new();
+        };
+        let last = self.pose;
+        let at = last.transform_point(&store.center);
+        let mut starts: Vec<(f64, Pose)> = store
+            .keyframes
+            .iter()
+            .filter_map(|k| {
+                let seen = k.pose.transform_point(&store.center);
+                let turn =
+                    Rotation3::rotation_between(&seen, &at).unwrap_or_else(Rotation3::identity);
+                let rotation = turn.matrix() * k.pose.rotation;
+                let pose = Pose {
+                    rotation,
+                    translation: at - rotation * store.center,
+                };
+                let d = pose.rotation_error_deg(&last);
+                (d > SAME_START_DEG).then_some((d, pose))
+            })
+            .collect();
+        starts.sort_by(|a, b| a.0.total_cmp(&b.0));
+        // Turns of the last pose about its centre.
+        let ring = (0..RING_AXES).map(|i| {
+            let a = i as f64 * std::f64::consts::TAU / RING_AXES as f64;
+            let axis = nalgebra::Unit::new_normalize(Vector3::new(a.cos(), a.sin(), 0.0));
+            let rotation = Rotation3::from_axis_angle(&axis, RING_TURN_DEG.to_radians()).matrix()
+                * last.rotation;
+            Pose {
+                rotation,
+                translation: at - rotation * store.center,
+            }
+        });
+        let kf = starts.into_iter().map(|(_, p)| p);
+        if self.recovery_hidden {
+            return ring.chain(kf).collect();
+        }
+        let mut out = Vec::new();
+        let mut kf = kf;
+        for r in ring {
+            out.push(r);
+            out.extend(kf.next());
+        }
+        out.extend(kf);
+        out
+    }
+}
