@@ -172,7 +172,11 @@ impl Tracker {
             .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
-        let mut start_pose = if recovering && texture && !found_start {
+        // A frame identical to the last shows nothing new: it starts from
+        // the last pose (and is judged frozen), the recovery's starts
+        // waiting for a frame that can show where the object went.
+        let pick = recovering && texture && !found_start && !frozen;
+        let mut start_pose = if pick {
             self.recovery_start()
         } else {
             self.pose
@@ -237,12 +241,7 @@ impl Tracker {
         // Recovering, a second start where the first gave nothing to
         // trust and the frame's budget has room for it (IT does not run).
         let room = target.saturating_sub(t0.elapsed()) > t_kf.elapsed();
-        if recovering
-            && texture
-            && !found_start
-            && room
-            && !kf.estimate.is_some_and(|e| rules.trusted(&e))
-        {
+        if pick && room && !kf.estimate.is_some_and(|e| rules.trusted(&e)) {
             let second = self.recovery_start();
             let (k2, kf2) = self.kf_stage(&frame, &second, recovering, None, &[]);
             if k2.estimate.is_some_and(|e| rules.trusted(&e)) {

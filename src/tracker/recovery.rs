@@ -76,6 +76,11 @@ impl Tracker {
         };
         let last = self.pose;
         let at = last.transform_point(&store.center);
+        // A rotation of the object with its centre where it was last.
+        let centred = |rotation: nalgebra::Matrix3<f64>| Pose {
+            rotation,
+            translation: at - rotation * store.center,
+        };
         let mut starts: Vec<(f64, Pose)> = store
             .keyframes
             .iter()
@@ -83,11 +88,7 @@ impl Tracker {
                 let seen = k.pose.transform_point(&store.center);
                 let turn =
                     Rotation3::rotation_between(&seen, &at).unwrap_or_else(Rotation3::identity);
-                let rotation = turn.matrix() * k.pose.rotation;
-                let pose = Pose {
-                    rotation,
-                    translation: at - rotation * store.center,
-                };
+                let pose = centred(turn.matrix() * k.pose.rotation);
                 let d = pose.rotation_error_deg(&last);
                 (d > SAME_START_DEG).then_some((d, pose))
             })
@@ -97,19 +98,16 @@ impl Tracker {
         let ring = (0..RING_AXES).map(|i| {
             let a = i as f64 * std::f64::consts::TAU / RING_AXES as f64;
             let axis = nalgebra::Unit::new_normalize(Vector3::new(a.cos(), a.sin(), 0.0));
-            let rotation = Rotation3::from_axis_angle(&axis, RING_TURN_DEG.to_radians()).matrix()
-                * last.rotation;
-            Pose {
-                rotation,
-                translation: at - rotation * store.center,
-            }
+            centred(
+                Rotation3::from_axis_angle(&axis, RING_TURN_DEG.to_radians()).matrix()
+                    * last.rotation,
+            )
         });
-        let kf = starts.into_iter().map(|(_, p)| p);
+        let mut kf = starts.into_iter().map(|(_, p)| p);
         if self.recovery_hidden {
             return ring.chain(kf).collect();
         }
         let mut out = Vec::new();
-        let mut kf = kf;
         for r in ring {
             out.push(r);
             out.extend(kf.next());
