@@ -170,11 +170,38 @@ impl Tracker {
             .prev
             .as_ref()
             .is_some_and(|p| p.rgb.as_raw() == rgb.as_raw());
+        if frozen && self.config.verify.enabled {
+            // Nothing new to see: lost at once, whatever a step would make
+            // of the same image again. The next frame is tracked as if this
+            // one had not come (a video's duplicated frames do not start a
+            // recovery): from the same pose and previous frame (here and on
+            // the GPU), the lost streak unchanged.
+            self.spare_frame = Some(frame.rgb);
+            times.renders = self.stages.renders;
+            times.total = t0.elapsed();
+            return Ok(TrackResult {
+                pose: if self.confirm_left > 0 {
+                    self.confirm_report
+                } else {
+                    self.pose
+                },
+                inliers: 0,
+                residual_px: f64::NAN,
+                status: Status::Lost,
+                reason: Some(LostReason::Unverified(Unverified::FrozenFrame)),
+                keyframe: None,
+                times,
+                verify: None,
+                texture_set_aside: false,
+                cues: Modalities::NONE,
+                refused: None,
+            });
+        }
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
-        // A frame identical to the last shows nothing new: it starts from
-        // the last pose (and is judged frozen), the recovery's starts
-        // waiting for a frame that can show where the object went.
+        // A frame identical to the last (unchecked) starts from the last
+        // pose: the recovery's starts wait for a frame that can show where
+        // the object went.
         let pick = recovering && texture && !found_start && !frozen;
         let mut start_pose = if pick {
             self.recovery_start()
@@ -314,9 +341,7 @@ impl Tracker {
         let w_verify = self.device.stats().wait_time;
         let mut d = d;
         if d.status == Status::Tracking && self.config.verify.enabled {
-            let check = if frozen {
-                Err(Unverified::FrozenFrame)
-            } else {
+            let check = {
                 let s = self.verify_scores(&frame, &d.pose.unwrap_or(start_pose))?;
                 scores = Some(s);
                 log::debug!("verify: {s:?}");

@@ -7,6 +7,7 @@ use super::error::TrackError;
 use super::occlusion::{DepthLayer, DepthProxy, Hidden};
 use super::result::{LostReason, StageTimes, Status, TrackResult};
 use super::state::Tracker;
+use super::verify::Unverified;
 use crate::splat::{MAX_OCCLUDERS, Occluder};
 use thiserror::Error;
 
@@ -203,7 +204,10 @@ impl MultiTracker {
             };
             self.hidden = Some(hidden);
             let r = r?;
-            self.shows[i] = r.status == Status::Tracking;
+            // A frozen frame changes nothing: the object hides others as
+            // it did.
+            let frozen = r.reason == Some(LostReason::Unverified(Unverified::FrozenFrame));
+            self.shows[i] = r.status == Status::Tracking || (frozen && self.shows[i]);
             if !tracker.searching() {
                 self.proxies[i].draw(&tracker.pose(), &tracker.cam, &mut self.layers[i]);
             }

@@ -235,8 +235,8 @@ pub struct TrackResult {
     /// On a `lost` frame, the estimate that was not reported (the frame's
     /// `reason` says why): a step's pose that the decision rules or the
     /// check refused, the initial pose that failed the check, or the
-    /// search's best candidate. `None` on a `tracking` frame and where no
-    /// step gave a pose.
+    /// search's best candidate. `None` on a `tracking` frame, where no
+    /// step gave a pose and on a frozen frame (which runs no step).
     #[serde(default)]
     pub refused: Option<Refused>,
 }
