@@ -275,6 +275,7 @@ impl Tracker {
             recovery_turn: 0,
             recovery_next: None,
             recovery_hidden: false,
+            recovery_tracked: false,
             it_only_streak: 0,
             searching: false,
             search_refused: None,

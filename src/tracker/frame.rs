@@ -204,7 +204,7 @@ impl Tracker {
         // the object went.
         let pick = recovering && texture && !found_start && !frozen;
         let mut start_pose = if pick {
-            self.recovery_start()
+            self.recovery_first()
         } else {
             self.pose
         };
@@ -269,7 +269,7 @@ impl Tracker {
         // trust and the frame's budget has room for it (IT does not run).
         let room = target.saturating_sub(t0.elapsed()) > t_kf.elapsed();
         if pick && room && !kf.estimate.is_some_and(|e| rules.trusted(&e)) {
-            let second = self.recovery_start();
+            let second = self.recovery_second();
             let (k2, kf2) = self.kf_stage(&frame, &second, recovering, None, &[]);
             if k2.estimate.is_some_and(|e| rules.trusted(&e)) {
                 (kf, keyframe, start_pose) = (k2, kf2, second);
@@ -427,6 +427,9 @@ impl Tracker {
             }
         } else {
             // Keep the last good pose: never report a pose that failed.
+            if self.lost_streak == 0 {
+                self.recovery_tracked = !first_frame;
+            }
             self.lost_streak += 1;
         }
         if let Some(old) = self.prev.replace(frame) {

@@ -3,7 +3,10 @@
 //! plane, and each keyframe's view of the object seen from where the
 //! object was last (its rotation carried to that line of sight, its
 //! centre there), in turn; two a frame where the first gives nothing to
-//! trust and the frame's budget has room.
+//! trust and the frame's budget has room. During a short loss of a
+//! tracked object the last pose is each frame's first start, the cycle's
+//! the second: an object lost to a blur or a passing hand most often
+//! shows again where it was.
 //!
 //! An object lost while it turned (hidden by another, or moved too fast)
 //! or started from a wrong pose is seldom found again from the last pose
@@ -31,7 +34,40 @@ const RING_AXES: usize = 8;
 /// How far the last pose is turned about each, degrees.
 const RING_TURN_DEG: f64 = 20.0;
 
+/// Lost frames, after a tracked one, that start from the last pose first.
+const SHORT_LOSS: usize = 10;
+
 impl Tracker {
+    /// The first start of a recovering frame's KF step. In the first
+    /// [`SHORT_LOSS`] frames of a loss that followed a tracked frame (a
+    /// blur, a glitch, a hand passing; not a loss from the first frame
+    /// nor one hidden by another object): a pose a turned start reached
+    /// that passed only the usual check, else the last pose, where such
+    /// an object most often shows again. Else the cycle's next start
+    /// ([`Self::recovery_start`]).
+    pub(super) fn recovery_first(&mut self) -> Pose {
+        if self.short_loss() {
+            return self.recovery_next.take().unwrap_or(self.pose);
+        }
+        self.recovery_start()
+    }
+
+    /// The second start of a recovering frame (where the first gave
+    /// nothing to trust and the budget has room): the cycle's next start,
+    /// passing over the last pose where the first start was that.
+    pub(super) fn recovery_second(&mut self) -> Pose {
+        let p = self.recovery_start();
+        if self.short_loss() && p == self.pose {
+            return self.recovery_start();
+        }
+        p
+    }
+
+    /// Whether the last pose is each recovering frame's first start.
+    fn short_loss(&self) -> bool {
+        self.recovery_tracked && !self.recovery_hidden && self.lost_streak <= SHORT_LOSS
+    }
+
     /// The start of the next recovering frame's KF step (module docs): a
     /// pose a turned start reached that passed only the usual check, else
     /// the last pose, then each other start, then round again.

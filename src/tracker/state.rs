@@ -102,6 +102,10 @@ pub struct Tracker {
     /// The object was last lost hidden by another object (the recovery's
     /// turns of the last pose come first).
     pub(super) recovery_hidden: bool,
+    /// The loss began on a frame after a tracked one (not at the first
+    /// frame): during a short loss the last pose is each frame's first
+    /// start ([`Tracker::recovery_first`]).
+    pub(super) recovery_tracked: bool,
     /// KF+IT: consecutive frames tracked by IT alone.
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
