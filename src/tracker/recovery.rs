@@ -63,7 +63,8 @@ impl Tracker {
         p
     }
 
-    /// Whether the last pose is each recovering frame's first start.
+    /// Whether the last pose is each recovering frame's first start: the
+    /// loss is short and followed a tracked frame, not a hiding.
     fn short_loss(&self) -> bool {
         self.recovery_tracked && !self.recovery_hidden && self.lost_streak <= SHORT_LOSS
     }
