@@ -133,21 +133,9 @@ impl Tracker {
                 if !self.searching {
                     self.lost_streak += 1;
                 }
-                times.renders = self.stages.renders;
-                times.total = t0.elapsed();
-                return Ok(TrackResult {
-                    pose: self.pose,
-                    inliers: 0,
-                    residual_px: f64::NAN,
-                    status: Status::Lost,
-                    reason: Some(LostReason::NotFound),
-                    keyframe: None,
-                    times,
-                    verify: None,
-                    texture_set_aside: false,
-                    cues: Modalities::NONE,
-                    refused: self.search_refused.take(),
-                });
+                let refused = self.search_refused.take();
+                let pose = self.pose;
+                return Ok(self.lost_without_steps(pose, LostReason::NotFound, times, t0, refused));
             }
         }
         let t_features = Instant::now();
@@ -177,25 +165,9 @@ impl Tracker {
             // recovery): from the same pose and previous frame (here and on
             // the GPU), the lost streak unchanged.
             self.spare_frame = Some(frame.rgb);
-            times.renders = self.stages.renders;
-            times.total = t0.elapsed();
-            return Ok(TrackResult {
-                pose: if self.confirm_left > 0 {
-                    self.confirm_report
-                } else {
-                    self.pose
-                },
-                inliers: 0,
-                residual_px: f64::NAN,
-                status: Status::Lost,
-                reason: Some(LostReason::Unverified(Unverified::FrozenFrame)),
-                keyframe: None,
-                times,
-                verify: None,
-                texture_set_aside: false,
-                cues: Modalities::NONE,
-                refused: None,
-            });
+            let pose = self.reported_pose();
+            let why = LostReason::Unverified(Unverified::FrozenFrame);
+            return Ok(self.lost_without_steps(pose, why, times, t0, None));
         }
         let texture = self.config.modalities.texture;
         let recovering = self.lost_streak > 0;
@@ -436,31 +408,7 @@ impl Tracker {
             self.spare_frame = Some(old.rgb);
         }
         self.resident.done();
-        self.collect_gpu_times();
-        let sub = std::mem::take(&mut self.stages);
-        times.it_render = sub.it_render;
-        times.it_ncc = sub.it_ncc;
-        times.kf_render = sub.kf_render;
-        times.kf_harris = sub.kf_harris;
-        times.kf_ncc = sub.kf_ncc;
-        times.renders = sub.renders;
-        times.gpu = sub.gpu;
-        times.gpu_timeline = sub.gpu_timeline;
-        let done = self.device.stats().since(&read0);
-        times.readback_bytes = done.bytes_read as f64;
-        times.readbacks = done.readbacks as f64;
-        times.submissions = done.submissions as f64;
-        times.command_buffers = done.command_buffers as f64;
-        times.uploads = done.uploads as f64;
-        times.uploads_skipped = done.uploads_skipped as f64;
-        times.passes = done.passes as f64;
-        times.passes_untimed = done.passes_untimed as f64;
-        times.gpu_wait = done.wait_time;
-        times.gpu_finish = done.finish_time;
-        times.gpu_submit = done.submit_time;
-        times.contour_rounds = self.contour.rounds as f64;
-        times.contour_renders = self.contour.renders as f64;
-        (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
+        self.collect_frame_times(&mut times, &read0);
         times.total = t0.elapsed();
         // The lost frames' budget is measured in these times: a tracked
         // frame's (not the first, which makes its buffers), and a lost
@@ -480,11 +428,7 @@ impl Tracker {
             },
         );
         Ok(TrackResult {
-            pose: if self.confirm_left > 0 {
-                self.confirm_report
-            } else {
-                self.pose
-            },
+            pose: self.reported_pose(),
             inliers: d.inliers,
             residual_px: d.residual_px,
             status,
@@ -503,6 +447,73 @@ impl Tracker {
             },
             refused,
         })
+    }
+
+    /// The pose a frame reports: the last one, or while a start found by
+    /// the outline alone is held, the one before it.
+    fn reported_pose(&self) -> Pose {
+        if self.confirm_left > 0 {
+            self.confirm_report
+        } else {
+            self.pose
+        }
+    }
+
+    /// A `lost` frame that ran no step: the search's alone, or a frozen
+    /// frame.
+    fn lost_without_steps(
+        &mut self,
+        pose: Pose,
+        reason: LostReason,
+        mut times: StageTimes,
+        t0: Instant,
+        refused: Option<Refused>,
+    ) -> TrackResult {
+        times.renders = self.stages.renders;
+        times.total = t0.elapsed();
+        TrackResult {
+            pose,
+            inliers: 0,
+            residual_px: f64::NAN,
+            status: Status::Lost,
+            reason: Some(reason),
+            keyframe: None,
+            times,
+            verify: None,
+            texture_set_aside: false,
+            cues: Modalities::NONE,
+            refused,
+        }
+    }
+
+    /// The frame's sub-stage times and device counters since `read0`
+    /// into `times`.
+    fn collect_frame_times(&mut self, times: &mut StageTimes, read0: &crate::gpu::GpuStats) {
+        self.collect_gpu_times();
+        let sub = std::mem::take(&mut self.stages);
+        times.it_render = sub.it_render;
+        times.it_ncc = sub.it_ncc;
+        times.kf_render = sub.kf_render;
+        times.kf_harris = sub.kf_harris;
+        times.kf_ncc = sub.kf_ncc;
+        times.renders = sub.renders;
+        times.gpu = sub.gpu;
+        times.gpu_timeline = sub.gpu_timeline;
+        let done = self.device.stats().since(read0);
+        times.readback_bytes = done.bytes_read as f64;
+        times.readbacks = done.readbacks as f64;
+        times.submissions = done.submissions as f64;
+        times.command_buffers = done.command_buffers as f64;
+        times.uploads = done.uploads as f64;
+        times.uploads_skipped = done.uploads_skipped as f64;
+        times.passes = done.passes as f64;
+        times.passes_untimed = done.passes_untimed as f64;
+        times.gpu_wait = done.wait_time;
+        times.gpu_finish = done.finish_time;
+        times.gpu_submit = done.submit_time;
+        times.contour_rounds = self.contour.rounds as f64;
+        times.contour_renders = self.contour.renders as f64;
+        (times.colour_learning, times.colour_wait) = self.contour.colours.take_times();
     }
 
     /// A start found by the outline alone is held until confirmed
