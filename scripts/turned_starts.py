@@ -16,20 +16,12 @@ sequences.
 """
 
 import argparse
-import csv
 import math
+
+from compare_poses import angle_deg, rotation, rows
 
 HEADER = "frame,r11,r12,r13,r21,r22,r23,r31,r32,r33,tx,ty,tz"
 AXES = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "xy": (1, 1, 0)}
-
-
-def rows(path):
-    with open(path, newline="") as f:
-        return list(csv.DictReader(f))
-
-
-def rotation(r):
-    return [[float(r[f"r{i}{j}"]) for j in (1, 2, 3)] for i in (1, 2, 3)]
 
 
 def about(axis, deg):
@@ -46,11 +38,6 @@ def about(axis, deg):
 
 def mul(a, b):
     return [[sum(a[i][k] * b[k][j] for k in range(3)) for j in range(3)] for i in range(3)]
-
-
-def angle_deg(a, b):
-    tr = sum(a[i][j] * b[i][j] for i in range(3) for j in range(3))
-    return math.degrees(math.acos(max(-1.0, min(1.0, (tr - 1) / 2))))
 
 
 def write(args):

@@ -47,27 +47,37 @@ impl Device {
                 log::info!("device: the GPU {} (asked for)", ctx.describe());
                 Ok(Self::Gpu(ctx))
             }
-            DeviceChoice::Auto => match GpuContext::new(adapter) {
-                Ok(ctx) if ctx.is_cpu() && *adapter == AdapterChoice::Auto => {
-                    log::info!(
-                        "device: the CPU (auto: the only adapter, {}, emulates a GPU in software; \
+            DeviceChoice::Auto => Ok(Self::auto(
+                GpuContext::new(adapter).map_err(|e| e.to_string()),
+                adapter,
+            )),
+        }
+    }
+
+    /// `Auto`'s choice given the GPU context `adapter` opened (or why it
+    /// did not): the context, except a software adapter that `adapter`
+    /// did not name, and no context, where the CPU is taken.
+    pub fn auto(context: Result<GpuContext, String>, adapter: &AdapterChoice) -> Self {
+        match context {
+            Ok(ctx) if ctx.is_cpu() && *adapter == AdapterChoice::Auto => {
+                log::info!(
+                    "device: the CPU (auto: the only adapter, {}, emulates a GPU in software; \
                          the native path is faster)",
-                        ctx.describe()
-                    );
-                    Ok(Self::Cpu)
-                }
-                Ok(ctx) => {
-                    log::info!(
-                        "device: the GPU {} (auto: an adapter was found)",
-                        ctx.describe()
-                    );
-                    Ok(Self::Gpu(ctx))
-                }
-                Err(e) => {
-                    log::warn!("device: the CPU (auto: no GPU adapter: {e})");
-                    Ok(Self::Cpu)
-                }
-            },
+                    ctx.describe()
+                );
+                Self::Cpu
+            }
+            Ok(ctx) => {
+                log::info!(
+                    "device: the GPU {} (auto: an adapter was found)",
+                    ctx.describe()
+                );
+                Self::Gpu(ctx)
+            }
+            Err(e) => {
+                log::warn!("device: the CPU (auto: no GPU adapter: {e})");
+                Self::Cpu
+            }
         }
     }
 

@@ -48,12 +48,11 @@ pub(crate) fn device_of(py: Python<'_>, name: &str) -> PyResult<Device> {
         DeviceChoice::Cpu => Ok(Device::Cpu),
         DeviceChoice::Gpu => Ok(Device::Gpu(context(py)?)),
         DeviceChoice::Auto => {
-            let named = AdapterChoice::from_env().map_err(errors::gpu)? != AdapterChoice::Auto;
-            Ok(match context(py) {
-                Ok(ctx) if ctx.is_cpu() && !named => Device::Cpu,
-                Ok(ctx) => Device::Gpu(ctx),
-                Err(_) => Device::Cpu,
-            })
+            let adapter = AdapterChoice::from_env().map_err(errors::gpu)?;
+            Ok(Device::auto(
+                context(py).map_err(|e| e.to_string()),
+                &adapter,
+            ))
         }
     }
 }
