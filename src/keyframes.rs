@@ -324,6 +324,61 @@ impl KeyframeStore {
         })
     }
 
+    /// The store for `model`, a merge of the store's model
+    /// ([`PointModel::merged`]; `group`: each former point's index in
+    /// `model`): a merged point takes the mean colour of its members that
+    /// the keyframe sees, and is seen where one of them is; where none is,
+    /// the mean of the members' borrowed colours. A `group` that does not
+    /// fit (not one entry a point of the store, or an index past `model`)
+    /// gives `None`.
+    pub fn merged(&self, model: &PointModel, group: &[u32]) -> Option<Self> {
+        let n = model.len();
+        if group.len() as u64 != self.points || group.iter().any(|&g| g as usize >= n) {
+            return None;
+        }
+        let keyframes = self
+            .keyframes
+            .iter()
+            .map(|k| {
+                // Sums of the seen members, then of all; counts likewise.
+                let mut seen = vec![([0.0f64; 3], 0u32); n];
+                let mut all = vec![([0.0f64; 3], 0u32); n];
+                for (i, &g) in group.iter().enumerate() {
+                    let c = k.colors.get(i).copied().unwrap_or([0.5; 3]);
+                    let add = |(sum, count): &mut ([f64; 3], u32)| {
+                        for (s, v) in sum.iter_mut().zip(c) {
+                            *s += v as f64;
+                        }
+                        *count += 1;
+                    };
+                    if k.visible.get(i).copied().unwrap_or(false) {
+                        add(&mut seen[g as usize]);
+                    }
+                    add(&mut all[g as usize]);
+                }
+                let mean = |(sum, count): &([f64; 3], u32)| sum.map(|s| (s / *count as f64) as f32);
+                let visible: Vec<bool> = seen.iter().map(|s| s.1 > 0).collect();
+                let colors = seen
+                    .iter()
+                    .zip(&all)
+                    .map(|(s, a)| if s.1 > 0 { mean(s) } else { mean(a) })
+                    .collect();
+                Keyframe {
+                    name: k.name.clone(),
+                    pose: k.pose,
+                    colors,
+                    visible,
+                }
+            })
+            .collect();
+        Some(Self {
+            keyframes,
+            points: n as u64,
+            fingerprint: model_fingerprint(model),
+            center: model_center(model),
+        })
+    }
+
     /// Loads keyframe images and poses from a directory (docs/formats.md:
     /// `keyframes/poses.csv`, images named by its frame column, extension
     /// optional) and builds the store.

@@ -611,3 +611,54 @@ fn the_textured_cache_stays_within_its_budget_and_renders_the_same() {
     // A budget below one model still keeps one.
     assert_eq!(TexturedCache::new(12, model.len(), 1).max_resident(), 1);
 }
+
+#[test]
+fn a_merged_store_averages_the_colours_its_merged_points_are_seen_with() {
+    let f = fixture();
+    let model = &f.scene.model;
+    let (merged, group) = model.merged(0.01);
+    assert!(
+        merged.len() < model.len() / 2,
+        "{} of {}",
+        merged.len(),
+        model.len()
+    );
+    let store = f.store.merged(&merged, &group).expect("the groups fit");
+    store
+        .check_model(&merged, std::path::Path::new("merged"))
+        .expect("the store is the merged model's");
+    assert_eq!(store.keyframes.len(), f.store.keyframes.len());
+    for (k, (a, b)) in f.store.keyframes.iter().zip(&store.keyframes).enumerate() {
+        assert_eq!((a.name.as_str(), a.pose), (b.name.as_str(), b.pose));
+        // Each merged point against its members, summed here in f64.
+        let mut sums = vec![([0.0f64; 3], 0usize, [0.0f64; 3], 0usize); merged.len()];
+        for (i, &g) in group.iter().enumerate() {
+            let s = &mut sums[g as usize];
+            for c in 0..3 {
+                s.2[c] += a.colors[i][c] as f64;
+                if a.visible[i] {
+                    s.0[c] += a.colors[i][c] as f64;
+                }
+            }
+            s.3 += 1;
+            s.1 += usize::from(a.visible[i]);
+        }
+        for (j, (seen, n_seen, all, n_all)) in sums.iter().enumerate() {
+            assert_eq!(b.visible[j], *n_seen > 0, "keyframe {k}, point {j}");
+            let (sum, n) = if *n_seen > 0 {
+                (seen, n_seen)
+            } else {
+                (all, n_all)
+            };
+            for (got, sum) in b.colors[j].iter().zip(sum) {
+                let want = sum / *n as f64;
+                assert!((*got as f64 - want).abs() < 1e-6, "keyframe {k}, point {j}");
+            }
+        }
+    }
+    // Groups that do not fit the store or the model: none.
+    assert!(f.store.merged(&merged, &group[1..]).is_none());
+    let mut past = group.clone();
+    past[0] = merged.len() as u32;
+    assert!(f.store.merged(&merged, &past).is_none());
+}

@@ -161,6 +161,7 @@ class Tracker:
         min_inliers: Optional[int] = None,
         max_residual: Optional[float] = None,
         min_splat_px: Optional[float] = None,
+        detail_px: Optional[float] = None,
         keep_radii: bool = False,
         min_valid: Optional[float] = None,
         max_it_only: Optional[int] = None,

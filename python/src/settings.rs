@@ -97,6 +97,7 @@ pub fn parse(
             "min_inliers" => t.min_inliers = number(n, &v)?,
             "max_residual" => t.max_residual = number(n, &v)?,
             "min_splat_px" => t.min_splat_px = number(n, &v)?,
+            "detail_px" => t.detail_px = number(n, &v)?,
             "keep_radii" => t.keep_radii = v.is_truthy()?,
             "min_valid" => t.min_valid = number(n, &v)?,
             "max_it_only" => t.max_it_only = number(n, &v)?,

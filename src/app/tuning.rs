@@ -53,6 +53,11 @@ pub struct Tuning {
     /// the model's radii).
     #[cfg_attr(feature = "cli", arg(long))]
     pub min_splat_px: Option<f32>,
+    /// Merge the model's points within cells of this many pixels at the
+    /// initial pose's distance: faster on models denser than the camera
+    /// resolves, at some cost in accuracy (default 0: every point).
+    #[cfg_attr(feature = "cli", arg(long))]
+    pub detail_px: Option<f32>,
     /// Keep the model's splat radii where they leave gaps between splats
     /// (default: those radii grow just enough to close the gaps).
     #[cfg_attr(feature = "cli", arg(long))]
@@ -136,6 +141,7 @@ impl Tuning {
         set(&mut c.min_inliers, self.min_inliers);
         set(&mut c.max_residual_px, self.max_residual);
         set(&mut c.min_splat_radius_px, self.min_splat_px);
+        set(&mut c.detail_px, self.detail_px);
         if self.keep_radii {
             c.close_gaps = false;
         }
@@ -223,7 +229,7 @@ pub const MAX_CORNERS: usize = 100_000;
 
 /// The flag of each [`TrackerConfig`] field that [`Tuning`] sets and
 /// [`TrackerConfig::validate`] checks.
-const FLAGS: [(&str, &str); 14] = [
+const FLAGS: [(&str, &str); 15] = [
     ("contour.rounds", "contour-rounds"),
     ("contour.sectors", "contour-sectors"),
     ("contour.converged_px", "contour-converged"),
@@ -237,6 +243,7 @@ const FLAGS: [(&str, &str); 14] = [
     ("roi_margin_px", "roi-margin"),
     ("max_residual_px", "max-residual"),
     ("min_splat_radius_px", "min-splat-px"),
+    ("detail_px", "detail-px"),
     ("it_interior_px", "it-interior"),
 ];
 

@@ -32,6 +32,7 @@ mod error;
 mod estimate;
 mod gaps;
 mod load;
+mod merge;
 mod mesh;
 mod orient;
 mod ply;

@@ -51,8 +51,8 @@ impl Tracker {
     /// own handle, a cheap clone), or `Device::Cpu` for the host's cores
     /// with no GPU driver (docs/guide.md says which is faster). The model
     /// may be shared (an `Arc<PointModel>`): the tracker copies it only
-    /// where it changes its radii (`min_splat_radius_px`, `close_gaps`;
-    /// [`Tracker::model`]).
+    /// where it merges its points or changes its radii (`detail_px`,
+    /// `min_splat_radius_px`, `close_gaps`; [`Tracker::model`]).
     pub fn builder<'a>(
         device: impl Into<Device>,
         model: impl Into<Arc<PointModel>>,
@@ -156,15 +156,37 @@ impl Tracker {
         config.validate()?;
         cam.validate().map_err(CameraInvalid)?;
         initial.validate()?;
+        // The bounding sphere: box centre, farthest point.
+        let crate::splat::ModelBounds { center, radius, .. } =
+            crate::splat::ModelBounds::of(&model);
+        let z0 = initial.transform_point(&center).z;
+        // The detail the camera resolves at that distance (the cell is
+        // the size of `detail_px` pixels there).
+        let cell = (config.detail_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
+        let mut keyframes = keyframes;
+        if cell > 0.0 && cell.is_finite() {
+            let (merged, group) = model.merged(cell);
+            // A store for another model is left to fail as it would have.
+            let store = match &keyframes {
+                Some(k) => k.merged(&merged, &group).map(|s| Some(Arc::new(s))),
+                None => Some(None),
+            };
+            if let (true, Some(store)) = (merged.len() < model.len(), store) {
+                log::debug!(
+                    "model points merged to {} px at {z0:.3}: {} of {}",
+                    config.detail_px,
+                    merged.len(),
+                    model.len()
+                );
+                model = Arc::new(merged);
+                keyframes = store;
+            }
+        }
         let store =
             keyframes.or_else(|| KeyframeStore::from_model_colors(&model, &initial).map(Arc::new));
         if store.is_none() && config.mode != Mode::It {
             return Err(TrackError::NeedsKeyframes(config.mode.name()));
         }
-        // The bounding sphere: box centre, farthest point.
-        let crate::splat::ModelBounds { center, radius, .. } =
-            crate::splat::ModelBounds::of(&model);
-        let z0 = initial.transform_point(&center).z;
         let floor = (config.min_splat_radius_px as f64 * z0 / cam.fx.max(cam.fy)) as f32;
         // The radii splatted: the model's, raised to the floor and grown
         // where they leave gaps. Only where they change is the model

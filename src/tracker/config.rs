@@ -232,6 +232,18 @@ pub struct TrackerConfig {
     /// scattered empty pixels in the splatted views, and each one voids every
     /// Harris corner and NCC window that touches it. 0: the radii as given.
     pub min_splat_radius_px: f32,
+    /// The finest detail the tracker renders, in pixels at the initial
+    /// pose's distance; 0 (the default): every point as given. Above 0,
+    /// the model's points (and a keyframe store's colours of them) are
+    /// first merged within cubic cells of this size
+    /// ([`PointModel::merged`](crate::model::PointModel::merged)), so
+    /// that a model sampled finer than the camera resolves it costs about
+    /// what its visible detail costs: at 1 the real cube's 100,000 points
+    /// become 57,000 and its frame on the CPU device takes 0.7 times as
+    /// long, its errors within the spread that resampling the model gives
+    /// either way, while sharp synthetic textures lose 2-25% of their
+    /// accuracy (docs/performance.md, "A coarser model").
+    pub detail_px: f32,
     /// Grow the splat radii that leave gaps between splats, and only those
     /// ([`PointModel::close_gaps`](crate::model::PointModel::close_gaps)),
     /// after the pixel floor, when at least
@@ -346,6 +358,7 @@ impl Default for TrackerConfig {
             fuse_weight: 0.5,
             refine_patch: 15,
             min_splat_radius_px: 1.0,
+            detail_px: 0.0,
             close_gaps: true,
             max_it_only_frames: 5,
             it_interior_px: 0.0,
@@ -412,6 +425,7 @@ impl TrackerConfig {
             radius,
             ">= 0",
         )?;
+        check("detail_px", self.detail_px, radius, ">= 0")?;
         check("it_interior_px", self.it_interior_px, radius, ">= 0")?;
         check("reuse_render_px", self.reuse_render_px, radius, ">= 0")?;
         check(

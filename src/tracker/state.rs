@@ -158,8 +158,9 @@ pub struct Tracker {
 
 impl Tracker {
     /// The model as the tracker splats it: the one it was given (the
-    /// same `Arc`) where its radii needed no change, else a copy with the
-    /// radii raised to `min_splat_radius_px` and grown to close gaps.
+    /// same `Arc`) where it needed no change, else a copy with its points
+    /// merged to `detail_px` and its radii raised to
+    /// `min_splat_radius_px` and grown to close gaps.
     pub fn model(&self) -> &Arc<PointModel> {
         &self.model
     }
