@@ -298,6 +298,7 @@ impl Tracker {
             recovery_next: None,
             recovery_hidden: false,
             recovery_tracked: false,
+            edge_history: Vec::new(),
             it_only_streak: 0,
             searching: false,
             search_refused: None,

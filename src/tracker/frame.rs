@@ -376,12 +376,15 @@ impl Tracker {
         times.waits.verify = self.device.stats().wait_time.saturating_sub(w_verify);
         if recovering || first_frame {
             d = self.judge_start(d, scores.as_ref());
+        } else {
+            d = self.judge_steady(d, scores.as_ref());
         }
         let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
         let (status, reason) = match held {
             Some(why) => (Status::Lost, Some(why)),
             None => (d.status, d.reason.clone()),
         };
+        self.note_steady(status, scores.as_ref());
         if let Some(why) = &d.kf_passed_over {
             log::debug!("KF step not used ({why}); keeping the IT estimate");
         }

@@ -67,6 +67,7 @@ mod region;
 mod result;
 mod search;
 mod state;
+mod steady;
 mod templates;
 pub mod verify;
 pub mod verify_gpu;

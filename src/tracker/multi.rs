@@ -273,6 +273,7 @@ impl Tracker {
         self.recovery_turn = 0;
         self.recovery_next = None;
         self.recovery_hidden = true;
+        self.edge_history.clear();
         TrackResult {
             pose: self.pose,
             inliers: 0,

@@ -484,7 +484,7 @@ pub enum LostReason {
 impl LostReason {
     /// A short name of the reason (the refused file's `reason` column):
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
-    /// `shading_only`, `frozen_frame`) or the decision rule (`failed`, `untrusted`,
+    /// `shading_only`, `recovery`, `frozen_frame`, `edge_drop`) or the decision rule (`failed`, `untrusted`,
     /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
     /// `confirming`, `unconfirmed`, `occluded`).
     pub fn code(&self) -> &'static str {
@@ -499,6 +499,7 @@ impl LostReason {
             LostReason::Unverified(Unverified::ShadingOnly { .. }) => "shading_only",
             LostReason::Unverified(Unverified::Recovery { .. }) => "recovery",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
+            LostReason::Unverified(Unverified::EdgeDrop { .. }) => "edge_drop",
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",
             LostReason::Unconfirmed { .. } => "unconfirmed",

@@ -106,6 +106,9 @@ pub struct Tracker {
     /// frame): during a short loss the last pose is each frame's first
     /// start ([`Tracker::recovery_first`]).
     pub(super) recovery_tracked: bool,
+    /// The edge support of the last tracked frames, oldest first (cleared
+    /// by a lost frame; [`super::steady`]).
+    pub(super) edge_history: Vec<f64>,
     /// KF+IT: consecutive frames tracked by IT alone.
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
