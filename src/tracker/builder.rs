@@ -299,6 +299,7 @@ impl Tracker {
             recovery_hidden: false,
             recovery_tracked: false,
             edge_history: Vec::new(),
+            drift: Default::default(),
             it_only_streak: 0,
             searching: false,
             search_refused: None,

@@ -135,6 +135,7 @@ impl Tracker {
                 }
                 let refused = self.search_refused.take();
                 let pose = self.pose;
+                self.drift.lost();
                 return Ok(self.lost_without_steps(pose, LostReason::NotFound, times, t0, refused));
             }
         }
@@ -391,6 +392,7 @@ impl Tracker {
         self.it_only_streak = d.it_only_streak;
         if d.status == Status::Tracking {
             self.pose = d.pose.unwrap_or(start_pose);
+            self.drift.tracked(self.pose.transform_point(&self.center));
             self.lost_streak = 0;
             self.recovery_turn = 0;
             self.recovery_next = None;
@@ -402,6 +404,7 @@ impl Tracker {
             }
         } else {
             // Keep the last good pose: never report a pose that failed.
+            self.drift.lost();
             if self.lost_streak == 0 {
                 self.recovery_tracked = !first_frame;
             }

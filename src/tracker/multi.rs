@@ -209,7 +209,11 @@ impl MultiTracker {
             let frozen = r.reason == Some(LostReason::Unverified(Unverified::FrozenFrame));
             self.shows[i] = r.status == Status::Tracking || (frozen && self.shows[i]);
             if !tracker.searching() {
-                self.proxies[i].draw(&tracker.pose(), &tracker.cam, &mut self.layers[i]);
+                // Where it is expected: a hidden object's drift carries
+                // it on, so that the share of it in view is measured where
+                // it will show.
+                let at = tracker.expected_pose();
+                self.proxies[i].draw(&at, &tracker.cam, &mut self.layers[i]);
             }
             out[i] = Some(r);
         }
@@ -274,6 +278,7 @@ impl Tracker {
         self.recovery_next = None;
         self.recovery_hidden = true;
         self.edge_history.clear();
+        self.drift.lost();
         TrackResult {
             pose: self.pose,
             inliers: 0,
