@@ -55,7 +55,8 @@ pub struct Tuning {
     pub min_splat_px: Option<f32>,
     /// Merge the model's points within cells of this many pixels at the
     /// initial pose's distance: faster on models denser than the camera
-    /// resolves, at some cost in accuracy (default 0: every point).
+    /// resolves, at some cost in accuracy (default 0: every point; at most
+    /// 16).
     #[cfg_attr(feature = "cli", arg(long))]
     pub detail_px: Option<f32>,
     /// Keep the model's splat radii where they leave gaps between splats

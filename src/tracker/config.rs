@@ -242,7 +242,7 @@ pub struct TrackerConfig {
     /// become 57,000 and its frame on the CPU device takes 0.7 times as
     /// long, its errors within the spread that resampling the model gives
     /// either way, while sharp synthetic textures lose 2-25% of their
-    /// accuracy (docs/performance.md, "A coarser model").
+    /// accuracy (docs/performance.md, "A coarser model"). At most 16.
     pub detail_px: f32,
     /// Grow the splat radii that leave gaps between splats, and only those
     /// ([`PointModel::close_gaps`](crate::model::PointModel::close_gaps)),
@@ -376,6 +376,9 @@ impl Default for TrackerConfig {
     }
 }
 
+/// The largest [`TrackerConfig::detail_px`] a configuration may ask for.
+const MAX_DETAIL_PX: f32 = 16.0;
+
 impl TrackerConfig {
     /// Checks every setting's range (the ones the detectors check too);
     /// [`crate::tracker::TrackerBuilder::build`] refuses a configuration that fails.
@@ -425,7 +428,10 @@ impl TrackerConfig {
             radius,
             ">= 0",
         )?;
-        check("detail_px", self.detail_px, radius, ">= 0")?;
+        // Cells of more than 16 pixels leave too little of an object to
+        // track: a typo, not a level of detail.
+        let detail = |v: f32| (0.0..=MAX_DETAIL_PX).contains(&v);
+        check("detail_px", self.detail_px, detail, "in [0, 16]")?;
         check("it_interior_px", self.it_interior_px, radius, ">= 0")?;
         check("reuse_render_px", self.reuse_render_px, radius, ">= 0")?;
         check(
@@ -467,7 +473,8 @@ mod tests {
     fn defaults_are_valid_and_each_rule_names_its_field() {
         TrackerConfig::default().validate().unwrap();
         type Change = fn(&mut TrackerConfig);
-        let bad: [(Change, &str); 8] = [
+        let bad: [(Change, &str); 9] = [
+            (|c| c.detail_px = 17.0, "detail_px = 17: must be in [0, 16]"),
             (
                 |c| c.harris.relative_threshold = 0.0,
                 "harris.relative_threshold = 0: must be in (0, 1]",
