@@ -49,6 +49,7 @@ pub mod contour;
 pub mod cues;
 mod decision;
 mod detect;
+mod drift;
 mod error;
 mod execution;
 mod features_on;

@@ -109,8 +109,8 @@ pub struct Tracker {
     /// The edge support of the last tracked frames, oldest first (cleared
     /// by a lost frame; [`super::steady`]).
     pub(super) edge_history: Vec<f64>,
-    /// The object's motion before a loss ([`super::recovery::Drift`]).
-    pub(super) drift: super::recovery::Drift,
+    /// The object's motion before a loss ([`super::drift::Drift`]).
+    pub(super) drift: super::drift::Drift,
     /// KF+IT: consecutive frames tracked by IT alone.
     pub(super) it_only_streak: usize,
     /// No pose yet: each frame is searched (no initial pose given to [`Tracker::builder`]).
