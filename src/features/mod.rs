@@ -62,7 +62,7 @@ pub use error::FeatureError;
 pub use gpu_data::{
     INVALID_RESPONSE, REFINE_GROUP_RADIUS, SELECT_MAX, SELECT_MAX_CPU, VECTORIZE_GROUP_WINDOW,
 };
-pub(crate) use harris::harris_host_view;
+pub(crate) use harris::HostHarris;
 pub use harris::{
     Corner, Detected, ExportPlace, Harris, HarrisConfig, HarrisGpuOptions, PendingCorners,
     harris_cpu, harris_host, harris_response_cpu, harris_response_host,

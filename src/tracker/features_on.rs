@@ -1,15 +1,15 @@
 //! The tracker's corner detectors and matchers on either device: on a
 //! GPU the shaders' objects ([`Harris`], [`NccMatcher`], whose host modes
 //! serve CPU adapters), on the CPU device the host's functions
-//! ([`harris_host`], [`ncc_match_cpu`]) with no GPU object. Both give the
+//! ([`crate::features::harris_host`], [`ncc_match_cpu`]) with no GPU object. Both give the
 //! same corners and matches; the GPU-resident paths ask for the GPU's
 //! object ([`CornerDetector::gpu`], [`Matcher::gpu`]) and are never taken
 //! on the CPU device.
 
 use crate::device::Device;
 use crate::features::{
-    Corner, FeatureError, GreyImage, Harris, HarrisConfig, Match, NccConfig, NccMatcher,
-    harris_host, ncc_match_cpu,
+    Corner, FeatureError, GreyImage, Harris, HarrisConfig, HostHarris, Match, NccConfig,
+    NccMatcher, ncc_match_cpu,
 };
 use crate::gpu::Timings;
 
@@ -23,7 +23,7 @@ pub(in crate::tracker) enum CornerDetector {
     /// The GPU's detector (in host mode on CPU adapters).
     Gpu(Box<Harris>),
     /// The host's, on the CPU device.
-    Host(HarrisConfig),
+    Host(Box<HostHarris>),
 }
 
 impl CornerDetector {
@@ -40,10 +40,7 @@ impl CornerDetector {
                 h.set_host(on_host);
                 Ok(Self::Gpu(Box::new(h)))
             }
-            None => {
-                config.validate()?;
-                Ok(Self::Host(config))
-            }
+            None => Ok(Self::Host(Box::new(HostHarris::new(config)?))),
         }
     }
 
@@ -86,7 +83,7 @@ impl CornerDetector {
     ) -> Result<Vec<Corner>, FeatureError> {
         match self {
             Self::Gpu(h) => h.detect(img, mask),
-            Self::Host(cfg) => harris_host(img, cfg, mask),
+            Self::Host(h) => h.detect(img, mask),
         }
     }
 
@@ -100,7 +97,7 @@ impl CornerDetector {
             Self::Gpu(_) => Err(FeatureError::Config(
                 "a view read back on a GPU: use detect_resolved".into(),
             )),
-            Self::Host(cfg) => Ok(crate::features::harris_host_view(grey, cfg)),
+            Self::Host(h) => Ok(h.detect_view(grey)),
         }
     }
 

@@ -20,6 +20,6 @@ pub use cpu::{harris_cpu, harris_response_cpu};
 #[cfg(test)]
 pub(crate) use gpu::SHADER;
 pub use gpu::{Detected, ExportPlace, Harris, HarrisGpuOptions, PendingCorners};
-pub(crate) use host::harris_host_view;
+pub(crate) use host::HostHarris;
 pub use host::{harris_host, harris_response_host};
 pub(crate) use shared::{merge, pack_pixels, select_spread, selected_starts};
