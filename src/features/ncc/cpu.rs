@@ -10,6 +10,10 @@ use crate::features::gpu_data::{Best, NO_INDEX, NO_SCORE, pinholes};
 use crate::features::harris::Corner;
 use crate::features::image::{GreyImage, check_mask};
 
+/// Features a thread takes at least, where the matching splits over the
+/// cores (a thread costs tens of microseconds; a window about one).
+const PER_THREAD: usize = 64;
+
 /// A feature's window as `vectorize` leaves it.
 enum Window {
     /// Every sample valid: the zero-mean unit-norm row (w² values, padded
@@ -140,6 +144,19 @@ pub fn ncc_match_cpu(
     b: &[Corner],
     cfg: &NccConfig,
 ) -> Result<Vec<Match>, FeatureError> {
+    match_in_parts(img_a, a, img_b, b, cfg, PER_THREAD)
+}
+
+/// [`ncc_match_cpu`], split over the cores where there are at least
+/// `per_thread` features.
+fn match_in_parts(
+    img_a: &GreyImage,
+    a: &[Corner],
+    img_b: &GreyImage,
+    b: &[Corner],
+    cfg: &NccConfig,
+    per_thread: usize,
+) -> Result<Vec<Match>, FeatureError> {
     cfg.validate()?;
     check_mask(img_a, None)?;
     check_mask(img_b, None)?;
@@ -164,55 +181,111 @@ pub fn ncc_match_cpu(
             .collect()
     };
     let (holes_a, holes_b) = (pinholes(img_a), pinholes(img_b));
-    let da: Vec<Option<Window>> = pa
-        .iter()
-        .map(|p| vectorize(img_a, &holes_a, *p, cfg, stride))
-        .collect();
-    let db: Vec<Option<Window>> = pb
-        .iter()
-        .map(|p| vectorize(img_b, &holes_b, *p, cfg, stride))
-        .collect();
+    // The windows and the rows of the score matrix split over the cores:
+    // each value is the one-pass value, whatever the split.
+    let windows = |img: &GreyImage, holes: &[bool], p: &[[f32; 2]]| {
+        crate::par::flat_map_split(p, per_thread, |part| {
+            part.iter()
+                .map(|p| vectorize(img, holes, *p, cfg, stride))
+                .collect()
+        })
+    };
+    let da: Vec<Option<Window>> = windows(img_a, &holes_a, &pa);
+    let db: Vec<Option<Window>> = windows(img_b, &holes_b, &pb);
     let radius2 = cfg.search_radius.map(|r| r * r);
     let none = Best {
         index: NO_INDEX,
         score: NO_SCORE - 1.0,
     };
-    let mut rows = vec![none; a.len()];
-    let mut cols = vec![none; b.len()];
-    // Rows and columns scanned in increasing index with a strict `>`: ties
-    // go to the lower index, as in the GPU reduction.
-    for (i, (ra, pi)) in da.iter().zip(&pa).enumerate() {
-        for (j, (rb, pj)) in db.iter().zip(&pb).enumerate() {
-            let (dx, dy) = (pj[0] - pi[0], pj[1] - pi[1]);
-            let near = radius2.is_none_or(|r2| dx * dx + dy * dy <= r2);
-            let s = match (ra, rb) {
-                (Some(Window::Full(ra)), Some(Window::Full(rb))) if near => {
-                    let mut acc = 0f32;
-                    for (x, y) in ra.iter().zip(rb) {
-                        acc += x * y;
+    // One part's rows `is`: their best columns, and each column's best
+    // among them. Rows and columns are scanned in increasing index with a
+    // strict `>`: ties go to the lower index, as in the GPU reduction.
+    let scan = |is: &[usize]| {
+        let mut rows = vec![none; is.len()];
+        let mut cols = vec![none; b.len()];
+        for (row, &i) in rows.iter_mut().zip(is) {
+            let (ra, pi) = (&da[i], &pa[i]);
+            for (j, (rb, pj)) in db.iter().zip(&pb).enumerate() {
+                let (dx, dy) = (pj[0] - pi[0], pj[1] - pi[1]);
+                let near = radius2.is_none_or(|r2| dx * dx + dy * dy <= r2);
+                let s = match (ra, rb) {
+                    (Some(Window::Full(ra)), Some(Window::Full(rb))) if near => {
+                        let mut acc = 0f32;
+                        for (x, y) in ra.iter().zip(rb) {
+                            acc += x * y;
+                        }
+                        acc
                     }
-                    acc
-                }
-                (Some(wa), Some(wb)) if near => {
-                    let ra = raw_of(wa).map_or_else(|| raw_full(img_a, *pi), <[_]>::to_vec);
-                    let rb = raw_of(wb).map_or_else(|| raw_full(img_b, *pj), <[_]>::to_vec);
-                    partial_score(&ra, &rb, cfg).unwrap_or(NO_SCORE)
-                }
-                _ => NO_SCORE,
-            };
-            if s > rows[i].score {
-                rows[i] = Best {
-                    index: j as u32,
-                    score: s,
+                    (Some(wa), Some(wb)) if near => {
+                        let ra = raw_of(wa).map_or_else(|| raw_full(img_a, *pi), <[_]>::to_vec);
+                        let rb = raw_of(wb).map_or_else(|| raw_full(img_b, *pj), <[_]>::to_vec);
+                        partial_score(&ra, &rb, cfg).unwrap_or(NO_SCORE)
+                    }
+                    _ => NO_SCORE,
                 };
+                if s > row.score {
+                    *row = Best {
+                        index: j as u32,
+                        score: s,
+                    };
+                }
+                if s > cols[j].score {
+                    cols[j] = Best {
+                        index: i as u32,
+                        score: s,
+                    };
+                }
             }
-            if s > cols[j].score {
-                cols[j] = Best {
-                    index: i as u32,
-                    score: s,
-                };
+        }
+        vec![(rows, cols)]
+    };
+    let is: Vec<usize> = (0..a.len()).collect();
+    let mut rows = Vec::with_capacity(a.len());
+    let mut cols = vec![none; b.len()];
+    // The parts in order of their rows: a later part's column wins only
+    // with a higher score, as in one pass.
+    for (part_rows, part_cols) in crate::par::flat_map_split(&is, per_thread, scan) {
+        rows.extend(part_rows);
+        for (c, p) in cols.iter_mut().zip(part_cols) {
+            if p.score > c.score {
+                *c = p;
             }
         }
     }
     Ok(mutual(&rows, &cols, cfg.min_score))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::features::patterns;
+
+    /// Split over the cores, the matching is the one pass's, ties
+    /// included: a checkerboard's corners all look alike, so most rows
+    /// and columns have several equal best scores.
+    #[test]
+    fn parts_give_the_one_pass_matches_ties_included() {
+        let (img, xs) = patterns::checkerboard(200, 160, [4.0, 4.0], 8.0, 0.0, 23, 19);
+        let corners = |dx: f32| -> Vec<Corner> {
+            xs.iter()
+                .map(|p| Corner {
+                    x: p[0] + dx,
+                    y: p[1],
+                    score: 1.0,
+                })
+                .collect()
+        };
+        let (a, b) = (corners(0.0), corners(0.25));
+        assert!(a.len() > 300);
+        for radius in [None, Some(20.0)] {
+            let cfg = NccConfig {
+                search_radius: radius,
+                ..NccConfig::default()
+            };
+            let one = match_in_parts(&img, &a, &img, &b, &cfg, usize::MAX).unwrap();
+            let split = match_in_parts(&img, &a, &img, &b, &cfg, 1).unwrap();
+            assert_eq!(one, split, "radius {radius:?}");
+            assert!(!one.is_empty());
+        }
+    }
 }
