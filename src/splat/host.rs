@@ -20,7 +20,7 @@
 
 use super::accumulators::Accumulators;
 use super::gpu_data::{CameraUniform, unpack_color};
-use super::kernel::{Setup, View, intersect4, motion, setup, weight};
+use super::kernel::{Setup, View, intersect4, motion, setup, setup4, weight};
 use super::{Attributes, PackedModel, SplatImage};
 use glam::{BVec4A, Vec3, Vec4};
 use std::sync::Mutex;
@@ -360,10 +360,15 @@ impl HostSplatter {
             let splats = &model.splats[range.clone()];
             let colors = &model.colors[range.clone()];
             if step == 1 {
+                let (s4, c4) = (splats.chunks_exact(4), colors.chunks_exact(4));
+                let (s_rest, c_rest) = (s4.remainder(), c4.remainder());
+                for (s, c) in s4.zip(c4) {
+                    setup4(v, s, c, out);
+                }
                 out.extend(
-                    splats
+                    s_rest
                         .iter()
-                        .zip(colors)
+                        .zip(c_rest)
                         .filter_map(|(s, &c)| setup(v, s, c)),
                 );
             } else {

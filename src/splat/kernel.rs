@@ -194,6 +194,197 @@ pub(super) fn setup(v: &View, s: &SplatGpu, color: u32) -> Option<Setup> {
     })
 }
 
+/// Three coordinates of four splats, one lane a splat.
+#[derive(Clone, Copy)]
+struct V3x4 {
+    x: Vec4,
+    y: Vec4,
+    z: Vec4,
+}
+
+impl V3x4 {
+    fn splat(v: Vec3) -> Self {
+        Self {
+            x: Vec4::splat(v.x),
+            y: Vec4::splat(v.y),
+            z: Vec4::splat(v.z),
+        }
+    }
+
+    /// `Vec3::dot`'s operations: `(x x' + y y') + z z'`.
+    fn dot(self, o: Self) -> Vec4 {
+        self.x * o.x + self.y * o.y + self.z * o.z
+    }
+
+    /// `Vec3::cross`'s operations.
+    fn cross(self, o: Self) -> Self {
+        Self {
+            x: self.y * o.z - o.y * self.z,
+            y: self.z * o.x - o.z * self.x,
+            z: self.x * o.y - o.x * self.y,
+        }
+    }
+
+    /// `Vec3::normalize`'s operations: times `1 / sqrt(dot)`.
+    fn normalize(self) -> Self {
+        let recip = Vec4::ONE / self.dot(self).sqrt();
+        self.scale(recip)
+    }
+
+    fn scale(self, k: Vec4) -> Self {
+        Self {
+            x: self.x * k,
+            y: self.y * k,
+            z: self.z * k,
+        }
+    }
+
+    fn add(self, o: Self) -> Self {
+        Self {
+            x: self.x + o.x,
+            y: self.y + o.y,
+            z: self.z + o.z,
+        }
+    }
+
+    fn sub(self, o: Self) -> Self {
+        Self {
+            x: self.x - o.x,
+            y: self.y - o.y,
+            z: self.z - o.z,
+        }
+    }
+
+    fn lane(&self, k: usize) -> Vec3 {
+        Vec3::new(self.x[k], self.y[k], self.z[k])
+    }
+}
+
+impl View {
+    /// [`View::apply`] in four lanes.
+    fn apply4(&self, p: V3x4) -> V3x4 {
+        V3x4 {
+            x: V3x4::splat(self.rot[0]).dot(p),
+            y: V3x4::splat(self.rot[1]).dot(p),
+            z: V3x4::splat(self.rot[2]).dot(p),
+        }
+    }
+}
+
+/// [`setup`] of four splats at once, one a lane, each lane with the
+/// scalar's operations in its order (the same bits; `tests/splat_host.rs`
+/// compares the renders with the shader's transcription): the visible
+/// ones pushed onto `out` in their order. A model's set-up is about a
+/// fifth of a render, and the scalar one's divisions and square roots a
+/// splat are each one instruction for four here.
+pub(super) fn setup4(v: &View, s: &[SplatGpu], colors: &[u32], out: &mut Vec<Setup>) {
+    let sp = Vec4::splat;
+    let pr = glam::Mat4::from_cols_array_2d(&[
+        s[0].pos_radius,
+        s[1].pos_radius,
+        s[2].pos_radius,
+        s[3].pos_radius,
+    ])
+    .transpose();
+    let nn = glam::Mat4::from_cols_array_2d(&[s[0].normal, s[1].normal, s[2].normal, s[3].normal])
+        .transpose();
+    let p = V3x4 {
+        x: pr.x_axis,
+        y: pr.y_axis,
+        z: pr.z_axis,
+    };
+    let r = pr.w_axis;
+    let c = v.apply4(p).add(V3x4::splat(v.trans));
+    let m = v
+        .apply4(V3x4 {
+            x: nn.x_axis,
+            y: nn.y_axis,
+            z: nn.z_axis,
+        })
+        .normalize();
+    let mc = m.dot(c);
+    let culled =
+        c.z.cmple(sp(v.near)) | mc.cmpge(Vec4::ZERO) | r.is_nan_mask() | r.cmple(Vec4::ZERO);
+    if culled.all() {
+        return;
+    }
+    let pc = [
+        sp(v.fx) * c.x / c.z + sp(v.cx),
+        sp(v.fy) * c.y / c.z + sp(v.cy),
+    ];
+    let hh = sp(v.lowpass);
+    // tangent(m): the axis m leans least towards, crossed with m.
+    let a = V3x4 {
+        x: m.x.abs(),
+        y: m.y.abs(),
+        z: m.z.abs(),
+    };
+    let on_y = a.y.cmple(a.x) & a.y.cmple(a.z);
+    let on_z = !on_y & a.z.cmple(a.x) & a.z.cmple(a.y);
+    let one_if = |b| Vec4::select(b, Vec4::ONE, Vec4::ZERO);
+    let axis = V3x4 {
+        x: one_if(!on_y & !on_z),
+        y: one_if(on_y),
+        z: one_if(on_z),
+    };
+    let t = m.cross(axis).normalize();
+    let tu = t.scale(r);
+    let tv = m.cross(t).scale(r);
+    let k = [
+        c.add(tu).add(tv),
+        c.add(tu).sub(tv),
+        c.sub(tu).add(tv),
+        c.sub(tu).sub(tv),
+    ];
+    let near = sp(v.near);
+    let behind = k[0].z.cmple(near) | k[1].z.cmple(near) | k[2].z.cmple(near) | k[3].z.cmple(near);
+    let proj = |k: &V3x4| {
+        [
+            sp(v.fx) * k.x / k.z + sp(v.cx),
+            sp(v.fy) * k.y / k.z + sp(v.cy),
+        ]
+    };
+    let q = [proj(&k[0]), proj(&k[1]), proj(&k[2]), proj(&k[3])];
+    let size = [sp(v.w), sp(v.h)];
+    let mut bounds = [[Vec4::ZERO; 2]; 2];
+    for d in 0..2 {
+        // Vec4::min_element's and max_element's order over the corners.
+        let lo_k = q[0][d].min(q[2][d]).min(q[1][d].min(q[3][d]));
+        let hi_k = q[0][d].max(q[2][d]).max(q[1][d].max(q[3][d]));
+        let lo = Vec4::select(behind, sp(-1.0), (pc[d] - hh).min(lo_k));
+        let hi = Vec4::select(behind, size[d], (pc[d] + hh).max(hi_k));
+        // Vec2::clamp's operations: max, then min.
+        bounds[0][d] = (lo - sp(0.5)).max(sp(-1.0)).min(size[d]);
+        bounds[1][d] = (hi + sp(0.5)).max(sp(-1.0)).min(size[d]);
+    }
+    let x0 = bounds[0][0].ceil().max(Vec4::ZERO);
+    let y0 = bounds[0][1].ceil().max(Vec4::ZERO);
+    let x1 = bounds[1][0].floor().min(sp(v.w - 1.0));
+    let y1 = bounds[1][1].floor().min(sp(v.h - 1.0));
+    let shown = !culled & x0.cmple(x1) & y0.cmple(y1);
+    let reach = r + sp(3.0 * v.lowpass) * c.z / sp(v.fx.min(v.fy));
+    for l in 0..4 {
+        if !shown.test(l) {
+            continue;
+        }
+        let rl = r[l];
+        out.push(Setup {
+            c: c.lane(l),
+            m: m.lane(l),
+            proj: Vec2::new(pc[0][l], pc[1][l]),
+            color: colors[l],
+            mc: mc[l],
+            r2: rl * rl,
+            reach2: reach[l] * reach[l],
+            push: v.eps * rl,
+            x0: x0[l] as u32,
+            x1: x1[l] as u32,
+            y0: y0[l] as u32,
+            y1: y1[l] as u32,
+        });
+    }
+}
+
 /// `ray_hit` at one pixel, as [`intersect4`] makes it in each lane: the
 /// camera-space point `X` seen through the pixel centre
 /// `uv` (OpenCV coordinates; `d` its ray, `(ray_x, ray_y, 1)`) and
@@ -313,6 +504,67 @@ mod tests {
     use crate::rng::Rng;
     use crate::splat::gpu_data::pack_color;
     use nalgebra::Vector3;
+
+    /// A set-up's values as bits, to compare two bit for bit.
+    fn bits(s: &Setup) -> Vec<u32> {
+        [s.c, s.m]
+            .iter()
+            .flat_map(|v| v.to_array())
+            .chain(s.proj.to_array())
+            .chain([s.mc, s.r2, s.reach2, s.push])
+            .map(f32::to_bits)
+            .chain([s.color, s.x0, s.x1, s.y0, s.y1])
+            .collect()
+    }
+
+    #[test]
+    fn four_splats_in_lanes_are_set_up_as_one_at_a_time() {
+        let mut rng = Rng::new(21);
+        let (mut kept, mut culled) = (0, 0);
+        for _ in 0..400 {
+            let cam = Intrinsics::new(96, 72, 80.0, 84.0, 47.3, 35.8);
+            let eye = rng.unit_vector() * rng.uniform(0.3, 3.0);
+            let pose = crate::geometry::look_at(&eye, &Vector3::zeros(), &rng.unit_vector());
+            let u = CameraUniform::new(&cam, &pose, 0.05, 5.0, 0.4, 0.75);
+            let v = View::new(&u);
+            // Splats behind the camera, across the near plane, off the
+            // image, back-facing, with zero, negative and NaN radii.
+            let splats: Vec<SplatGpu> = (0..16)
+                .map(|i| {
+                    let p = rng.unit_vector() * rng.uniform(0.0, 1.5);
+                    let n = rng.unit_vector();
+                    let r = match i % 8 {
+                        0 => 0.0,
+                        1 => -0.1,
+                        2 => f32::NAN,
+                        3 => rng.uniform(0.3, 1.0) as f32,
+                        _ => rng.uniform(0.001, 0.2) as f32,
+                    };
+                    SplatGpu {
+                        pos_radius: [p.x as f32, p.y as f32, p.z as f32, r],
+                        normal: [n.x as f32, n.y as f32, n.z as f32, 0.0],
+                    }
+                })
+                .collect();
+            let colors: Vec<u32> = (0..16).map(|i| pack_color([i as f32 / 16.0; 3])).collect();
+            let one: Vec<Setup> = splats
+                .iter()
+                .zip(&colors)
+                .filter_map(|(s, &c)| setup(&v, s, c))
+                .collect();
+            let mut four = Vec::new();
+            for (s, c) in splats.chunks(4).zip(colors.chunks(4)) {
+                setup4(&v, s, c, &mut four);
+            }
+            assert_eq!(one.len(), four.len());
+            for (a, b) in one.iter().zip(&four) {
+                assert_eq!(bits(a), bits(b));
+            }
+            kept += one.len();
+            culled += 16 - one.len();
+        }
+        assert!(kept > 1000 && culled > 1000, "{kept} kept, {culled} culled");
+    }
 
     #[test]
     fn four_lanes_give_the_scalar_intersection_s_bits() {
