@@ -1,10 +1,10 @@
 //! The tracker's corner detectors and matchers on either device: on a
 //! GPU the shaders' objects ([`Harris`], [`NccMatcher`], whose host modes
-//! serve CPU adapters), on the CPU device the host's functions
-//! ([`crate::features::harris_host`], [`ncc_match_cpu`]) with no GPU object. Both give the
-//! same corners and matches; the GPU-resident paths ask for the GPU's
-//! object ([`CornerDetector::gpu`], [`Matcher::gpu`]) and are never taken
-//! on the CPU device.
+//! serve CPU adapters), on the CPU device the host's detector and
+//! matcher ([`HostHarris`], [`ncc_match_cpu`]) with no GPU object. Both
+//! give the same corners and matches; the GPU-resident paths ask for the
+//! GPU's object ([`CornerDetector::gpu`], [`Matcher::gpu`]) and are never
+//! taken on the CPU device.
 
 use crate::device::Device;
 use crate::features::{

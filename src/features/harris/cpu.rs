@@ -283,8 +283,8 @@ pub(super) fn corners_of(
     cfg: &HarrisConfig,
 ) -> Vec<Corner> {
     let selected = select_spread(nms(pixels, &m.response, w, h, cfg), cfg);
-    // Each corner refined on its own, so split over the cores (a
-    // refinement costs about 5 us).
+    // Each corner is refined on its own: the corners split over the cores
+    // give the one pass's.
     let corners = crate::par::flat_map_split(&selected, 64, |part| {
         part.iter()
             .map(|c| {

@@ -11,7 +11,7 @@ use crate::features::harris::Corner;
 use crate::features::image::{GreyImage, check_mask};
 
 /// Features a thread takes at least, where the matching splits over the
-/// cores (a thread costs tens of microseconds; a window about one).
+/// cores (a thread costs tens of microseconds).
 const PER_THREAD: usize = 64;
 
 /// A feature's window as `vectorize` leaves it.
