@@ -274,9 +274,9 @@ impl View {
 /// [`setup`] of four splats at once, one a lane, each lane with the
 /// scalar's operations in its order (the same bits; `tests/splat_host.rs`
 /// compares the renders with the shader's transcription): the visible
-/// ones pushed onto `out` in their order. A model's set-up is about a
-/// fifth of a render, and the scalar one's divisions and square roots a
-/// splat are each one instruction for four here.
+/// ones pushed onto `out` in their order. One splat at a time, the set-up
+/// was about a sixth of a render's time (perf, the real cube); here each
+/// of its divisions and square roots is one instruction for four splats.
 pub(super) fn setup4(v: &View, s: &[SplatGpu], colors: &[u32], out: &mut Vec<Setup>) {
     let sp = Vec4::splat;
     let pr = glam::Mat4::from_cols_array_2d(&[
