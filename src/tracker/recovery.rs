@@ -18,8 +18,8 @@
 //! ([`super::verify::VerifyConfig::recovery_zncc`]).
 //!
 //! An object hidden by another moves on while out of sight: its rounds of
-//! starts turn about where its drift ([`super::drift::Drift`]) carries the last pose and
-//! about the last pose, in turn.
+//! starts turn about where its drift ([`super::drift::Drift`]) carries
+//! the last pose and about the last pose, in turn.
 
 use super::decision::{Decision, verified};
 use super::result::Status;
@@ -74,8 +74,8 @@ impl Tracker {
     }
 
     /// Where an object lost while hidden by another is expected: the last
-    /// pose moved by its drift ([`super::drift::Drift::carried`]); the last pose for
-    /// any other loss.
+    /// pose moved by its drift ([`super::drift::Drift::carried`]); the
+    /// last pose for any other loss.
     pub(super) fn expected_pose(&self) -> Pose {
         match self.drift.carried().filter(|_| self.recovery_hidden) {
             Some(d) => Pose {
@@ -95,13 +95,20 @@ impl Tracker {
         if let Some(p) = self.recovery_next.take() {
             return p;
         }
-        let round = self.recovery_turn / (self.recovery_starts_len() + 1);
+        // Rounds are counted by the starts about the last pose; those
+        // about the expected one are made only where it differs.
+        let about_last = self.recovery_starts(&self.pose);
+        let round = self.recovery_turn / (about_last.len() + 1);
         let base = if round.is_multiple_of(2) {
             self.expected_pose()
         } else {
             self.pose
         };
-        let starts = self.recovery_starts(&base);
+        let starts = if base == self.pose {
+            about_last
+        } else {
+            self.recovery_starts(&base)
+        };
         let i = self.recovery_turn % (starts.len() + 1);
         self.recovery_turn += 1;
         let p = if i == 0 { base } else { starts[i - 1] };
@@ -126,11 +133,6 @@ impl Tracker {
         }
         self.recovery_next = d.pose;
         verified(d, Err(Unverified::Recovery { zncc, min }))
-    }
-
-    /// How many other starts a round has (as many whatever its base).
-    fn recovery_starts_len(&self) -> usize {
-        self.recovery_starts(&self.pose).len()
     }
 
     /// The other starts about `last`: its turns and the keyframes' starts

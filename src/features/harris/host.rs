@@ -297,12 +297,12 @@ fn integrate_h_row(
     }
 }
 
-/// The rows of a vertical pass at output row `y`: each tap's source row
-/// (its first pixel), `None` where it leaves the `h`-row image.
-fn tap_rows(y: usize, r: usize, taps: usize, w: usize, h: usize) -> Vec<Option<usize>> {
-    (0..taps)
-        .map(|k| (y + k).checked_sub(r).filter(|&yy| yy < h).map(|yy| yy * w))
-        .collect()
+/// The rows of a vertical pass at output row `y` into `out` (its
+/// allocation reused from row to row): each tap's source row (its first
+/// pixel), `None` where it leaves the `h`-row image.
+fn tap_rows(out: &mut Vec<Option<usize>>, y: usize, r: usize, taps: usize, w: usize, h: usize) {
+    out.clear();
+    out.extend((0..taps).map(|k| (y + k).checked_sub(r).filter(|&yy| yy < h).map(|yy| yy * w)));
 }
 
 /// deriv_v over one row: `(Ix, Iy, valid)` from deriv_h's rows (`rows`,
@@ -506,8 +506,9 @@ fn maps(s: &mut Scratch, w: usize, h: usize, cfg: &HarrisConfig) {
         w,
         [&mut gx[..], &mut gy[..], &mut gok[..]],
         |y0, rows, [ix, iy, ok]| {
+            let mut taps = Vec::new();
             for r in 0..rows {
-                let taps = tap_rows(y0 + r, rd, gd.len(), w, h);
+                tap_rows(&mut taps, y0 + r, rd, gd.len(), w, h);
                 let row = r * w..(r + 1) * w;
                 deriv_v_row(
                     &taps,
@@ -542,9 +543,10 @@ fn maps(s: &mut Scratch, w: usize, h: usize, cfg: &HarrisConfig) {
     let (sxx, syy, sxy, sw) = (&sxx[..], &syy[..], &sxy[..], &sw[..]);
     let kw = (cfg.k, cfg.min_valid_weight);
     par_rows(h, w, [&mut maps.response[..]], |y0, rows, [resp]| {
+        let mut taps = Vec::new();
         for r in 0..rows {
             let y = y0 + r;
-            let taps = tap_rows(y, ri, gi.len(), w, h);
+            tap_rows(&mut taps, y, ri, gi.len(), w, h);
             response_row(
                 &taps,
                 (sxx, syy, sxy, sw),
