@@ -242,13 +242,16 @@ fn plain_scene(n: usize) -> (Intrinsics, PointModel, Vec<splattrack::synth::Synt
 }
 
 /// The untextured object held by its contour alone (no keyframes): the
-/// same statuses, poses within 1 degree and 2 mm (0.4% of the distance),
-/// and the CPU device's within 3 degrees of the ground truth. The
-/// contour's discrete choices (which points are inliers) carry the
-/// renders' last-bit differences (the depth within 1.2e-7,
-/// [`depth_only_renders_agree`]) further than the texture steps do:
-/// measured 0.52 degrees and 0.55 mm apart after 8 frames, each about 1.9
-/// degrees from the truth.
+/// same statuses, poses within 2 degrees and 2 mm (0.4% of the distance),
+/// and both devices within 3 degrees of the ground truth. The contour's
+/// discrete choices (which points are inliers) carry the renders'
+/// last-bit differences (the depth within 1.2e-7,
+/// [`depth_only_renders_agree`]) further than the texture steps do, and
+/// the CPU device's check scores the contour's last render where lavapipe
+/// renders again
+/// ([`the_contours_view_stands_for_the_checks_render_on_the_cpu_device`]):
+/// measured 1.00 degrees and 1.4 mm apart after 8 frames, both within
+/// 1.36 degrees of the truth.
 #[test]
 fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
     let (camera, model, frames) = plain_scene(8);
@@ -271,16 +274,16 @@ fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
         })
         .collect();
     let (rot, trans) = compare(&runs[0], &runs[1]);
-    let worst_gt = runs[0]
+    let worst_gt = runs
         .iter()
-        .zip(&frames)
+        .flat_map(|run| run.iter().zip(&frames))
         .map(|(r, f)| r.pose.rotation_error_deg(&f.pose))
         .fold(0.0f64, f64::max);
     eprintln!(
         "plain, contour: CPU device against lavapipe: {rot:.5} deg, {trans:.6}; against the truth {worst_gt:.3} deg"
     );
     assert!(runs[0].iter().all(|r| r.status == Status::Tracking));
-    assert!(rot < 1.0 && trans < 2e-3, "{rot} deg, {trans}");
+    assert!(rot < 2.0 && trans < 2e-3, "{rot} deg, {trans}");
     assert!(worst_gt < 3.0, "{worst_gt} deg from the truth");
 }
 
@@ -350,4 +353,106 @@ fn a_search_without_a_first_pose_finds_the_cube_on_the_cpu_device() {
     eprintln!("search: {found} of 3 found; CPU device against lavapipe: {rot:.5} deg, {trans:.6}");
     assert!(found >= 2, "{found} of 3 frames found");
     assert!(rot < 0.05 && trans < 2e-4, "{rot} deg, {trans}");
+}
+
+/// On the CPU device the contour alone renders its views as the check's
+/// (textured by the keyframe the check takes, their visibility depth
+/// kept: the contour reads what a depth-only render gives), and the check
+/// scores the last one where the rounds after it converged and moved its
+/// points within `contour.reproject_px`, while the views show no texture
+/// of their own: about one render a frame instead of two on the
+/// untextured object (with its keyframes' shading), and none saved on the
+/// textured blob, whose ZNCC a pixel's offset changes (measured: 0.68
+/// against 0.82 fresh at one frame). The untextured object's scores
+/// against a fresh render at the reported pose (`novel_view`, scored by
+/// `verify::score` over the whole frame): ZNCC within 0.05 and edge
+/// support within 0.1, the view lying up to a pixel off along the outline
+/// where the edge test searches 2 px (measured: at most 0.031 and 0.017
+/// apart).
+#[test]
+fn the_contours_view_stands_for_the_checks_render_on_the_cpu_device() {
+    use splattrack::features::GreyImage;
+    use splattrack::synth::{SynthConfig, Trajectory, render_frame};
+    use splattrack::tracker::verify::score;
+    let config = TrackerConfig {
+        modalities: Modalities::CONTOUR,
+        ..Default::default()
+    };
+    let cam = camera_320();
+    let run = |object: &str, frames: std::ops::Range<usize>| {
+        let scene = Scene::new(object, cam, 30_000);
+        let cfg = SynthConfig {
+            object: object.into(),
+            camera: cam,
+            frames: 100,
+            trajectory: Trajectory::Fig10,
+            ..Default::default()
+        };
+        let store = scene.keyframe_store(cfg.distance);
+        let frames: Vec<_> = frames
+            .map(|i| render_frame(&cfg, &scene.object, &scene.bg, i))
+            .collect();
+        let results = track(
+            &Device::Cpu,
+            &scene.model,
+            cam,
+            Some(store.clone()),
+            config.clone(),
+            frames[0].pose,
+            frames.iter().map(|fr| fr.image.clone()),
+        );
+        assert!(
+            results.iter().all(|r| r.status == Status::Tracking),
+            "{object}"
+        );
+        // Frames whose check scored the contour's view.
+        let served = results
+            .iter()
+            .filter(|r| r.times.renders <= r.times.contour_renders)
+            .count();
+        let renders: f64 = results.iter().map(|r| r.times.renders).sum();
+        eprintln!(
+            "{object}: {renders} renders in {} frames, the check's view served in {served}",
+            results.len()
+        );
+        (scene, store, frames, results, served)
+    };
+    let (_, _, _, results, served) = run("blob", 50..56);
+    assert_eq!(served, 0, "blob: {served} of {}", results.len());
+    let (scene, store, frames, results, served) = run("plain", 0..10);
+    let n = results.len();
+    let renders: f64 = results.iter().map(|r| r.times.renders).sum();
+    assert!(
+        renders <= 1.5 * n as f64,
+        "plain: {renders} renders in {n} frames"
+    );
+    assert!(2 * served >= n, "plain: served in {served} of {n} frames");
+    let mut fresh = Tracker::builder(Device::Cpu, scene.model.clone(), cam)
+        .keyframes(store)
+        .config(config.clone())
+        .initial_pose(frames[0].pose)
+        .build()
+        .expect("tracker");
+    for (i, (r, frame)) in results.iter().zip(&frames).enumerate() {
+        let s = r.verify.expect("a tracked frame's scores");
+        let v = fresh.novel_view(&r.pose).expect("novel view");
+        let rgb = image::RgbImage::from_raw(v.width, v.height, v.color).expect("view size");
+        let view = GreyImage::from_rgb8(&rgb);
+        let again = score(
+            &GreyImage::from_rgb8(&frame.image),
+            &v.mask,
+            Some(&view.data),
+            s.visible,
+            1,
+            &config.verify,
+        );
+        let (z, z0) = (s.zncc.expect("zncc"), again.zncc.expect("zncc"));
+        let (e, e0) = (
+            s.edge_support.expect("edges"),
+            again.edge_support.expect("edges"),
+        );
+        eprintln!("frame {i}: ZNCC {z:.4} (fresh {z0:.4}), edges {e:.3} (fresh {e0:.3})");
+        assert!((z - z0).abs() <= 0.05, "frame {i}: ZNCC {z} against {z0}");
+        assert!((e - e0).abs() <= 0.1, "frame {i}: edges {e} against {e0}");
+    }
 }

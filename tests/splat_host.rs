@@ -291,8 +291,9 @@ fn view_of(model: &PointModel, cam: &Intrinsics, pose: &Pose) -> (PackedModel, C
     (packed, uniform)
 }
 
-/// Every thread count, every attribute subset and the depth-only pass
-/// against the transcription; returns the pixels covered.
+/// Every thread count, every attribute subset (each also keeping its
+/// visibility depth) and the depth-only pass against the transcription;
+/// returns the pixels covered.
 fn check(packed: &PackedModel, uniform: &CameraUniform, label: &str) -> usize {
     let naive = naive_splat(packed, uniform);
     let v = View::new(uniform);
@@ -326,6 +327,22 @@ fn check(packed: &PackedModel, uniform: &CameraUniform, label: &str) -> usize {
                     assert!(out.targets[k].is_empty(), "{label}: T{k} left out");
                 }
             }
+            // The same render keeping its visibility depth: the same sums,
+            // and the depth-only pass's depth.
+            let mut kept = Accumulators::default();
+            let mut depth = SplatImage {
+                width: 0,
+                height: 0,
+                channels: 1,
+                data: Vec::new(),
+            };
+            host.render_occluded_with_depth(packed, uniform, &[], attrs, &mut kept, &mut depth);
+            for k in 0..5 {
+                let bad = differing(flat(&kept.targets[k]), flat(&out.targets[k]));
+                assert_eq!(bad, 0, "{label}: kept T{k}, {threads} threads, {attrs:?}");
+            }
+            let bad = differing(&depth.data, &z);
+            assert_eq!(bad, 0, "{label}: kept depth, {threads} threads, {attrs:?}");
         }
         let mut depth = SplatImage {
             width: 0,

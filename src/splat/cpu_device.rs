@@ -16,6 +16,27 @@ use super::{
 use crate::geometry::{Intrinsics, Pose};
 use std::sync::Mutex;
 
+/// The depth a host render leaves.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Depth {
+    /// A full render's own (averaged, or from its predictors).
+    Averaged,
+    /// The visibility pass alone: its depth and coverage, nothing else.
+    Only,
+    /// A full render that keeps its visibility pass's depth too: what
+    /// [`Depth::Only`] would read, bit for bit.
+    Kept,
+}
+
+fn empty_depth() -> SplatImage {
+    SplatImage {
+        width: 0,
+        height: 0,
+        channels: 1,
+        data: Vec::new(),
+    }
+}
+
 /// What a host render needs of the splatter.
 pub(super) struct HostParts<'a> {
     pub params: &'a SplatParams,
@@ -26,16 +47,16 @@ pub(super) struct HostParts<'a> {
 }
 
 /// Splats `model` at `pose` into `targets`, behind the splatter's
-/// occluders: colour, weight and the groups of `attrs`, or the visibility
-/// pass alone.
-#[allow(clippy::too_many_arguments)]
+/// occluders: colour, weight and the groups of `attrs` (and, with
+/// [`Depth::Kept`], the visibility pass's depth beside them), or the
+/// visibility pass alone ([`Depth::Only`]).
 pub(super) fn render(
     host: HostParts<'_>,
     model: &GpuModel,
     cam: &Intrinsics,
     pose: &Pose,
     attrs: Attributes,
-    depth_only: bool,
+    depth: Depth,
     targets: &mut SplatTargets,
 ) -> Result<(), SplatError> {
     targets.check_size(cam)?;
@@ -57,26 +78,30 @@ pub(super) fn render(
         })
         .collect::<Result<Vec<(&PackedModel, CameraUniform)>, _>>()?;
     let mut splatter = host.splatter.lock().unwrap_or_else(|p| p.into_inner());
+    let depth_only = depth == Depth::Only;
     if depth_only {
         let mut depth = match previous {
             Some(HostRender::Depth(d)) => d,
-            _ => SplatImage {
-                width: 0,
-                height: 0,
-                channels: 1,
-                data: Vec::new(),
-            },
+            _ => empty_depth(),
         };
         splatter.render_depth_occluded(packed, &uniform, &occluders, &mut depth);
         targets.host = Some(HostRender::Depth(depth));
         targets.rendered = None;
     } else {
-        let mut acc = match previous {
-            Some(HostRender::Full(a)) => a,
-            _ => cpu::Accumulators::default(),
+        let (mut acc, z) = match previous {
+            Some(HostRender::Full(a, z)) => (a, z),
+            _ => (cpu::Accumulators::default(), None),
         };
-        splatter.render_occluded(packed, &uniform, &occluders, attrs, &mut acc);
-        targets.host = Some(HostRender::Full(acc));
+        let z = if depth == Depth::Kept {
+            let mut z = z.unwrap_or_else(empty_depth);
+            splatter
+                .render_occluded_with_depth(packed, &uniform, &occluders, attrs, &mut acc, &mut z);
+            Some(z)
+        } else {
+            splatter.render_occluded(packed, &uniform, &occluders, attrs, &mut acc);
+            None
+        };
+        targets.host = Some(HostRender::Full(acc, z));
         targets.rendered = Some(attrs);
     }
     targets.depth_only = depth_only;
@@ -88,12 +113,15 @@ pub(super) fn render(
 pub(super) fn read(targets: &SplatTargets, attribute: Attribute) -> Result<SplatImage, SplatError> {
     targets.check(attribute.needs(), attribute)?;
     match &targets.host {
-        Some(HostRender::Full(acc))
+        // The visibility pass's depth, where the render kept it: a
+        // depth-only render's.
+        Some(HostRender::Full(_, Some(z))) if attribute == Attribute::Depth => Ok(z.clone()),
+        Some(HostRender::Full(acc, _))
             if attribute == Attribute::Depth && targets.depth_from_motion() =>
         {
             Ok(acc.depth_from_motion(targets.fx()))
         }
-        Some(HostRender::Full(acc)) => Ok(acc.resolve(attribute)),
+        Some(HostRender::Full(acc, _)) => Ok(acc.resolve(attribute)),
         Some(HostRender::Depth(depth)) => Ok(match attribute {
             // Coverage: 1 where a splat reaches, 0 elsewhere, as the GPU's
             // depth-only weight.
@@ -121,7 +149,7 @@ pub(super) fn gather(
     if points.is_empty() {
         return Ok(Vec::new());
     }
-    let Some(HostRender::Full(acc)) = &targets.host else {
+    let Some(HostRender::Full(acc, _)) = &targets.host else {
         return Err(SplatError::NotRendered(Attribute::Motion));
     };
     Ok(acc.gather(targets.fx(), points, mode))

@@ -224,8 +224,42 @@ impl Splatter {
                 let occluders = &self.occluders;
                 g.render_timed(ctx, model, cam, pose, attrs, targets, timer, occluders)?
             }
-            None => cpu_device::render(self.host_parts(), model, cam, pose, attrs, false, targets)?,
+            None => cpu_device::render(
+                self.host_parts(),
+                model,
+                cam,
+                pose,
+                attrs,
+                cpu_device::Depth::Averaged,
+                targets,
+            )?,
         }
+        targets.occluders = Some(self.occluders.stamp());
+        Ok(())
+    }
+
+    /// On the CPU device: [`Self::render_timed`] that keeps its visibility
+    /// pass's depth too, so that [`Attribute::Depth`] reads what
+    /// [`Self::render_depth`] would give, bit for bit (the same pass), and
+    /// every other attribute the full render's. One render serves a
+    /// depth-only reader and a full one. On a GPU the render's visibility
+    /// depth is not kept: [`SplatError::Unsupported`].
+    pub(crate) fn render_keeping_depth(
+        &self,
+        device: &impl AsDevice,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        targets: &mut SplatTargets,
+    ) -> Result<(), SplatError> {
+        if self.on(device, Some(model), Some(targets))?.is_some() {
+            return Err(SplatError::Unsupported(
+                "a render that keeps its visibility depth runs on the CPU device only".into(),
+            ));
+        }
+        let depth = cpu_device::Depth::Kept;
+        cpu_device::render(self.host_parts(), model, cam, pose, attrs, depth, targets)?;
         targets.occluders = Some(self.occluders.stamp());
         Ok(())
     }
@@ -265,7 +299,7 @@ impl Splatter {
                 cam,
                 pose,
                 Attributes::GEOMETRY,
-                true,
+                cpu_device::Depth::Only,
                 targets,
             )?,
         }

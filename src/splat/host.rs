@@ -192,6 +192,34 @@ impl HostSplatter {
         attrs: Attributes,
         out: &mut Accumulators,
     ) {
+        self.render_full(model, uniform, occluders, attrs, out, None);
+    }
+
+    /// [`Self::render_occluded`] that writes its visibility pass's depth
+    /// into `depth` too: what [`Self::render_depth_occluded`] gives, bit
+    /// for bit (the same pass over the same splats), for one pass more of
+    /// writes, not a render more.
+    pub fn render_occluded_with_depth(
+        &mut self,
+        model: &PackedModel,
+        uniform: &CameraUniform,
+        occluders: &[(&PackedModel, CameraUniform)],
+        attrs: Attributes,
+        out: &mut Accumulators,
+        depth: &mut SplatImage,
+    ) {
+        self.render_full(model, uniform, occluders, attrs, out, Some(depth));
+    }
+
+    fn render_full(
+        &mut self,
+        model: &PackedModel,
+        uniform: &CameraUniform,
+        occluders: &[(&PackedModel, CameraUniform)],
+        attrs: Attributes,
+        out: &mut Accumulators,
+        depth: Option<&mut SplatImage>,
+    ) {
         let v = View::new(uniform);
         let n = v.width * v.height;
         out.width = v.width as u32;
@@ -214,11 +242,18 @@ impl HostSplatter {
             .targets
             .each_mut()
             .map(|t| (!t.is_empty()).then(|| t.chunks_mut(stride.max(1))));
+        let mut z = depth.map(|d| {
+            d.width = v.width as u32;
+            d.height = v.height as u32;
+            d.channels = 1;
+            d.data.resize(n, f32::NAN);
+            d.data.chunks_mut(stride.max(1))
+        });
         let bands = (0..self.starts.len() - 1)
             .map(|index| Band {
                 index,
                 targets: chunks.each_mut().map(|c| c.as_mut().and_then(|c| c.next())),
-                z: None,
+                z: z.as_mut().and_then(|c| c.next()),
             })
             .collect();
         self.run_bands(&views, band_rows, bands);

@@ -35,8 +35,9 @@ pub struct SplatTargets {
 
 /// What the CPU device's last render left in its targets.
 pub(super) enum HostRender {
-    /// A full render's five accumulators.
-    Full(Accumulators),
+    /// A full render's five accumulators, and the visibility pass's depth
+    /// where the render kept it ([`super::Splatter::render_keeping_depth`]).
+    Full(Accumulators, Option<SplatImage>),
     /// A depth-only render's depth (NaN where empty).
     Depth(SplatImage),
 }

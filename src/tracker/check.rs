@@ -33,8 +33,22 @@ impl super::Tracker {
         seen as f64 / all as f64
     }
 
-    /// Scores `pose` against `frame` (module docs).
+    /// Scores `pose` against `frame` (module docs), and notes whether the
+    /// view showed a texture of its own.
     pub(super) fn verify_scores(
+        &mut self,
+        frame: &Frame,
+        pose: &crate::geometry::Pose,
+    ) -> Result<VerifyScores, super::TrackError> {
+        let s = self.score_pose(frame, pose)?;
+        if s.covered_px > 0 {
+            let below = self.config.verify.untextured_below;
+            self.contour.plain_view = s.view_texture.is_none_or(|t| t < below);
+        }
+        Ok(s)
+    }
+
+    fn score_pose(
         &mut self,
         frame: &Frame,
         pose: &crate::geometry::Pose,

@@ -258,7 +258,8 @@ impl Tracker {
             // made at the pose this frame starts from, seeds the contour's
             // first round instead of a render of its own.
             let window = self.view_window(&start_pose);
-            self.reuse_render(&start_pose, window, false);
+            let near = self.contour_seed_px();
+            self.reuse_render(&start_pose, window, false, near);
         }
         let contour = if self.config.modalities.contour {
             // From the best texture estimate, fused with its inliers; else

@@ -276,7 +276,8 @@ impl Tracker {
         let window = self.view_window(pose);
         // The render goes with the gather's readback.
         let _batch = self.device.batch();
-        if !self.reuse_render(pose, window, true) {
+        let near = self.config.reuse_render_px as f64;
+        if !self.reuse_render(pose, window, true, near) {
             let cam = self.use_window(window);
             self.splat(Texture::None, &cam, pose, Attributes::MOTION, "IT")?;
         }

@@ -57,21 +57,47 @@ impl Tracker {
         attrs: Attributes,
         stage: &str,
     ) -> Result<(), SplatError> {
+        self.splat_with(texture, cam, pose, attrs, stage, false)
+    }
+
+    /// [`Tracker::splat`]; with `keep_depth` (the CPU device only) the
+    /// render keeps its visibility depth too
+    /// ([`crate::splat::Splatter::render_keeping_depth`]).
+    pub(super) fn splat_with(
+        &mut self,
+        texture: Texture,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        stage: &str,
+        keep_depth: bool,
+    ) -> Result<(), SplatError> {
         let gm = match (texture, self.store.as_ref()) {
             (Texture::Keyframe(k), Some(store)) => {
                 self.textured.get(&self.device, store, &self.geometry, k)?
             }
             _ => &self.geometry,
         };
-        self.splatter.render_timed(
-            &self.device,
-            gm,
-            cam,
-            pose,
-            attrs,
-            &mut self.targets,
-            self.gpu_timer.as_mut(),
-        )?;
+        if keep_depth {
+            self.splatter.render_keeping_depth(
+                &self.device,
+                gm,
+                cam,
+                pose,
+                attrs,
+                &mut self.targets,
+            )?;
+        } else {
+            self.splatter.render_timed(
+                &self.device,
+                gm,
+                cam,
+                pose,
+                attrs,
+                &mut self.targets,
+                self.gpu_timer.as_mut(),
+            )?;
+        }
         self.note_splat(&format!("{stage} splat"));
         Ok(())
     }

@@ -39,6 +39,8 @@ pub(super) struct Kept {
     pub(super) pose: Pose,
     pub(super) window: Window,
     pub(super) targets: SplatTargets,
+    /// The novel view those targets hold, if they hold one.
+    pub(super) view: Option<ViewMade>,
 }
 
 /// The novel view the targets hold ([`super::Tracker::render_view_in`]'s
@@ -51,6 +53,11 @@ pub(super) struct ViewMade {
     /// The keyframe that textured it (`None`: the model's colours).
     pub(super) keyframe: Option<usize>,
     pub(super) attrs: Attributes,
+    /// The pose the contour step's last rounds ended at, when they moved
+    /// the points of this view no farther than
+    /// [`super::ContourConfig::reproject_px`]: the check at that pose
+    /// scores this view ([`super::Tracker::view_for_check`]).
+    pub(super) stands_for: Option<Pose>,
 }
 
 impl Kept {

@@ -120,13 +120,14 @@ impl Tracker {
         if !self.config.windows {
             return;
         }
-        self.view_made = None;
+        let view = self.view_made.take().filter(|v| v.pose == pose);
         let fresh = self.spare_targets(self.window);
         let targets = std::mem::replace(&mut self.targets, fresh);
         let kept = Kept {
             pose,
             window: self.window,
             targets,
+            view,
         };
         if let Some(old) = self.kept.replace(kept) {
             self.put_spare(old.targets);
@@ -134,11 +135,10 @@ impl Tracker {
     }
 
     /// Whether a render at `at` can stand for one at `pose`: no corner of
-    /// the model's bounding box moves more than
-    /// [`super::TrackerConfig::reuse_render_px`] between them (windows on).
-    pub(super) fn near_render(&self, at: &Pose, pose: &Pose) -> bool {
-        let limit = self.config.reuse_render_px as f64;
-        if !self.config.windows || limit <= 0.0 {
+    /// the model's bounding box moves more than `limit_px` between them
+    /// (windows on; 0: never).
+    pub(super) fn near_render(&self, at: &Pose, pose: &Pose, limit_px: f64) -> bool {
+        if !self.config.windows || limit_px <= 0.0 {
             return false;
         }
         let mut far = 0.0f64;
@@ -151,23 +151,27 @@ impl Tracker {
             };
             far = far.max((a - b).norm());
         }
-        far <= limit
+        far <= limit_px
     }
 
     /// The novel view the targets hold when the pose check at `pose`
     /// may score it instead of rendering: it has `attrs`, was textured by
     /// the keyframe a render at `pose` would be, and was made
-    /// [`Tracker::near_render`] to `pose`.
+    /// [`Tracker::near_render`] to `pose` (within
+    /// [`super::TrackerConfig::reuse_render_px`]), or it is the view the
+    /// contour step's rounds ended at `pose` from ([`ViewMade::stands_for`]).
     pub(super) fn view_for_check(&self, pose: &Pose, attrs: Attributes) -> Option<ViewMade> {
         let v = self.view_made?;
         let held = self.targets.last_view().is_some_and(|(p, _)| *p == v.pose);
         let keyframe = self.store.as_ref().map(|s| s.closest(pose));
+        let near = v.stands_for == Some(*pose)
+            || self.near_render(&v.pose, pose, self.config.reuse_render_px as f64);
         (held
             && v.window == self.window
             && v.attrs.contains(attrs)
             && v.keyframe == keyframe
-            && self.near_render(&v.pose, pose))
-        .then_some(v)
+            && near)
+            .then_some(v)
     }
 
     /// The kept render and its window, when it was made at `pose`.
@@ -180,23 +184,37 @@ impl Tracker {
 
     /// Makes the kept render current when it was made at `pose` in window
     /// `w` (the render [`Tracker::use_window`] and a render at `pose` would
-    /// give), or at a pose [`Tracker::near_render`] to `pose` (in its own
-    /// window, which holds every pixel it covers); whether it was. For
+    /// give), or at a pose [`Tracker::near_render`] to `pose` within
+    /// `limit_px` (in its own window, which holds every pixel it covers);
+    /// whether it was, and the view it holds is the current one again
+    /// (not for `previous_frame`). For
     /// `previous_frame` (IT's view of the frame before, the kept render's
     /// own frame) a render behind other occluders serves too: it shows
     /// that frame's objects where they were then.
-    pub(super) fn reuse_render(&mut self, pose: &Pose, w: Window, previous_frame: bool) -> bool {
+    pub(super) fn reuse_render(
+        &mut self,
+        pose: &Pose,
+        w: Window,
+        previous_frame: bool,
+        limit_px: f64,
+    ) -> bool {
         match self.kept.take() {
             // Otherwise not when the splatter's occluders changed since it
             // was made.
             Some(k)
                 if (previous_frame || k.targets.last_view().is_some())
-                    && ((k.pose == *pose && k.window == w) || self.near_render(&k.pose, pose)) =>
+                    && ((k.pose == *pose && k.window == w)
+                        || self.near_render(&k.pose, pose, limit_px)) =>
             {
                 let old = std::mem::replace(&mut self.targets, k.targets);
                 self.put_spare(old);
                 self.window = k.window;
-                self.view_made = None;
+                // The previous frame's view, for this frame's contour
+                // seed (IT takes the render for its predictors alone).
+                self.view_made = k.view.filter(|_| !previous_frame).map(|v| ViewMade {
+                    stands_for: None,
+                    ..v
+                });
                 true
             }
             Some(k) => {
@@ -406,15 +424,39 @@ impl Tracker {
         w: Window,
         stage: &str,
     ) -> Result<Option<usize>, crate::splat::SplatError> {
+        self.render_view(pose, attrs, w, stage, false)
+    }
+
+    /// [`Tracker::render_view_in`] for the contour, the render's
+    /// visibility depth kept (CPU device:
+    /// [`crate::splat::Splatter::render_keeping_depth`]).
+    pub(super) fn render_view_keeping_depth(
+        &mut self,
+        pose: &Pose,
+        attrs: Attributes,
+        w: Window,
+    ) -> Result<Option<usize>, crate::splat::SplatError> {
+        self.render_view(pose, attrs, w, "contour", true)
+    }
+
+    fn render_view(
+        &mut self,
+        pose: &Pose,
+        attrs: Attributes,
+        w: Window,
+        stage: &str,
+        keep_depth: bool,
+    ) -> Result<Option<usize>, crate::splat::SplatError> {
         let cam = self.use_window(w);
         let k = self.store.as_ref().map(|s| s.closest(pose));
         let texture = k.map_or(profile::Texture::None, profile::Texture::Keyframe);
-        self.splat(texture, &cam, pose, attrs, stage)?;
+        self.splat_with(texture, &cam, pose, attrs, stage, keep_depth)?;
         self.view_made = Some(ViewMade {
             pose: *pose,
             window: w,
             keyframe: k,
             attrs,
+            stands_for: None,
         });
         Ok(k)
     }

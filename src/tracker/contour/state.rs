@@ -26,6 +26,11 @@ pub(crate) struct ContourState {
     /// less than [`super::ContourConfig::converged_px`]) before its last
     /// round.
     pub(crate) converged: bool,
+    /// Whether the check's last view showed no texture of its own
+    /// (shading only, or no texture at all): where a view a pixel off
+    /// scores alike, so the contour's renders may stand for the check's
+    /// (`Tracker::contour_view_serves_check`).
+    pub(crate) plain_view: bool,
     /// The rounds of the frame being tracked.
     pub(crate) rounds: usize,
     /// The renders of the frame being tracked.
@@ -43,6 +48,7 @@ impl ContourState {
             normals: None,
             crease_radii: None,
             converged: false,
+            plain_view: false,
             rounds: 0,
             renders: 0,
         }

@@ -142,10 +142,80 @@ impl Tracker {
                 break;
             }
         }
+        if let Some(step) = &last {
+            self.note_view_ends_at(&rendered, &rendered_at, &step.pose);
+        }
         last.ok_or(StepError::Solve(SolveError::TooFewMatches {
             got: 0,
             need: cfg.min_points,
         }))
+    }
+
+    /// Whether the contour's renders are the novel view the pose check
+    /// scores (with the check's attributes, textured by the keyframe it
+    /// would take, their visibility depth kept: the contour reads what a
+    /// depth-only render gives) instead of depth-only ones. Where no
+    /// texture step runs, the check then scores the contour's last render
+    /// when the rounds after it moved its points within
+    /// [`ContourConfig::reproject_px`] ([`Tracker::view_for_check`]), and
+    /// the next frame's first round is seeded from it: a frame renders
+    /// about once, not twice. Only while the check's views show no texture
+    /// of their own (an untextured object's shading, which a pixel hardly
+    /// changes; a printed texture's ZNCC falls by up to 0.14 a pixel off),
+    /// and on the CPU device, whose full render keeps the visibility depth
+    /// for one pass more of writes.
+    pub(in crate::tracker) fn contour_view_serves_check(&self) -> bool {
+        let c = &self.config;
+        self.contour.plain_view
+            && self.device.gpu().is_none()
+            && c.verify.enabled
+            && c.windows
+            && !c.modalities.texture
+            && c.contour.depth_only
+            && c.contour.seed_render
+            && c.contour.reproject_px > 0.0
+    }
+
+    /// How far (pixels, the model's bounding box) a held render may lie
+    /// from the contour's start to seed its first round
+    /// ([`Tracker::contour_seed`]); 0 where nothing seeds.
+    pub(in crate::tracker) fn contour_seed_px(&self) -> f64 {
+        let cfg = &self.config.contour;
+        if cfg.seed_render && cfg.depth_only {
+            4.0 * cfg.reproject_px
+        } else {
+            0.0
+        }
+    }
+
+    /// Marks the view the targets hold, made at `rendered_at` (the source
+    /// of the rounds' points `rendered`), as standing for the check at
+    /// `end` where no point moved farther than
+    /// [`ContourConfig::reproject_px`] along its normal from it to `end`
+    /// (the rounds' own test for keeping a render) and the rounds
+    /// converged: an unconverged step is stepped again, and the check
+    /// compares the two by their edge support, which a view a pixel off
+    /// would understate.
+    fn note_view_ends_at(&mut self, rendered: &[Lifted], rendered_at: &Pose, end: &Pose) {
+        let limit = self.config.contour.reproject_px;
+        let serves = self.contour_view_serves_check();
+        let held = self
+            .targets
+            .last_view()
+            .is_some_and(|(p, _)| p == rendered_at);
+        let Some(v) = self
+            .view_made
+            .as_mut()
+            .filter(|v| held && v.pose == *rendered_at)
+        else {
+            return;
+        };
+        let twist = end.compose(&rendered_at.inverse()).log();
+        let near = !rendered.is_empty()
+            && rendered
+                .iter()
+                .all(|l| (l.row.predictors * twist)[0].abs() <= limit);
+        v.stands_for = (near && self.contour.converged && serves).then_some(*end);
     }
 
     /// The render the targets hold, and its window, when it can stand for
@@ -174,7 +244,7 @@ impl Tracker {
             far = far.max((a - b).norm());
         }
         log::debug!("contour: the held render's box moves {far:.2} px to the start");
-        (far <= 4.0 * cfg.reproject_px).then_some((*at, self.window))
+        (far <= self.contour_seed_px()).then_some((*at, self.window))
     }
 
     /// One render at `pose`: the contour points, each with its row
@@ -193,7 +263,12 @@ impl Tracker {
         // The render goes with its depth's readback.
         let _batch = self.device.batch();
         let depth_only = self.config.contour.depth_only;
-        if depth_only {
+        if self.contour_view_serves_check() {
+            // The check's view (its attributes, textured by the keyframe
+            // it would take), its visibility depth kept: the points are a
+            // depth-only render's.
+            self.render_view_keeping_depth(pose, Attributes::MOTION, window)?;
+        } else if depth_only {
             self.splatter.render_depth(
                 &self.device,
                 &self.geometry,
