@@ -426,3 +426,65 @@ impl Splatter {
             .gather_written_later(ctx, targets, n, mode)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Device;
+    use crate::model::shapes;
+    use nalgebra::Vector3;
+    use std::sync::Arc;
+
+    /// A render keeping its visibility depth on the CPU device, behind an
+    /// occluder: its depth read is the depth-only render's and its colour
+    /// and weight the full render's, bit for bit; the next plain render in
+    /// the same targets reads its own depth again.
+    #[test]
+    fn a_render_keeping_its_depth_reads_as_both_renders() {
+        let device = Device::Cpu;
+        let mut splatter = Splatter::new(&device).expect("splatter");
+        let model = GpuModel::new(&device, &shapes::sphere(glam::Vec3::ZERO, 0.1, 4000, 1.5))
+            .expect("model");
+        let occluder = GpuModel::new(&device, &shapes::sphere(glam::Vec3::ZERO, 0.04, 500, 1.5))
+            .expect("occluder");
+        let at = |x: f64, z: f64| {
+            Pose::new(nalgebra::Matrix3::identity(), Vector3::new(x, 0.0, z)).expect("pose")
+        };
+        splatter
+            .set_occluders(vec![Occluder {
+                model: Arc::new(occluder),
+                pose: at(0.05, 0.7),
+            }])
+            .expect("occluders");
+        let cam = Intrinsics::new(96, 72, 90.0, 90.0, 47.5, 35.5);
+        let pose = at(0.0, 1.0);
+        let read = |t: &SplatTargets, a| splatter.read(&device, t, a).expect("read");
+        let bits = |i: &SplatImage| i.data.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let attrs = Attributes::MOTION;
+        let mut kept = SplatTargets::new(&device, 96, 72);
+        splatter
+            .render_keeping_depth(&device, &model, &cam, &pose, attrs, &mut kept)
+            .expect("render");
+        let mut only = SplatTargets::new(&device, 96, 72);
+        splatter
+            .render_depth(&device, &model, &cam, &pose, &mut only, None)
+            .expect("depth only");
+        let mut full = SplatTargets::new(&device, 96, 72);
+        splatter
+            .render(&device, &model, &cam, &pose, attrs, &mut full)
+            .expect("full");
+        let depth = read(&kept, Attribute::Depth);
+        assert!(depth.data.iter().any(|z| z.is_finite()));
+        assert_eq!(bits(&depth), bits(&read(&only, Attribute::Depth)));
+        // Not the full render's own depth (from its predictors).
+        assert_ne!(bits(&depth), bits(&read(&full, Attribute::Depth)));
+        for a in [Attribute::Color, Attribute::Weight] {
+            assert_eq!(bits(&read(&kept, a)), bits(&read(&full, a)), "{a:?}");
+        }
+        splatter
+            .render(&device, &model, &cam, &pose, attrs, &mut kept)
+            .expect("again");
+        let own = read(&kept, Attribute::Depth);
+        assert_eq!(bits(&own), bits(&read(&full, Attribute::Depth)));
+    }
+}
