@@ -171,9 +171,7 @@ impl Tracker {
             && c.verify.enabled
             && c.windows
             && !c.modalities.texture
-            && c.contour.depth_only
-            && c.contour.seed_render
-            && c.contour.reproject_px > 0.0
+            && self.contour_seed_px() > 0.0
     }
 
     /// How far (pixels, the model's bounding box) a held render may lie
@@ -227,8 +225,8 @@ impl Tracker {
     /// depth-only contour renders (whose limb normals come from the
     /// model's points).
     fn contour_seed(&self, pose: &Pose) -> Option<(Pose, Window)> {
-        let cfg = &self.config.contour;
-        if !cfg.seed_render || !cfg.depth_only || cfg.reproject_px <= 0.0 {
+        let reach = self.contour_seed_px();
+        if reach <= 0.0 {
             return None;
         }
         let t = &self.targets;
@@ -244,7 +242,7 @@ impl Tracker {
             far = far.max((a - b).norm());
         }
         log::debug!("contour: the held render's box moves {far:.2} px to the start");
-        (far <= self.contour_seed_px()).then_some((*at, self.window))
+        (far <= reach).then_some((*at, self.window))
     }
 
     /// One render at `pose`: the contour points, each with its row
