@@ -59,7 +59,8 @@ fn track(
 }
 
 /// The splatter on the CPU device reads and gathers what lavapipe's does:
-/// colour within 2e-3 (measured 6e-6), coverage within 0.2% of the pixels
+/// colour and normals within 2e-3 (measured 6e-6 and 3e-6), coverage
+/// within 0.2% of the pixels
 /// (measured: every pixel the same), predictors and depth at the gathered
 /// points within 1e-3 relative; the CPU device's splatter refuses GPU
 /// targets.
@@ -87,13 +88,14 @@ fn the_host_splatter_reads_and_gathers_what_the_gpu_does() {
             )
             .unwrap();
         let color = splatter.read(&device, &targets, Attribute::Color).unwrap();
+        let normal = splatter.read(&device, &targets, Attribute::Normal).unwrap();
         let pts: Vec<[f32; 2]> = (0..200)
             .map(|i| [100.0 + (i % 20) as f32 * 6.3, 70.0 + (i / 20) as f32 * 9.7])
             .collect();
         let samples = splatter
             .gather(&device, &targets, &pts, GatherMode::Bilinear)
             .unwrap();
-        out.push((color, samples));
+        out.push((color, samples, normal));
     }
     let cpu_splatter = Splatter::new(&Device::Cpu).unwrap();
     let gpu_targets = SplatTargets::new(shared_test_context(), 8, 8);
@@ -102,7 +104,7 @@ fn the_host_splatter_reads_and_gathers_what_the_gpu_does() {
             .read(&Device::Cpu, &gpu_targets, Attribute::Color)
             .is_err()
     );
-    let ((ca, sa), (cb, sb)) = (&out[0], &out[1]);
+    let ((ca, sa, na), (cb, sb, nb)) = (&out[0], &out[1]);
     let n = ca.data.len() / 3;
     let coverage_diff = (0..n)
         .filter(|&i| ca.data[3 * i].is_nan() != cb.data[3 * i].is_nan())
@@ -114,9 +116,21 @@ fn the_host_splatter_reads_and_gathers_what_the_gpu_does() {
         .filter(|(a, b)| a.is_finite() && b.is_finite())
         .map(|(a, b)| (a - b).abs())
         .fold(0.0f32, f32::max);
-    eprintln!("coverage differs at {coverage_diff} of {n} pixels, colour by {colour_diff}");
+    // The normals (the check's shading fit reads them back from either
+    // device) as closely as the colour.
+    let normal_diff = na
+        .data
+        .iter()
+        .zip(&nb.data)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0f32, f32::max);
+    eprintln!(
+        "coverage differs at {coverage_diff} of {n} pixels, colour by {colour_diff}, normals by {normal_diff}"
+    );
     assert!(coverage_diff * 500 <= n, "{coverage_diff} of {n} pixels");
     assert!(colour_diff < 2e-3, "colour differs by {colour_diff}");
+    assert!(normal_diff < 2e-3, "normals differ by {normal_diff}");
     let mut valid = 0;
     for (a, b) in sa.iter().zip(sb) {
         if !(a.valid && b.valid) {
@@ -251,7 +265,8 @@ fn plain_scene(n: usize) -> (Intrinsics, PointModel, Vec<splattrack::synth::Synt
 /// renders again
 /// ([`the_contours_view_stands_for_the_checks_render_on_the_cpu_device`]):
 /// measured 1.00 degrees and 1.4 mm apart after 8 frames, both within
-/// 1.36 degrees of the truth.
+/// 1.36 degrees of the truth. Both fit the shading in every check after
+/// the first (the view of the model's plain colours shows no texture).
 #[test]
 fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
     let (camera, model, frames) = plain_scene(8);
@@ -285,6 +300,16 @@ fn an_untextured_sequence_tracks_the_same_by_its_contour_on_the_cpu_device() {
     assert!(runs[0].iter().all(|r| r.status == Status::Tracking));
     assert!(rot < 2.0 && trans < 2e-3, "{rot} deg, {trans}");
     assert!(worst_gt < 3.0, "{worst_gt} deg from the truth");
+    // The view untextured, each check after the first fits the shading on
+    // both devices (on lavapipe from the coverage and normals read back),
+    // to within the poses' difference: measured 15% apart at most.
+    for (i, (a, b)) in runs[0].iter().zip(&runs[1]).enumerate().skip(1) {
+        let rms = |r: &TrackResult| r.verify.and_then(|v| v.shading_rms);
+        let (Some(a), Some(b)) = (rms(a), rms(b)) else {
+            panic!("frame {i}: no shading fit on one device");
+        };
+        assert!((a - b).abs() <= 0.25 * a.max(b), "frame {i}: {a} / {b}");
+    }
 }
 
 /// A depth-only render of the untextured object (the contour's) on the

@@ -31,6 +31,9 @@ pub struct SplatTargets {
     pub(super) view: Option<(Pose, Intrinsics)>,
     /// The occluder set of the last render (its splatter's generation).
     pub(super) occluders: Option<Stamp>,
+    /// [`Attribute::Depth`] comes from the predictors wherever they were
+    /// rendered, with the geometry or not ([`SplatTargets::motion_depth`]).
+    pub(super) motion_depth: bool,
 }
 
 /// What the CPU device's last render left in its targets.
@@ -70,7 +73,17 @@ impl SplatTargets {
             depth_only: false,
             view: None,
             occluders: None,
+            motion_depth: false,
         }
+    }
+
+    /// These targets with [`Attribute::Depth`] read from the predictors
+    /// wherever they were rendered, also beside the geometry: the
+    /// tracker's steps read the predictors' depth (eq. 5), and its check
+    /// renders the normals with them for its shading fit.
+    pub(crate) fn motion_depth(mut self) -> Self {
+        self.motion_depth = true;
+        self
     }
 
     /// Whether these targets are the CPU device's.
@@ -259,9 +272,13 @@ impl SplatTargets {
     }
 
     /// Whether [`Attribute::Depth`] of the last render comes from its
-    /// predictors (rendered without the geometry).
+    /// predictors (rendered without the geometry, or beside it where
+    /// [`SplatTargets::motion_depth`]).
     pub(super) fn depth_from_motion(&self) -> bool {
-        !self.depth_only && self.rendered.is_some_and(|r| r.motion && !r.geometry)
+        !self.depth_only
+            && self
+                .rendered
+                .is_some_and(|r| r.motion && (!r.geometry || self.motion_depth))
     }
 }
 

@@ -232,7 +232,7 @@ impl Tracker {
             },
         )?;
         let geometry = Arc::new(GpuModel::new(device, &model)?);
-        let targets = SplatTargets::new(device, cam.width, cam.height);
+        let targets = SplatTargets::new(device, cam.width, cam.height).motion_depth();
         let (box_lo, box_hi) = {
             let pad = Vector3::repeat(model.radii.iter().fold(0.0f64, |m, &r| m.max(r as f64)));
             let (lo, hi) = model.positions.iter().fold(
@@ -298,7 +298,7 @@ impl Tracker {
             recovery_next: None,
             recovery_hidden: false,
             recovery_tracked: false,
-            edge_history: Vec::new(),
+            steady: Default::default(),
             drift: Default::default(),
             it_only_streak: 0,
             searching: false,

@@ -378,9 +378,10 @@ impl Tracker {
         times.waits.verify = self.device.stats().wait_time.saturating_sub(w_verify);
         if recovering || first_frame {
             d = self.judge_start(d, scores.as_ref());
-        } else {
-            d = self.judge_steady(d, scores.as_ref());
         }
+        // After a loss only the shading's level from before applies
+        // (`recent::History::shading_level`).
+        d = self.judge_steady(d, scores.as_ref());
         let (d, held) = self.confirm_start(d, scores.as_ref(), &start_pose);
         let (status, reason) = match held {
             Some(why) => (Status::Lost, Some(why)),

@@ -19,7 +19,7 @@ use crate::features::{
 use crate::geometry::Pose;
 use crate::gpu::PassChain;
 use crate::pose::{Anchor, Correspondence, Refined};
-use crate::splat::{Attribute, Attributes, GatherMode, GatherSample, Window};
+use crate::splat::{Attribute, GatherMode, GatherSample, Window};
 use nalgebra::Vector2;
 
 /// A KF match: the view's corner, and where it lies in the frame
@@ -117,7 +117,7 @@ impl Tracker {
         let batch = self.device.batch();
         let window = self.view_window(pose);
         let k = self
-            .render_view_in(pose, Attributes::MOTION, window, "KF")?
+            .render_view_in(pose, self.view_attrs(true), window, "KF")?
             .ok_or(StepError::NoKeyframes)?;
         self.stages.kf_render += t.elapsed();
         // The novel view of the window only (its corners in window

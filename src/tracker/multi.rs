@@ -277,7 +277,7 @@ impl Tracker {
         self.recovery_turn = 0;
         self.recovery_next = None;
         self.recovery_hidden = true;
-        self.edge_history.clear();
+        self.steady.clear();
         self.drift.lost();
         TrackResult {
             pose: self.pose,

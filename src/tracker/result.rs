@@ -484,7 +484,8 @@ pub enum LostReason {
 impl LostReason {
     /// A short name of the reason (the refused file's `reason` column):
     /// the check's failure (`not_in_view`, `too_small`, `appearance`,
-    /// `shading_only`, `recovery`, `frozen_frame`, `edge_drop`) or the decision rule (`failed`, `untrusted`,
+    /// `shading_only`, `recovery`, `frozen_frame`, `edge_drop`,
+    /// `shading_drop`) or the decision rule (`failed`, `untrusted`,
     /// `it_only_too_long`, `nothing_to_track_against`, `not_found`,
     /// `confirming`, `unconfirmed`, `occluded`).
     pub fn code(&self) -> &'static str {
@@ -500,6 +501,7 @@ impl LostReason {
             LostReason::Unverified(Unverified::Recovery { .. }) => "recovery",
             LostReason::Unverified(Unverified::FrozenFrame) => "frozen_frame",
             LostReason::Unverified(Unverified::EdgeDrop { .. }) => "edge_drop",
+            LostReason::Unverified(Unverified::ShadingDrop { .. }) => "shading_drop",
             LostReason::NotFound => "not_found",
             LostReason::Confirming { .. } => "confirming",
             LostReason::Unconfirmed { .. } => "unconfirmed",

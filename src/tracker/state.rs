@@ -106,9 +106,9 @@ pub struct Tracker {
     /// frame): during a short loss the last pose is each frame's first
     /// start ([`Tracker::recovery_first`]).
     pub(super) recovery_tracked: bool,
-    /// The edge support of the last tracked frames, oldest first (cleared
-    /// by a lost frame; [`super::steady`]).
-    pub(super) edge_history: Vec<f64>,
+    /// The last tracked frames' edge support and shading, oldest first
+    /// (cleared by a lost frame; [`super::steady`]).
+    pub(super) steady: super::recent::History,
     /// The object's motion before a loss ([`super::drift::Drift`]).
     pub(super) drift: super::drift::Drift,
     /// KF+IT: consecutive frames tracked by IT alone.

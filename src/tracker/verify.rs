@@ -25,6 +25,11 @@
 //!   on edges ([`judge_contour_alone`]): over clutter the outline slips
 //!   onto distractors of the object's colour, whose shading correlates.
 //!
+//! Where the view shows no texture of its own the check also fits the
+//! frame's shading by the render's normals ([`VerifyScores::shading_rms`],
+//! `tracker/shading.rs`), which the track holds to its recent level
+//! (`tracker/steady.rs`).
+//!
 //! Measured at the right pose: ZNCC 0.87-0.99 on the synthetic blob, the
 //! real cube and the (weakly textured) real dragon, whose keyframe
 //! texture still carries its shading; edge support 0.76-0.97 on the real
@@ -115,6 +120,17 @@ pub struct VerifyConfig {
     /// poses at 0.79 of it or more over the synthetic and real sequences,
     /// a wrong pose 18 degrees off at 0.53 (docs/trust.md). 0: off.
     pub edge_drop: f64,
+    /// Most RMS of the frame's shading left unexplained by the render's
+    /// normals ([`VerifyScores::shading_rms`]) for a frame that follows
+    /// tracked frames, as a multiple of the median of the last ten (once
+    /// five are known), where the view shows no texture of its own. A
+    /// near-symmetric untextured object that slips about its axis keeps
+    /// its outline on edges; its shading does not follow. Measured: right
+    /// poses at 1.46 times the recent level or less on fresh renders over
+    /// the synthetic and real sequences, the slipping `plain` at 2.4 (6
+    /// degrees off) and 2.9-4.9 (6-12 degrees off) (docs/trust.md). 0:
+    /// off.
+    pub shading_drop: f64,
 }
 
 impl VerifyConfig {
@@ -143,6 +159,7 @@ impl Default for VerifyConfig {
             edge_contrast: 3.0,
             edge_band_px: 8,
             edge_drop: 0.7,
+            shading_drop: 2.0,
         }
     }
 }
@@ -170,6 +187,15 @@ pub struct VerifyScores {
     /// nothing but shading to correlate.
     #[serde(default)]
     pub view_texture: Option<f64>,
+    /// The RMS (grey levels 0..1) of the frame's brightness over the
+    /// view's inner pixels left after the best fit by the render's normals
+    /// (nine spherical-harmonic terms: any distant light and ambient;
+    /// `tracker/shading.rs`). Measured only where the view shows no texture
+    /// of its own (neither keyframes nor model colours, or the last
+    /// check's view untextured); `None` elsewhere and under 100 such
+    /// pixels.
+    #[serde(default)]
+    pub shading_rms: Option<f64>,
 }
 
 /// Why a pose failed the check.
@@ -231,6 +257,16 @@ pub enum Unverified {
         /// [`VerifyConfig::edge_drop`].
         ratio: f64,
     },
+    /// The render's normals explain the frame's shading far worse than
+    /// at the track's recent frames ([`VerifyConfig::shading_drop`]).
+    ShadingDrop {
+        /// [`VerifyScores::shading_rms`].
+        shading_rms: f64,
+        /// The median of the recent tracked frames'.
+        recent: f64,
+        /// [`VerifyConfig::shading_drop`].
+        ratio: f64,
+    },
 }
 
 impl fmt::Display for Unverified {
@@ -277,6 +313,14 @@ impl fmt::Display for Unverified {
                 f,
                 "contour edge support {edge_support:.2} fell below {ratio:.2} of the recent frames' {recent:.2}"
             ),
+            Unverified::ShadingDrop {
+                shading_rms,
+                recent,
+                ratio,
+            } => write!(
+                f,
+                "shading unlike the model's at this pose: {shading_rms:.3} RMS left by its normals, over {ratio:.1} times the recent frames' {recent:.3}"
+            ),
         }
     }
 }
@@ -311,6 +355,7 @@ pub fn score(
         zncc,
         edge_support: edge_support(frame, covered, cfg),
         view_texture,
+        shading_rms: None,
     }
 }
 

@@ -320,6 +320,9 @@ impl GpuCheck {
             } else {
                 None
             },
+            // The tracker fits the shading beside these sums
+            // (`Tracker::with_shading`).
+            shading_rms: None,
         })
     }
 

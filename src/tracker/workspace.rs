@@ -105,7 +105,7 @@ impl Tracker {
             .position(|t| (t.width(), t.height()) == (w.width, w.height))
         {
             Some(i) => self.spare.remove(i),
-            None => SplatTargets::new(&self.device, w.width, w.height),
+            None => SplatTargets::new(&self.device, w.width, w.height).motion_depth(),
         }
     }
 

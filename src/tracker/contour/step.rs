@@ -265,7 +265,8 @@ impl Tracker {
             // The check's view (its attributes, textured by the keyframe
             // it would take), its visibility depth kept: the points are a
             // depth-only render's.
-            self.render_view_keeping_depth(pose, Attributes::MOTION, window)?;
+            let attrs = self.view_attrs(true);
+            self.render_view_keeping_depth(pose, attrs, window)?;
         } else if depth_only {
             self.splatter.render_depth(
                 &self.device,

@@ -61,6 +61,7 @@ fn out_of_view_and_tiny_objects_fail_first() {
         zncc: Some(0.9),
         edge_support: Some(0.9),
         view_texture: None,
+        shading_rms: None,
     };
     assert_eq!(
         judge(&s, &cfg).unwrap_err().to_string(),
@@ -93,6 +94,7 @@ fn s(zncc: Option<f64>, edge: f64) -> VerifyScores {
         zncc,
         edge_support: Some(edge),
         view_texture: None,
+        shading_rms: None,
     }
 }
 
