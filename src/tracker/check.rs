@@ -160,6 +160,7 @@ impl super::Tracker {
             self.note_timings("check score", t);
             return Ok((s, near));
         }
+        let frame_in = frame;
         let frame = Placed::full(frame.grey()).crop(&window);
         let weight = self
             .splatter
@@ -177,7 +178,7 @@ impl super::Tracker {
         } else {
             None
         };
-        let mut s = score(
+        let s = score(
             &frame,
             &covered,
             view.as_deref(),
@@ -185,12 +186,7 @@ impl super::Tracker {
             step,
             &self.config.verify,
         );
-        if fit {
-            let normals = self
-                .splatter
-                .read(&self.device, &self.targets, Attribute::Normal)?;
-            s.shading_rms = shading_rms(&frame, &covered, &normals.data);
-        }
+        let s = self.with_shading(s, fit, frame_in, &window)?;
         self.keep_render(rendered_at);
         Ok((s, near))
     }
@@ -215,9 +211,10 @@ impl super::Tracker {
     }
 
     /// `s` with [`VerifyScores::shading_rms`] of the render the targets
-    /// hold (in `window`) against `frame`, where `fit`: the GPU check's
-    /// scores, whose sums leave it out (the coverage and normals are read
-    /// back for it).
+    /// hold (in `window`) against `frame`, where `fit`. The normals are
+    /// read (on a GPU, read back: the check's sums leave the fit out) and
+    /// give the coverage too: NaN where no splat reaches (and where the
+    /// splats' normals cancel, which leaves no normal to fit either).
     fn with_shading(
         &mut self,
         mut s: VerifyScores,
@@ -229,13 +226,10 @@ impl super::Tracker {
         if !fit || s.covered_px == 0 {
             return Ok(s);
         }
-        let weight = self
-            .splatter
-            .read(&self.device, &self.targets, Attribute::Weight)?;
-        let covered: Vec<bool> = weight.data.iter().map(|v| *v > 0.0).collect();
         let normals = self
             .splatter
             .read(&self.device, &self.targets, Attribute::Normal)?;
+        let covered: Vec<bool> = normals.data.chunks(3).map(|n| !n[0].is_nan()).collect();
         let frame = Placed::full(frame.grey()).crop(window);
         s.shading_rms = shading_rms(&frame, &covered, &normals.data);
         Ok(s)
