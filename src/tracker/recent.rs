@@ -6,7 +6,7 @@
 use super::verify::{Unverified, VerifyScores};
 
 /// The tracked frames whose scores the medians are taken over.
-pub(super) const HISTORY: usize = 10;
+const HISTORY: usize = 10;
 
 /// Tracked frames needed before the rules apply.
 const LEAST_HISTORY: usize = 5;
@@ -14,7 +14,7 @@ const LEAST_HISTORY: usize = 5;
 /// Lost frames after which the shading's level from before a loss no
 /// longer holds ([`History::shading_level`]): a lasting change (a hand
 /// over the object, another light) refuses no longer than this.
-pub(super) const LEVEL_KEPT_FRAMES: usize = 30;
+const LEVEL_KEPT_FRAMES: usize = 30;
 
 /// The last tracked frames' scores, oldest first (cleared by a lost
 /// frame), and the shading's level from before the last loss.
@@ -85,7 +85,7 @@ impl History {
 
 /// The median of the last [`HISTORY`] values of `history`; `None` where
 /// fewer than [`LEAST_HISTORY`] are known.
-pub(super) fn recent(history: &[f64]) -> Option<f64> {
+fn recent(history: &[f64]) -> Option<f64> {
     if history.len() < LEAST_HISTORY {
         return None;
     }

@@ -28,7 +28,7 @@ use nalgebra::{SMatrix, SVector};
 const TERMS: usize = 9;
 
 /// Fewest pixels a fit is made over.
-pub(crate) const MIN_SHADING_PIXELS: usize = 100;
+const MIN_SHADING_PIXELS: usize = 100;
 
 /// The nine basis terms of unit normal `n` (camera frame).
 fn basis(n: [f64; 3]) -> [f64; TERMS] {
@@ -49,10 +49,10 @@ fn basis(n: [f64; 3]) -> [f64; TERMS] {
 /// The RMS (grey levels 0..1) of the frame's brightness left after the
 /// best fit of the nine terms of the render's normals, over the inner
 /// pixels of the view (covered, with their four neighbours; every other
-/// one, in a checkerboard): `frame` and
-/// `covered` of one size, `normals` three floats a pixel (camera frame;
-/// NaN or zero where empty). `None` under [`MIN_SHADING_PIXELS`] such
-/// pixels with a normal and a finite frame value.
+/// one, in a checkerboard): `frame` and `covered` of one size, `normals`
+/// three floats a pixel (camera frame; NaN or zero where empty). `None`
+/// under [`MIN_SHADING_PIXELS`] such pixels with a normal and a finite
+/// frame value.
 pub(crate) fn shading_rms(frame: &GreyImage, covered: &[bool], normals: &[f32]) -> Option<f64> {
     let (w, h) = (frame.width, frame.height);
     debug_assert_eq!(covered.len(), w * h);
