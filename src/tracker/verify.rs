@@ -262,7 +262,9 @@ pub enum Unverified {
     ShadingDrop {
         /// [`VerifyScores::shading_rms`].
         shading_rms: f64,
-        /// The median of the recent tracked frames'.
+        /// The level it was held to: the median of the recent tracked
+        /// frames', or during a loss's first frames the one from before
+        /// it.
         recent: f64,
         /// [`VerifyConfig::shading_drop`].
         ratio: f64,

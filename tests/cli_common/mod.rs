@@ -103,3 +103,39 @@ pub fn ffmpeg(args: &[&str]) {
         String::from_utf8_lossy(&out.stderr)
     );
 }
+
+/// The frames of the pose file `out` reported `tracking`, each asserted
+/// within `bound_deg` degrees of the ground truth `gt` (a pose file from
+/// the same first frame on); `refused` (the refused estimates' file) is
+/// printed with a failure, `what` names the run. (frames tracking, frames
+/// in `out`).
+pub fn tracking_within(
+    out: &Path,
+    gt: &Path,
+    refused: &Path,
+    bound_deg: f64,
+    what: &str,
+) -> (usize, usize) {
+    use splattrack::io::read_poses;
+    let rows = read_poses(out).unwrap();
+    let gt = read_poses(gt).unwrap();
+    assert!(
+        rows.len() <= gt.len(),
+        "{what}: more frames than the truth's"
+    );
+    let refusals = std::fs::read_to_string(refused).unwrap_or_default();
+    let mut tracking = 0;
+    for (r, g) in rows.iter().zip(&gt) {
+        if r.extra[2].1 != "tracking" {
+            continue;
+        }
+        tracking += 1;
+        let rot = r.pose.rotation_error_deg(&g.pose);
+        assert!(
+            rot < bound_deg,
+            "{what}: frame {} tracking {rot:.1} degrees off; refused:\n{refusals}",
+            r.frame
+        );
+    }
+    (tracking, rows.len())
+}
