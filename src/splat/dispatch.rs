@@ -5,6 +5,7 @@
 //! take a context and are refused on the CPU device.
 
 use super::SplatImage;
+use super::cpu_device::{self, Depth};
 use super::error::SplatError;
 use super::model::GpuModel;
 use super::occluders::{Occluder, OccluderSet};
@@ -12,7 +13,7 @@ use super::params::{Backend, SplatParams};
 use super::resolve::PendingGather;
 use super::splatter::GpuSplatter;
 use super::targets::SplatTargets;
-use super::{Attribute, Attributes, GatherMode, GatherSample, cpu_device};
+use super::{Attribute, Attributes, GatherMode, GatherSample};
 use crate::device::AsDevice;
 use crate::geometry::{Intrinsics, Pose};
 use crate::gpu::{GpuContext, GpuTimer, PassChain};
@@ -224,16 +225,26 @@ impl Splatter {
                 let occluders = &self.occluders;
                 g.render_timed(ctx, model, cam, pose, attrs, targets, timer, occluders)?
             }
-            None => cpu_device::render(
-                self.host_parts(),
-                model,
-                cam,
-                pose,
-                attrs,
-                cpu_device::Depth::Averaged,
-                targets,
-            )?,
+            None => {
+                return self.render_on_host(model, cam, pose, attrs, Depth::Averaged, targets);
+            }
         }
+        targets.occluders = Some(self.occluders.stamp());
+        Ok(())
+    }
+
+    /// The CPU device's render (`depth` says which depth it keeps), its
+    /// targets stamped with the occluders it was made behind.
+    fn render_on_host(
+        &self,
+        model: &GpuModel,
+        cam: &Intrinsics,
+        pose: &Pose,
+        attrs: Attributes,
+        depth: Depth,
+        targets: &mut SplatTargets,
+    ) -> Result<(), SplatError> {
+        cpu_device::render(self.host_parts(), model, cam, pose, attrs, depth, targets)?;
         targets.occluders = Some(self.occluders.stamp());
         Ok(())
     }
@@ -258,10 +269,7 @@ impl Splatter {
                 "a render that keeps its visibility depth runs on the CPU device only".into(),
             ));
         }
-        let depth = cpu_device::Depth::Kept;
-        cpu_device::render(self.host_parts(), model, cam, pose, attrs, depth, targets)?;
-        targets.occluders = Some(self.occluders.stamp());
-        Ok(())
+        self.render_on_host(model, cam, pose, attrs, Depth::Kept, targets)
     }
 
     /// A depth-only render: the visibility pass alone (one pass over the

@@ -153,14 +153,18 @@ impl super::Tracker {
                     .map_err(crate::splat::SplatError::from)?
             };
             let t = check.take_timings();
-            let s = self.with_shading(s, fit, frame, &window)?;
+            let s = if fit {
+                let frame = Placed::full(frame.grey()).crop(&window);
+                self.with_shading(s, &frame)?
+            } else {
+                s
+            };
             // The render serves the next frame's IT step (after its
             // resolves were recorded).
             self.keep_render(rendered_at);
             self.note_timings("check score", t);
             return Ok((s, near));
         }
-        let frame_in = frame;
         let frame = Placed::full(frame.grey()).crop(&window);
         let weight = self
             .splatter
@@ -186,7 +190,11 @@ impl super::Tracker {
             step,
             &self.config.verify,
         );
-        let s = self.with_shading(s, fit, frame_in, &window)?;
+        let s = if fit {
+            self.with_shading(s, &frame)?
+        } else {
+            s
+        };
         self.keep_render(rendered_at);
         Ok((s, near))
     }
@@ -211,27 +219,21 @@ impl super::Tracker {
     }
 
     /// `s` with [`VerifyScores::shading_rms`] of the render the targets
-    /// hold (in `window`) against `frame`, where `fit`. The normals are
+    /// hold against `frame` (its window's grey levels). The normals are
     /// read (on a GPU, read back: the check's sums leave the fit out) and
     /// give the coverage too: NaN where no splat reaches (and where the
     /// splats' normals cancel, which leaves no normal to fit either).
     fn with_shading(
         &mut self,
         mut s: VerifyScores,
-        fit: bool,
-        frame: &Frame,
-        window: &crate::splat::Window,
+        frame: &GreyImage,
     ) -> Result<VerifyScores, super::TrackError> {
-        use crate::splat::Attribute;
-        if !fit || s.covered_px == 0 {
-            return Ok(s);
+        if s.covered_px > 0 {
+            let normals =
+                self.splatter
+                    .read(&self.device, &self.targets, crate::splat::Attribute::Normal)?;
+            s.shading_rms = shading_rms(frame, &normals.data);
         }
-        let normals = self
-            .splatter
-            .read(&self.device, &self.targets, Attribute::Normal)?;
-        let covered: Vec<bool> = normals.data.chunks(3).map(|n| !n[0].is_nan()).collect();
-        let frame = Placed::full(frame.grey()).crop(window);
-        s.shading_rms = shading_rms(&frame, &covered, &normals.data);
         Ok(s)
     }
 }

@@ -48,15 +48,15 @@ fn basis(n: [f64; 3]) -> [f64; TERMS] {
 
 /// The RMS (grey levels 0..1) of the frame's brightness left after the
 /// best fit of the nine terms of the render's normals, over the inner
-/// pixels of the view (covered, with their four neighbours; every other
-/// one, in a checkerboard): `frame` and `covered` of one size, `normals`
-/// three floats a pixel (camera frame; NaN or zero where empty). `None`
-/// under [`MIN_SHADING_PIXELS`] such pixels with a normal and a finite
-/// frame value.
-pub(crate) fn shading_rms(frame: &GreyImage, covered: &[bool], normals: &[f32]) -> Option<f64> {
+/// pixels of the view (with a normal, as are their four neighbours; every
+/// other one, in a checkerboard): `frame` one grey level a pixel,
+/// `normals` three floats a pixel of the same image (camera frame; NaN
+/// where empty, as the splatter's reads give them). `None` under
+/// [`MIN_SHADING_PIXELS`] such pixels with a finite frame value.
+pub(crate) fn shading_rms(frame: &GreyImage, normals: &[f32]) -> Option<f64> {
     let (w, h) = (frame.width, frame.height);
-    debug_assert_eq!(covered.len(), w * h);
     debug_assert_eq!(normals.len(), 3 * w * h);
+    let covered = |i: usize| !normals[3 * i].is_nan();
     let mut sums = Sums::default();
     for y in 1..h.saturating_sub(1) {
         // Every other pixel, in a checkerboard: nine terms need far fewer
@@ -64,15 +64,15 @@ pub(crate) fn shading_rms(frame: &GreyImage, covered: &[bool], normals: &[f32]) 
         for x in (1 + (y + 1) % 2..w.saturating_sub(1)).step_by(2) {
             let i = y * w + x;
             let inner =
-                covered[i] && covered[i - 1] && covered[i + 1] && covered[i - w] && covered[i + w];
+                covered(i) && covered(i - 1) && covered(i + 1) && covered(i - w) && covered(i + w);
             if !inner {
                 continue;
             }
             let n = [0, 1, 2].map(|k| normals[3 * i + k] as f64);
             let len = (n[0] * n[0] + n[1] * n[1] + n[2] * n[2]).sqrt();
             let b = frame.data[i] as f64;
-            // NaN normals (empty) and frame values (outside the image)
-            // fail these.
+            // Zero normals and frame values outside the image (NaN) fail
+            // these.
             if len > 1e-6 && b.is_finite() {
                 sums.add(&basis(n.map(|c| c / len)), b);
             }
@@ -221,24 +221,24 @@ mod tests {
     #[test]
     fn a_lit_matte_shape_leaves_its_noise_and_a_wrong_pose_more() {
         let (w, r) = (96, 40.0);
-        let (covered, normals) = faceted(w, r, 0.0);
+        let (_, normals) = faceted(w, r, 0.0);
         // Without noise what is left is the clamped shadow's edge, which
         // nine terms smooth: measured 0.016, under 3% of the light's gain
         // (0.6).
-        let clean = shading_rms(&lit(w, r, 0.0, false), &covered, &normals).unwrap();
+        let clean = shading_rms(&lit(w, r, 0.0, false), &normals).unwrap();
         assert!(clean < 0.018, "{clean}");
         // With noise of 0.01 the two add in quadrature (0.019).
         let frame = lit(w, r, 0.01, false);
-        let right = shading_rms(&frame, &covered, &normals).unwrap();
+        let right = shading_rms(&frame, &normals).unwrap();
         assert!(right < 0.021, "{right}");
         // The same outline turned about the view axis by 34 degrees (a
         // symmetric outline slipped): the facet's normals land where the
         // frame shows the sphere's, and the reverse. Measured 0.032.
         let (_, turned) = faceted(w, r, 0.6);
-        let wrong = shading_rms(&frame, &covered, &turned).unwrap();
+        let wrong = shading_rms(&frame, &turned).unwrap();
         assert!(wrong > 1.5 * right, "{wrong} vs {right}");
         // A spot the shape does not explain stays in the residual.
-        let spotted = shading_rms(&lit(w, r, 0.01, true), &covered, &normals).unwrap();
+        let spotted = shading_rms(&lit(w, r, 0.01, true), &normals).unwrap();
         assert!(spotted > 2.0 * right, "{spotted} vs {right}");
     }
 
@@ -257,7 +257,7 @@ mod tests {
                 0.0
             }
         });
-        let rms = shading_rms(&frame, &covered, &normals).unwrap();
+        let rms = shading_rms(&frame, &normals).unwrap();
         assert!(rms < 1e-5, "{rms}");
     }
 
@@ -266,22 +266,21 @@ mod tests {
         // One normal everywhere: the terms are collinear; the fit is the
         // mean, the RMS the frame's spread about it.
         let w = 32;
-        let covered = vec![true; w * w];
         let normals: Vec<f32> = (0..w * w).flat_map(|_| [0.0f32, 0.0, -1.0]).collect();
         let frame = GreyImage::from_fn(w, w, |x, _| if x % 2 == 0 { 0.4 } else { 0.6 });
-        let rms = shading_rms(&frame, &covered, &normals).unwrap();
+        let rms = shading_rms(&frame, &normals).unwrap();
         assert!((rms - 0.1).abs() < 1e-6, "{rms}");
         // Under MIN_SHADING_PIXELS inner pixels (9 x 9 covered: 7 x 7
         // inner): no fit.
-        let mut small = vec![false; w * w];
+        let mut small = vec![f32::NAN; 3 * w * w];
         for y in 0..9 {
             for x in 0..9 {
-                small[y * w + x] = true;
+                small[3 * (y * w + x)..3 * (y * w + x) + 3].copy_from_slice(&[0.0, 0.0, -1.0]);
             }
         }
-        assert_eq!(shading_rms(&frame, &small, &normals), None);
+        assert_eq!(shading_rms(&frame, &small), None);
         // Empty normals (NaN) are left out.
         let nan = vec![f32::NAN; 3 * w * w];
-        assert_eq!(shading_rms(&frame, &covered, &nan), None);
+        assert_eq!(shading_rms(&frame, &nan), None);
     }
 }
